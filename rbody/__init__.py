@@ -1,0 +1,20 @@
+"""rbody: rigid-body mechanics from first principles, every scene with its exact solution.
+
+Units are SI throughout; z is up; quaternions are (w, x, y, z); inertia tensors are about the
+centre of mass with products of inertia carrying the minus sign (I_ab = sum m (|x|^2 d_ab - x_a x_b)).
+"""
+
+from rbody.inertia import Inertia
+from rbody.motion import RigidMotion, point_velocity
+from rbody.particles import Particles, reduced_mass, two_body
+from rbody.scene import Body, Contact, Joint, Layout, Scene, Shape
+from rbody.trajectory import Trajectory
+from rbody.errors import MethodNotApplicable, SimulationError
+from rbody.engine import METHODS, METHOD_ORDER, simulate
+from rbody import scenes
+
+__all__ = [
+    "Inertia", "RigidMotion", "point_velocity", "Particles", "reduced_mass", "two_body",
+    "Body", "Contact", "Joint", "Layout", "Scene", "Shape", "Trajectory",
+    "SimulationError", "MethodNotApplicable", "METHODS", "METHOD_ORDER", "simulate", "scenes",
+]

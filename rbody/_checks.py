@@ -1,0 +1,63 @@
+"""Input checks shared by every constructor: each failure is a ValueError naming the value and the rule."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+
+def finite_array(value: Any, name: str, *, shape: tuple | None = None, ndim: int | None = None) -> np.ndarray:
+    """float64 copy of `value`, checked finite and (optionally) of a given shape or rank."""
+    try:
+        array = np.array(value, dtype=np.float64)
+    except (TypeError, ValueError) as error:
+        raise ValueError(f"{name}={value!r}: expected numbers ({error})") from None
+    if shape is not None and array.shape != tuple(shape):
+        raise ValueError(f"{name} has shape {array.shape}: expected {tuple(shape)}")
+    if ndim is not None and array.ndim != ndim:
+        raise ValueError(f"{name} has {array.ndim} dimensions: expected {ndim}")
+    if not np.all(np.isfinite(array)):
+        raise ValueError(f"{name}={_short(array)}: every value must be finite (no NaN or inf)")
+    return array
+
+
+def positive(value: Any, name: str) -> Any:
+    """`value` (scalar or array) checked finite and > 0; a float for a scalar, else a float64 array."""
+    array = finite_array(value, name)
+    if np.any(array <= 0):
+        raise ValueError(f"{name}={_short(array)}: must be > 0")
+    return float(array) if array.ndim == 0 else array
+
+
+def nonnegative(value: Any, name: str) -> Any:
+    """`value` checked finite and >= 0."""
+    array = finite_array(value, name)
+    if np.any(array < 0):
+        raise ValueError(f"{name}={_short(array)}: must be >= 0")
+    return float(array) if array.ndim == 0 else array
+
+
+def in_interval(value: Any, name: str, low: float, high: float, *, closed: bool = False) -> Any:
+    """`value` checked finite and inside (low, high), or [low, high] when closed."""
+    array = finite_array(value, name)
+    inside = (array >= low) & (array <= high) if closed else (array > low) & (array < high)
+    if not np.all(inside):
+        brackets = "[]" if closed else "()"
+        raise ValueError(f"{name}={_short(array)}: must lie in {brackets[0]}{low}, {high}{brackets[1]}")
+    return float(array) if array.ndim == 0 else array
+
+
+def one_of(value: Any, name: str, choices) -> Any:
+    """`value` checked to be one of `choices` (the message lists them)."""
+    if value not in choices:
+        raise ValueError(f"{name}={value!r}: expected one of {', '.join(map(repr, choices))}")
+    return value
+
+
+def _short(array: np.ndarray) -> str:
+    if array.ndim == 0:
+        return repr(float(array))
+    if array.size <= 6:
+        return repr(array.tolist())
+    return f"array of shape {array.shape} containing {array.ravel()[:3].tolist()}..."

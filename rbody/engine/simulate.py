@@ -1,0 +1,119 @@
+"""simulate(scene, dt, method): the native run, in the fewest coordinates of each scene.
+
+The pipeline of a time-stepped run, as a short list of calls:
+
+    model = scene.native()                    # minimal coordinates, compiled rhs/accel, batch of states
+    out   = _integrate(model, method, ...)    # the compiled loop of the method
+    data  = model.observe(t, out)             # observables, (T, *batch, ...)
+
+Event-driven scenes (impacts) are run event by event instead (scene.run_events): the time step
+only sets where the trajectory is sampled.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from rbody._checks import finite_array
+from rbody.engine import integrators
+from rbody.errors import MethodNotApplicable, SimulationError
+from rbody.scene import Scene
+from rbody.trajectory import Trajectory
+
+EVENT_METHOD = "events"
+
+
+def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float | None = None,
+             save_every: int = 1) -> Trajectory:
+    """Run `scene` natively.
+
+    dt:         time step [s] (event-driven scenes: the sampling interval of the trajectory only)
+    method:     one of rbody.METHODS; default "verlet" where it applies, else the scene's first
+                method; "events" (the only choice) for event-driven scenes
+    t_end:      duration [s], default scene.t_end
+    save_every: keep every n-th step (n >= 1)
+    Returns a Trajectory whose observables have shape (T, *scene.batch_shape, ...).
+    Raises ValueError for bad arguments, MethodNotApplicable when the method cannot run the scene,
+    SimulationError when a step gives a non-finite state.
+    """
+    if not isinstance(scene, Scene):
+        raise ValueError(f"scene={scene!r}: expected an rbody.Scene (see rbody.scenes)")
+    t_end = scene.t_end if t_end is None else float(finite_array(t_end, "t_end"))
+    if not t_end > 0:
+        raise ValueError(f"t_end={t_end!r}: must be > 0 [s]")
+    dt = float(finite_array(dt, "dt"))
+    if not 0 < dt <= t_end:
+        raise ValueError(f"dt={dt!r}: must satisfy 0 < dt <= t_end={t_end} [s]")
+    if not isinstance(save_every, (int, np.integer)) or isinstance(save_every, bool) or save_every < 1:
+        raise ValueError(f"save_every={save_every!r}: expected a whole number >= 1")
+    method = _choose_method(scene, method)
+
+    if scene.event_driven:
+        return scene.run_events(t_end, dt * save_every)
+
+    model = scene.native()
+    nsteps = _steps(t_end, dt, save_every)
+    out = np.empty((nsteps // save_every + 1,) + model.y0.shape)
+    failed = _integrate(model, method, dt, nsteps, save_every, out)
+    if np.any(failed >= 0):
+        b = int(np.argmax(failed >= 0))
+        raise SimulationError(
+            f"scene {scene.describe()}: method {method!r} with dt={dt} gave a non-finite state at "
+            f"t={failed[b] * dt:.6g} s (batch element {b}); try a smaller dt or a method of higher "
+            "order or stability (rk4, gauss6)")
+    t = np.arange(out.shape[0]) * (dt * save_every)
+    data = model.observe(t, out)
+    data = {name: value.reshape((t.size,) + scene.batch_shape + value.shape[2:]) for name, value in data.items()}
+    return Trajectory(t, data, meta={"scene": scene.name, "backend": "rbody", "method": method, "dt": dt})
+
+
+def _choose_method(scene: Scene, method: str | None) -> str:
+    valid = integrators.METHODS + (EVENT_METHOD,)
+    if method is not None and method not in valid:
+        raise ValueError(f"method={method!r}: expected one of {', '.join(map(repr, valid))}")
+    if scene.event_driven:
+        if method not in (None, EVENT_METHOD):
+            raise MethodNotApplicable(
+                f"scene {scene.name!r} is event-driven: its impacts are found exactly and there is no "
+                f"integrator to choose (method={method!r}); use method='events' or leave it out — dt only "
+                "sets the sampling")
+        return EVENT_METHOD
+    if method is None:
+        return "verlet" if "verlet" in scene.methods else scene.methods[0]
+    if method not in scene.methods:
+        raise MethodNotApplicable(
+            f"method={method!r} cannot run scene {scene.name!r}: {scene.why_not(method)}; methods that "
+            f"apply: {', '.join(scene.methods)}")
+    return method
+
+
+def _steps(t_end: float, dt: float, save_every: int) -> int:
+    """Number of steps: t_end/dt rounded up (to round-off), then up to a multiple of save_every."""
+    nsteps = max(1, math.ceil(t_end / dt * (1 - 1e-12)))
+    return -(-nsteps // save_every) * save_every
+
+
+def _integrate(model, method: str, dt: float, nsteps: int, save_every: int, out: np.ndarray) -> np.ndarray:
+    y0, p = np.ascontiguousarray(model.y0, dtype=np.float64), np.ascontiguousarray(model.params, dtype=np.float64)
+    if method == "euler":
+        return integrators.run_euler(model.rhs, y0, p, dt, nsteps, save_every, out)
+    if method == "rk4":
+        return integrators.run_rk4(model.rhs, y0, p, dt, nsteps, save_every, out)
+    if method == "gauss6":
+        return integrators.run_gauss6(model.rhs, integrators.GAUSS6_A, integrators.GAUSS6_B,
+                                      y0, p, dt, nsteps, save_every, out)
+    if method == "reference":
+        return integrators.run_reference(model.rhs, y0, p, dt, nsteps, save_every, out)
+    if method in model.split:  # the scene's own flows (free rotation: "splitting", "yoshida6")
+        step, weights = model.split[method]
+        return integrators.run_composed_flow(step, weights, y0, p, dt, nsteps, save_every, out)
+    if method == "symplectic_euler":
+        return integrators.run_symplectic_euler(model.accel, y0, p, dt, nsteps, save_every, out)
+    if method == "verlet":
+        return integrators.run_composed_verlet(model.accel, np.ones(1), y0, p, dt, nsteps, save_every, out)
+    if method == "yoshida6":
+        return integrators.run_composed_verlet(model.accel, integrators.YOSHIDA6, y0, p, dt, nsteps,
+                                               save_every, out)
+    raise MethodNotApplicable(f"method={method!r} has no native model for this scene")

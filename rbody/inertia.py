@@ -1,0 +1,260 @@
+"""Mass properties of a rigid body: mass, centre of mass and the inertia tensor.
+
+The chapter defines the inertia tensor of a system of particles as
+
+    I_ab = sum_i m_i (|x_i|^2 d_ab - x_ia x_ib),
+
+so the products of inertia (a != b) carry a minus sign. ``Inertia.tensor`` is always taken
+about the centre of mass, in the axes of the frame the body is given in.  ``about(point)``
+applies the parallel-axis theorem, ``rotated(R)`` maps the tensor to R I R^T; no name does both.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Iterable, Union
+
+import numpy as np
+
+from rbody._checks import finite_array, positive
+
+AxisLike = Union[str, Iterable[float], np.ndarray]
+
+# Relative tolerance of the symmetry and triangle-inequality checks on construction.
+STRUCTURE_RTOL = 1e-12
+
+
+def unit_axis(axis: AxisLike, name: str = "axis") -> np.ndarray:
+    """(3,) unit vector from "x", "y", "z" or a non-zero 3-vector."""
+    if isinstance(axis, str):
+        table = {"x": (1.0, 0.0, 0.0), "y": (0.0, 1.0, 0.0), "z": (0.0, 0.0, 1.0)}
+        if axis not in table:
+            raise ValueError(f"{name}={axis!r}: expected 'x', 'y', 'z' or a 3-vector")
+        return np.array(table[axis])
+    vector = finite_array(axis, name, shape=(3,))
+    norm = np.linalg.norm(vector)
+    if norm == 0.0:
+        raise ValueError(f"{name}={vector.tolist()}: a direction must be non-zero")
+    return vector / norm
+
+
+def _symmetric_tensor(moment_along: float, moment_across: float, axis: AxisLike) -> np.ndarray:
+    """(3,3) tensor of a body symmetric about `axis`: moment_along n n^T + moment_across (1 - n n^T)."""
+    n = unit_axis(axis)
+    projector = np.outer(n, n)
+    return moment_along * projector + moment_across * (np.eye(3) - projector)
+
+
+def _readonly(array: np.ndarray) -> np.ndarray:
+    array = np.array(array, dtype=np.float64)
+    array.flags.writeable = False
+    return array
+
+
+def rotation_matrix(rotation: np.ndarray) -> np.ndarray:
+    """(3,3) proper rotation from a (3,3) matrix or a (w, x, y, z) quaternion, checked."""
+    rotation = np.asarray(rotation, dtype=np.float64)
+    if rotation.shape == (4,):
+        from rbody.motion import quat_to_matrix
+
+        return quat_to_matrix(rotation)
+    matrix = finite_array(rotation, "R", shape=(3, 3))
+    if not np.allclose(matrix @ matrix.T, np.eye(3), atol=1e-10) or np.linalg.det(matrix) < 0:
+        raise ValueError(f"R={matrix.tolist()}: expected a proper rotation (R R^T = 1, det R = +1)")
+    return matrix
+
+
+@dataclass(frozen=True)
+class Inertia:
+    """Mass properties of one rigid body.
+
+    mass:   total mass [kg], finite and > 0
+    com:    (3,) centre of mass in the body's frame [m]
+    tensor: (3,3) inertia tensor about the centre of mass, body-frame axes [kg m^2]
+    """
+
+    mass: float
+    com: np.ndarray
+    tensor: np.ndarray
+
+    def __post_init__(self) -> None:
+        mass = float(positive(self.mass, "mass"))
+        com = finite_array(self.com, "com", shape=(3,))
+        tensor = finite_array(self.tensor, "tensor", shape=(3, 3))
+        scale = max(float(np.max(np.abs(tensor))), np.finfo(float).tiny)
+        asymmetry = float(np.max(np.abs(tensor - tensor.T)))
+        if asymmetry > STRUCTURE_RTOL * scale:
+            raise ValueError(
+                f"tensor={tensor.tolist()}: an inertia tensor must be symmetric "
+                f"(largest |I - I^T| is {asymmetry:.3g}, relative {asymmetry / scale:.3g} > {STRUCTURE_RTOL})"
+            )
+        tensor = 0.5 * (tensor + tensor.T)
+        moments = np.linalg.eigvalsh(tensor)
+        if moments[0] < -STRUCTURE_RTOL * scale:
+            raise ValueError(
+                f"tensor has principal moments {moments.tolist()}: an inertia tensor must be positive "
+                "semi-definite (no negative moment)"
+            )
+        if moments[0] + moments[1] < moments[2] - STRUCTURE_RTOL * scale:
+            raise ValueError(
+                f"tensor has principal moments {moments.tolist()}: they must obey the triangle "
+                f"inequality A + B >= C ({moments[0]:.6g} + {moments[1]:.6g} < {moments[2]:.6g})"
+            )
+        object.__setattr__(self, "mass", mass)
+        object.__setattr__(self, "com", _readonly(com))
+        object.__setattr__(self, "tensor", _readonly(tensor))
+
+    # ----- constructors: uniform bodies centred on the origin -----------------------------------
+
+    @classmethod
+    def point_masses(cls, masses: Iterable[float], positions: Iterable[Iterable[float]]) -> "Inertia":
+        """System of particles: masses (n,) [kg], positions (n, 3) [m].
+
+        Tensor about the centre of mass, I_ab = sum m (|y|^2 d_ab - y_a y_b), y = x - R.
+        """
+        masses = finite_array(masses, "masses", ndim=1)
+        positions = finite_array(positions, "positions", shape=(len(masses), 3))
+        if len(masses) == 0:
+            raise ValueError("masses=[]: a system of particles needs at least one particle")
+        if np.any(masses <= 0):
+            raise ValueError(f"masses={masses.tolist()}: every particle mass must be > 0 [kg]")
+        total = masses.sum()
+        com = masses @ positions / total
+        y = positions - com
+        tensor = np.eye(3) * np.sum(masses * np.sum(y * y, axis=1)) - (masses[:, None] * y).T @ y
+        return cls(total, com, tensor)
+
+    @classmethod
+    def rod(cls, mass: float, length: float, axis: AxisLike = "z") -> "Inertia":
+        """Thin rod along `axis`: M L^2 / 12 across, zero along it."""
+        length = positive(length, "length")
+        return cls(mass, np.zeros(3), _symmetric_tensor(0.0, positive(mass, "mass") * length**2 / 12, axis))
+
+    @classmethod
+    def hoop(cls, mass: float, radius: float, axis: AxisLike = "z") -> "Inertia":
+        """Thin ring normal to `axis`: M a^2 about the axis, M a^2 / 2 across."""
+        moment = positive(mass, "mass") * positive(radius, "radius") ** 2
+        return cls(mass, np.zeros(3), _symmetric_tensor(moment, moment / 2, axis))
+
+    @classmethod
+    def disc(cls, mass: float, radius: float, axis: AxisLike = "z") -> "Inertia":
+        """Thin disc normal to `axis`: M a^2 / 2 about the axis, M a^2 / 4 across."""
+        moment = positive(mass, "mass") * positive(radius, "radius") ** 2
+        return cls(mass, np.zeros(3), _symmetric_tensor(moment / 2, moment / 4, axis))
+
+    @classmethod
+    def solid_cylinder(cls, mass: float, radius: float, length: float, axis: AxisLike = "z") -> "Inertia":
+        """Uniform cylinder: M a^2 / 2 about the axis, M (3 a^2 + L^2) / 12 across."""
+        mass, radius = positive(mass, "mass"), positive(radius, "radius")
+        length = positive(length, "length")
+        return cls(mass, np.zeros(3), _symmetric_tensor(
+            mass * radius**2 / 2, mass * (3 * radius**2 + length**2) / 12, axis))
+
+    @classmethod
+    def hollow_cylinder(
+        cls, mass: float, inner_radius: float, outer_radius: float, length: float, axis: AxisLike = "z"
+    ) -> "Inertia":
+        """Thick-walled tube: M (a^2 + b^2) / 2 about the axis, M (3 (a^2 + b^2) + L^2) / 12 across.
+
+        inner_radius == outer_radius is the thin-walled cylinder, M a^2 about its axis.
+        """
+        mass = positive(mass, "mass")
+        inner = positive(inner_radius, "inner_radius")
+        outer = positive(outer_radius, "outer_radius")
+        length = positive(length, "length")
+        if inner > outer:
+            raise ValueError(
+                f"inner_radius={inner} > outer_radius={outer}: the bore must fit inside the tube")
+        squares = inner**2 + outer**2
+        return cls(mass, np.zeros(3), _symmetric_tensor(
+            mass * squares / 2, mass * (3 * squares + length**2) / 12, axis))
+
+    @classmethod
+    def solid_sphere(cls, mass: float, radius: float) -> "Inertia":
+        """Uniform ball: 2/5 M a^2 about every axis."""
+        moment = 0.4 * positive(mass, "mass") * positive(radius, "radius") ** 2
+        return cls(mass, np.zeros(3), moment * np.eye(3))
+
+    @classmethod
+    def spherical_shell(cls, mass: float, radius: float) -> "Inertia":
+        """Thin spherical shell: 2/3 M a^2 about every axis."""
+        moment = 2.0 / 3.0 * positive(mass, "mass") * positive(radius, "radius") ** 2
+        return cls(mass, np.zeros(3), moment * np.eye(3))
+
+    @classmethod
+    def box(cls, mass: float, size: Iterable[float]) -> "Inertia":
+        """Uniform cuboid with full side lengths size (3,) [m]: I_xx = M (b^2 + c^2) / 12, ..."""
+        mass = positive(mass, "mass")
+        size = finite_array(size, "size", shape=(3,))
+        if np.any(size <= 0):
+            raise ValueError(f"size={size.tolist()}: every side length must be > 0 [m]")
+        a2, b2, c2 = size**2
+        return cls(mass, np.zeros(3), mass / 12 * np.diag([b2 + c2, a2 + c2, a2 + b2]))
+
+    @classmethod
+    def from_mesh(cls, mesh, *, density: float | None = None, mass: float | None = None,
+                  shell: bool = False) -> "Inertia":
+        """Mass properties of a triangle mesh (see rbody.mesh.inertia_from_mesh)."""
+        from rbody.mesh import inertia_from_mesh
+
+        return inertia_from_mesh(mesh, density=density, mass=mass, shell=shell)
+
+    # ----- operations ----------------------------------------------------------------------------
+
+    def about(self, point: Iterable[float]) -> np.ndarray:
+        """(3,3) tensor about `point` (body frame) [kg m^2]: I_c + M (|d|^2 1 - d d^T), d = com - point."""
+        d = self.com - finite_array(point, "point", shape=(3,))
+        return self.tensor + self.mass * (np.dot(d, d) * np.eye(3) - np.outer(d, d))
+
+    def moment(self, axis: AxisLike, through: Iterable[float] | None = None) -> float:
+        """n^T I n [kg m^2] about the line along `axis` through `through` (default: the centre of mass)."""
+        n = unit_axis(axis)
+        tensor = self.tensor if through is None else self.about(through)
+        return float(n @ tensor @ n)
+
+    def rotated(self, rotation: np.ndarray) -> "Inertia":
+        """The body turned by R (3x3 or (w,x,y,z)): tensor R I R^T, centre of mass R c."""
+        matrix = rotation_matrix(rotation)
+        return Inertia(self.mass, matrix @ self.com, matrix @ self.tensor @ matrix.T)
+
+    def translated(self, offset: Iterable[float]) -> "Inertia":
+        """The body moved by offset (3,) [m]; the tensor about its centre of mass is unchanged."""
+        return dataclasses.replace(self, com=self.com + finite_array(offset, "offset", shape=(3,)))
+
+    def principal(self) -> tuple[np.ndarray, np.ndarray]:
+        """Principal moments ascending (3,) [kg m^2] and axes (3,3) as columns, a proper rotation."""
+        moments, axes = np.linalg.eigh(self.tensor)
+        if np.linalg.det(axes) < 0:
+            axes[:, 2] = -axes[:, 2]
+        return moments, axes
+
+    def __add__(self, other: "Inertia") -> "Inertia":
+        """The two bodies joined: masses add, com mass-weighted, tensors shifted to the new com."""
+        if not isinstance(other, Inertia):
+            return NotImplemented
+        mass = self.mass + other.mass
+        com = (self.mass * self.com + other.mass * other.com) / mass
+        return Inertia(mass, com, self.about(com) + other.about(com))
+
+    def angular_momentum(self, omega: Iterable[float]) -> np.ndarray:
+        """L = I w [kg m^2/s] about the centre of mass; omega (..., 3) [rad/s]."""
+        omega = finite_array(omega, "omega")
+        return omega @ self.tensor  # I is symmetric, so w I = (I w)^T row by row
+
+    def kinetic_energy(self, omega: Iterable[float]) -> np.ndarray | float:
+        """T = 1/2 w^T I w [J] of rotation about the centre of mass; omega (..., 3) [rad/s]."""
+        omega = finite_array(omega, "omega")
+        return 0.5 * np.einsum("...a,ab,...b->...", omega, self.tensor, omega)
+
+    def __repr__(self) -> str:
+        return (f"Inertia(mass={self.mass!r}, com={self.com.tolist()!r}, "
+                f"tensor={self.tensor.tolist()!r})")
+
+    def __eq__(self, other: object) -> bool:
+        if not isinstance(other, Inertia):
+            return NotImplemented
+        return (self.mass == other.mass and np.array_equal(self.com, other.com)
+                and np.array_equal(self.tensor, other.tensor))
+
+    __hash__ = None  # type: ignore[assignment]

@@ -1,0 +1,325 @@
+"""The compound pendulum and the chapter's swinging rod.
+
+A rigid body turns about a fixed horizontal axis through a pivot. With I the moment of inertia
+about that axis and d the distance of the centre of mass from it, the chapter's energy
+E = 1/2 I theta'^2 - M g d cos(theta) gives
+
+    theta'' = -w0^2 sin(theta),    w0^2 = M g d / I,
+
+the simple pendulum of length l = I / (M d) (for the rod about its end, I = M L^2/3: l = 2L/3).
+
+Exact motion, with k^2 = sin^2(theta0/2) + omega0^2 / (4 w0^2) = (E + M g d) / (2 M g d):
+- swinging (k < 1): sin(theta/2) = k sn(w0 t + u0 | k^2), theta' = 2 k w0 cn(w0 t + u0 | k^2),
+  period 4 K(k^2) / w0;
+- whirling (k > 1): theta/2 = am(k w0 t + u0 | 1/k^2), theta' = 2 k w0 dn(...), one turn every
+  2 K(1/k^2) / (k w0).
+Near the top (k -> 1) K is evaluated in its complementary form K(m) = ellipkm1(1 - m) with
+1 - m = cos^2(theta0/2) - omega0^2/(4 w0^2) formed without cancellation.
+
+Coordinates: world pivot at the origin, hinge axis along world y, theta = 0 with the centre of
+mass straight below the pivot; positive theta turns the body about +y.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+from numba import njit
+from scipy.special import ellipj, ellipk, ellipkinc, ellipkm1
+
+from rbody._checks import finite_array, positive
+from rbody.inertia import Inertia, AxisLike, unit_axis
+from rbody.motion import quat_from_matrix
+from rbody.scene import Body, BodyStates, Joint, Layout, NativeModel, Scene, Shape
+
+# y = (theta, omega); params = (w0^2, I [kg m^2], M g d [N m])
+
+
+@njit(cache=True)
+def pendulum_rhs(y, p, out):
+    out[0] = y[1]
+    out[1] = -p[0] * np.sin(y[0])
+
+
+@njit(cache=True)
+def pendulum_accel(q, p, out):
+    out[0] = -p[0] * np.sin(q[0])
+
+
+PENDULUM_METHODS = ("euler", "symplectic_euler", "verlet", "rk4", "yoshida6", "gauss6", "reference")
+
+
+@dataclass(frozen=True, kw_only=True)
+class Pendulum(Scene):
+    """A rigid body on a fixed horizontal hinge: the compound pendulum.
+
+    theta0 [rad], omega0 [rad/s] may be arrays (a batch). Subclasses give the moment about the
+    hinge `moment_pivot` [kg m^2], `mass` [kg] and `distance` d of the centre of mass [m].
+    """
+
+    theta0: Any
+    omega0: Any = 0.0
+
+    observables: ClassVar[tuple[str, ...]] = ("theta", "omega", "energy")
+    main_observable: ClassVar[str] = "theta"
+    methods: ClassVar[tuple[str, ...]] = PENDULUM_METHODS
+    batch_fields: ClassVar[tuple[str, ...]] = ("theta0", "omega0")
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        finite_array(self.theta0, "theta0")
+        finite_array(self.omega0, "omega0")
+        self.batch_shape  # noqa: B018 - checks that the parameters broadcast
+
+    # --- the physics, as flat (B,) arrays -------------------------------------------------------
+
+    def _mass(self) -> np.ndarray:
+        raise NotImplementedError
+
+    def _moment_pivot(self) -> np.ndarray:
+        raise NotImplementedError
+
+    def _distance(self) -> np.ndarray:
+        raise NotImplementedError
+
+    def _w0_squared(self) -> np.ndarray:
+        """w0^2 = M g d / I [1/s^2], (B,)."""
+        return self._mass() * self.gravity * self._distance() / self._moment_pivot()
+
+    def _state0(self) -> tuple[np.ndarray, np.ndarray]:
+        return self.batched("theta0"), self.batched("omega0")
+
+    @property
+    def equivalent_length(self) -> np.ndarray | float:
+        """Length I / (M d) [m] of the simple pendulum with the same motion."""
+        return self._unflatten(self._moment_pivot() / (self._mass() * self._distance()))
+
+    @property
+    def modulus(self) -> np.ndarray | float:
+        """k^2 = sin^2(theta0/2) + omega0^2 / (4 w0^2) [-]: < 1 swinging, > 1 whirling."""
+        theta0, omega0 = self._state0()
+        return self._unflatten(np.sin(theta0 / 2) ** 2 + omega0**2 / (4 * self._w0_squared()))
+
+    def _one_minus_modulus(self) -> np.ndarray:
+        """1 - k^2 formed without cancellation near the top."""
+        theta0, omega0 = self._state0()
+        return np.cos(theta0 / 2) ** 2 - omega0**2 / (4 * self._w0_squared())
+
+    @property
+    def period(self) -> np.ndarray | float:
+        """Exact period [s]: 4 K(k^2)/w0 when swinging, 2 K(1/k^2)/(k w0) per turn when whirling;
+        inf on the separatrix and 0... never: a body at rest at the bottom has the small-angle period."""
+        w0 = np.sqrt(self._w0_squared())
+        m = np.broadcast_to(np.asarray(self.modulus, dtype=float), self.batch_shape).reshape(-1)
+        complement = self._one_minus_modulus()
+        with np.errstate(divide="ignore"):
+            swinging = 4 * ellipkm1(np.maximum(complement, 0.0)) / w0
+            k = np.sqrt(np.maximum(m, 1.0))
+            whirling = 2 * ellipk(1.0 / np.maximum(m, 1.0)) / (k * w0)
+        period = np.where(complement > 0, swinging, np.where(complement < 0, whirling, np.inf))
+        return self._unflatten(period)
+
+    def _unflatten(self, flat: np.ndarray) -> np.ndarray | float:
+        shaped = np.asarray(flat).reshape(self.batch_shape)
+        return float(shaped) if shaped.ndim == 0 else shaped
+
+    def energy_of(self, theta: np.ndarray, omega: np.ndarray) -> np.ndarray:
+        """E = 1/2 I omega^2 - M g d cos(theta) [J]; theta, omega (..., B)."""
+        moment, mgd = self._moment_pivot(), self._mass() * self.gravity * self._distance()
+        return 0.5 * moment * omega**2 - mgd * np.cos(theta)
+
+    # --- closed form ---------------------------------------------------------------------------
+
+    def exact(self, t) -> dict[str, np.ndarray]:
+        t = finite_array(t, "t").reshape(-1)[:, None]  # (T, 1) against (B,)
+        theta0, omega0 = self._state0()
+        w0 = np.sqrt(self._w0_squared())
+        m = np.sin(theta0 / 2) ** 2 + omega0**2 / (4 * w0**2)
+        theta = np.empty((t.shape[0], theta0.size))
+        omega = np.empty_like(theta)
+        swinging = self._one_minus_modulus() > 0
+        for b in range(theta0.size):
+            if m[b] == 0.0:
+                theta[:, b], omega[:, b] = 0.0, 0.0
+            elif swinging[b]:
+                theta[:, b], omega[:, b] = _swinging(t[:, 0], theta0[b], omega0[b], w0[b], m[b])
+            else:
+                theta[:, b], omega[:, b] = _whirling(t[:, 0], theta0[b], omega0[b], w0[b], m[b])
+        energy = np.broadcast_to(self.energy_of(theta0, omega0), theta.shape)
+        shape = (t.shape[0],) + self.batch_shape
+        return {"theta": theta.reshape(shape), "omega": omega.reshape(shape),
+                "energy": np.array(energy).reshape(shape)}
+
+    # --- native model ----------------------------------------------------------------------------
+
+    def native(self) -> NativeModel:
+        theta0, omega0 = self._state0()
+        params = np.stack([self._w0_squared(), self._moment_pivot(),
+                           self._mass() * self.gravity * self._distance()], axis=1)
+
+        def observe(t, y):
+            theta, omega = y[..., 0], y[..., 1]
+            return {"theta": theta, "omega": omega, "energy": self.energy_of(theta, omega)}
+
+        return NativeModel(y0=np.stack([theta0, omega0], axis=1), params=params, rhs=pendulum_rhs,
+                           accel=pendulum_accel, observe=observe)
+
+    def why_not(self, method: str) -> str:
+        return f"{method!r} is not a pendulum method"
+
+    # --- what other simulators build ---------------------------------------------------------------
+
+    def observe(self, t, bodies, joints) -> dict[str, np.ndarray]:
+        theta, omega = joints["hinge"]
+        return {"theta": theta, "omega": omega, "energy": self.energy_of(theta, omega)}
+
+
+def _swinging(t: np.ndarray, theta0: float, omega0: float, w0: float, m: float):
+    k = np.sqrt(m)
+    # sn(u0) = sin(theta0/2)/k, cn(u0) = omega0/(2 k w0): u0 = F(phi0 | m) with am(u0) = phi0.
+    phi0 = np.arctan2(np.sin(theta0 / 2), omega0 / (2 * w0))
+    u = w0 * t + ellipkinc(phi0, m)
+    sn, cn, _dn, _ph = ellipj(u, m)
+    return 2 * np.arcsin(np.clip(k * sn, -1.0, 1.0)), 2 * k * w0 * cn
+
+
+def _whirling(t: np.ndarray, theta0: float, omega0: float, w0: float, m: float):
+    k = np.sqrt(m)
+    direction = 1.0 if omega0 > 0 else -1.0
+    parameter = 1.0 / m
+    quarter = ellipk(parameter)
+    u = ellipkinc(theta0 / 2, parameter) + direction * k * w0 * t
+    # am(u), unwrapped: am(u + 2nK) = am(u) + n pi.
+    turns = np.floor((u + quarter) / (2 * quarter))
+    sn, cn, dn, _ph = ellipj(u - 2 * turns * quarter, parameter)
+    return 2 * (turns * np.pi + np.arctan2(sn, cn)), direction * 2 * k * w0 * dn
+
+
+def _hinge_frame(offset_body: np.ndarray, axis_body: np.ndarray) -> np.ndarray:
+    """Rotation taking the body frame to the world at theta = 0: hinge axis -> world y, the part of
+    (com - pivot) across the axis -> world -z (the centre of mass hangs below the pivot)."""
+    e2 = axis_body
+    across = offset_body - (offset_body @ e2) * e2
+    e1 = across / np.linalg.norm(across)
+    body_basis = np.column_stack([e1, e2, np.cross(e1, e2)])
+    world_basis = np.column_stack([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
+    return world_basis @ body_basis.T
+
+
+@dataclass(frozen=True, kw_only=True)
+class CompoundPendulum(Pendulum):
+    """Any Inertia swinging about the axis through `pivot` (3,) (body frame, [m])."""
+
+    body: Inertia
+    pivot: Any = (0.0, 0.0, 0.0)
+    axis: AxisLike = "y"
+    shapes: tuple[Shape, ...] = ()
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not isinstance(self.body, Inertia):
+            raise ValueError(f"body={self.body!r}: expected an rbody.Inertia")
+        pivot = finite_array(self.pivot, "pivot", shape=(3,))
+        axis = unit_axis(self.axis)
+        offset = self.body.com - pivot
+        distance = np.linalg.norm(offset - (offset @ axis) * axis)
+        if distance <= 1e-12 * max(np.linalg.norm(offset), np.sqrt(self.body.moment(axis) / self.body.mass), 1e-300):
+            raise ValueError(
+                f"pivot={pivot.tolist()}: the hinge passes through the centre of mass {self.body.com.tolist()}, "
+                "so gravity exerts no torque and there is no pendulum motion; move the pivot off the centre of mass")
+        object.__setattr__(self, "pivot", tuple(pivot.tolist()))
+        object.__setattr__(self, "axis", tuple(axis.tolist()))
+
+    def _mass(self):
+        return np.full(int(np.prod(self.batch_shape)), self.body.mass)
+
+    def _moment_pivot(self):
+        return np.full_like(self._mass(), self.body.moment(self.axis, through=self.pivot))
+
+    def _distance(self):
+        axis, offset = np.array(self.axis), self.body.com - np.array(self.pivot)
+        return np.full_like(self._mass(), np.linalg.norm(offset - (offset @ axis) * axis))
+
+    def _layout(self) -> Layout:
+        pivot, axis = np.array(self.pivot), np.array(self.axis)
+        rotation = _hinge_frame(self.body.com - pivot, axis)
+        # Body frame placed so that the pivot sits at the world origin and theta = theta0.
+        turn = _rotation_y(self.theta0) @ rotation
+        body = Body("body", self.body, shapes=self.shapes, pos=tuple((-turn @ pivot).tolist()),
+                    quat=tuple(quat_from_matrix(rotation).tolist()))
+        hinge = Joint("hinge", "hinge", "body", axis=tuple(axis.tolist()), anchor=tuple(pivot.tolist()),
+                      qpos0=float(self.theta0), qvel0=float(self.omega0))
+        return Layout(bodies=(body,), joints=(hinge,))
+
+    def describe(self) -> str:
+        return f"{self.name}(m={self.body.mass:g} kg, theta0={self.theta0!r})"
+
+
+def _rotation_y(angle: float) -> np.ndarray:
+    c, s = np.cos(angle), np.sin(angle)
+    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
+
+
+@dataclass(frozen=True, kw_only=True)
+class SwingingRod(Pendulum):
+    """The chapter's rod of length L [m] and mass M [kg] swinging about one end: I = M L^2/3, d = L/2.
+
+    The rod lies along its body z axis from the pivot (z = 0) to z = -L... its centre of mass at
+    z = -L/2 in the frame whose origin is the pivot. length and mass may be arrays (a batch).
+    """
+
+    length: Any
+    mass: Any = 1.0
+    radius_fraction: float = 0.01  # drawing/collision radius as a fraction of L (MuJoCo needs a thickness)
+
+    batch_fields: ClassVar[tuple[str, ...]] = ("theta0", "omega0", "length", "mass")
+
+    def __post_init__(self) -> None:
+        positive(self.length, "length")
+        positive(self.mass, "mass")
+        super().__post_init__()
+
+    def _mass(self):
+        return self.batched("mass")
+
+    def _moment_pivot(self):
+        return self.batched("mass") * self.batched("length") ** 2 / 3
+
+    def _distance(self):
+        return self.batched("length") / 2
+
+    def rod_inertia(self) -> Inertia:
+        """Mass properties of the (unbatched) rod in its body frame, pivot at the origin."""
+        return Inertia.rod(float(self.mass), float(self.length), "z").translated([0, 0, -float(self.length) / 2])
+
+    def _layout(self) -> Layout:
+        length = float(self.length)
+        radius = self.radius_fraction * length
+        shape = Shape("rod", "capsule", (radius, length / 2), pos=(0.0, 0.0, -length / 2))
+        return CompoundPendulum(name=self.name, t_end=self.t_end, gravity=self.gravity, body=self.rod_inertia(),
+                                pivot=(0.0, 0.0, 0.0), axis="y", theta0=self.theta0, omega0=self.omega0,
+                                shapes=(shape,))._layout()
+
+    def describe(self) -> str:
+        return f"{self.name}(L={self.length!r} m, theta0={self.theta0!r} rad)"
+
+
+def compound_pendulum(body: Inertia, *, pivot, axis: AxisLike = "y", theta0, omega0=0.0, t_end: float,
+                      gravity: float = 9.81, shapes: tuple[Shape, ...] = ()) -> CompoundPendulum:
+    """Any rigid body swinging about the fixed axis through `pivot` (body frame [m]).
+
+    theta0 [rad] and omega0 [rad/s] may be arrays (a batch). Observables theta, omega, energy.
+    """
+    return CompoundPendulum(name="compound_pendulum", t_end=t_end, gravity=gravity, body=body, pivot=pivot,
+                            axis=axis, theta0=theta0, omega0=omega0, shapes=tuple(shapes))
+
+
+def swinging_rod(length, mass=1.0, *, theta0, omega0=0.0, t_end: float, gravity: float = 9.81) -> SwingingRod:
+    """The chapter's swinging rod about its end (I = M L^2/3; equivalent simple pendulum 2L/3).
+
+    length [m], mass [kg], theta0 [rad], omega0 [rad/s] may be arrays that broadcast to a batch.
+    """
+    return SwingingRod(name="swinging_rod", t_end=t_end, gravity=gravity, length=length, mass=mass,
+                       theta0=theta0, omega0=omega0)
