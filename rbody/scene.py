@@ -65,7 +65,9 @@ class Shape:
 class Body:
     """A rigid body: its mass properties (body frame), its shapes, its parent and where it starts.
 
-    pos (3,) [m] and quat (4,) place the body frame in the parent's frame at t = 0.
+    pos (3,) [m] and quat (4,) place the body frame in the parent's frame in the reference pose,
+    where every hinge and slide coordinate is zero (as MJCF's body pos/quat); the joints' qpos0 then
+    set the initial state. A free body starts at pos/quat.
     """
 
     name: str
@@ -86,7 +88,10 @@ class Joint:
     kind:   "hinge" (angle about axis through anchor), "slide" (distance along axis), "free"
     axis:   (3,) direction in the body frame; anchor: (3,) point in the body frame [m]
     qpos0, qvel0: initial coordinate [rad or m] and rate [rad/s or m/s] (hinge and slide);
-            free joints start from the body's pos/quat with velocity qvel0 = (v (3,), omega_world (3,)).
+            free joints start from the body's pos/quat with qvel0 = (v (3,) of the body-frame origin,
+            omega (3,)), both in the world frame.
+    A hinge turns the body by +angle about `axis` (right-handed); a slide moves it by +distance along
+    `axis`. Backends report hinge and slide joints as (qpos (T,), qvel (T,)) under the joint's name.
     """
 
     name: str

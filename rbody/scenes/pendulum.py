@@ -245,9 +245,8 @@ class CompoundPendulum(Pendulum):
     def _layout(self) -> Layout:
         pivot, axis = np.array(self.pivot), np.array(self.axis)
         rotation = _hinge_frame(self.body.com - pivot, axis)
-        # Body frame placed so that the pivot sits at the world origin and theta = theta0.
-        turn = _rotation_y(self.theta0) @ rotation
-        body = Body("body", self.body, shapes=self.shapes, pos=tuple((-turn @ pivot).tolist()),
+        # Reference pose (theta = 0): the pivot sits at the world origin, the centre of mass below it.
+        body = Body("body", self.body, shapes=self.shapes, pos=tuple((-rotation @ pivot).tolist()),
                     quat=tuple(quat_from_matrix(rotation).tolist()))
         hinge = Joint("hinge", "hinge", "body", axis=tuple(axis.tolist()), anchor=tuple(pivot.tolist()),
                       qpos0=float(self.theta0), qvel0=float(self.omega0))
@@ -255,11 +254,6 @@ class CompoundPendulum(Pendulum):
 
     def describe(self) -> str:
         return f"{self.name}(m={self.body.mass:g} kg, theta0={self.theta0!r})"
-
-
-def _rotation_y(angle: float) -> np.ndarray:
-    c, s = np.cos(angle), np.sin(angle)
-    return np.array([[c, 0.0, s], [0.0, 1.0, 0.0], [-s, 0.0, c]])
 
 
 @dataclass(frozen=True, kw_only=True)
