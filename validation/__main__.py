@@ -1,0 +1,96 @@
+"""python -m validation [run] | export | bench | hard — see `python -m validation --help`."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
+
+
+def _parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="python -m validation",
+        description="Run rbody's scenes in rbody, MuJoCo and pymunk and compare each with the exact solution.")
+    commands = parser.add_subparsers(dest="command")
+    run = commands.add_parser("run", help="every scene in every backend (the default command)")
+    for p in (parser, run):
+        p.add_argument("--out", type=Path, default=Path("report"), help="report folder (default: report/)")
+        p.add_argument("--quick", action="store_true", help="short runs (a smoke test)")
+        p.add_argument("--update-baselines", action="store_true",
+                       help="rewrite validation/baselines/ from this run")
+        p.add_argument("--backend", action="append", choices=("rbody", "mujoco", "pymunk"),
+                       help="only these backends (repeatable)")
+    export = commands.add_parser("export", help="write the MJCF of every scene into models/")
+    export.add_argument("--out", type=Path, default=MODELS_DIR, help="folder (default: models/)")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = _parser().parse_args(argv)
+    if args.command == "export":
+        from validation.export import export_models
+        for path in export_models(args.out):
+            print(path)
+        return 0
+    return run_all(args.out, quick=args.quick, update=args.update_baselines,
+                   backends=tuple(args.backend) if args.backend else None)
+
+
+def run_all(out: Path, *, quick: bool, update: bool, backends: tuple[str, ...] | None) -> int:
+    """Run every case, print the table, write the report; exit 1 on a regression against baselines."""
+    from validation import baselines, report
+    from validation.backends import BACKENDS
+    from validation.cases import default_cases
+    from validation.evaluate import evaluate
+    from validation.figures import make_figures
+
+    out.mkdir(parents=True, exist_ok=True)
+    started = time.perf_counter()
+    cases = default_cases(quick)
+    rows, runs = [], {}
+    for k, case in enumerate(cases, 1):
+        print(f"[{k}/{len(cases)}] {case.name} ...", end="", file=sys.stderr, flush=True)
+        case_rows, case_runs = evaluate(case, backends or BACKENDS)
+        rows += case_rows
+        runs[case.name] = (case, case_runs)
+        print(" " + ", ".join(f"{b} {r.seconds:.2f} s" if r.verdict != "refused" else f"{b} refused"
+                              for b, r in _first_rows(case_rows)), file=sys.stderr)
+    print(report.table(rows))
+    found = baselines.regressions(rows)
+    if update:
+        for path in baselines.save(rows):
+            print(f"baseline written: {path}", file=sys.stderr)
+        found = []
+    figures = make_figures(runs, out)
+    header = _header(quick, time.perf_counter() - started)
+    path = report.write(out, rows, figures, header, found)
+    print(f"\nreport: {path}", file=sys.stderr)
+    for message in found:
+        print(f"REGRESSION {message}", file=sys.stderr)
+    return 1 if found else 0
+
+
+def _first_rows(rows):
+    seen = {}
+    for row in rows:
+        seen.setdefault(row.backend, row)
+    return seen.items()
+
+
+def _header(quick: bool, seconds: float) -> str:
+    from validation.baselines import versions
+    from validation.machine import describe_machine
+    lines = ["# rbody validation report", "",
+             "Each textbook scene run in rbody, MuJoCo and pymunk at the default settings of "
+             "validation/cases.py, compared with the scene's exact solution.", "",
+             f"- mode: {'quick' if quick else 'full'}; wall time {seconds:.1f} s",
+             f"- machine: {describe_machine()}",
+             "- versions: " + ", ".join(f"{k} {v}" for k, v in versions().items()), ""]
+    return "\n".join(lines)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
