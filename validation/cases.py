@@ -30,6 +30,27 @@ def pendulum_cases(quick: bool) -> list[Case]:
                  metrics, settings)]
 
 
+ALL = ("rbody", "mujoco", "pymunk")
+
+
+def rolling_cases(quick: bool) -> list[Case]:
+    """Each body rolling on a 0.5 rad incline, the disc sliding (friction below mu_min), the race."""
+    t_end = 0.5 if quick else 1.0
+    bodies = ("disc",) if quick else ("disc", "hollow_cylinder", "solid_sphere", "spherical_shell")
+    cases = []
+    for body in bodies:
+        scene = scenes.rolling(body, radius=0.1, incline=0.5, friction=1.0, t_end=t_end)
+        cases.append(Case(f"rolling_{body}", "rolling", scene, {b: DT for b in ALL},
+                          ("max_abs_error", "final_relative_error", "energy_error", "max_slip")))
+    sliding = scenes.rolling("disc", radius=0.1, incline=0.5, friction=0.05, t_end=t_end)
+    cases.append(Case("sliding_disc", "rolling", sliding, {b: DT for b in ALL},
+                      ("max_abs_error", "final_relative_error", "energy_error")))
+    race = scenes.rolling_race(("disc", "hollow_cylinder", "solid_sphere", "spherical_shell"), radius=0.1,
+                               incline=0.3, length=0.5 if quick else 2.0)
+    cases.append(Case("rolling_race", "race", race, {b: DT for b in ALL}, ("arrival_error", "max_abs_error")))
+    return cases
+
+
 def default_cases(quick: bool = False) -> list[Case]:
     """Every case of the main command; quick keeps each one short (the CLI test and CI)."""
-    return pendulum_cases(quick)
+    return pendulum_cases(quick) + rolling_cases(quick)

@@ -8,7 +8,6 @@ its tolerance is a finding: it is reported with its value, never hidden by a loo
 from __future__ import annotations
 
 from dataclasses import dataclass
-from decimal import Decimal, getcontext
 from typing import Mapping
 
 import numpy as np
@@ -62,22 +61,10 @@ def pi_digits_right(count: int, digits: int) -> int:
 
 
 def exact_pi_count(digits: int) -> int:
-    """floor(pi 10^digits), exactly (decimal arithmetic with Machin's formula, no float pi)."""
-    getcontext().prec = digits + 30
-    pi = 4 * (4 * _arctan_inverse(5, digits + 30) - _arctan_inverse(239, digits + 30))
-    return int((pi * Decimal(10) ** digits).to_integral_value(rounding="ROUND_FLOOR"))
+    """floor(pi 10^digits), exactly: the count of the Galperin pi-collision scene."""
+    from rbody.scenes import pi_collisions
 
-
-def _arctan_inverse(x: int, precision: int) -> Decimal:
-    """arctan(1/x) by its series, to `precision` digits."""
-    getcontext().prec = precision
-    x2, term, total, n = Decimal(x) ** 2, Decimal(1) / x, Decimal(1) / x, 1
-    limit = Decimal(10) ** -(precision - 2)
-    while abs(term) > limit:
-        term /= -x2
-        total += term / (2 * n + 1)
-        n += 1
-    return total
+    return pi_collisions(digits).expected_collisions
 
 
 # ----- the table of tolerances -------------------------------------------------------------------
