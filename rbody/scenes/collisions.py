@@ -335,10 +335,10 @@ class PiCollisions(LineCollisions):
     """The chapter's heavy and light balls and a wall (section 5.2.2), counting the digits of pi.
 
     digits N >= 0; light_mass m [kg]; speed [m/s] of the heavy ball at t = 0; radius [m] of both
-    balls. convention "galperin": M = 100^N m, the wall at x = 0, the light ball at x = 1 m at rest,
-    the heavy ball at x = 2 m moving towards the wall; the count is every impact (ball-ball and
+    balls; spacing s [m]. convention "galperin": M = 100^N m, the wall at x = 0, the light ball at
+    x = s at rest, the heavy ball at x = 2 s moving towards the wall; the count is every impact (ball-ball and
     wall), floor(pi 10^N). "chapter": M = 16 x 100^N m, the heavy ball at x = 0 kicked to the right,
-    the light ball at x = 1 m, the wall at x = 2 m; the count p(N) is the number of ball-ball impacts
+    the light ball at x = s, the wall at x = 2 s; the count p(N) is the number of ball-ball impacts
     until the heavy ball turns round, p(N) - 1 = floor(pi 10^N). The masses, positions and
     velocities are derived here; t_end None (the factory's): the run goes on until no further impact
     is possible.
@@ -349,6 +349,7 @@ class PiCollisions(LineCollisions):
     light_mass: float = 1.0
     speed: float = 1.0
     radius: float = 0.05
+    spacing: float = 1.0
     masses: Any = ()
     positions: Any = ()
     velocities: Any = ()
@@ -367,16 +368,18 @@ class PiCollisions(LineCollisions):
         light = positive(self.light_mass, "light_mass")
         speed = positive(self.speed, "speed")
         radius = nonnegative(self.radius, "radius")
-        if not radius < 0.45:
-            raise ValueError(f"radius={radius!r}: must be < 0.45 m so that the balls, 1 m apart, and the wall do "
-                             "not touch at t = 0")
+        spacing = positive(self.spacing, "spacing")
+        if not radius < 0.45 * spacing:
+            raise ValueError(f"radius={radius!r}: must be < 0.45 spacing = {0.45 * spacing!r} m so that the balls, "
+                             f"{spacing!r} m apart, and the wall do not touch at t = 0")
         ratio = float(100**digits) * (16.0 if self.convention == "chapter" else 1.0)
         heavy = light * ratio
         if self.convention == "galperin":
-            masses, x, v, walls = (light, heavy), (1.0, 2.0), (0.0, -speed), (0.0,)
+            masses, x, v, walls = (light, heavy), (spacing, 2 * spacing), (0.0, -speed), (0.0,)
         else:
-            masses, x, v, walls = (heavy, light), (0.0, 1.0), (speed, 0.0), (2.0,)
+            masses, x, v, walls = (heavy, light), (0.0, spacing), (speed, 0.0), (2 * spacing,)
         for name, value in (("digits", digits), ("light_mass", light), ("speed", speed), ("radius", radius),
+                            ("spacing", spacing),
                             ("masses", masses), ("positions", x), ("velocities", v), ("walls", walls),
                             ("radii", radius)):
             object.__setattr__(self, name, value)
@@ -550,15 +553,17 @@ def _floor_exact(value) -> int:
 
 
 def pi_collisions(digits: int, *, light_mass: float = 1.0, speed: float = 1.0, convention: str = "galperin",
-                  radius: float = 0.05, gravity: float = 9.81) -> PiCollisions:
+                  radius: float = 0.05, spacing: float = 1.0, gravity: float = 9.81) -> PiCollisions:
     """The chapter's heavy ball, light ball and wall, whose impacts count the digits of pi.
 
     digits N >= 0 (whole); light_mass [kg]; speed [m/s] of the heavy ball (10**-N keeps the light ball
     near 1 m/s); convention "galperin" (M = 100^N m, count every impact: floor(pi 10^N)) or "chapter"
     (M = 16 x 100^N m, count the ball-ball impacts until the heavy ball turns round: p(N) =
-    floor(pi 10^N) + 1); radius [m] of both balls; gravity [m/s^2] does no work on the horizontal line.
+    floor(pi 10^N) + 1); radius [m] of both balls; spacing [m] between the centres of the wall, the
+    light ball and the heavy ball at t = 0 (the run lasts about 3 spacing / speed; the count does not
+    depend on it); gravity [m/s^2] does no work on the horizontal line.
     The run goes on until no further impact is possible: scene.count() is the simulated count,
     scene.expected_collisions the exact one, scene.exact_velocities(n) the chapter's closed form.
     """
     return PiCollisions(name="pi_collisions", t_end=None, gravity=gravity, digits=digits, convention=convention,
-                        light_mass=light_mass, speed=speed, radius=radius)
+                        light_mass=light_mass, speed=speed, radius=radius, spacing=spacing)
