@@ -3,31 +3,34 @@
 pymunk is 2-D. A planar scene lives in the world x-z plane; here world (x, z) is pymunk's (x, y)
 and gravity is (0, -g). The conversion happens at this module's edge only:
 
-- A rotation about world +y by phi takes x toward -z, so in pymunk's plane (x right, y up = world z)
-  it is the rotation by -phi: pymunk's body.angle is -phi, its angular_velocity -omega_y.
-- Each body keeps its reference pose (all joint coordinates zero): its pymunk local coordinates of a
-  body point p are the (x, z) components of R0 p, with R0 the reference orientation in the world, so
-  that a body at pymunk angle -phi is its reference pose turned by phi about world y.
-- The mass is the body's, the moment its Inertia about the hinge normal (world y) through the
-  centre of mass, n^T I n with n = R0^T y; body.center_of_gravity is the centre of mass.
+- A rotation about world +y by phi takes +x toward -z (R_y(phi) x = (cos, 0, -sin)), so in pymunk's
+  plane (x right, y up = world z) it is the rotation by -phi: body.angle = -phi and
+  body.angular_velocity = -omega_y.
+- A body's pymunk local coordinates of a body point p are the (x, z) components of R0 p, R0 its
+  orientation in the reference pose (every joint coordinate zero): a body at pymunk angle -phi is its
+  reference pose turned by phi about world y.
+- The mass is the body's, the moment its Inertia about the hinge normal through the centre of mass,
+  n^T I n with n = R0^T y (world y in the body frame); body.center_of_gravity is the centre of mass.
 
 Joints, modelled with what each needs and nothing more:
-- one hinge (to the world or to another body): a PivotJoint at the anchor;
-- slides along world directions (to the world), with at most one hinge: the free planar body when
-  the slides span the plane (a rolling body's x, z, phi); one slide: a GrooveJoint along the axis,
-  pivoting at the hinge's anchor when a hinge follows the slide; without a hinge the moment is
-  infinite (the slide does not turn the body);
-- bodies that only slide along horizontal lines (balls on a line): free bodies and zero gravity. On
-  a horizontal line gravity is balanced by the line's reaction and does no work; contacts between
-  balls centred on the line act along it, so nothing moves the balls off it and no groove is needed.
+- one hinge, to the world or to another body: a PivotJoint at the anchor;
+- slides along directions in the plane (to the world) with at most one hinge: a free planar body when
+  the slides span the plane (a rolling body's x, z, phi); one slide: a GrooveJoint along the axis to
+  the static body, pivoting at the hinge's anchor if a hinge follows the slide. Without a hinge the
+  moment is infinite: the slides do not turn the body.
+- balls on a horizontal line: free bodies and no gravity, when every moving body slides on one
+  horizontal line and every contact acts along it (circles centred on the line, walls facing along
+  it). Gravity is then balanced by the line's reaction and does no work, and nothing pushes a ball
+  off the line, so no groove is needed. (Circles on a line amplify any sideways offset at every
+  impact, so the contact geometry must be exactly aligned; otherwise the balls get grooves.)
 
-Shapes seen from the side: spheres, and cylinders or capsules whose axis is along y, are Circles; a
-capsule across y is a Segment with its radius; a box with one axis along y is a Poly; a plane is a
-static Segment whose rounded thickness lies behind the surface, so the surface is exactly the plane.
-Only the pairs listed in layout.contacts collide (ShapeFilter category bits). Elasticity and
-friction of a pair are products of the two shapes' values in pymunk: each shape gets sqrt(e) and
-sqrt(mu) when that gives every pair its value, else a pre_solve callback sets the arbiter's
-restitution and friction. Collision events are counted from contact onsets (a begin callback).
+Shapes seen from the side: spheres, and cylinders or capsules along y, are Circles; a capsule across
+y is a Segment with its radius, a cylinder across y a rectangle; a box with one axis along y is a
+Poly; a plane is a thin static Poly lying behind the surface, whose face gives contact normals
+exactly along the plane's normal. Only the pairs listed in layout.contacts collide (ShapeFilter
+category bits). pymunk multiplies the two shapes' elasticities and frictions: each shape gets sqrt(e)
+and sqrt(mu) when that gives every pair its values, else a pre_solve callback sets the arbiter's.
+Collisions are counted as contact onsets (a begin callback per pair).
 
 Not corrected (the comparison reports them): positions advance with the velocity before the step,
 x = a t (t - dt) / 2 under a constant force; a PivotJoint pendulum loses energy at a rate ~ dt.
@@ -51,21 +54,25 @@ from rbody.trajectory import Trajectory
 name = "pymunk"
 
 Y_AXIS = np.array([0.0, 1.0, 0.0])
-# |cos| between a direction and world y above which it counts as along y, below which as across.
+# |cos| between a direction and world y within which it counts as along y (or across it).
 AXIS_TOL = 1e-9
-# Default collision slop as a fraction of the smallest contact shape: pymunk's 0.1 is in pixels.
+# Entries of a rotation matrix below this are round-off of the quaternion (a quarter turn about y leaves
+# 2.2e-16 where 0 is meant): set to zero, so that a wall meant to face along x faces exactly along x.
+ROUNDOFF = 1e-14
+# Default collision slop as a fraction of the smallest contact shape (pymunk's own 0.1 is in pixels).
 SLOP_FRACTION = 1e-6
-# Thickness of a plane's segment, as a fraction of the smallest contact shape (it lies behind the
-# surface: only keeps fast bodies from passing through in one step).
-PLANE_THICKNESS_FRACTION = 0.1
-# Solver iterations per constraint or contact pair by default (pymunk's default is 10 in all).
-ITERATIONS_PER_ROW = 10
-MIN_ITERATIONS = 10
+# Depth of a plane's Poly behind its surface, as a fraction of the smallest contact shape.
+PLANE_DEPTH_FRACTION = 0.1
+# Solver iterations: pymunk's default, enough for every scene measured (see default_settings).
+ITERATIONS = 10
+# Scene methods that stand for physics a Layout cannot hold: the backend refuses such scenes.
+UNMODELLED = {"pair_force": "a force between its bodies", "slide_force": "a force along its slide",
+              "body_mass": "a mass that changes in time"}
 # ShapeFilter categories are 32 bits: one per shape that takes part in a contact.
 MAX_CONTACT_SHAPES = 32
 
 
-# ----- planar rigid motions in world (x, z) ------------------------------------------------------------
+# ----- planar rigid motions in world (x, z) ----------------------------------------------------------
 
 def _rot(phi):
     """(..., 2, 2) rotation about world +y by phi [rad], acting on (x, z): [[c, s], [-s, c]]."""
@@ -88,12 +95,16 @@ def _xz(v) -> np.ndarray:
     return np.asarray(v, dtype=float)[..., [0, 2]]
 
 
-# ----- the plan: what pymunk is given, computed without pymunk -------------------------------------------
+def _snap(rotation: np.ndarray) -> np.ndarray:
+    return np.where(np.abs(rotation) < ROUNDOFF, 0.0, rotation)
+
+
+# ----- the plan: what pymunk is given, worked out without pymunk ----------------------------------------
 
 @dataclass
 class _JointPlan:
     joint: Joint
-    sign: float = 1.0                      # hinge: world rotation about +y is sign * angle
+    sign: float = 1.0                      # hinge: the world turns about +y by sign * angle
     anchor: np.ndarray | None = None       # hinge: (2,) anchor in the reference pose, world (x, z)
     axis: np.ndarray | None = None         # slide: (2,) direction, world (x, z)
 
@@ -101,18 +112,18 @@ class _JointPlan:
 @dataclass
 class _BodyPlan:
     body: Body
-    kind: str                              # static, pivot, free, groove, line
-    rot0: np.ndarray                       # (3, 3) reference orientation in the world
-    origin0: np.ndarray                    # (3,) reference position of the body origin, world
+    rot0: np.ndarray                       # (3, 3) orientation in the reference pose, world
+    origin0: np.ndarray                    # (3,) body origin in the reference pose, world
     joints: list[_JointPlan] = field(default_factory=list)
-    moment: float = math.inf
-    cog: np.ndarray = field(default_factory=lambda: np.zeros(2))    # pymunk local centre of mass
-    com_y: float = 0.0
-    phi: float = 0.0                       # initial motion from the reference pose (phi, tau)
+    kind: str = ""                         # static, pivot, free, groove, line
+    moment: float = math.inf               # about world y through the centre of mass [kg m^2]
+    cog: np.ndarray = field(default_factory=lambda: np.zeros(2))  # centre of mass, pymunk local
+    com_y: float = 0.0                     # world y of the centre of mass (constant)
+    phi: float = 0.0                       # initial motion from the reference pose: r -> R(phi) r + tau
     tau: np.ndarray = field(default_factory=lambda: np.zeros(2))
     omega: float = 0.0                     # initial omega_y [rad/s]
-    com: np.ndarray = field(default_factory=lambda: np.zeros(2))    # initial centre of mass, (x, z)
-    velocity: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    com: np.ndarray = field(default_factory=lambda: np.zeros(2))  # initial centre of mass, world (x, z)
+    velocity: np.ndarray = field(default_factory=lambda: np.zeros(2))  # of the centre of mass
 
     @property
     def name(self) -> str:
@@ -124,13 +135,29 @@ class _BodyPlan:
 
 
 @dataclass
+class _ShapePlan:
+    """A side view, in the owner's pymunk coordinates (world ones for the static body)."""
+
+    name: str
+    owner: str                             # body name, or WORLD
+    moving: bool
+    kind: str                              # circle, segment, poly, plane
+    radius: float = 0.0                    # circle, segment
+    points: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))  # circle centre, segment ends, poly
+    normal: np.ndarray = field(default_factory=lambda: np.zeros(2))        # plane
+    half: float = 0.0                      # plane half length, 0 unbounded
+    size: float = 0.0                      # smallest dimension [m]
+    world_z: float = 0.0                   # circle: world z of the centre at t = 0
+
+
+@dataclass
 class _Plan:
     layout: Layout
     bodies: list[_BodyPlan]
-    line_mode: bool                        # every moving body slides on a horizontal line: no gravity
+    shapes: list[_ShapePlan]
+    line_mode: bool                        # balls on a horizontal line: free bodies, no gravity
     scale: float                           # length scale of the scene [m]
-    smallest: float                        # smallest contact shape size [m]
-    reach: float                           # half length of an unbounded plane [m]
+    smallest: float                        # smallest contact shape (else any shape) [m]
 
 
 def _check_scene(scene) -> None:
@@ -142,109 +169,30 @@ def _check_scene(scene) -> None:
             "use scene.item(i)")
     if not scene.planar:
         raise NotImplementedError(
-            f"scene {scene.name!r} is not planar: pymunk is 2-D and cannot express 3-D rotation "
-            "(a body turning about more than one axis)")
+            f"scene {scene.name!r} is not planar: pymunk is 2-D and cannot express 3-D rotation or motion "
+            "out of its plane")
+    needs = [what for method, what in UNMODELLED.items() if callable(getattr(scene, method, None))]
+    if needs:
+        raise NotImplementedError(
+            f"scene {scene.name!r} needs {' and '.join(needs)}, which its layout does not carry (a Layout "
+            "holds bodies, joints, shapes and contacts under uniform gravity); this backend runs only what "
+            "the layout describes")
 
 
 def _order(layout: Layout) -> list[Body]:
     """Bodies with every parent before its children."""
-    by_name = {b.name: b for b in layout.bodies}
-    if len(by_name) != len(layout.bodies):
+    if len({b.name for b in layout.bodies}) != len(layout.bodies):
         raise ValueError("layout has two bodies of the same name: body names must be unique")
-    ordered, placed = [], {WORLD}
-    pending = list(layout.bodies)
+    ordered, placed, pending = [], {WORLD}, list(layout.bodies)
     while pending:
         ready = [b for b in pending if b.parent in placed]
         if not ready:
-            missing = sorted({b.parent for b in pending} - set(by_name) - {WORLD})
-            raise ValueError(f"bodies {[b.name for b in pending]} have parents {missing or 'in a cycle'}: "
-                             "every parent must be 'world' or a body of the layout")
-        for b in ready:
-            ordered.append(b)
-            placed.add(b.name)
+            raise ValueError(f"bodies {[b.name for b in pending]} hang from {sorted({b.parent for b in pending})}: "
+                             "every parent must be 'world' or a body of the layout, without cycles")
+        ordered += ready
+        placed.update(b.name for b in ready)
         pending = [b for b in pending if b.name not in placed]
     return ordered
-
-
-def _classify(plan: _BodyPlan) -> str:
-    hinges = [j for j in plan.joints if j.joint.kind == "hinge"]
-    slides = [j for j in plan.joints if j.joint.kind == "slide"]
-    name = plan.name
-    if not plan.joints:
-        if plan.parent != WORLD:
-            raise NotImplementedError(f"body {name!r} is welded to body {plan.parent!r}: this backend does not "
-                                      "merge welded bodies")
-        return "static"
-    if len(hinges) > 1:
-        raise NotImplementedError(f"body {name!r} has {len(hinges)} hinges to its parent: pymunk turns a body "
-                                  "about one axis, give each hinge its own body")
-    if not slides:
-        return "pivot"
-    if plan.parent != WORLD:
-        raise NotImplementedError(f"body {name!r} slides on body {plan.parent!r}: this backend models slides "
-                                  "to the world only")
-    axes = np.array([j.axis for j in slides])
-    rank = np.linalg.matrix_rank(axes, tol=1e-9)
-    if rank < len(slides):
-        raise NotImplementedError(f"body {name!r} has parallel slide joints {[j.joint.name for j in slides]}")
-    if rank == 2:
-        return "free"
-    if hinges and plan.joints.index(hinges[0]) < plan.joints.index(slides[0]):
-        raise NotImplementedError(f"body {name!r}: hinge {hinges[0].joint.name!r} before slide "
-                                  f"{slides[0].joint.name!r} turns the slide's axis; this backend models a "
-                                  "slide along a fixed direction")
-    return "groove"
-
-
-def _plan(scene: Scene) -> _Plan:
-    """Check that pymunk can model `scene` and place every body in its initial state."""
-    _check_scene(scene)
-    layout = scene.layout
-    bodies = _order(layout)
-    joints_of: dict[str, list[Joint]] = {b.name: [] for b in bodies}
-    for joint in layout.joints:
-        if joint.body not in joints_of:
-            raise ValueError(f"joint {joint.name!r} moves body {joint.body!r}, which the layout does not have")
-        joints_of[joint.body].append(joint)
-
-    plans: dict[str, _BodyPlan] = {}
-    for body in bodies:
-        parent = plans.get(body.parent)
-        rot_p = np.eye(3) if parent is None else parent.rot0
-        origin_p = np.zeros(3) if parent is None else parent.origin0
-        rot0 = rot_p @ quat_to_matrix(np.array(body.quat))
-        origin0 = origin_p + rot_p @ np.array(body.pos)
-        plan = _BodyPlan(body, "", rot0, origin0)
-        for joint in joints_of[body.name]:
-            plan.joints.append(_joint_plan(joint, rot0, origin0))
-        plan.kind = _classify(plan)
-        com0 = origin0 + rot0 @ body.inertia.com
-        plan.cog = _xz(rot0 @ body.inertia.com)
-        plan.com_y = float(com0[1])
-        if any(j.joint.kind == "hinge" for j in plan.joints):  # else the body does not turn: moment inf
-            plan.moment = body.inertia.moment(rot0.T @ Y_AXIS)
-            if not plan.moment > 0:
-                raise NotImplementedError(f"body {body.name!r} turns about world y but has no moment about it")
-        _initial_state(plan, parent)
-        plans[body.name] = plan
-
-    moving = [p for p in plans.values() if p.kind != "static"]
-    line_mode = bool(moving) and all(
-        p.kind == "groove" and len(p.joints) == 1 and abs(p.joints[0].axis[1]) <= AXIS_TOL for p in moving)
-    if line_mode:
-        for p in moving:
-            p.kind = "line"
-
-    sizes = [s for s in _contact_shape_sizes(layout) if s > 0]
-    positions = [np.linalg.norm(p.origin0) for p in plans.values()]
-    scale = max([1e-300] + sizes + positions)
-    smallest = min(sizes) if sizes else scale
-    speed = max([0.0] + [float(np.linalg.norm(p.velocity)) for p in plans.values()])
-    reach = 10 * (scale + speed * scene.t_end + scene.gravity * scene.t_end**2)
-    for shape in _all_shapes(layout):
-        if shape.kind == "mesh":
-            raise NotImplementedError(f"shape {shape.name!r} is a mesh: this backend draws primitives only")
-    return _Plan(layout, list(plans.values()), line_mode, scale, smallest, reach)
 
 
 def _joint_plan(joint: Joint, rot0: np.ndarray, origin0: np.ndarray) -> _JointPlan:
@@ -259,242 +207,75 @@ def _joint_plan(joint: Joint, rot0: np.ndarray, origin0: np.ndarray) -> _JointPl
         return _JointPlan(joint, sign=float(np.sign(direction[1])),
                           anchor=_xz(origin0 + rot0 @ np.array(joint.anchor)))
     if abs(direction[1]) > AXIS_TOL:
-        raise NotImplementedError(
-            f"slide {joint.name!r} moves along {direction.round(12).tolist()}, out of the x-z plane that pymunk models")
+        raise NotImplementedError(f"slide {joint.name!r} moves along {direction.round(12).tolist()}, out of the "
+                                  "x-z plane that pymunk models")
     axis = _xz(direction)
     return _JointPlan(joint, axis=axis / np.linalg.norm(axis))
 
 
+def _classify(plan: _BodyPlan) -> str:
+    hinges = [j for j in plan.joints if j.joint.kind == "hinge"]
+    slides = [j for j in plan.joints if j.joint.kind == "slide"]
+    if not plan.joints:
+        if plan.parent != WORLD:
+            raise NotImplementedError(f"body {plan.name!r} is welded to body {plan.parent!r}: this backend does "
+                                      "not merge welded bodies")
+        return "static"
+    if len(hinges) > 1:
+        raise NotImplementedError(f"body {plan.name!r} has {len(hinges)} hinges to its parent: pymunk turns a body "
+                                  "about one axis; give each hinge its own body")
+    if not slides:
+        return "pivot"
+    if plan.parent != WORLD:
+        raise NotImplementedError(f"body {plan.name!r} slides on body {plan.parent!r}: this backend models "
+                                  "slides to the world only")
+    if np.linalg.matrix_rank(np.array([j.axis for j in slides]), tol=1e-9) < len(slides):
+        raise NotImplementedError(f"body {plan.name!r} has parallel slides {[j.joint.name for j in slides]}")
+    if len(slides) == 2:
+        return "free"
+    if hinges and plan.joints.index(hinges[0]) < plan.joints.index(slides[0]):
+        raise NotImplementedError(f"body {plan.name!r}: hinge {hinges[0].joint.name!r} comes before slide "
+                                  f"{slides[0].joint.name!r} and turns its axis; this backend models a slide "
+                                  "along a fixed direction")
+    return "groove"
+
+
 def _initial_state(plan: _BodyPlan, parent: _BodyPlan | None) -> None:
-    """Compose the parent's motion with the joints, in order (as MJCF: each joint acts in the frame the
-    previous ones left), and add up the joint rates into the body's velocity at its centre of mass."""
+    """Compose the parent's motion with the joints in order (as MJCF: each acts in the frame the ones
+    before it left) and add the joint rates up into the velocity of the centre of mass."""
     phi = 0.0 if parent is None else parent.phi
     tau = np.zeros(2) if parent is None else parent.tau.copy()
     omega = 0.0 if parent is None else parent.omega
-    hinge_rates, slide_rates = [], []
+    hinge_rates, slide_velocity = [], np.zeros(2)
     for jp in plan.joints:
-        q, qd = float(jp.joint.qpos0), float(np.asarray(jp.joint.qvel0, dtype=float))
+        q, rate = float(jp.joint.qpos0), float(np.asarray(jp.joint.qvel0, dtype=float))
         if jp.joint.kind == "hinge":
             alpha = jp.sign * q
-            anchor = _apply(phi, tau, jp.anchor)
-            tau = _rot(phi) @ (jp.anchor - _rot(alpha) @ jp.anchor) + tau
+            hinge_rates.append((jp.sign * rate, _apply(phi, tau, jp.anchor)))
+            tau = _rot(phi) @ (jp.anchor - _rot(alpha) @ jp.anchor) + tau  # turn by alpha about the anchor
             phi += alpha
-            omega += jp.sign * qd
-            hinge_rates.append((jp.sign * qd, anchor))
+            omega += jp.sign * rate
         else:
-            w = _rot(phi) @ jp.axis
-            tau = tau + q * w
-            slide_rates.append(qd * w)
+            axis = _rot(phi) @ jp.axis
+            tau = tau + q * axis
+            slide_velocity += rate * axis
     plan.phi, plan.tau, plan.omega = phi, tau, omega
     plan.com = _apply(phi, tau, _xz(plan.origin0 + plan.rot0 @ plan.body.inertia.com))
-    velocity = np.zeros(2)
+    velocity = slide_velocity
     if parent is not None:
-        velocity += parent.velocity + _cross_y(parent.omega, plan.com - parent.com)
+        velocity = velocity + parent.velocity + _cross_y(parent.omega, plan.com - parent.com)
     for rate, anchor in hinge_rates:
-        velocity += _cross_y(rate, plan.com - anchor)
-    for v in slide_rates:
-        velocity += v
+        velocity = velocity + _cross_y(rate, plan.com - anchor)
     plan.velocity = velocity
 
 
-def _all_shapes(layout: Layout) -> list[Shape]:
-    return list(layout.fixed) + [s for b in layout.bodies for s in b.shapes]
-
-
-def _shape_size(shape: Shape) -> float:
-    """Smallest dimension that matters in the plane [m] (0 for an unbounded plane)."""
-    sizes = [s for s in shape.size if s > 0]
-    return min(sizes) if sizes else 0.0
-
-
-def _contact_shape_sizes(layout: Layout) -> list[float]:
-    names = {n for c in layout.contacts for n in (c.shape_a, c.shape_b)}
-    return [_shape_size(s) for s in _all_shapes(layout) if s.name in names and s.kind != "plane"]
-
-
-# ----- check and run ----------------------------------------------------------------------------------------
-
-def check(scene: Scene) -> None:
-    """Raise NotImplementedError when pymunk cannot model `scene` (batches, 3-D rotation, joints or
-    shapes without a planar counterpart), ValueError when `scene` is not a Scene."""
-    _plan(scene)
-
-
-def default_settings(scene: Scene) -> dict:
-    """The settings run() uses when none are given: iterations 10 per constraint and contact pair
-    (at least 10, pymunk's default), collision_slop 1e-6 of the smallest contact shape [m]."""
-    plan = _plan(scene)
-    return _defaults(plan)
-
-
-def _defaults(plan: _Plan) -> dict:
-    rows = sum(1 for p in plan.bodies if p.kind in ("pivot", "groove")) + len(plan.layout.contacts)
-    return {"iterations": max(MIN_ITERATIONS, ITERATIONS_PER_ROW * rows),
-            "collision_slop": SLOP_FRACTION * plan.smallest}
-
-
-def run(scene: Scene, dt: float, t_end: float | None = None, *, iterations: int | None = None,
-        collision_slop: float | None = None, save_every: int = 1) -> Trajectory:
-    """Step `scene` in pymunk with step dt [s] until t_end [s] (default scene.t_end).
-
-    iterations:     solver iterations per step (default: default_settings(scene))
-    collision_slop: overlap pymunk leaves uncorrected [m] (default: default_settings(scene))
-    save_every:     keep every n-th step (n >= 1)
-    Returns a Trajectory with the scene's observables (scene.observe), plus for scenes with elastic
-    contacts `collisions` (T,) (cumulative contact onsets over all pairs) and `ball_collisions` (T,)
-    (over pairs of two moving bodies). meta: backend, scene, dt, settings, pymunk version, the model
-    choices and step_seconds (the time spent in space.step only).
-    Raises ValueError for bad arguments, NotImplementedError when pymunk cannot model the scene,
-    SimulationError when the state becomes non-finite.
-    """
-    plan = _plan(scene)
-    t_end = scene.t_end if t_end is None else float(finite_array(t_end, "t_end"))
-    if not t_end > 0:
-        raise ValueError(f"t_end={t_end!r}: must be > 0 [s]")
-    dt = float(finite_array(dt, "dt"))
-    if not 0 < dt <= t_end:
-        raise ValueError(f"dt={dt!r}: must satisfy 0 < dt <= t_end={t_end} [s]")
-    if not isinstance(save_every, (int, np.integer)) or isinstance(save_every, bool) or save_every < 1:
-        raise ValueError(f"save_every={save_every!r}: expected a whole number >= 1")
-    defaults = _defaults(plan)
-    if iterations is None:
-        iterations = defaults["iterations"]
-    if not isinstance(iterations, (int, np.integer)) or isinstance(iterations, bool) or iterations < 1:
-        raise ValueError(f"iterations={iterations!r}: expected a whole number >= 1")
-    slop = defaults["collision_slop"] if collision_slop is None else float(nonnegative(collision_slop,
-                                                                                         "collision_slop"))
-    # Same number of steps as rbody.simulate: t_end/dt rounded up, then to a multiple of save_every.
-    nsteps = max(1, math.ceil(t_end / dt * (1 - 1e-12)))
-    nsteps = -(-nsteps // save_every) * save_every
-
-    space, pm_bodies, counter = _build(plan, scene.gravity, int(iterations), slop)
-    nsave = nsteps // save_every + 1
-    nb = len(plan.bodies)
-    position, angle = np.empty((nsave, nb, 2)), np.empty((nsave, nb))
-    velocity, angular = np.empty((nsave, nb, 2)), np.empty((nsave, nb))
-    collisions = np.zeros(nsave, dtype=np.int64)
-    ball_collisions = np.zeros(nsave, dtype=np.int64)
-
-    def record(k: int) -> None:
-        for i, b in enumerate(pm_bodies):
-            position[k, i] = b.position
-            angle[k, i] = b.angle
-            velocity[k, i] = b.velocity
-            angular[k, i] = b.angular_velocity
-        collisions[k] = counter.total
-        ball_collisions[k] = counter.bodies
-
-    record(0)
-    step = space.step
-    seconds = 0.0
-    for k in range(1, nsave):
-        start = time.perf_counter()
-        for _ in range(save_every):
-            step(dt)
-        seconds += time.perf_counter() - start
-        record(k)
-    if not (np.all(np.isfinite(position)) and np.all(np.isfinite(velocity))
-            and np.all(np.isfinite(angle)) and np.all(np.isfinite(angular))):
-        bad = int(np.argmin(np.all(np.isfinite(position.reshape(nsave, -1)), axis=1)))
-        raise SimulationError(f"scene {scene.describe()}: pymunk with dt={dt} gave a non-finite state by "
-                              f"t={bad * save_every * dt:.6g} s; try a smaller dt or more iterations")
-
-    t = np.arange(nsave) * (dt * save_every)
-    states, joint_states = _observe_states(plan, position, angle, velocity, angular)
-    data = dict(scene.observe(t, states, joint_states))
-    if counter.elastic:
-        data["collisions"] = collisions
-        data["ball_collisions"] = ball_collisions
-    meta = {"scene": scene.name, "backend": name, "dt": dt, "pymunk": pymunk.version,
-            "settings": {"iterations": int(iterations), "collision_slop": slop, "save_every": int(save_every)},
-            "model": {p.name: p.kind for p in plan.bodies}, "gravity_along_line_removed": plan.line_mode,
-            "step_seconds": seconds}
-    return Trajectory(t, data, meta=meta)
-
-
-# ----- building the space -------------------------------------------------------------------------------------
-
-class _Counter:
-    """Contact onsets: over all pairs, and over pairs of two moving bodies."""
-
-    def __init__(self) -> None:
-        self.total = 0
-        self.bodies = 0
-        self.elastic = False
-
-    def begin(self, arbiter: pymunk.Arbiter, space: pymunk.Space, between_bodies: bool) -> None:
-        self.total += 1
-        if between_bodies:
-            self.bodies += 1
-
-
-def _build(plan: _Plan, gravity: float, iterations: int, slop: float):
-    space = pymunk.Space()
-    space.gravity = (0.0, 0.0) if plan.line_mode else (0.0, -gravity)
-    space.iterations = iterations
-    space.collision_slop = slop
-    static = space.static_body
-    handles: dict[str, pymunk.Body] = {WORLD: static}
-    pm_bodies = []
-    shapes: dict[str, tuple[pymunk.Shape, bool]] = {}  # name -> (shape, on a moving body)
-
-    for p in plan.bodies:
-        if p.kind == "static":
-            body = static
-        else:
-            body = pymunk.Body(p.body.inertia.mass, p.moment)
-            body.center_of_gravity = tuple(p.cog)
-            body.angle = -p.phi  # before the position: pymunk turns a body about its centre of mass
-            body.position = tuple(_apply(p.phi, p.tau, _xz(p.origin0)))
-            body.velocity = tuple(p.velocity)
-            body.angular_velocity = -p.omega
-            space.add(body)
-        handles[p.name] = body
-        pm_bodies.append(body)
-        for shape in p.body.shapes:
-            if p.kind == "static":  # world coordinates of the reference pose
-                made = _shape(shape, p.rot0, p.origin0, static, plan, slop)
-            else:
-                made = _shape(shape, p.rot0, np.zeros(3), body, plan, slop)
-            shapes[shape.name] = (made, p.kind != "static")
-    for shape in plan.layout.fixed:
-        shapes[shape.name] = (_shape(shape, np.eye(3), np.zeros(3), static, plan, slop), False)
-    if len(shapes) != len(_all_shapes(plan.layout)):
-        raise ValueError("layout has two shapes of the same name: contacts name shapes, so names must be unique")
-    space.add(*(s for s, _moving in shapes.values()))
-
-    for p in plan.bodies:
-        _constrain(space, p, handles, plan)
-    counter = _filter_contacts(space, plan.layout, shapes)
-    return space, pm_bodies, counter
-
-
-def _constrain(space: pymunk.Space, p: _BodyPlan, handles: dict, plan: _Plan) -> None:
-    body, parent = handles[p.name], handles[p.parent]
-    if p.kind == "pivot":
-        hinge = p.joints[0]
-        # the anchor's initial world position, from the parent's motion (or the world's, none)
-        parent_plan = next((q for q in plan.bodies if q.name == p.parent), None)
-        phi, tau = (0.0, np.zeros(2)) if parent_plan is None else (parent_plan.phi, parent_plan.tau)
-        joint = pymunk.PivotJoint(parent, body, tuple(_apply(phi, tau, hinge.anchor)))
-        joint.collide_bodies = False
-        space.add(joint)
-    elif p.kind == "groove":
-        slide = next(j for j in p.joints if j.joint.kind == "slide")
-        hinge = next((j for j in p.joints if j.joint.kind == "hinge"), None)
-        local = p.cog if hinge is None else hinge.anchor - _xz(p.origin0)  # pivot, pymunk local
-        point = np.asarray(body.local_to_world(tuple(local)))
-        groove = pymunk.GrooveJoint(space.static_body, body, tuple(point - plan.reach * slide.axis),
-                                    tuple(point + plan.reach * slide.axis), tuple(local))
-        space.add(groove)
-
-
-def _shape(shape: Shape, rot0: np.ndarray, origin0: np.ndarray, body: pymunk.Body, plan: _Plan,
-           slop: float) -> pymunk.Shape:
-    """The side view of `shape`, in `body`'s pymunk coordinates (world ones for the static body)."""
-    rotation = rot0 @ quat_to_matrix(np.array(shape.quat))
+def _side_view(shape: Shape, rot0: np.ndarray, origin0: np.ndarray, owner: str, moving: bool) -> _ShapePlan:
+    """The shape seen along y, in the owner's pymunk coordinates: origin0 is zero for a moving body, the
+    reference position for the static body (whose coordinates are the world's)."""
+    rotation = _snap(rot0 @ quat_to_matrix(np.array(shape.quat)))
     centre = _xz(origin0 + rot0 @ np.array(shape.pos))
     axis = rotation[:, 2]  # local z: cylinder and capsule axis, plane normal
+    plan = _ShapePlan(shape.name, owner, moving, "", size=min([s for s in shape.size if s > 0], default=0.0))
 
     def along_y(v) -> bool:
         return abs(abs(v[1]) - 1.0) <= AXIS_TOL
@@ -502,155 +283,411 @@ def _shape(shape: Shape, rot0: np.ndarray, origin0: np.ndarray, body: pymunk.Bod
     def across_y(v) -> bool:
         return abs(v[1]) <= AXIS_TOL
 
-    if shape.kind == "sphere":
-        return pymunk.Circle(body, shape.size[0], tuple(centre))
-    if shape.kind in ("cylinder", "capsule"):
+    def poly(corners) -> _ShapePlan:
+        plan.kind, plan.points = "poly", np.array(corners)
+        return plan
+
+    if shape.kind == "sphere" or (shape.kind in ("cylinder", "capsule") and along_y(axis)):
+        plan.kind, plan.radius, plan.points = "circle", shape.size[0], centre[None, :]
+        return plan
+    if shape.kind in ("cylinder", "capsule") and across_y(axis):
         radius, half = shape.size[0], shape.size[1]
-        if along_y(axis):
-            return pymunk.Circle(body, radius, tuple(centre))
-        if across_y(axis):
-            d = _xz(axis)
-            if shape.kind == "capsule":
-                return pymunk.Segment(body, tuple(centre - half * d), tuple(centre + half * d), radius)
-            n = np.array([-d[1], d[0]])
-            corners = [centre + sx * half * d + sy * radius * n for sx, sy in ((1, 1), (-1, 1), (-1, -1), (1, -1))]
-            return pymunk.Poly(body, [tuple(c) for c in corners])
+        d = _xz(axis) / np.linalg.norm(_xz(axis))
+        if shape.kind == "capsule":
+            plan.kind, plan.radius, plan.points = "segment", radius, np.array([centre - half * d, centre + half * d])
+            return plan
+        n = np.array([-d[1], d[0]])
+        return poly([centre + sx * half * d + sy * radius * n for sx, sy in ((1, 1), (-1, 1), (-1, -1), (1, -1))])
     if shape.kind == "box":
         for k in range(3):
             if along_y(rotation[:, k]):
                 i, j = [m for m in range(3) if m != k]
                 a, b = shape.size[i] * _xz(rotation[:, i]), shape.size[j] * _xz(rotation[:, j])
-                corners = [centre + a + b, centre - a + b, centre - a - b, centre + a - b]
-                return pymunk.Poly(body, [tuple(c) for c in corners])
+                return poly([centre + a + b, centre - a + b, centre - a - b, centre + a - b])
     if shape.kind == "plane" and across_y(axis):
-        normal = _xz(axis)
-        tangent = np.array([normal[1], -normal[0]])  # y x n in (x, z)
-        half = 0.0
-        for k, size in zip((0, 1), shape.size[:2]):
+        plan.kind, plan.points, plan.normal = "plane", centre[None, :], _xz(axis) / np.linalg.norm(_xz(axis))
+        for k in (0, 1):  # the plane's local axis that lies in the x-z plane gives its half length
             if across_y(rotation[:, k]):
-                half = size
-        half = half if half > 0 else plan.reach
-        thickness = PLANE_THICKNESS_FRACTION * plan.smallest
-        # The surface stands slop/2 in front of the plane: pymunk sees a contact only where shapes overlap
-        # and corrects only overlap beyond the slop, so a body resting on the plane touches it from t = 0
-        # (exactly touching, it would fall freely for a step) and is not pushed off it.
-        middle = centre - (thickness - slop / 2) * normal
-        return pymunk.Segment(body, tuple(middle - half * tangent), tuple(middle + half * tangent), thickness)
+                plan.half = shape.size[k] if len(shape.size) > k else 0.0
+        return plan
+    if shape.kind == "mesh":
+        raise NotImplementedError(f"shape {shape.name!r} is a mesh: this backend draws primitives only")
     raise NotImplementedError(f"shape {shape.name!r} ({shape.kind}, local z along {axis.round(12).tolist()} in the "
                               "world) has no side view in pymunk's plane")
 
 
-def _filter_contacts(space: pymunk.Space, layout: Layout, shapes: dict) -> _Counter:
-    """Only the listed pairs collide; each pair gets its restitution and friction; onsets are counted."""
-    names = []
+def _aligned_with_line(plan: _Plan) -> bool:
+    """Every contact acts exactly along x: two circles centred at the same height, or a circle and a
+    static face that faces along x (a plane with normal +-x, a poly whose edges are all axis-aligned)."""
+    by_name = {s.name: s for s in plan.shapes}
+    for contact in plan.layout.contacts:
+        a, b = by_name[contact.shape_a], by_name[contact.shape_b]
+        if a.kind != "circle":
+            a, b = b, a
+        if a.kind != "circle" or not a.moving:
+            return False
+        if b.kind == "circle":
+            if not (b.moving and a.world_z == b.world_z):
+                return False
+        elif b.moving:
+            return False
+        elif b.kind == "plane":
+            if b.normal[1] != 0.0:
+                return False
+        elif b.kind == "poly":
+            edges = np.roll(b.points, -1, axis=0) - b.points
+            if not np.all((edges[:, 0] == 0.0) | (edges[:, 1] == 0.0)):
+                return False
+        else:
+            return False
+    return True
+
+
+def _plan(scene: Scene) -> _Plan:
+    """Check that pymunk can model `scene`; place every body in its initial state; see every shape
+    from the side."""
+    _check_scene(scene)
+    layout = scene.layout
+    joints_of: dict[str, list[Joint]] = {b.name: [] for b in layout.bodies}
+    for joint in layout.joints:
+        if joint.body not in joints_of:
+            raise ValueError(f"joint {joint.name!r} moves body {joint.body!r}, which the layout does not have")
+        joints_of[joint.body].append(joint)
+
+    bodies: dict[str, _BodyPlan] = {}
+    shapes: list[_ShapePlan] = []
+    for body in _order(layout):
+        parent = bodies.get(body.parent)
+        rot_p = np.eye(3) if parent is None else parent.rot0
+        origin_p = np.zeros(3) if parent is None else parent.origin0
+        rot0 = _snap(rot_p @ quat_to_matrix(np.array(body.quat)))
+        plan = _BodyPlan(body, rot0, origin_p + rot_p @ np.array(body.pos))
+        plan.joints = [_joint_plan(joint, rot0, plan.origin0) for joint in joints_of[body.name]]
+        plan.kind = _classify(plan)
+        plan.cog = _xz(rot0 @ body.inertia.com)
+        plan.com_y = float((plan.origin0 + rot0 @ body.inertia.com)[1])
+        if any(j.joint.kind == "hinge" for j in plan.joints):  # else the body does not turn: moment inf
+            plan.moment = body.inertia.moment(rot0.T @ Y_AXIS)
+            if not plan.moment > 0:
+                raise NotImplementedError(f"body {body.name!r} turns about world y but has no moment about it")
+        _initial_state(plan, parent)
+        bodies[body.name] = plan
+        moving = plan.kind != "static"
+        for shape in body.shapes:
+            side = _side_view(shape, rot0, np.zeros(3) if moving else plan.origin0, body.name, moving)
+            side.world_z = float((plan.origin0 + rot0 @ np.array(shape.pos))[2] + plan.tau[1])
+            shapes.append(side)
+    shapes += [_side_view(s, np.eye(3), np.zeros(3), WORLD, False) for s in layout.fixed]
+    if len({s.name for s in shapes}) != len(shapes):
+        raise ValueError("layout has two shapes of the same name: contacts name shapes, so names must be unique")
+    names = {s.name for s in shapes}
     for contact in layout.contacts:
         for n in (contact.shape_a, contact.shape_b):
-            if n not in shapes:
-                raise ValueError(f"contact names shape {n!r}, which the layout does not have")
             if n not in names:
-                names.append(n)
+                raise ValueError(f"a contact names shape {n!r}, which the layout does not have")
+
+    in_contact = {n for c in layout.contacts for n in (c.shape_a, c.shape_b)}
+    sizes = [s.size for s in shapes if s.name in in_contact and s.size > 0] or [s.size for s in shapes if s.size > 0]
+    scale = max(sizes + [float(np.linalg.norm(p.origin0)) for p in bodies.values()] + [float(np.finfo(float).tiny)])
+    plan = _Plan(layout, list(bodies.values()), shapes, False, scale, min(sizes, default=scale))
+
+    moving = [p for p in plan.bodies if p.kind != "static"]
+    on_line = bool(moving) and all(p.kind == "groove" and len(p.joints) == 1 and p.joints[0].axis[1] == 0.0
+                                   for p in moving)
+    if on_line and _aligned_with_line(plan):
+        plan.line_mode = True
+        for p in moving:
+            p.kind = "line"
+    return plan
+
+
+def _reach(plan: _Plan, gravity: float, t_end: float) -> float:
+    """Half length [m] of an unbounded plane and of a groove: beyond where any body can get in t_end. No
+    body is faster than sqrt(2 K / m_min), K the initial kinetic energy; gravity adds g t^2 / 2 (none
+    on a horizontal line). Not much longer: round-off in pymunk's geometry grows with the coordinates."""
+    moving = [p for p in plan.bodies if p.kind != "static"]
+    if not moving:
+        return 10 * plan.scale
+    kinetic = sum(0.5 * p.body.inertia.mass * float(p.velocity @ p.velocity)
+                  + (0.5 * p.moment * p.omega**2 if math.isfinite(p.moment) else 0.0) for p in moving)
+    fastest = math.sqrt(2 * kinetic / min(p.body.inertia.mass for p in moving))
+    fall = 0.0 if plan.line_mode else 0.5 * gravity * t_end**2
+    return 10 * plan.scale + fastest * t_end + fall
+
+
+# ----- check and run ----------------------------------------------------------------------------------
+
+def check(scene: Scene) -> None:
+    """Raise NotImplementedError when pymunk cannot model `scene` (a batch, 3-D rotation, joints or
+    shapes without a planar counterpart), ValueError when `scene` is not a Scene or its layout is
+    inconsistent."""
+    _plan(scene)
+
+
+def default_settings(scene: Scene) -> dict:
+    """The settings run() uses when none are given.
+
+    iterations:     10, pymunk's default: at dt = 1e-3, 100 iterations change the swinging rod by 6e-15 rad,
+                    a 3-rod chain at large angles by 3.5e-5 rad in 2 s (its error from dt is 2.5e-2 rad),
+                    and neither the rolling nor the pi counts
+    collision_slop: 1e-6 of the smallest contact shape [m] (pymunk's 0.1 is meant in pixels)
+    """
+    return _defaults(_plan(scene))
+
+
+def _defaults(plan: _Plan) -> dict:
+    return {"iterations": ITERATIONS, "collision_slop": float(SLOP_FRACTION * plan.smallest)}
+
+
+def run(scene: Scene, dt: float, t_end: float | None = None, *, iterations: int | None = None,
+        collision_slop: float | None = None, save_every: int = 1) -> Trajectory:
+    """Step `scene` in pymunk with step dt [s] up to t_end [s] (default scene.t_end).
+
+    iterations:     solver iterations per step (default: default_settings(scene))
+    collision_slop: overlap pymunk leaves uncorrected [m] (default: default_settings(scene))
+    save_every:     keep every n-th step (n >= 1)
+    Returns a Trajectory with the scene's observables (scene.observe) and, for scenes with elastic
+    contacts, `collisions` (T,) contact onsets so far over all pairs and `ball_collisions` (T,) over
+    pairs of two moving bodies. meta: scene, backend, dt, settings, pymunk version, model (how each
+    body is held), line_mode, step_seconds (time spent in space.step only) [s].
+    Raises ValueError for bad arguments, NotImplementedError when pymunk cannot model the scene,
+    SimulationError when the state becomes non-finite.
+    """
+    if not isinstance(scene, Scene):
+        raise ValueError(f"scene={scene!r}: expected an rbody.Scene (see rbody.scenes)")
+    t_end = scene.t_end if t_end is None else float(finite_array(t_end, "t_end"))
+    if not t_end > 0:
+        raise ValueError(f"t_end={t_end!r}: must be > 0 [s]")
+    dt = float(finite_array(dt, "dt"))
+    if not 0 < dt <= t_end:
+        raise ValueError(f"dt={dt!r}: must satisfy 0 < dt <= t_end={t_end} [s]")
+    for setting, value in (("save_every", save_every), ("iterations", 1 if iterations is None else iterations)):
+        if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < 1:
+            raise ValueError(f"{setting}={value!r}: expected a whole number >= 1")
+    if collision_slop is not None:
+        nonnegative(collision_slop, "collision_slop")
+    plan = _plan(scene)
+    defaults = _defaults(plan)
+    iterations = defaults["iterations"] if iterations is None else int(iterations)
+    slop = defaults["collision_slop"] if collision_slop is None else float(collision_slop)
+    # As rbody.simulate: t_end/dt steps rounded up (to round-off), then up to a multiple of save_every.
+    nsteps = max(1, math.ceil(t_end / dt * (1 - 1e-12)))
+    nsteps = -(-nsteps // save_every) * save_every
+
+    space, handles, counter = _build(plan, scene.gravity, int(iterations), slop, _reach(plan, scene.gravity, t_end))
+    nsave, nb = nsteps // save_every + 1, len(plan.bodies)
+    position, angle = np.empty((nsave, nb, 2)), np.empty((nsave, nb))
+    velocity, angular = np.empty((nsave, nb, 2)), np.empty((nsave, nb))
+    collisions = np.zeros(nsave, dtype=np.int64)
+    ball_collisions = np.zeros(nsave, dtype=np.int64)
+
+    def record(k: int) -> None:
+        for i, b in enumerate(handles):
+            position[k, i] = b.position
+            angle[k, i] = b.angle
+            velocity[k, i] = b.velocity
+            angular[k, i] = b.angular_velocity
+        collisions[k], ball_collisions[k] = counter.total, counter.between_bodies
+
+    record(0)
+    step, seconds = space.step, 0.0
+    for k in range(1, nsave):
+        start = time.perf_counter()
+        for _ in range(save_every):
+            step(dt)
+        seconds += time.perf_counter() - start
+        record(k)
+    finite = np.all(np.isfinite(np.concatenate([position.reshape(nsave, -1), velocity.reshape(nsave, -1),
+                                                angle, angular], axis=1)), axis=1)
+    if not np.all(finite):
+        raise SimulationError(f"scene {scene.describe()}: pymunk with dt={dt} gave a non-finite state by "
+                              f"t={np.argmin(finite) * save_every * dt:.6g} s; try a smaller dt")
+
+    t = np.arange(nsave) * (dt * save_every)
+    bodies, joints = _observe_states(plan, position, angle, velocity, angular)
+    data = dict(scene.observe(t, bodies, joints))
+    if counter.elastic:
+        data["collisions"], data["ball_collisions"] = collisions, ball_collisions
+    meta = {"scene": scene.name, "backend": name, "dt": dt, "pymunk": pymunk.version,
+            "settings": {"iterations": int(iterations), "collision_slop": slop, "save_every": int(save_every)},
+            "model": {p.name: p.kind for p in plan.bodies}, "line_mode": plan.line_mode, "step_seconds": seconds}
+    return Trajectory(t, data, meta=meta)
+
+
+# ----- building the space -------------------------------------------------------------------------------
+
+class _Counter:
+    """Contact onsets over all pairs, and over pairs of two moving bodies."""
+
+    def __init__(self, elastic: bool) -> None:
+        self.elastic = elastic
+        self.total = 0
+        self.between_bodies = 0
+
+    def begin(self, arbiter: pymunk.Arbiter, space: pymunk.Space, between_bodies: bool) -> None:
+        self.total += 1
+        self.between_bodies += between_bodies
+
+
+def _build(plan: _Plan, gravity: float, iterations: int, slop: float, reach: float):
+    """The space, the pymunk body of each plan body (the static body for static ones), the counter."""
+    space = pymunk.Space()
+    space.gravity = (0.0, 0.0) if plan.line_mode else (0.0, -gravity)
+    space.iterations = iterations
+    space.collision_slop = slop
+    handles: dict[str, pymunk.Body] = {WORLD: space.static_body}
+    for p in plan.bodies:
+        if p.kind == "static":
+            handles[p.name] = space.static_body
+            continue
+        body = pymunk.Body(p.body.inertia.mass, p.moment)
+        body.center_of_gravity = tuple(p.cog)
+        body.angle = -p.phi  # before the position: pymunk turns a body about its centre of mass
+        body.position = tuple(_apply(p.phi, p.tau, _xz(p.origin0)))
+        body.velocity = tuple(p.velocity)
+        body.angular_velocity = -p.omega
+        space.add(body)
+        handles[p.name] = body
+    made = {s.name: _make_shape(s, handles[s.owner], plan.smallest, slop, reach) for s in plan.shapes}
+    space.add(*made.values())
+    for p in plan.bodies:
+        _constrain(space, p, handles, plan, reach)
+    counter = _contacts(space, plan, made)
+    return space, [handles[p.name] for p in plan.bodies], counter
+
+
+def _make_shape(s: _ShapePlan, body: pymunk.Body, smallest: float, slop: float, reach: float) -> pymunk.Shape:
+    if s.kind == "circle":
+        return pymunk.Circle(body, s.radius, tuple(s.points[0]))
+    if s.kind == "segment":
+        return pymunk.Segment(body, tuple(s.points[0]), tuple(s.points[1]), s.radius)
+    if s.kind == "poly":
+        return pymunk.Poly(body, [tuple(c) for c in s.points])
+    # A plane: a Poly from slop/2 in front of the surface to a depth behind it. pymunk sees a contact only
+    # where shapes overlap and corrects only overlap beyond the slop, so a body resting on the plane touches
+    # it from t = 0 (exactly touching, it would first fall freely for a step) and is not pushed off it.
+    n, half = s.normal, s.half if s.half > 0 else reach
+    tangent = np.array([n[1], -n[0]])
+    front, back = s.points[0] + 0.5 * slop * n, s.points[0] - PLANE_DEPTH_FRACTION * smallest * n
+    return pymunk.Poly(body, [tuple(front + half * tangent), tuple(front - half * tangent),
+                              tuple(back - half * tangent), tuple(back + half * tangent)])
+
+
+def _constrain(space: pymunk.Space, p: _BodyPlan, handles: dict, plan: _Plan, reach: float) -> None:
+    body, parent = handles[p.name], handles[p.parent]
+    if p.kind == "pivot":
+        hinge = p.joints[0]
+        parent_plan = next((q for q in plan.bodies if q.name == p.parent), None)
+        motion = (0.0, np.zeros(2)) if parent_plan is None else (parent_plan.phi, parent_plan.tau)
+        joint = pymunk.PivotJoint(parent, body, tuple(_apply(*motion, hinge.anchor)))  # anchor at t = 0
+        joint.collide_bodies = False
+        space.add(joint)
+    elif p.kind == "groove":
+        slide = next(j for j in p.joints if j.joint.kind == "slide")
+        hinge = next((j for j in p.joints if j.joint.kind == "hinge"), None)
+        local = p.cog if hinge is None else hinge.anchor - _xz(p.origin0)  # the pivot, pymunk local
+        point = np.asarray(body.local_to_world(tuple(local)))
+        space.add(pymunk.GrooveJoint(space.static_body, body, tuple(point - reach * slide.axis),
+                                     tuple(point + reach * slide.axis), tuple(local)))
+
+
+def _contacts(space: pymunk.Space, plan: _Plan, made: dict) -> _Counter:
+    """Only the listed pairs collide; each pair gets its restitution and friction; onsets are counted."""
+    contacts = plan.layout.contacts
+    names = list(dict.fromkeys(n for c in contacts for n in (c.shape_a, c.shape_b)))
     if len(names) > MAX_CONTACT_SHAPES:
         raise NotImplementedError(f"{len(names)} shapes take part in contacts: pymunk's collision filter has "
                                   f"{MAX_CONTACT_SHAPES} categories")
     bit = {n: 1 << i for i, n in enumerate(names)}
     mask = dict.fromkeys(names, 0)
-    for contact in layout.contacts:
-        mask[contact.shape_a] |= bit[contact.shape_b]
-        mask[contact.shape_b] |= bit[contact.shape_a]
-    for n, (shape, _moving) in shapes.items():
+    for c in contacts:
+        mask[c.shape_a] |= bit[c.shape_b]
+        mask[c.shape_b] |= bit[c.shape_a]
+    for n, shape in made.items():
         shape.filter = pymunk.ShapeFilter(categories=bit.get(n, 0), mask=mask.get(n, 0))
         shape.collision_type = names.index(n) + 1 if n in bit else 0
 
-    # Per-shape factors whose products are the pairs' values: sqrt on both shapes works when all pairs
-    # agree, or when no shape is in two pairs.
-    values = {(c.restitution, c.friction) for c in layout.contacts}
-    uses = {n: sum(n in (c.shape_a, c.shape_b) for c in layout.contacts) for n in names}
-    factorable = len(values) <= 1 or max(uses.values(), default=0) <= 1
-    for contact in layout.contacts:
-        for n in (contact.shape_a, contact.shape_b):
-            shapes[n][0].elasticity = math.sqrt(contact.restitution)
-            shapes[n][0].friction = math.sqrt(contact.friction)
+    # sqrt(e) and sqrt(mu) on both shapes give each pair its values when all pairs agree or no shape is
+    # in two pairs; otherwise a pre_solve callback sets the arbiter's values.
+    uses = {n: sum(n in (c.shape_a, c.shape_b) for c in contacts) for n in names}
+    factorable = len({(c.restitution, c.friction) for c in contacts}) <= 1 or max(uses.values(), default=0) <= 1
+    for c in contacts:
+        for n in (c.shape_a, c.shape_b):
+            made[n].elasticity, made[n].friction = math.sqrt(c.restitution), math.sqrt(c.friction)
 
-    counter = _Counter()
-    counter.elastic = any(c.restitution > 0 for c in layout.contacts)
-    for contact in layout.contacts:
-        between_bodies = shapes[contact.shape_a][1] and shapes[contact.shape_b][1]
-        kwargs = {}
+    moving = {s.name: s.moving for s in plan.shapes}
+    counter = _Counter(elastic=any(c.restitution > 0 for c in contacts))
+    for c in contacts:
+        callbacks = {}
         if counter.elastic:
-            kwargs.update(begin=counter.begin, data=between_bodies)
+            callbacks.update(begin=counter.begin, data=moving[c.shape_a] and moving[c.shape_b])
         if not factorable:
-            def pre_solve(arbiter, space, data, e=contact.restitution, mu=contact.friction):
-                arbiter.restitution = e
-                arbiter.friction = mu
-            kwargs["pre_solve"] = pre_solve
-        if kwargs:
-            space.on_collision(names.index(contact.shape_a) + 1, names.index(contact.shape_b) + 1, **kwargs)
+            def pre_solve(arbiter, space, data, e=c.restitution, mu=c.friction):
+                arbiter.restitution, arbiter.friction = e, mu
+            callbacks["pre_solve"] = pre_solve
+        if callbacks:
+            space.on_collision(names.index(c.shape_a) + 1, names.index(c.shape_b) + 1, **callbacks)
     return counter
 
 
 # ----- back to the world ------------------------------------------------------------------------------------
 
 def _observe_states(plan: _Plan, position, angle, velocity, angular):
-    """BodyStates per body and (qpos, qvel) per hinge and slide joint from pymunk's history."""
-    phi, omega = -angle, -angular                              # (T, nb): rotation about world +y
-    cog = np.stack([p.cog for p in plan.bodies])                # (nb, 2)
+    """BodyStates of every body and (qpos, qvel) of every hinge and slide joint from pymunk's history:
+    position (T, nb, 2) of the body origins, angle (T, nb), velocity (T, nb, 2) of the centres of mass,
+    angular (T, nb), all pymunk's."""
+    phi, omega = -angle, -angular                               # (T, nb): rotation about world +y
+    cog = np.stack([p.cog for p in plan.bodies])                 # (nb, 2)
     com = position + np.einsum("tbij,bj->tbi", _rot(phi), cog)  # pymunk local -> world (x, z)
-    states, joints = {}, {}
     index = {p.name: i for i, p in enumerate(plan.bodies)}
-    T = position.shape[0]
+    zeros = np.zeros(position.shape[0])
+    bodies, joints = {}, {}
     for i, p in enumerate(plan.bodies):
-        com3 = np.stack([com[:, i, 0], np.full(T, p.com_y), com[:, i, 1]], axis=1)
-        vel3 = np.stack([velocity[:, i, 0], np.zeros(T), velocity[:, i, 1]], axis=1)
-        omega3 = np.stack([np.zeros(T), omega[:, i], np.zeros(T)], axis=1)
-        quat = quat_multiply(quat_from_axis_angle(Y_AXIS, phi[:, i]), quat_from_matrix(p.rot0))
-        states[p.name] = BodyStates(com=com3, quat=quat, velocity=vel3, omega=omega3)
-        if p.kind == "static":
-            continue
+        bodies[p.name] = BodyStates(
+            com=np.stack([com[:, i, 0], zeros + p.com_y, com[:, i, 1]], axis=1),
+            quat=quat_multiply(quat_from_axis_angle(Y_AXIS, phi[:, i]), quat_from_matrix(p.rot0)),
+            velocity=np.stack([velocity[:, i, 0], zeros, velocity[:, i, 1]], axis=1),
+            omega=np.stack([zeros, omega[:, i], zeros], axis=1))
         if p.kind == "pivot":
-            hinge = p.joints[0]
-            j = index.get(p.parent)
-            phi_p = 0.0 if j is None else phi[:, j]
-            omega_p = 0.0 if j is None else omega[:, j]
-            joints[hinge.joint.name] = (hinge.sign * (phi[:, i] - phi_p), hinge.sign * (omega[:, i] - omega_p))
-            continue
-        joints.update(_slide_coordinates(p, phi[:, i], omega[:, i], position[:, i], com[:, i], velocity[:, i]))
-    return states, joints
+            hinge, j = p.joints[0], index.get(p.parent)
+            relative = phi[:, i] - (0.0 if j is None else phi[:, j])
+            rate = omega[:, i] - (0.0 if j is None else omega[:, j])
+            joints[hinge.joint.name] = (hinge.sign * relative, hinge.sign * rate)
+        elif p.kind != "static":
+            joints.update(_slide_coordinates(p, phi[:, i], omega[:, i], position[:, i], com[:, i], velocity[:, i]))
+    return bodies, joints
 
 
 def _slide_coordinates(p: _BodyPlan, phi, omega, origin, com, velocity) -> dict:
     """Joint coordinates of a body on slides (and at most one hinge) to the world: replay the joints in
-    order with the slides at zero, then solve for the displacements along the (turned) slide axes."""
+    order with the slides at zero, then solve for the displacements along the slide axes (turned by a
+    hinge before them), and likewise for the rates from the velocity of the centre of mass."""
     T = phi.shape[0]
     psi, tau0 = np.zeros(T), np.zeros((T, 2))
-    axes, anchors, out = [], [], {}
+    axes, hinges, out = [], [], {}
     for jp in p.joints:
-        if jp.joint.kind == "hinge":
-            anchors.append((jp, psi.copy(), tau0.copy(), len(axes)))
-            alpha = phi  # the one hinge carries all of the rotation
-            tau0 = np.einsum("tij,j->ti", _rot(psi), jp.anchor) + tau0 - np.einsum(
-                "tij,tj->ti", _rot(psi + alpha), np.broadcast_to(jp.anchor, (T, 2)))
-            psi = psi + alpha
+        if jp.joint.kind == "hinge":  # the one hinge carries the whole rotation phi
+            hinges.append((jp, _apply(psi, tau0, jp.anchor), len(axes)))
+            tau0 = _apply(psi, tau0, jp.anchor) - np.einsum("tij,j->ti", _rot(psi + phi), jp.anchor)
+            psi = psi + phi
             out[jp.joint.name] = (jp.sign * phi, jp.sign * omega)
         else:
             axes.append((jp, np.einsum("tij,j->ti", _rot(psi), jp.axis)))
-    tau = origin - np.einsum("tij,j->ti", _rot(phi), _xz(p.origin0))
     W = np.stack([w for _jp, w in axes], axis=-1)  # (T, 2, k)
-    d = _solve(W, tau - tau0)
-    # velocity of the centre of mass = hinge rate y x (com - anchor) + sum of slide rates along their axes
+    d = _solve(W, origin - np.einsum("tij,j->ti", _rot(phi), _xz(p.origin0)) - tau0)
+    # v_com = omega y x (com - anchor) + sum of rate x axis, the anchor moved by the slides before it
     rhs = velocity.copy()
-    for jp, psi_h, tau_h, before in anchors:
-        anchor = np.einsum("tij,j->ti", _rot(psi_h), jp.anchor) + tau_h
-        for m in range(before):
-            anchor = anchor + d[:, m, None] * W[:, :, m]
+    for _jp, anchor, before in hinges:
+        anchor = anchor + sum(d[:, m, None] * W[:, :, m] for m in range(before))
         rhs = rhs - _cross_y(omega, com - anchor)
-    d_rate = _solve(W, rhs)
+    rate = _solve(W, rhs)
     for m, (jp, _w) in enumerate(axes):
-        out[jp.joint.name] = (d[:, m], d_rate[:, m])
+        out[jp.joint.name] = (d[:, m], rate[:, m])
     return out
 
 
 def _solve(W: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-    """(T, k) solution of W x = rhs for W (T, 2, k), k = 1 (projection) or 2."""
+    """(T, k) solution of W x = rhs for W (T, 2, k), k = 1 (projection onto the axis) or 2."""
     if W.shape[-1] == 1:
         w = W[:, :, 0]
         return (np.sum(w * rhs, axis=1) / np.sum(w * w, axis=1))[:, None]
