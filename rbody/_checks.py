@@ -8,11 +8,17 @@ import numpy as np
 
 
 def finite_array(value: Any, name: str, *, shape: tuple | None = None, ndim: int | None = None) -> np.ndarray:
-    """float64 copy of `value`, checked finite and (optionally) of a given shape or rank."""
+    """float64 copy of `value`, checked real, finite and (optionally) of a given shape or rank.
+
+    Text ("1.5") and complex numbers are refused rather than converted.
+    """
     try:
+        kind = np.asarray(value).dtype.kind
+        if kind in "USVcmM":  # text, bytes, void, complex, timedelta, datetime
+            raise TypeError(f"got dtype kind {kind!r}")
         array = np.array(value, dtype=np.float64)
     except (TypeError, ValueError) as error:
-        raise ValueError(f"{name}={value!r}: expected numbers ({error})") from None
+        raise ValueError(f"{name}={value!r}: expected real numbers ({error})") from None
     if shape is not None and array.shape != tuple(shape):
         raise ValueError(f"{name} has shape {array.shape}: expected {tuple(shape)}")
     if ndim is not None and array.ndim != ndim:
@@ -50,7 +56,11 @@ def in_interval(value: Any, name: str, low: float, high: float, *, closed: bool 
 
 def one_of(value: Any, name: str, choices) -> Any:
     """`value` checked to be one of `choices` (the message lists them)."""
-    if value not in choices:
+    try:
+        found = any(bool(value == choice) for choice in choices)
+    except (TypeError, ValueError):  # e.g. an array compared with a string
+        found = False
+    if not found:
         raise ValueError(f"{name}={value!r}: expected one of {', '.join(map(repr, choices))}")
     return value
 

@@ -17,7 +17,7 @@ from typing import Iterable, Union
 
 import numpy as np
 
-from rbody._checks import finite_array, positive
+from rbody._checks import finite_array, nonnegative, positive
 
 AxisLike = Union[str, Iterable[float], np.ndarray]
 
@@ -53,13 +53,16 @@ def _readonly(array: np.ndarray) -> np.ndarray:
 
 
 def rotation_matrix(rotation: np.ndarray) -> np.ndarray:
-    """(3,3) proper rotation from a (3,3) matrix or a (w, x, y, z) quaternion, checked."""
-    rotation = np.asarray(rotation, dtype=np.float64)
+    """(3,3) proper rotation from a (3,3) matrix or a (w, x, y, z) quaternion (normalised), checked."""
+    rotation = finite_array(rotation, "R")
     if rotation.shape == (4,):
         from rbody.motion import quat_to_matrix
 
         return quat_to_matrix(rotation)
-    matrix = finite_array(rotation, "R", shape=(3, 3))
+    if rotation.shape != (3, 3):
+        raise ValueError(f"R has shape {rotation.shape}: expected a (3, 3) rotation matrix "
+                         "or a (4,) quaternion (w, x, y, z)")
+    matrix = rotation
     if not np.allclose(matrix @ matrix.T, np.eye(3), atol=1e-10) or np.linalg.det(matrix) < 0:
         raise ValueError(f"R={matrix.tolist()}: expected a proper rotation (R R^T = 1, det R = +1)")
     return matrix
@@ -79,7 +82,7 @@ class Inertia:
     tensor: np.ndarray
 
     def __post_init__(self) -> None:
-        mass = float(positive(self.mass, "mass"))
+        mass = positive(finite_array(self.mass, "mass", shape=()), "mass")
         com = finite_array(self.com, "com", shape=(3,))
         tensor = finite_array(self.tensor, "tensor", shape=(3, 3))
         scale = max(float(np.max(np.abs(tensor))), np.finfo(float).tiny)
@@ -114,9 +117,9 @@ class Inertia:
         Tensor about the centre of mass, I_ab = sum m (|y|^2 d_ab - y_a y_b), y = x - R.
         """
         masses = finite_array(masses, "masses", ndim=1)
-        positions = finite_array(positions, "positions", shape=(len(masses), 3))
         if len(masses) == 0:
             raise ValueError("masses=[]: a system of particles needs at least one particle")
+        positions = finite_array(positions, "positions", shape=(len(masses), 3))
         if np.any(masses <= 0):
             raise ValueError(f"masses={masses.tolist()}: every particle mass must be > 0 [kg]")
         total = masses.sum()
@@ -155,12 +158,14 @@ class Inertia:
     def hollow_cylinder(
         cls, mass: float, inner_radius: float, outer_radius: float, length: float, axis: AxisLike = "z"
     ) -> "Inertia":
-        """Thick-walled tube: M (a^2 + b^2) / 2 about the axis, M (3 (a^2 + b^2) + L^2) / 12 across.
+        """Thick-walled tube: M (a^2 + b^2) / 2 about the axis, M (3 (a^2 + b^2) + L^2) / 12 across,
+        a = inner_radius >= 0, b = outer_radius > 0 [m], length L > 0 [m].
 
-        inner_radius == outer_radius is the thin-walled cylinder, M a^2 about its axis.
+        inner_radius == outer_radius is the thin-walled cylinder, M a^2 about its axis;
+        inner_radius == 0 is the solid cylinder.
         """
         mass = positive(mass, "mass")
-        inner = positive(inner_radius, "inner_radius")
+        inner = nonnegative(inner_radius, "inner_radius")
         outer = positive(outer_radius, "outer_radius")
         length = positive(length, "length")
         if inner > outer:
@@ -184,11 +189,17 @@ class Inertia:
 
     @classmethod
     def box(cls, mass: float, size: Iterable[float]) -> "Inertia":
-        """Uniform cuboid with full side lengths size (3,) [m]: I_xx = M (b^2 + c^2) / 12, ..."""
+        """Uniform cuboid with full side lengths size (3,) = (a, b, c) [m]:
+        I_xx = M (b^2 + c^2) / 12, I_yy = M (a^2 + c^2) / 12, I_zz = M (a^2 + b^2) / 12.
+
+        One side may be 0: a thin rectangular plate (lamina), for which I_zz = I_xx + I_yy
+        (the chapter's perpendicular-axis theorem, for c = 0).
+        """
         mass = positive(mass, "mass")
         size = finite_array(size, "size", shape=(3,))
-        if np.any(size <= 0):
-            raise ValueError(f"size={size.tolist()}: every side length must be > 0 [m]")
+        if np.any(size < 0) or np.sum(size == 0) > 1:
+            raise ValueError(f"size={size.tolist()}: side lengths must be >= 0 [m] with at most one "
+                             "zero (a plate); use Inertia.rod for a line")
         a2, b2, c2 = size**2
         return cls(mass, np.zeros(3), mass / 12 * np.diag([b2 + c2, a2 + c2, a2 + b2]))
 

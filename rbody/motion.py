@@ -14,11 +14,23 @@ import numpy as np
 from rbody._checks import finite_array
 
 
+def _vectors(value, name: str, size: int) -> np.ndarray:
+    """(..., size) float64 array, finite, last axis of length `size`."""
+    array = finite_array(value, name)
+    if array.ndim == 0 or array.shape[-1] != size:
+        raise ValueError(f"{name} has shape {array.shape}: expected (..., {size})")
+    return array
+
+
 def point_velocity(r: np.ndarray, R: np.ndarray, V: np.ndarray, omega: np.ndarray) -> np.ndarray:
     """(..., 3) velocity [m/s] of the body point r [m], given reference point R [m] moving at V [m/s]
     and angular velocity omega [rad/s] (world frame); broadcasts over leading axes."""
-    r, R, V, omega = (np.asarray(a, dtype=np.float64) for a in (r, R, V, omega))
-    return V + np.cross(omega, r - R)
+    r, R, V, omega = (_vectors(a, name, 3) for a, name in ((r, "r"), (R, "R"), (V, "V"), (omega, "omega")))
+    try:
+        return V + np.cross(omega, r - R)
+    except ValueError as error:
+        raise ValueError(f"r {r.shape}, R {R.shape}, V {V.shape}, omega {omega.shape}: "
+                         f"leading axes do not broadcast ({error})") from None
 
 
 @dataclass(frozen=True)
@@ -61,8 +73,8 @@ class RigidMotion:
 # ----- quaternions (w, x, y, z) ------------------------------------------------------------------
 
 def quat_normalize(q: np.ndarray) -> np.ndarray:
-    """(..., 4) unit quaternion; raises ValueError for a zero quaternion."""
-    q = np.asarray(q, dtype=np.float64)
+    """(..., 4) unit quaternion; raises ValueError for a zero or non-finite quaternion."""
+    q = _vectors(q, "quaternion", 4)
     norm = np.linalg.norm(q, axis=-1, keepdims=True)
     if np.any(norm == 0) or not np.all(np.isfinite(norm)):
         raise ValueError(f"quaternion {q.tolist()}: must be finite and non-zero")
@@ -71,7 +83,7 @@ def quat_normalize(q: np.ndarray) -> np.ndarray:
 
 def quat_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """(..., 4) Hamilton product p q (apply q, then p)."""
-    p, q = np.asarray(p, dtype=np.float64), np.asarray(q, dtype=np.float64)
+    p, q = _vectors(p, "p", 4), _vectors(q, "q", 4)
     pw, px, py, pz = np.moveaxis(p, -1, 0)
     qw, qx, qy, qz = np.moveaxis(q, -1, 0)
     return np.stack([
@@ -84,7 +96,7 @@ def quat_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
 
 def quat_conjugate(q: np.ndarray) -> np.ndarray:
     """(..., 4) conjugate, the inverse rotation of a unit quaternion."""
-    q = np.asarray(q, dtype=np.float64)
+    q = _vectors(q, "q", 4)
     return q * np.array([1.0, -1.0, -1.0, -1.0])
 
 
@@ -94,7 +106,7 @@ def quat_from_axis_angle(axis: Iterable[float], angle: float | np.ndarray) -> np
     norm = np.linalg.norm(axis)
     if norm == 0:
         raise ValueError("axis=[0, 0, 0]: a rotation axis must be non-zero")
-    half = 0.5 * np.asarray(angle, dtype=np.float64)[..., None]
+    half = 0.5 * finite_array(angle, "angle")[..., None]
     return np.concatenate([np.cos(half), np.sin(half) * axis / norm], axis=-1)
 
 
@@ -134,12 +146,12 @@ def quat_from_matrix(matrix: np.ndarray) -> np.ndarray:
 
 def quat_rotate(q: np.ndarray, v: np.ndarray) -> np.ndarray:
     """(..., 3) vector v rotated by the unit quaternion q: v' = q v q*."""
-    return np.einsum("...ab,...b->...a", quat_to_matrix(q), np.asarray(v, dtype=np.float64))
+    return np.einsum("...ab,...b->...a", quat_to_matrix(q), _vectors(v, "v", 3))
 
 
 def quat_exp(rotation_vector: np.ndarray) -> np.ndarray:
     """(..., 4) unit quaternion of the rotation vector phi (..., 3) [rad]: exp(phi/2), exact for any |phi|."""
-    phi = np.asarray(rotation_vector, dtype=np.float64)
+    phi = _vectors(rotation_vector, "rotation_vector", 3)
     angle = np.linalg.norm(phi, axis=-1, keepdims=True)
     half = 0.5 * angle
     # sin(|phi|/2)/|phi| written with sinc so that it stays exact as |phi| -> 0.
@@ -150,4 +162,5 @@ def quat_exp(rotation_vector: np.ndarray) -> np.ndarray:
 def quat_integrate_body(q: np.ndarray, omega_body: np.ndarray, dt: float) -> np.ndarray:
     """(..., 4) orientation after turning at the constant body rate omega_body (..., 3) [rad/s] for dt [s]:
     q(t + dt) = q(t) exp(omega_body dt / 2), the exact exponential map."""
-    return quat_multiply(q, quat_exp(np.asarray(omega_body, dtype=np.float64) * dt))
+    dt = finite_array(dt, "dt")
+    return quat_multiply(q, quat_exp(_vectors(omega_body, "omega_body", 3) * dt[..., None]))
