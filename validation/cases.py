@@ -51,6 +51,40 @@ def rolling_cases(quick: bool) -> list[Case]:
     return cases
 
 
+def chain_cases(quick: bool) -> list[Case]:
+    """The double rod pendulum: no closed form, so every backend is compared with DOP853 at rtol 1e-13."""
+    chain = scenes.pendulum_chain(2, theta0=(1.0, 0.5), t_end=2.0 if quick else 5.0)
+    return [Case("double_pendulum", "chain", chain, {b: DT for b in ALL}, ("max_abs_error", "energy_error"),
+                 {"rbody": {"method": "rk4"}, "mujoco": {"integrator": "RK4"}}, reference="reference")]
+
+
+def collision_cases(quick: bool) -> list[Case]:
+    """Newton's cradle (three balls, elastic) and the pi collisions.
+
+    The pi scenes give the heavy ball a speed of 10^-N, which keeps the light ball near 1 m/s where a
+    1 ms step resolves its flight, and a spacing of 0.1 m, so that the run (about 3 spacing / speed)
+    stays short enough to step at dt = 1e-3.
+    """
+    cradle = scenes.line_collisions((1.0, 1.0, 1.0), (0.0, 0.5, 0.7), (1.0, 0.0, 0.0), radii=0.1,
+                                    walls=(), t_end=1.0)
+    cases = [Case("newtons_cradle", "collisions", cradle, {b: DT for b in ALL}, ("max_abs_error", "energy_error"))]
+    for digits in range(3 if quick else 5):
+        scene = scenes.pi_collisions(digits, speed=10.0**-digits, spacing=0.1, radius=0.02)
+        # rbody's dt only samples the trajectory: a thousand samples of the whole run.
+        cases.append(Case(f"pi_collisions_{digits}", "pi", scene, {"rbody": scene.t_end / 1000, "mujoco": DT,
+                                                                  "pymunk": DT}, ("count_error", "pi_digits")))
+    return cases
+
+
+def rotation_cases(quick: bool) -> list[Case]:
+    """A body with principal moments 1, 2, 3 kg m^2 spun near its intermediate axis (tennis racket)."""
+    body = rbody.Inertia(2.0, np.zeros(3), np.diag([1.0, 2.0, 3.0]))
+    scene = scenes.free_rotation(body, omega0=(0.05, 2.0, 0.05), t_end=4.0 if quick else 20.0)
+    return [Case("free_rotation", "free_rotation", scene, {b: DT for b in ALL},
+                 ("max_abs_error", "energy_error"), {"rbody": {"method": "rk4"}, "mujoco": {"integrator": "RK4"}})]
+
+
 def default_cases(quick: bool = False) -> list[Case]:
     """Every case of the main command; quick keeps each one short (the CLI test and CI)."""
-    return pendulum_cases(quick) + rolling_cases(quick)
+    return (pendulum_cases(quick) + chain_cases(quick) + rolling_cases(quick) + collision_cases(quick)
+            + rotation_cases(quick))

@@ -2,27 +2,37 @@
 
 The pipeline:
 
-    xml    = rbody.to_mjcf(scene, dt=dt, ...)       # joints, explicit inertials, contact pairs, keyframe
-    model  = mujoco.MjModel.from_xml_string(xml)
-    states = rollout(model, data, state0, nstep)    # the stepping, in C; the only thing timed
-    bodies = replay(states)                         # com, quat, com velocity, world omega of each body
-    data   = scene.observe(t, bodies, joints)       # the same observables as every backend
+    xml      = rbody.to_mjcf(scene, dt=dt, ...)       # joints, explicit inertials, contact pairs, keyframe
+    model    = mujoco.MjModel.from_xml_string(xml)
+    states   = rollout(model, data, state0, nstep)    # the stepping, in C: the only thing timed
+    sensors  = rollout(model + sensors, ...)          # the same run again, with MuJoCo's own sensors:
+                                                      # com, quat, com velocity, world omega, contacts
+    data     = scene.observe(t, bodies, joints)       # the same observables as every backend
+
+The second rollout must reproduce the first bit for bit (sensors do not act on the physics); it is
+checked. Rollout's sensordata row j belongs to the state before step j.
 
 Conventions at this edge: MuJoCo's free-joint qvel holds the angular velocity in the BODY frame (the
 keyframe written by to_mjcf converts the scene's world omega); hinge and slide qpos are measured from
-the reference pose, as in rbody. mj_objectVelocity on a body (mjOBJ_BODY) gives (omega, v) at the
-body's centre of mass (xipos), world axes with flg_local = 0 — checked against w x (com - pivot).
+the reference pose, as in rbody. The body sensors (framepos and framelinvel of objtype "body", i.e.
+the inertial frame; framequat of "xbody"; frameangvel) give the centre of mass, its velocity, the
+body-frame orientation and the world angular velocity: checked equal to xipos, xquat and
+mj_objectVelocity(mjOBJ_BODY, flg_local=0), which returns (omega, v) at the centre of mass.
 
-Impacts (contacts with restitution > 0): MuJoCo resolves them as stiff springs lasting a few steps.
-A collision is counted when a pair goes from no contact to contact between two steps (an onset), from
-MuJoCo's own collision detection replayed on every step's positions: ``collisions`` (T,) counts onsets
-over all pairs, ``ball_collisions`` (T,) over pairs of two moving bodies, both cumulative.
+Impacts (contacts with restitution > 0): MuJoCo resolves them as springs lasting some steps. A
+collision is counted when a pair goes from no contact to contact between two steps (an onset), from
+MuJoCo's contact sensor on every step: ``collisions`` (T,) counts onsets over all pairs,
+``ball_collisions`` (T,) over pairs of two moving bodies, both cumulative.
+
+Scenes with a varying mass or applied forces (body_mass, slide_force, pair_force) run in a plain
+mj_step loop instead (see _Run.drive); scenes whose class sets applies_gravity = False get no gravity.
 """
 
 from __future__ import annotations
 
 import math
 import time
+from xml.sax.saxutils import quoteattr
 
 import mujoco
 import numpy as np
@@ -50,9 +60,29 @@ def check(scene: Scene) -> None:
         raise NotImplementedError(f"MuJoCo runs one scene at a time; use scene.item(i) (scene {scene.name!r} is a "
                                   f"batch of shape {scene.batch_shape})")
     try:
-        scene.layout
+        layout = scene.layout
     except NotImplementedError as reason:
         raise NotImplementedError(f"MuJoCo needs the scene's bodies and joints: {reason}") from None
+    _drive_plan(scene, layout)
+
+
+def _drive_plan(scene: Scene, layout) -> dict | None:
+    """What must be set before every step for a scene MuJoCo's model alone does not hold, or None.
+
+    body_mass(t, distance) and slide_force(t, distance, speed): a body of varying mass on one slide
+    (the rocket, the avalanche); pair_force(x1, x2): a force between two bodies (the two-body problem)."""
+    hooks = [h for h in ("body_mass", "slide_force", "pair_force") if callable(getattr(scene, h, None))]
+    if not hooks:
+        return None
+    slides = [j for j in layout.joints if j.kind == "slide"]
+    if ("body_mass" in hooks or "slide_force" in hooks) and (len(layout.bodies) != 1 or len(slides) != 1):
+        raise NotImplementedError(f"scene {scene.name!r}: a varying mass or slide force is applied to one body on "
+                                  f"one slide; the layout has {len(layout.bodies)} bodies and {len(slides)} slides")
+    if "pair_force" in hooks and len(layout.bodies) != 2:
+        raise NotImplementedError(f"scene {scene.name!r}: a pair force acts between two bodies; the layout has "
+                                  f"{len(layout.bodies)}")
+    return {"hooks": hooks, "slide": slides[0].name if slides else None,
+            "bodies": [b.name for b in layout.bodies]}
 
 
 def build(scene: Scene, dt: float, **settings) -> tuple[mujoco.MjModel, str]:
@@ -86,67 +116,204 @@ def run(scene: Scene, dt: float, t_end: float | None = None, *, integrator: str 
         raise ValueError(f"save_every={save_every!r}: expected a whole number >= 1")
     settings = {"integrator": integrator, "solref": solref, "solimp": solimp, "condim": condim, "cone": cone,
                 "impratio": impratio, "noslip_iterations": noslip_iterations, "min_inertia": min_inertia}
-    model, _xml = build(scene, dt, **{k: v for k, v in settings.items() if v is not None})
-    data = mujoco.MjData(model)
-    if model.nkey:
-        mujoco.mj_resetDataKeyframe(model, data, mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, INITIAL_KEY))
-
+    model, xml = build(scene, dt, **{k: v for k, v in settings.items() if v is not None})
     layout = scene.layout
-    impacts = has_impacts(layout)
+    observer = mujoco.MjModel.from_xml_string(_with_sensors(xml, layout))
     nsteps = max(1, math.ceil(t_end / dt * (1 - 1e-12)))
     nsteps = -(-nsteps // save_every) * save_every
-    states, step_seconds = _step(model, data, nsteps, save_every, keep_all=impacts)
+    run_ = _Run(model, observer, layout, save_every)
+    plan = _drive_plan(scene, layout)
+    if plan is None:
+        run_.step(nsteps)
+    else:
+        run_.drive(scene, plan, nsteps)
 
+    t = np.arange(run_.states.shape[0]) * (dt * save_every)
     nq, nv = model.nq, model.nv
-    qpos_all, qvel_all = states[:, 1:1 + nq], states[:, 1 + nq:1 + nq + nv]
-    stride = save_every if impacts else 1  # with impacts every step was kept, for the contact onsets
-    qpos, qvel = qpos_all[::stride], qvel_all[::stride]
-    t = np.arange(qpos.shape[0]) * (dt * save_every)
-
-    bodies = _replay_bodies(model, qpos, qvel, [b.name for b in layout.bodies])
+    qpos, qvel = run_.states[:, 1:1 + nq], run_.states[:, 1 + nq:1 + nq + nv]  # (time, qpos, qvel, ...)
+    bodies = {}
+    for i, body in enumerate(layout.bodies):
+        values = run_.sensors[:, 13 * i:13 * (i + 1)]
+        bodies[body.name] = BodyStates(com=values[:, 0:3].copy(), quat=values[:, 3:7].copy(),
+                                       velocity=values[:, 7:10].copy(), omega=values[:, 10:13].copy())
     joints = {}
     for joint in layout.joints:
         if joint.kind in ("hinge", "slide"):
             j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, joint.name)
             joints[joint.name] = (qpos[:, model.jnt_qposadr[j]].copy(), qvel[:, model.jnt_dofadr[j]].copy())
     observables = dict(scene.observe(t, bodies, joints))
-    if impacts:
-        all_pairs, ball_pairs = _collision_onsets(model, qpos_all)
-        observables["collisions"] = all_pairs[::save_every]
-        observables["ball_collisions"] = ball_pairs[::save_every]
+    if has_impacts(layout):
+        observables["collisions"] = run_.collisions
+        observables["ball_collisions"] = run_.ball_collisions
+    step_seconds = run_.seconds
 
     meta = {"scene": scene.name, "description": scene.describe(), "backend": name, "dt": dt, "t_end": t_end,
             "nsteps": nsteps, "save_every": save_every, "integrator": _integrator_name(model),
             "settings": _effective_settings(model), "mujoco_version": mujoco.__version__,
-            "step_seconds": step_seconds}
+            "step_seconds": step_seconds,
+            "stepping": ("mujoco.rollout" if plan is None else
+                         f"mj_step loop, setting {', '.join(plan['hooks'])} from the scene before every step "
+                         "(timed with that Python work and MuJoCo's sensors)")}
     return Trajectory(t, observables, meta=meta)
 
 
-# ----- stepping -----------------------------------------------------------------------------------
+# ----- stepping and observing ----------------------------------------------------------------------
 
-def _step(model: mujoco.MjModel, data: mujoco.MjData, nsteps: int, save_every: int,
-          keep_all: bool) -> tuple[np.ndarray, float]:
-    """Full physics states (T, nstate) from the initial one, every step (keep_all) or every save_every-th,
-    and the wall time [s] of the rollout calls alone."""
-    nstate = mujoco.mj_stateSize(model, _FULL)
-    state = np.empty(nstate)
-    mujoco.mj_getState(model, data, state, _FULL)
-    kept = [state[None].copy()]
-    chunk = max(save_every, (_CHUNK_BYTES // (8 * nstate)) // save_every * save_every)
-    seconds = 0.0
-    done = 0
-    while done < nsteps:
-        n = min(chunk, nsteps - done)
-        warmstart = data.qacc_warmstart.copy()[None]
-        start = time.perf_counter()
-        out, _ = mj_rollout.rollout(model, data, state[None], nstep=n, initial_warmstart=warmstart)
-        seconds += time.perf_counter() - start
-        out = out[0]
-        _check_stable(model, data, out, done)
-        kept.append(out if keep_all else out[save_every - 1::save_every])
-        state = out[-1].copy()
-        done += n
-    return np.concatenate(kept, axis=0), seconds
+def _with_sensors(xml: str, layout) -> str:
+    """The model with sensors that record what the scene observes, computed by MuJoCo at every step:
+    per body (layout order) the centre of mass (framepos of the body's inertial frame), the body-frame
+    orientation (framequat of xbody), the centre-of-mass velocity and the world angular velocity (13
+    numbers); then per contact pair the number of contacts found (0 when apart)."""
+    lines = ["  <sensor>"]
+    for body in layout.bodies:
+        name = quoteattr(body.name)
+        lines += [f'    <framepos objtype="body" objname={name}/>', f'    <framequat objtype="xbody" objname={name}/>',
+                  f'    <framelinvel objtype="body" objname={name}/>',
+                  f'    <frameangvel objtype="body" objname={name}/>']
+    for contact in layout.contacts:
+        geoms = f"geom1={quoteattr(contact.shape_a)} geom2={quoteattr(contact.shape_b)}"
+        lines.append(f'    <contact {geoms} data="found"/>')
+    lines.append("  </sensor>")
+    head, tail = xml.rsplit("</worldbody>", 1)
+    return head + "</worldbody>\n" + "\n".join(lines) + tail
+
+
+class _Run:
+    """Steps the model in chunks of rollout calls (only these are timed), then replays each chunk in the
+    observer model (the same physics plus sensors: its states must come out identical) for the sensors.
+
+    Rollout's sensordata row j belongs to the state before step j (checked against mj_kinematics,
+    mj_comVel and mj_objectVelocity on the recorded states, for Euler and RK4)."""
+
+    def __init__(self, model, observer, layout, save_every: int) -> None:
+        self.model, self.observer, self.save_every = model, observer, save_every
+        self.data, self.odata = mujoco.MjData(model), mujoco.MjData(observer)
+        if model.nkey:
+            key = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, INITIAL_KEY)
+            mujoco.mj_resetDataKeyframe(model, self.data, key)
+        self.nbody = len(layout.bodies)
+        moving = model.body_weldid[model.geom_bodyid] != 0
+        self.ball = np.array([moving[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, c.shape_a)]
+                              and moving[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, c.shape_b)]
+                              for c in layout.contacts], dtype=bool)
+        self.seconds = 0.0
+
+    def step(self, nsteps: int) -> None:
+        model, nstate = self.model, mujoco.mj_stateSize(self.model, _FULL)
+        state = np.empty(nstate)
+        mujoco.mj_getState(model, self.data, state, _FULL)
+        width = 2 * nstate + self.observer.nsensordata  # numbers per step held by the two rollouts
+        chunk = max(self.save_every, (_CHUNK_BYTES // (8 * width)) // self.save_every * self.save_every)
+        states, sensors, onsets = [], [], []
+        touching = None
+        done = 0
+        while done < nsteps:
+            n = min(chunk, nsteps - done)
+            warmstart = self.data.qacc_warmstart.copy()[None]
+            start = time.perf_counter()
+            out, _ = mj_rollout.rollout(model, self.data, state[None], nstep=n, initial_warmstart=warmstart)
+            self.seconds += time.perf_counter() - start
+            out = out[0]
+            _check_stable(model, self.data, out, done)
+            replay, sensed = mj_rollout.rollout(self.observer, self.odata, state[None], nstep=n,
+                                                initial_warmstart=warmstart)
+            if not np.array_equal(replay[0], out):
+                raise SimulationError("MuJoCo gave different states for the same model with sensors added: the "
+                                      "observed run is not the timed one")
+            sensed = sensed[0]                       # sensors of states done .. done + n - 1
+            keep = np.arange(0, n, self.save_every)  # chunk starts on a multiple of save_every
+            states += [state[None], out[keep[1:] - 1]]  # state done + j is out[j - 1]
+            sensors.append(sensed[keep])
+            found = sensed[:, 13 * self.nbody:] > 0
+            previous = np.zeros((1, found.shape[1]), dtype=bool) if touching is None else touching[None]
+            onsets.append(found & ~np.vstack([previous, found[:-1]]))
+            touching = found[-1] if found.shape[0] else touching
+            state = out[-1].copy()
+            done += n
+        # the final state and its sensors
+        mujoco.mj_setState(self.observer, self.odata, state, _FULL)
+        mujoco.mj_forward(self.observer, self.odata)
+        final = self.odata.sensordata.copy()
+        found = final[None, 13 * self.nbody:] > 0
+        onsets.append(found & ~touching[None] if touching is not None else found)
+        self.states = np.vstack(states + [state[None]])
+        self.sensors = np.vstack(sensors + [final[None]])
+        onset = np.vstack(onsets)
+        every = np.cumsum(onset.sum(axis=1))
+        balls = np.cumsum(onset[:, self.ball].sum(axis=1))
+        self.collisions = every[::self.save_every]
+        self.ball_collisions = balls[::self.save_every]
+
+    def drive(self, scene: Scene, plan: dict, nsteps: int) -> None:
+        """A plain mj_step loop on the observer model for scenes with a varying mass or applied forces.
+
+        Forces are MuJoCo passive forces (mjcb_passive), evaluated at every stage of the integrator from
+        that stage's state: slide_force(t, distance, speed) on the slide, pair_force(x1, x2) at the two
+        centres of mass (equal and opposite). The mass is a model constant, so body_mass(t, distance) is
+        set before each step (its moments in proportion: the same uniform body) and MuJoCo holds it over
+        the step: a first-order error where the mass changes."""
+        model, data = self.observer, self.odata
+        if model.nkey:
+            mujoco.mj_resetDataKeyframe(model, data, mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_KEY, INITIAL_KEY))
+        hooks, dt, every = plan["hooks"], model.opt.timestep, self.save_every
+        ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, n) for n in plan["bodies"]]
+        qadr = dadr = None
+        if plan["slide"] is not None:
+            j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, plan["slide"])
+            qadr, dadr = int(model.jnt_qposadr[j]), int(model.jnt_dofadr[j])
+        torque = np.zeros(3)
+
+        def passive(m, d) -> None:
+            if "slide_force" in hooks:
+                d.qfrc_passive[dadr] += float(scene.slide_force([d.time], [d.qpos[qadr]], [d.qvel[dadr]])[0])
+            if "pair_force" in hooks:
+                force = np.asarray(scene.pair_force(d.xipos[ids[0]], d.xipos[ids[1]])[0], dtype=float)
+                mujoco.mj_applyFT(m, d, force, torque, d.xipos[ids[0]].copy(), ids[0], d.qfrc_passive)
+                mujoco.mj_applyFT(m, d, -force, torque, d.xipos[ids[1]].copy(), ids[1], d.qfrc_passive)
+
+        mass0, moments0 = float(model.body_mass[ids[0]]), model.body_inertia[ids[0]].copy()
+        nstate = mujoco.mj_stateSize(model, _FULL)
+        count = nsteps // every + 1
+        states, sensors = np.empty((count, nstate)), np.empty((count, model.nsensordata))
+        found = np.empty((nsteps + 1, len(self.ball)), dtype=bool)
+        first = 13 * self.nbody
+        forces = "slide_force" in hooks or "pair_force" in hooks
+        previous = mujoco.get_mjcb_passive()
+        if forces:
+            mujoco.set_mjcb_passive(passive)
+        try:
+            start = time.perf_counter()
+            for k in range(nsteps):
+                if "body_mass" in hooks:
+                    mass = float(scene.body_mass([k * dt], [data.qpos[qadr]])[0])
+                    model.body_mass[ids[0]] = mass
+                    model.body_inertia[ids[0]] = moments0 * (mass / mass0)
+                if k % every == 0:
+                    mujoco.mj_getState(model, data, states[k // every], _FULL)
+                mujoco.mj_step(model, data)
+                if k % every == 0:
+                    sensors[k // every] = data.sensordata  # computed by the step for its starting state
+                found[k] = data.sensordata[first:] > 0
+                if any(data.warning[int(w)].number for w in _UNSTABLE):
+                    raise SimulationError(
+                        f"MuJoCo reported an unstable state (NaN, inf or huge qpos/qvel/qacc) at t={k * dt:.6g} s "
+                        f"with dt={dt} and integrator {_integrator_name(model)}; try a smaller dt or another "
+                        "integrator")
+            self.seconds = time.perf_counter() - start
+            mujoco.mj_getState(model, data, states[-1], _FULL)
+            mujoco.mj_forward(model, data)
+        finally:
+            mujoco.set_mjcb_passive(previous)
+        sensors[-1] = data.sensordata
+        found[nsteps] = data.sensordata[first:] > 0
+        self.states, self.sensors = states, sensors
+        self._count(found)
+
+    def _count(self, found: np.ndarray) -> None:
+        """Cumulative contact onsets (T,) from found (steps + 1, pairs): all pairs, and body-body pairs."""
+        onset = found & ~np.vstack([np.zeros((1, found.shape[1]), dtype=bool), found[:-1]])
+        self.collisions = np.cumsum(onset.sum(axis=1))[::self.save_every]
+        self.ball_collisions = np.cumsum(onset[:, self.ball].sum(axis=1))[::self.save_every]
 
 
 def _check_stable(model: mujoco.MjModel, data: mujoco.MjData, out: np.ndarray, done: int) -> None:
@@ -161,63 +328,13 @@ def _check_stable(model: mujoco.MjModel, data: mujoco.MjData, out: np.ndarray, d
             f"dt={dt} and integrator {_integrator_name(model)}; try a smaller dt or another integrator")
 
 
-# ----- what the steps mean ------------------------------------------------------------------------------
-
-def _replay_bodies(model: mujoco.MjModel, qpos: np.ndarray, qvel: np.ndarray,
-                   names: list[str]) -> dict[str, BodyStates]:
-    """World-frame BodyStates of each named body, from recorded (qpos, qvel) (T, nq), (T, nv)."""
-    data = mujoco.MjData(model)
-    ids = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, n) for n in names]
-    count = qpos.shape[0]
-    com = np.empty((count, len(ids), 3))
-    quat = np.empty((count, len(ids), 4))
-    twist = np.empty((count, len(ids), 6))
-    body = mujoco.mjtObj.mjOBJ_BODY
-    for k in range(count):
-        data.qpos[:] = qpos[k]
-        data.qvel[:] = qvel[k]
-        mujoco.mj_kinematics(model, data)
-        mujoco.mj_comPos(model, data)
-        mujoco.mj_comVel(model, data)
-        com[k] = data.xipos[ids]
-        quat[k] = data.xquat[ids]
-        for i, b in enumerate(ids):
-            mujoco.mj_objectVelocity(model, data, body, b, twist[k, i], 0)  # (omega, v) at the com, world
-    return {n: BodyStates(com=com[:, i].copy(), quat=quat[:, i].copy(), velocity=twist[:, i, 3:].copy(),
-                          omega=twist[:, i, :3].copy()) for i, n in enumerate(names)}
-
-
-def _collision_onsets(model: mujoco.MjModel, qpos: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Cumulative onsets (T,) over all contact pairs and over pairs of two moving bodies.
-
-    The contacts at step k are MuJoCo's own (mj_collision on qpos_k: the set the step from k uses);
-    a pair's onset is a step where it is in contact and was not at the step before."""
-    data = mujoco.MjData(model)
-    moving = model.body_weldid[model.geom_bodyid] != 0
-    pair_index = {}
-    for p in range(model.npair):
-        g1, g2 = int(model.pair_geom1[p]), int(model.pair_geom2[p])
-        pair_index[(min(g1, g2), max(g1, g2))] = p
-    ball = np.array([moving[model.pair_geom1[p]] and moving[model.pair_geom2[p]] for p in range(model.npair)],
-                    dtype=bool)
-    touching = np.zeros((qpos.shape[0], model.npair), dtype=bool)
-    for k in range(qpos.shape[0]):
-        data.qpos[:] = qpos[k]
-        mujoco.mj_kinematics(model, data)
-        mujoco.mj_collision(model, data)
-        for c in range(data.ncon):
-            g1, g2 = int(data.contact.geom1[c]), int(data.contact.geom2[c])
-            p = pair_index.get((min(g1, g2), max(g1, g2)))
-            if p is not None:
-                touching[k, p] = True
-    onset = np.zeros_like(touching)
-    onset[1:] = touching[1:] & ~touching[:-1]
-    onset[0] = touching[0]
-    return np.cumsum(onset.sum(axis=1)), np.cumsum(onset[:, ball].sum(axis=1))
+_MJCF_INTEGRATOR = {"EULER": "Euler", "RK4": "RK4", "IMPLICIT": "implicit", "IMPLICITFAST": "implicitfast"}
 
 
 def _integrator_name(model: mujoco.MjModel) -> str:
-    return mujoco.mjtIntegrator(model.opt.integrator).name.removeprefix("mjINT_")
+    """The integrator as MJCF spells it (Euler, RK4, implicit, implicitfast)."""
+    name = mujoco.mjtIntegrator(model.opt.integrator).name.removeprefix("mjINT_")
+    return _MJCF_INTEGRATOR.get(name, name)
 
 
 def _effective_settings(model: mujoco.MjModel) -> dict:
