@@ -512,7 +512,7 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
     if frictional:
         cone = cone or "elliptic"
         impratio = FRICTION_IMPRATIO if impratio is None else impratio
-    gravity = scene.gravity if getattr(scene, "applies_gravity", True) else 0.0
+    gravity = scene.gravity if scene.applies_gravity else 0.0
     pairs = [(c, contact_parameters(c, dt, solref=solref, solimp=solimp, condim=condim)) for c in layout.contacts]
     qpos, qvel = initial_state(layout)
     order = body_order(layout)

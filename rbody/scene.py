@@ -188,6 +188,8 @@ class Scene:
     main_observable: ClassVar[str] = ""
     planar: ClassVar[bool] = True          # lives in the x-z plane
     event_driven: ClassVar[bool] = False   # impacts found exactly; no time step in the dynamics
+    applies_gravity: ClassVar[bool] = True  # False: the scene accepts `gravity` but no body feels it
+                                            # (a table carries the weight, or only internal forces act)
     methods: ClassVar[tuple[str, ...]] = ()  # native methods that apply (empty for event-driven)
 
     def __post_init__(self) -> None:

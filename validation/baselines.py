@@ -1,6 +1,7 @@
 """Regression baselines: each backend's metrics at the main command's default settings.
 
-validation/baselines/<backend>.json holds {"versions": {...}, "metrics": {"case/metric": value}}.
+validation/baselines/<mode>/<backend>.json (mode "full" or "quick": the quick cases are shorter runs,
+so they have baselines of their own) holds {"versions": {...}, "metrics": {"case/metric": value}}.
 A metric regresses when it gets worse than its baseline by more than MARGIN (a relative factor,
 with an absolute floor for values at round-off level), or when a collision count changes at all.
 """
@@ -15,6 +16,11 @@ from typing import Iterable
 import numpy as np
 
 BASELINE_DIR = Path(__file__).parent / "baselines"
+
+
+def mode_dir(quick: bool) -> Path:
+    """Where the baselines of the quick or the full mode live."""
+    return BASELINE_DIR / ("quick" if quick else "full")
 
 # Worse means: |value| > |baseline| * RELATIVE_MARGIN + ABSOLUTE_MARGIN. Round-off-level errors move by
 # small factors between CPUs and library builds; a real regression moves them by orders of magnitude.
@@ -31,14 +37,14 @@ def versions() -> dict[str, str]:
             "numba": numba.__version__, "python": platform.python_version()}
 
 
-def load(backend: str, directory: Path = BASELINE_DIR) -> dict:
+def load(backend: str, directory: Path = BASELINE_DIR / "full") -> dict:
     path = directory / f"{backend}.json"
     if not path.exists():
         return {"versions": {}, "metrics": {}}
     return json.loads(path.read_text())
 
 
-def save(rows: Iterable, directory: Path = BASELINE_DIR) -> list[Path]:
+def save(rows: Iterable, directory: Path = BASELINE_DIR / "full") -> list[Path]:
     """Write one file per backend from the measured rows (values only; refused/failed rows skipped)."""
     by_backend: dict[str, dict[str, float]] = {}
     for row in rows:
@@ -54,7 +60,7 @@ def save(rows: Iterable, directory: Path = BASELINE_DIR) -> list[Path]:
     return written
 
 
-def regressions(rows: Iterable, directory: Path = BASELINE_DIR) -> list[str]:
+def regressions(rows: Iterable, directory: Path = BASELINE_DIR / "full") -> list[str]:
     """Messages for every row that is worse than its recorded baseline."""
     found = []
     cache: dict[str, dict] = {}

@@ -62,14 +62,14 @@ def collision_cases(quick: bool) -> list[Case]:
     """Newton's cradle (three balls, elastic) and the pi collisions.
 
     The pi scenes give the heavy ball a speed of 10^-N, which keeps the light ball near 1 m/s where a
-    1 ms step resolves its flight, and a spacing of 0.1 m, so that the run (about 3 spacing / speed)
+    1 ms step resolves its flight, and a spacing of 0.3 m, so that the run (about 3 spacing / speed)
     stays short enough to step at dt = 1e-3.
     """
     cradle = scenes.line_collisions((1.0, 1.0, 1.0), (0.0, 0.5, 0.7), (1.0, 0.0, 0.0), radii=0.1,
                                     walls=(), t_end=1.0)
     cases = [Case("newtons_cradle", "collisions", cradle, {b: DT for b in ALL}, ("max_abs_error", "energy_error"))]
     for digits in range(3 if quick else 5):
-        scene = scenes.pi_collisions(digits, speed=10.0**-digits, spacing=0.1, radius=0.02)
+        scene = scenes.pi_collisions(digits, speed=10.0**-digits, spacing=0.3, radius=0.05)
         # rbody's dt only samples the trajectory: a thousand samples of the whole run.
         cases.append(Case(f"pi_collisions_{digits}", "pi", scene, {"rbody": scene.t_end / 1000, "mujoco": DT,
                                                                   "pymunk": DT}, ("count_error", "pi_digits")))

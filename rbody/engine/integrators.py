@@ -1,8 +1,9 @@
 """The integration methods, as compiled loops over a batch of states.
 
-Every loop has the same shape: for each batch element b (in parallel), copy y0[b], take
-`nsteps` steps of size dt, store every `save_every`-th state into out[s, b], and record the first
-step whose state is not finite (-1 when none). The scene supplies
+Every loop has the same shape: for each batch element b (chunks of the batch in parallel), copy
+y0[b], take `nsteps` steps of size dt, store every `save_every`-th state into out[s, b], and record
+the first step whose state is not finite (-1 when none; gauss6 also fails a step whose stage
+equations do not converge), freezing that element there. The scene supplies
 
     rhs(y, p, out)    y' = f(y)            (every general method)
     accel(q, p, out)  q'' = a(q), y = (q, q')  (the symplectic methods: the Hamiltonian is separable)
@@ -17,12 +18,21 @@ Methods (order in brackets):
                           any Hamiltonian; solved by fixed-point iteration to round-off
     splitting [2]         the scene's own symmetric splitting into exact flows (free rotation)
     reference             scipy DOP853 at rtol 1e-13: for checks only, never for speed
+
+The compiled loops take the scene's functions as C function pointers (a numba cfunc around each,
+made once per process): a loop typed by a plain signature is compiled once and then loaded from
+numba's on-disk cache in every later process, whereas a loop specialised on each jitted function
+(a numba Dispatcher argument) is compiled again in every process, seconds per method and scene.
+The indirect call costs nothing measurable (25 ns per verlet step of the pendulum either way).
 """
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
-from numba import njit, prange
+from numba import carray, cfunc, get_num_threads, njit, prange, types
+from numba.extending import intrinsic
 
 METHOD_ORDER = {
     "euler": 1,
@@ -51,186 +61,438 @@ GAUSS6_A = np.array([
 ])
 GAUSS6_B = np.array([5 / 18, 4 / 9, 5 / 18])
 GAUSS6_MAX_ITERATIONS = 60
+GAUSS6_TOLERANCE = 2e-16  # relative size of the last correction of the stage slopes
+# A correction that no longer shrinks (rate >= 0.9) and is below this (relative) is the round-off of f
+# itself, which for an ill-conditioned f (the solve with a long chain's mass matrix) lies far above
+# 1e-16; a real contraction that slow could not have come down this far within the iterations allowed.
+GAUSS6_NOISE = 1e-8
+
+
+# ----- the scene's functions as C function pointers ---------------------------------------------
+
+_F64P = types.CPointer(types.float64)
+# f(y, p, out) and a(q, p, out): (y, p, out, len(y), len(p)); a scene's own step(y, p, h): (y, p, h, len(y), len(p))
+RHS_SIGNATURE = types.void(_F64P, _F64P, _F64P, types.intp, types.intp)
+STEP_SIGNATURE = types.void(_F64P, _F64P, types.float64, types.intp, types.intp)
+_POINTER_FUNCTIONS: dict[tuple[int, str], tuple[Any, Any]] = {}
+
+
+def pointer_function(function, kind: str = "rhs"):
+    """The scene's jitted function(y, p, out) ("rhs", also accel) or step(y, p, h) ("step") behind a
+    C function pointer taking (address, address, address or h, len(y), len(p)); made once per function."""
+    key = (id(function), kind)
+    if key not in _POINTER_FUNCTIONS:
+        if kind == "rhs":
+            @cfunc(RHS_SIGNATURE)
+            def wrapper(y, p, out, n, m):
+                function(carray(y, n), carray(p, m), carray(out, n))
+        elif kind == "step":
+            @cfunc(STEP_SIGNATURE)
+            def wrapper(y, p, h, n, m):
+                function(carray(y, n), carray(p, m), h)
+        else:
+            raise ValueError(f"kind={kind!r}: expected 'rhs' or 'step'")
+        _POINTER_FUNCTIONS[key] = (function, wrapper)  # holding the function keeps its id unique
+    return _POINTER_FUNCTIONS[key][1]
+
+
+@intrinsic
+def _row(typingctx, array, index):
+    """float64* to row `index` of a C-contiguous float64 array (data + index * strides[0]), without
+    making a view of the row; passing the array keeps it alive across the call."""
+    if not (isinstance(array, types.Array) and array.dtype == types.float64 and array.layout == "C"
+            and isinstance(index, types.Integer)):
+        return None
+
+    def codegen(context, builder, signature, args):
+        data = context.make_array(signature.args[0])(context, builder, args[0])
+        stride = builder.extract_value(data.strides, 0)
+        offset = builder.mul(context.cast(builder, args[1], signature.args[1], types.intp), stride)
+        address = builder.add(builder.ptrtoint(data.data, context.get_value_type(types.intp)), offset)
+        return builder.inttoptr(address, context.get_value_type(_F64P))
+    return _F64P(array, index), codegen
 
 
 @njit(cache=True, inline="always")
-def _finite(y):
-    for j in range(y.size):
-        if not np.isfinite(y[j]):
+def _finite_row(y, b):
+    for j in range(y.shape[1]):
+        if not np.isfinite(y[b, j]):
             return False
     return True
 
 
+# ----- the compiled loops ------------------------------------------------------------------------------
+# The batch is cut into chunks, one thread each (prange). A thread steps its chunk together: stage by
+# stage, element by element, so that the evaluations of neighbouring elements, independent of each
+# other, overlap in the processor (a single element's steps form one dependent chain, mostly waiting
+# on sin and cos). Each element does exactly the arithmetic it would do alone: a batch gives the
+# same bits as single runs. An element that fails is frozen and the others go on.
+
+CHUNK = 32  # elements per chunk at most (their states stay in the first-level cache)
+
+
+def chunk_size(batch: int) -> int:
+    """Elements per chunk: at most CHUNK, and at least one chunk per thread."""
+    return max(1, min(CHUNK, -(-batch // get_num_threads())))
+
+
 @njit(cache=True, parallel=True)
-def run_euler(rhs, y0, params, dt, nsteps, save_every, out):
+def _euler_loop(rhs, y0, params, dt, nsteps, save_every, out, size):
     batch, n = y0.shape
+    m = params.shape[1]
     failed = np.full(batch, -1, dtype=np.int64)
-    for b in prange(batch):
-        y = y0[b].copy()
-        k = np.empty(n)
-        p = params[b]
-        out[0, b] = y
+    for c in prange(-(-batch // size)):
+        lo = c * size
+        width = min(batch, lo + size) - lo
+        y = y0[lo:lo + width].copy()
+        k = np.empty((width, n))
+        running = width
+        for b in range(width):
+            out[0, lo + b] = y[b]
         for i in range(1, nsteps + 1):
-            rhs(y, p, k)
-            for j in range(n):
-                y[j] += dt * k[j]
+            for b in range(width):
+                if failed[lo + b] >= 0:
+                    continue
+                rhs(_row(y, b), _row(params, lo + b), _row(k, b), n, m)
+                for j in range(n):
+                    y[b, j] += dt * k[b, j]
+                if not _finite_row(y, b):
+                    failed[lo + b] = i
+                    running -= 1
+            if running == 0:
+                break
             if i % save_every == 0:
-                out[i // save_every, b] = y
-                if not _finite(y):
-                    failed[b] = i
-                    break
+                for b in range(width):
+                    out[i // save_every, lo + b] = y[b]
     return failed
 
 
 @njit(cache=True, parallel=True)
-def run_rk4(rhs, y0, params, dt, nsteps, save_every, out):
+def _rk4_loop(rhs, y0, params, dt, nsteps, save_every, out, size):
     batch, n = y0.shape
+    m = params.shape[1]
     failed = np.full(batch, -1, dtype=np.int64)
-    for b in prange(batch):
-        y = y0[b].copy()
-        p = params[b]
-        k1, k2, k3, k4, tmp = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
-        out[0, b] = y
+    for c in prange(-(-batch // size)):
+        lo = c * size
+        width = min(batch, lo + size) - lo
+        y = y0[lo:lo + width].copy()
+        k1, k2, k3, k4 = np.empty((width, n)), np.empty((width, n)), np.empty((width, n)), np.empty((width, n))
+        tmp = np.empty((width, n))
+        running = width
+        for b in range(width):
+            out[0, lo + b] = y[b]
         for i in range(1, nsteps + 1):
-            rhs(y, p, k1)
-            for j in range(n):
-                tmp[j] = y[j] + 0.5 * dt * k1[j]
-            rhs(tmp, p, k2)
-            for j in range(n):
-                tmp[j] = y[j] + 0.5 * dt * k2[j]
-            rhs(tmp, p, k3)
-            for j in range(n):
-                tmp[j] = y[j] + dt * k3[j]
-            rhs(tmp, p, k4)
-            for j in range(n):
-                y[j] += dt / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+            for b in range(width):
+                if failed[lo + b] < 0:
+                    rhs(_row(y, b), _row(params, lo + b), _row(k1, b), n, m)
+            for b in range(width):
+                if failed[lo + b] < 0:
+                    for j in range(n):
+                        tmp[b, j] = y[b, j] + 0.5 * dt * k1[b, j]
+                    rhs(_row(tmp, b), _row(params, lo + b), _row(k2, b), n, m)
+            for b in range(width):
+                if failed[lo + b] < 0:
+                    for j in range(n):
+                        tmp[b, j] = y[b, j] + 0.5 * dt * k2[b, j]
+                    rhs(_row(tmp, b), _row(params, lo + b), _row(k3, b), n, m)
+            for b in range(width):
+                if failed[lo + b] < 0:
+                    for j in range(n):
+                        tmp[b, j] = y[b, j] + dt * k3[b, j]
+                    rhs(_row(tmp, b), _row(params, lo + b), _row(k4, b), n, m)
+            for b in range(width):
+                if failed[lo + b] < 0:
+                    for j in range(n):
+                        y[b, j] += dt / 6.0 * (k1[b, j] + 2.0 * k2[b, j] + 2.0 * k3[b, j] + k4[b, j])
+                    if not _finite_row(y, b):
+                        failed[lo + b] = i
+                        running -= 1
+            if running == 0:
+                break
             if i % save_every == 0:
-                out[i // save_every, b] = y
-                if not _finite(y):
-                    failed[b] = i
-                    break
+                for b in range(width):
+                    out[i // save_every, lo + b] = y[b]
     return failed
 
 
 @njit(cache=True, parallel=True)
-def run_symplectic_euler(accel, y0, params, dt, nsteps, save_every, out):
+def _symplectic_euler_loop(accel, y0, params, dt, nsteps, save_every, out, size):
     batch, n = y0.shape
-    m = n // 2
+    half = n // 2
+    m = params.shape[1]
     failed = np.full(batch, -1, dtype=np.int64)
-    for b in prange(batch):
-        y = y0[b].copy()
-        p = params[b]
-        a = np.empty(m)
-        out[0, b] = y
+    for c in prange(-(-batch // size)):
+        lo = c * size
+        width = min(batch, lo + size) - lo
+        y = y0[lo:lo + width].copy()
+        a = np.empty((width, half))
+        running = width
+        for b in range(width):
+            out[0, lo + b] = y[b]
         for i in range(1, nsteps + 1):
-            accel(y[:m], p, a)
-            for j in range(m):
-                y[m + j] += dt * a[j]
-                y[j] += dt * y[m + j]
+            for b in range(width):
+                if failed[lo + b] >= 0:
+                    continue
+                accel(_row(y, b), _row(params, lo + b), _row(a, b), half, m)  # reads q = y[:half]
+                for j in range(half):
+                    y[b, half + j] += dt * a[b, j]
+                    y[b, j] += dt * y[b, half + j]
+                if not _finite_row(y, b):
+                    failed[lo + b] = i
+                    running -= 1
+            if running == 0:
+                break
             if i % save_every == 0:
-                out[i // save_every, b] = y
-                if not _finite(y):
-                    failed[b] = i
-                    break
+                for b in range(width):
+                    out[i // save_every, lo + b] = y[b]
     return failed
 
 
 @njit(cache=True, parallel=True)
-def run_composed_verlet(accel, weights, y0, params, dt, nsteps, save_every, out):
-    """Velocity Verlet with step weights (weights = [1.0] is verlet itself; YOSHIDA6 its 6th-order
-    composition). The acceleration at the end of one sub-step is reused at the start of the next."""
+def _composed_verlet_loop(accel, weights, y0, params, dt, nsteps, save_every, out, size):
     batch, n = y0.shape
-    m = n // 2
+    half = n // 2
+    m = params.shape[1]
     failed = np.full(batch, -1, dtype=np.int64)
-    for b in prange(batch):
-        y = y0[b].copy()
-        p = params[b]
-        a = np.empty(m)
-        accel(y[:m], p, a)
-        out[0, b] = y
+    for c in prange(-(-batch // size)):
+        lo = c * size
+        width = min(batch, lo + size) - lo
+        y = y0[lo:lo + width].copy()
+        a = np.empty((width, half))
+        running = width
+        for b in range(width):
+            accel(_row(y, b), _row(params, lo + b), _row(a, b), half, m)  # reads q = y[:half]
+            out[0, lo + b] = y[b]
         for i in range(1, nsteps + 1):
             for w in weights:
                 h = w * dt
-                for j in range(m):
-                    y[m + j] += 0.5 * h * a[j]
-                    y[j] += h * y[m + j]
-                accel(y[:m], p, a)
-                for j in range(m):
-                    y[m + j] += 0.5 * h * a[j]
+                for b in range(width):
+                    if failed[lo + b] >= 0:
+                        continue
+                    for j in range(half):
+                        y[b, half + j] += 0.5 * h * a[b, j]
+                        y[b, j] += h * y[b, half + j]
+                    accel(_row(y, b), _row(params, lo + b), _row(a, b), half, m)
+                    for j in range(half):
+                        y[b, half + j] += 0.5 * h * a[b, j]
+            for b in range(width):
+                if failed[lo + b] < 0 and not _finite_row(y, b):
+                    failed[lo + b] = i
+                    running -= 1
+            if running == 0:
+                break
             if i % save_every == 0:
-                out[i // save_every, b] = y
-                if not _finite(y):
-                    failed[b] = i
-                    break
+                for b in range(width):
+                    out[i // save_every, lo + b] = y[b]
     return failed
 
 
 @njit(cache=True, parallel=True)
-def run_gauss6(rhs, A, weights, y0, params, dt, nsteps, save_every, out):
+def _gauss_loop(rhs, A, weights, second, later, y0, params, dt, nsteps, save_every, out, size):
+    """second, later (s, 2s): the starting guess of step 2, and of every later step i, from the slopes of
+    steps i-2 and i-1 (see run_gauss6)."""
     batch, n = y0.shape
+    m = params.shape[1]
     stages = weights.size
     failed = np.full(batch, -1, dtype=np.int64)
-    for b in prange(batch):
-        y = y0[b].copy()
-        p = params[b]
-        K = np.empty((stages, n))
-        K_new = np.empty((stages, n))
-        tmp = np.empty(n)
-        k0 = np.empty(n)
-        out[0, b] = y
-        for i in range(1, nsteps + 1):
-            rhs(y, p, k0)
+    for c in prange(-(-batch // size)):
+        lo = c * size
+        width = min(batch, lo + size) - lo
+        y = y0[lo:lo + width].copy()
+        K = np.empty((width, stages, n))
+        K_new = np.empty((width, stages, n))
+        K_rows = K_new.reshape((width * stages, n))  # row b * stages + s is K_new[b, s]
+        K_old = np.zeros((width, stages, n))  # the slopes of the step before the last
+        tmp = np.empty((width, n))
+        previous = np.empty(width)  # last correction of each element's iteration
+        state = np.empty(width, dtype=np.int64)  # 0 iterating, 1 converged, 2 failed to converge
+        running = width
+        for b in range(width):
+            out[0, lo + b] = y[b]
+            rhs(_row(y, b), _row(params, lo + b), _row(tmp, b), n, m)
             for s in range(stages):
-                K[s] = k0
-            for _ in range(GAUSS6_MAX_ITERATIONS):
-                change = 0.0
-                scale = 0.0
-                for s in range(stages):
-                    for j in range(n):
-                        acc = 0.0
-                        for r in range(stages):
-                            acc += A[s, r] * K[r, j]
-                        tmp[j] = y[j] + dt * acc
-                    rhs(tmp, p, K_new[s])
-                for s in range(stages):
-                    for j in range(n):
-                        change = max(change, abs(K_new[s, j] - K[s, j]))
-                        scale = max(scale, abs(K_new[s, j]))
-                        K[s, j] = K_new[s, j]
-                if not change > 2e-16 * scale:  # converged (also stops on NaN)
+                K[b, s] = tmp[b]
+        for i in range(1, nsteps + 1):
+            for b in range(width):
+                state[b] = 0 if failed[lo + b] < 0 else 1
+                previous[b] = np.inf
+                if i > 1 and failed[lo + b] < 0:  # the last two steps' slopes -> this step's starting guess
+                    extrapolation = second if i == 2 else later
+                    for s in range(stages):
+                        for j in range(n):
+                            acc = 0.0
+                            for r in range(stages):
+                                acc += (extrapolation[s, r] * K_old[b, r, j]
+                                        + extrapolation[s, stages + r] * K_new[b, r, j])
+                            K[b, s, j] = acc
+                    K_old[b] = K_new[b]
+            for iteration in range(GAUSS6_MAX_ITERATIONS):
+                iterating = 0
+                for b in range(width):
+                    if state[b] != 0:
+                        continue
+                    iterating += 1
+                    for s in range(stages):
+                        for j in range(n):
+                            acc = 0.0
+                            for r in range(stages):
+                                acc += A[s, r] * K[b, r, j]
+                            tmp[b, j] = y[b, j] + dt * acc
+                        rhs(_row(tmp, b), _row(params, lo + b), _row(K_rows, b * stages + s), n, m)
+                    change = 0.0
+                    scale = 0.0
+                    for s in range(stages):
+                        for j in range(n):
+                            change = max(change, abs(K_new[b, s, j] - K[b, s, j]))
+                            scale = max(scale, abs(K_new[b, s, j]))
+                            K[b, s, j] = K_new[b, s, j]
+                    tolerance = GAUSS6_TOLERANCE * scale
+                    rate = change / previous[b]
+                    # done when this correction, or the next (this one times the contraction rate), is round-off
+                    if change <= tolerance or (
+                            iteration > 0 and rate < 1.0 and rate * change <= tolerance * (1.0 - rate)):
+                        state[b] = 1
+                    elif iteration > 0 and rate >= 0.9 and change <= GAUSS6_NOISE * scale:
+                        state[b] = 1  # no longer contracting: the corrections are the round-off of f itself
+                    elif not change < np.inf:
+                        state[b] = 2  # NaN or inf: no point iterating
+                    previous[b] = change
+                if iterating == 0:
                     break
-            for j in range(n):
-                acc = 0.0
-                for s in range(stages):
-                    acc += weights[s] * K[s, j]
-                y[j] += dt * acc
+            for b in range(width):
+                if failed[lo + b] >= 0:
+                    continue
+                for j in range(n):
+                    acc = 0.0
+                    for s in range(stages):
+                        acc += weights[s] * K[b, s, j]
+                    y[b, j] += dt * acc
+                if state[b] != 1 or not _finite_row(y, b):
+                    failed[lo + b] = i
+                    running -= 1
+            if running == 0:
+                break
             if i % save_every == 0:
-                out[i // save_every, b] = y
-                if not _finite(y):
-                    failed[b] = i
-                    break
+                for b in range(width):
+                    out[i // save_every, lo + b] = y[b]
     return failed
 
 
 @njit(cache=True, parallel=True)
+def _composed_flow_loop(step, weights, y0, params, dt, nsteps, save_every, out, size):
+    batch, n = y0.shape
+    m = params.shape[1]
+    failed = np.full(batch, -1, dtype=np.int64)
+    for c in prange(-(-batch // size)):
+        lo = c * size
+        width = min(batch, lo + size) - lo
+        y = y0[lo:lo + width].copy()
+        running = width
+        for b in range(width):
+            out[0, lo + b] = y[b]
+        for i in range(1, nsteps + 1):
+            for w in weights:
+                for b in range(width):
+                    if failed[lo + b] < 0:
+                        step(_row(y, b), _row(params, lo + b), w * dt, n, m)
+            for b in range(width):
+                if failed[lo + b] < 0 and not _finite_row(y, b):
+                    failed[lo + b] = i
+                    running -= 1
+            if running == 0:
+                break
+            if i % save_every == 0:
+                for b in range(width):
+                    out[i // save_every, lo + b] = y[b]
+    return failed
+
+
+def _c(array: np.ndarray) -> np.ndarray:
+    """C-contiguous float64 (the loops hand pointers to rows of y0 and params to the scene)."""
+    return np.ascontiguousarray(array, dtype=np.float64)
+
+
+# ----- the methods, as called by simulate -------------------------------------------------------------
+# Each: the scene's jitted function(s), y0 (B, n), params (B, p), dt [s], nsteps, save_every,
+# out (nsteps // save_every + 1, B, n) filled in place; returns failed (B,) int64: first failed step or -1.
+# The compiled loops take the same, the functions as pointers, and last the chunk size.
+
+
+def run_euler(rhs, y0, params, dt, nsteps, save_every, out):
+    """y += dt f(y)."""
+    y0, params = _c(y0), _c(params)
+    size = chunk_size(y0.shape[0])
+    return _euler_loop(pointer_function(rhs), y0, params, dt, nsteps, save_every, out, size)
+
+
+def run_rk4(rhs, y0, params, dt, nsteps, save_every, out):
+    """Classical Runge-Kutta."""
+    y0, params = _c(y0), _c(params)
+    size = chunk_size(y0.shape[0])
+    return _rk4_loop(pointer_function(rhs), y0, params, dt, nsteps, save_every, out, size)
+
+
+def run_symplectic_euler(accel, y0, params, dt, nsteps, save_every, out):
+    """v += dt a(q); q += dt v."""
+    y0, params = _c(y0), _c(params)
+    size = chunk_size(y0.shape[0])
+    return _symplectic_euler_loop(pointer_function(accel), y0, params, dt, nsteps, save_every, out, size)
+
+
+def run_composed_verlet(accel, weights, y0, params, dt, nsteps, save_every, out):
+    """Velocity Verlet with step weights (weights = [1.0] is verlet itself; YOSHIDA6 its 6th-order
+    composition). The acceleration at the end of one sub-step is reused at the start of the next."""
+    weights = np.ascontiguousarray(weights, dtype=np.float64)
+    y0, params = _c(y0), _c(params)
+    size = chunk_size(y0.shape[0])
+    return _composed_verlet_loop(pointer_function(accel), weights, y0, params, dt, nsteps, save_every, out, size)
+
+
+def run_gauss6(rhs, A, weights, y0, params, dt, nsteps, save_every, out):
+    """Gauss-Legendre collocation with tableau A (s, s) and weights (s,) (GAUSS6_A, GAUSS6_B).
+
+    Stage slopes K_s = f(y + dt sum_r A_sr K_r) by fixed-point iteration, started from the last two
+    steps' slopes extrapolated to this step's nodes; it stops once the next correction (the last one
+    times the contraction rate) is below round-off. A step whose iteration does not converge (dt
+    beyond the reach of fixed-point iteration, dt |df/dy| ~ 1) fails like a non-finite state."""
+    A = np.ascontiguousarray(A, dtype=np.float64)
+    weights = np.ascontiguousarray(weights, dtype=np.float64)
+    second, later = gauss_starting_guess(A)
+    y0, params = _c(y0), _c(params)
+    size = chunk_size(y0.shape[0])
+    return _gauss_loop(pointer_function(rhs), A, weights, second, later, y0, params, dt, nsteps,
+                       save_every, out, size)
+
+
+def gauss_starting_guess(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Weights (s, 2s) of the starting guess of step 2 and of every later step, from the stage slopes of
+    the last two steps.
+
+    The polynomial through the slopes of the last two steps (at nodes c_r - 2 and c_r - 1 of this
+    step, c = A 1) extrapolated to this step's nodes c_s. Its error is O(dt^2s) (~1e-15 at w dt = 4e-3),
+    so two iterations usually reach round-off where a guess from one step behind (error O(dt^s)) needs
+    three and the constant f(y) (error O(dt)) five or six. Step 2 has only one step behind it: the
+    first block of its weights is zero, the second that of one step.
+    """
+    nodes = np.asarray(A, dtype=np.float64).sum(axis=1)
+    second = np.hstack([np.zeros((nodes.size, nodes.size)), _lagrange(nodes - 1, nodes)])
+    later = _lagrange(np.concatenate([nodes - 2, nodes - 1]), nodes)
+    return second, later
+
+
+def _lagrange(nodes: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    """E (targets, nodes): the polynomial through values at `nodes` evaluated at `targets` is E @ values."""
+    return np.array([[np.prod([(x - nodes[q]) / (nodes[r] - nodes[q]) for q in range(nodes.size) if q != r])
+                      for r in range(nodes.size)] for x in targets])
+
+
 def run_composed_flow(step, weights, y0, params, dt, nsteps, save_every, out):
     """A scene's own symmetric one-step map step(y, p, h) composed with the given weights
     (weights = [1.0]: the map itself; YOSHIDA6: its 6th-order composition)."""
-    batch, n = y0.shape
-    failed = np.full(batch, -1, dtype=np.int64)
-    for b in prange(batch):
-        y = y0[b].copy()
-        p = params[b]
-        out[0, b] = y
-        for i in range(1, nsteps + 1):
-            for w in weights:
-                step(y, p, w * dt)
-            if i % save_every == 0:
-                out[i // save_every, b] = y
-                if not _finite(y):
-                    failed[b] = i
-                    break
-    return failed
+    weights = np.ascontiguousarray(weights, dtype=np.float64)
+    y0, params = _c(y0), _c(params)
+    size = chunk_size(y0.shape[0])
+    return _composed_flow_loop(pointer_function(step, "step"), weights, y0, params, dt, nsteps, save_every, out, size)
 
 
 def run_reference(rhs, y0: np.ndarray, params: np.ndarray, dt: float, nsteps: int, save_every: int,

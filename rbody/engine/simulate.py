@@ -33,17 +33,18 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
     method:     one of rbody.METHODS; default "verlet" where it applies, else the scene's first
                 method; "events" (the only choice) for event-driven scenes
     t_end:      duration [s], default scene.t_end
-    save_every: keep every n-th step (n >= 1)
+    save_every: keep every n-th step (n >= 1); the run takes ceil(t_end/dt) steps rounded up to a
+                multiple of save_every, so the last saved time is t_end or up to save_every dt past it
     Returns a Trajectory whose observables have shape (T, *scene.batch_shape, ...).
     Raises ValueError for bad arguments, MethodNotApplicable when the method cannot run the scene,
-    SimulationError when a step gives a non-finite state.
+    SimulationError when a step gives a non-finite state (never a trajectory holding NaN).
     """
     if not isinstance(scene, Scene):
         raise ValueError(f"scene={scene!r}: expected an rbody.Scene (see rbody.scenes)")
-    t_end = scene.t_end if t_end is None else float(finite_array(t_end, "t_end"))
+    t_end = scene.t_end if t_end is None else float(finite_array(t_end, "t_end", ndim=0))
     if not t_end > 0:
         raise ValueError(f"t_end={t_end!r}: must be > 0 [s]")
-    dt = float(finite_array(dt, "dt"))
+    dt = float(finite_array(dt, "dt", ndim=0))
     if not 0 < dt <= t_end:
         raise ValueError(f"dt={dt!r}: must satisfy 0 < dt <= t_end={t_end} [s]")
     if not isinstance(save_every, (int, np.integer)) or isinstance(save_every, bool) or save_every < 1:
@@ -59,10 +60,15 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
     failed = _integrate(model, method, dt, nsteps, save_every, out)
     if np.any(failed >= 0):
         b = int(np.argmax(failed >= 0))
+        what = "a non-finite state"
+        if method == "gauss6":
+            what += " or stage equations that fixed-point iteration could not solve (dt |df/dy| too large)"
+        if method == "reference":
+            what = "a failed solve (scipy's DOP853 could not reach its tolerance)"
+        advice = "a smaller dt" + ("" if method in ("rk4", "gauss6") else " or a method of higher order (rk4, gauss6)")
         raise SimulationError(
-            f"scene {scene.describe()}: method {method!r} with dt={dt} gave a non-finite state at "
-            f"t={failed[b] * dt:.6g} s (batch element {b}); try a smaller dt or a method of higher "
-            "order or stability (rk4, gauss6)")
+            f"scene {scene.describe()}: method {method!r} with dt={dt} gave {what} at "
+            f"t={failed[b] * dt:.6g} s (batch element {b} of {failed.size}); try {advice}")
     t = np.arange(out.shape[0]) * (dt * save_every)
     data = model.observe(t, out)
     data = {name: value.reshape((t.size,) + scene.batch_shape + value.shape[2:]) for name, value in data.items()}

@@ -9,12 +9,16 @@ E = 1/2 I theta'^2 - M g d cos(theta) gives
 the simple pendulum of length l = I / (M d) (for the rod about its end, I = M L^2/3: l = 2L/3).
 
 Exact motion, with k^2 = sin^2(theta0/2) + omega0^2 / (4 w0^2) = (E + M g d) / (2 M g d):
-- swinging (k < 1): sin(theta/2) = k sn(w0 t + u0 | k^2), theta' = 2 k w0 cn(w0 t + u0 | k^2),
-  period 4 K(k^2) / w0;
+- swinging (k < 1): sin(theta/2) = k sn(w0 t + u0 | k^2), cos(theta/2) = dn(...),
+  theta' = 2 k w0 cn(w0 t + u0 | k^2), period 4 K(k^2) / w0;
 - whirling (k > 1): theta/2 = am(k w0 t + u0 | 1/k^2), theta' = 2 k w0 dn(...), one turn every
-  2 K(1/k^2) / (k w0).
-Near the top (k -> 1) K is evaluated in its complementary form K(m) = ellipkm1(1 - m) with
-1 - m = cos^2(theta0/2) - omega0^2/(4 w0^2) formed without cancellation.
+  2 K(1/k^2) / (k w0);
+- the separatrix (k = 1): theta/2 = gd(w0 t + u0) = atan(sinh(w0 t + u0)), theta' = 2 w0 sech(...).
+Near the top (k -> 1) every elliptic function is evaluated from the complementary parameter
+1 - k^2 = cos^2(theta0/2) - omega0^2/(4 w0^2), formed without cancellation: K(m) = ellipkm1(1 - m),
+F(phi | m) = sin(phi) R_F(cos^2 phi, cos^2 phi + (1 - m) sin^2 phi, 1) (Carlson), and sn, cn, dn, am
+by the arithmetic-geometric mean started from sqrt(1 - m) (scipy's ellipj loses all accuracy for
+1 - m below about 1e-9).
 
 Coordinates: world pivot at the origin, hinge axis along world y, theta = 0 with the centre of
 mass straight below the pivot; positive theta turns the body about +y.
@@ -27,7 +31,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 from numba import njit
-from scipy.special import ellipj, ellipk, ellipkinc, ellipkm1
+from scipy.special import ellipkm1, elliprf
 
 from rbody._checks import finite_array, positive
 from rbody.inertia import Inertia, AxisLike, unit_axis
@@ -109,15 +113,16 @@ class Pendulum(Scene):
 
     @property
     def period(self) -> np.ndarray | float:
-        """Exact period [s]: 4 K(k^2)/w0 when swinging, 2 K(1/k^2)/(k w0) per turn when whirling;
-        inf on the separatrix and 0... never: a body at rest at the bottom has the small-angle period."""
+        """Exact period [s]: 4 K(k^2)/w0 when swinging (2 pi/w0 at rest at the bottom),
+        2 K(1/k^2)/(k w0) per turn when whirling, inf on the separatrix."""
         w0 = np.sqrt(self._w0_squared())
         m = np.broadcast_to(np.asarray(self.modulus, dtype=float), self.batch_shape).reshape(-1)
         complement = self._one_minus_modulus()
-        with np.errstate(divide="ignore"):
+        with np.errstate(divide="ignore", invalid="ignore"):
             swinging = 4 * ellipkm1(np.maximum(complement, 0.0)) / w0
             k = np.sqrt(np.maximum(m, 1.0))
-            whirling = 2 * ellipk(1.0 / np.maximum(m, 1.0)) / (k * w0)
+            # 1 - 1/k^2 = -(1 - k^2)/k^2, without cancellation near the separatrix
+            whirling = 2 * ellipkm1(np.maximum(-complement, 0.0) / np.maximum(m, 1.0)) / (k * w0)
         period = np.where(complement > 0, swinging, np.where(complement < 0, whirling, np.inf))
         return self._unflatten(period)
 
@@ -137,16 +142,17 @@ class Pendulum(Scene):
         theta0, omega0 = self._state0()
         w0 = np.sqrt(self._w0_squared())
         m = np.sin(theta0 / 2) ** 2 + omega0**2 / (4 * w0**2)
+        complement = self._one_minus_modulus()  # 1 - m, accurate near the top
         theta = np.empty((t.shape[0], theta0.size))
         omega = np.empty_like(theta)
-        swinging = self._one_minus_modulus() > 0
         for b in range(theta0.size):
-            if m[b] == 0.0:
-                theta[:, b], omega[:, b] = 0.0, 0.0
-            elif swinging[b]:
-                theta[:, b], omega[:, b] = _swinging(t[:, 0], theta0[b], omega0[b], w0[b], m[b])
+            if complement[b] > 0:
+                motion = _swinging
+            elif complement[b] < 0:
+                motion = _whirling
             else:
-                theta[:, b], omega[:, b] = _whirling(t[:, 0], theta0[b], omega0[b], w0[b], m[b])
+                motion = _separatrix
+            theta[:, b], omega[:, b] = motion(t[:, 0], theta0[b], omega0[b], w0[b], m[b], complement[b])
         energy = np.broadcast_to(self.energy_of(theta0, omega0), theta.shape)
         shape = (t.shape[0],) + self.batch_shape
         return {"theta": theta.reshape(shape), "omega": omega.reshape(shape),
@@ -176,25 +182,70 @@ class Pendulum(Scene):
         return {"theta": theta, "omega": omega, "energy": self.energy_of(theta, omega)}
 
 
-def _swinging(t: np.ndarray, theta0: float, omega0: float, w0: float, m: float):
+def _swinging(t: np.ndarray, theta0: float, omega0: float, w0: float, m: float, m1: float):
+    """sin(theta/2) = k sn(u), cos(theta/2) = dn(u), theta' = 2 k w0 cn(u), u = w0 t + u0; m1 = 1 - m > 0."""
     k = np.sqrt(m)
+    turns = 2 * np.pi * np.round(theta0 / (2 * np.pi))  # the swing is about the nearest bottom
+    half = (theta0 - turns) / 2
     # sn(u0) = sin(theta0/2)/k, cn(u0) = omega0/(2 k w0): u0 = F(phi0 | m) with am(u0) = phi0.
-    phi0 = np.arctan2(np.sin(theta0 / 2), omega0 / (2 * w0))
-    u = w0 * t + ellipkinc(phi0, m)
-    sn, cn, _dn, _ph = ellipj(u, m)
-    return 2 * np.arcsin(np.clip(k * sn, -1.0, 1.0)), 2 * k * w0 * cn
+    phi0 = np.arctan2(np.sin(half), omega0 / (2 * w0))
+    quarter = ellipkm1(m1)
+    u = w0 * t + _elliptic_f(phi0, m1, quarter)
+    u = u - 4 * quarter * np.round(u / (4 * quarter))  # sn, cn have period 4K
+    sn, cn, dn, _am = _jacobi(u, m, m1)
+    return turns + 2 * np.arctan2(k * sn, dn), 2 * k * w0 * cn
 
 
-def _whirling(t: np.ndarray, theta0: float, omega0: float, w0: float, m: float):
+def _whirling(t: np.ndarray, theta0: float, omega0: float, w0: float, m: float, m1: float):
+    """theta/2 = am(u | 1/m), theta' = 2 k w0 dn(u | 1/m), u = u0 +- k w0 t; m1 = 1 - m < 0."""
     k = np.sqrt(m)
     direction = 1.0 if omega0 > 0 else -1.0
-    parameter = 1.0 / m
-    quarter = ellipk(parameter)
-    u = ellipkinc(theta0 / 2, parameter) + direction * k * w0 * t
-    # am(u), unwrapped: am(u + 2nK) = am(u) + n pi.
-    turns = np.floor((u + quarter) / (2 * quarter))
-    sn, cn, dn, _ph = ellipj(u - 2 * turns * quarter, parameter)
-    return 2 * (turns * np.pi + np.arctan2(sn, cn)), direction * 2 * k * w0 * dn
+    parameter, parameter1 = 1.0 / m, -m1 / m  # 1/k^2 and 1 - 1/k^2
+    quarter = ellipkm1(parameter1)
+    u = _elliptic_f(theta0 / 2, parameter1, quarter) + direction * k * w0 * t
+    # am(u + 2nK) = am(u) + n pi: reduce u to [-K, K] and count the half turns of theta/2.
+    turns = np.round(u / (2 * quarter))
+    _sn, _cn, dn, am = _jacobi(u - 2 * quarter * turns, parameter, parameter1)
+    return 2 * (turns * np.pi + am), direction * 2 * k * w0 * dn
+
+
+def _separatrix(t: np.ndarray, theta0: float, omega0: float, w0: float, m: float, m1: float):
+    """k = 1: theta/2 = gd(u) = atan(sinh u), theta' = 2 w0 sech(u), u = u0 +- w0 t (towards the top)."""
+    turns = 2 * np.pi * np.round(theta0 / (2 * np.pi))
+    direction = 1.0 if omega0 > 0 else -1.0
+    u = np.arctanh(np.sin((theta0 - turns) / 2)) + direction * w0 * t
+    with np.errstate(over="ignore"):  # sinh, cosh -> inf: theta at the top, theta' = 0
+        return turns + 2 * np.arctan(np.sinh(u)), direction * 2 * w0 / np.cosh(u)
+
+
+def _elliptic_f(phi: float | np.ndarray, m1: float, quarter: float) -> np.ndarray:
+    """Incomplete elliptic integral F(phi | m) for any phi, from m1 = 1 - m: Carlson's
+    F = sin(phi) R_F(cos^2 phi, cos^2 phi + m1 sin^2 phi, 1) on [-pi/2, pi/2], and F(phi + n pi) = F(phi) + 2 n K."""
+    n = np.round(np.asarray(phi) / np.pi)
+    reduced = phi - n * np.pi
+    s, c = np.sin(reduced), np.cos(reduced)
+    return s * elliprf(c * c, c * c + m1 * s * s, 1.0) + 2 * n * quarter
+
+
+def _jacobi(u: np.ndarray, m: float, m1: float):
+    """sn, cn, dn, am of u (T,) at parameter m in [0, 1], with m1 = 1 - m given exactly.
+
+    Descending Landen transformation by the arithmetic-geometric mean (Abramowitz & Stegun 16.4),
+    started from b0 = sqrt(m1) so that it stays accurate as m -> 1; dn = sqrt(cn^2 + m1 sn^2)
+    avoids the cancellation in 1 - m sn^2 near the turning points.
+    """
+    a, c = [1.0], [np.sqrt(m)]
+    b = np.sqrt(m1)
+    while abs(c[-1]) > np.finfo(float).eps * a[-1] and len(a) < 64:
+        previous = a[-1]
+        c.append((previous - b) / 2)
+        a.append((previous + b) / 2)
+        b = np.sqrt(previous * b)
+    phi = 2.0 ** (len(a) - 1) * a[-1] * np.asarray(u, dtype=np.float64)
+    for i in range(len(a) - 1, 0, -1):
+        phi = (np.arcsin(c[i] * np.sin(phi) / a[i]) + phi) / 2
+    sn, cn = np.sin(phi), np.cos(phi)
+    return sn, cn, np.sqrt(cn * cn + m1 * sn * sn), phi
 
 
 def _hinge_frame(offset_body: np.ndarray, axis_body: np.ndarray) -> np.ndarray:

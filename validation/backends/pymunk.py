@@ -474,7 +474,8 @@ def run(scene: Scene, dt: float, t_end: float | None = None, *, iterations: int 
     nsteps = max(1, math.ceil(t_end / dt * (1 - 1e-12)))
     nsteps = -(-nsteps // save_every) * save_every
 
-    space, handles, counter = _build(plan, scene.gravity, int(iterations), slop, _reach(plan, scene.gravity, t_end))
+    gravity = scene.gravity if scene.applies_gravity else 0.0
+    space, handles, counter = _build(plan, gravity, int(iterations), slop, _reach(plan, gravity, t_end))
     nsave, nb = nsteps // save_every + 1, len(plan.bodies)
     position, angle = np.empty((nsave, nb, 2)), np.empty((nsave, nb))
     velocity, angular = np.empty((nsave, nb, 2)), np.empty((nsave, nb))

@@ -1,0 +1,173 @@
+"""simulate(): argument checks, method choice, failures reported (never NaN returned), sampling, and the
+Trajectory it returns (save/load round trip). The physics of the runs is tested with each scene."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import rbody
+from rbody import MethodNotApplicable, SimulationError, Trajectory, simulate
+from rbody.scenes import pendulum_chain, swinging_rod
+
+
+@pytest.fixture
+def rod():
+    return swinging_rod(1.0, theta0=1.0, t_end=1.0)
+
+
+# ----- arguments ----------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("dt, words", [(0.0, "dt"), (-1e-3, "dt"), (2.0, "t_end"), (np.nan, "finite"),
+                                       (np.inf, "finite"), ([1e-3, 2e-3], "dt"), ("small", "dt")])
+def test_bad_dt(rod, dt, words):
+    with pytest.raises(ValueError, match=words):
+        simulate(rod, dt=dt)
+
+
+@pytest.mark.parametrize("t_end", [0.0, -1.0, np.nan, [1.0, 2.0]])
+def test_bad_t_end(rod, t_end):
+    with pytest.raises(ValueError, match="t_end"):
+        simulate(rod, dt=1e-3, t_end=t_end)
+
+
+def test_dt_equal_to_t_end_is_one_step(rod):
+    run = simulate(rod, dt=1.0, method="rk4")
+    np.testing.assert_array_equal(run.t, [0.0, 1.0])
+
+
+def test_unknown_method_lists_the_valid_ones(rod):
+    with pytest.raises(ValueError, match="method='rk5'") as error:
+        simulate(rod, dt=1e-3, method="rk5")
+    for name in rbody.METHODS:
+        assert repr(name) in str(error.value)
+
+
+def test_method_not_applicable_is_a_value_error():
+    chain = pendulum_chain(2, theta0=[1.0, 0.5], t_end=1.0)
+    with pytest.raises(MethodNotApplicable) as error:
+        simulate(chain, dt=1e-3, method="verlet")
+    assert isinstance(error.value, ValueError)
+    assert "separable" in str(error.value) and "gauss6" in str(error.value)  # why, and what applies
+    with pytest.raises(ValueError):
+        simulate(chain, dt=1e-3, method="yoshida6")
+    rod = swinging_rod(1.0, theta0=1.0, t_end=1.0)
+    with pytest.raises(MethodNotApplicable, match="splitting"):
+        simulate(rod, dt=1e-3, method="splitting")
+
+
+@pytest.mark.parametrize("save_every", [0, -2, 2.0, 1.5, "2", True, None])
+def test_bad_save_every(rod, save_every):
+    with pytest.raises(ValueError, match="save_every"):
+        simulate(rod, dt=1e-3, save_every=save_every)
+
+
+def test_not_a_scene():
+    with pytest.raises(ValueError, match="Scene"):
+        simulate({"theta0": 1.0}, dt=1e-3)
+
+
+def test_default_method_is_verlet_where_it_applies(rod):
+    assert simulate(rod, dt=1e-2).meta["method"] == "verlet"
+
+
+# ----- failures -----------------------------------------------------------------------------------------
+
+
+def test_euler_blow_up_raises_and_names_scene_time_and_step():
+    """Euler's energy error on the pendulum grows without bound, but the state stays finite until a
+    step is so large that theta += dt omega overflows: a whirling rod with dt = 1e160 overflows at the
+    second step (t = 2e160 s). simulate must raise, not hand back a trajectory holding inf or NaN."""
+    whirling = swinging_rod(1.0, theta0=1.0, omega0=20.0, t_end=1e162)
+    with pytest.raises(SimulationError) as error:
+        simulate(whirling, dt=1e160, method="euler")
+    message = str(error.value)
+    assert "swinging_rod" in message
+    assert "dt=1e+160" in message
+    assert "t=2e+160 s" in message
+    assert "non-finite" in message
+
+
+def test_failure_names_the_batch_element():
+    # elements 0 and 2 rest at the bottom, exactly an equilibrium of every step; element 1 overflows
+    batch = swinging_rod(1.0, theta0=[0.0, 1.0, 0.0], omega0=[0.0, 20.0, 0.0], t_end=1e162)
+    with pytest.raises(SimulationError, match="batch element 1 of 3"):
+        simulate(batch, dt=1e160, method="rk4")
+
+
+def test_gauss6_reports_stage_equations_it_cannot_solve():
+    """dt = 1 s on a whirling rod (w0 = 3.8 rad/s, |df/dy| ~ 20 /s): fixed-point iteration diverges."""
+    whirling = swinging_rod(1.0, theta0=1.0, omega0=20.0, t_end=10.0)
+    with pytest.raises(SimulationError, match="fixed-point"):
+        simulate(whirling, dt=1.0, method="gauss6")
+    # at dt = 0.01 it converges and the run is accurate
+    run = simulate(whirling, dt=1e-2, method="gauss6", t_end=1.0)
+    assert np.max(np.abs(run["theta"] - whirling.exact(run.t)["theta"])) < 1e-9
+
+
+def test_simulation_error_is_a_runtime_error_not_a_value_error():
+    assert issubclass(SimulationError, RuntimeError)
+    assert not issubclass(SimulationError, ValueError)
+    assert issubclass(MethodNotApplicable, SimulationError)
+
+
+# ----- sampling and the time grid -----------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("method", ["verlet", "rk4", "gauss6"])
+def test_save_every_keeps_every_nth_state(method):
+    scene = swinging_rod(1.0, theta0=1.0, t_end=2.0)
+    full = simulate(scene, dt=1e-3, method=method)
+    sampled = simulate(scene, dt=1e-3, method=method, save_every=50)
+    assert sampled.t.size == 2000 // 50 + 1
+    np.testing.assert_allclose(sampled.t, full.t[::50], rtol=1e-15, atol=0)
+    for name in ("theta", "omega", "energy"):
+        np.testing.assert_array_equal(sampled[name], full[name][::50])
+
+
+def test_time_grid_rounds_up_to_cover_t_end():
+    scene = swinging_rod(1.0, theta0=1.0, t_end=1.0)
+    run = simulate(scene, dt=0.3, method="rk4")  # 1/0.3 = 3.33 -> 4 steps
+    np.testing.assert_allclose(run.t, [0.0, 0.3, 0.6, 0.9, 1.2], rtol=1e-15)
+    run = simulate(scene, dt=0.1, method="rk4")  # 1/0.1 = 10.000000000000002 is 10 steps, not 11
+    assert run.t.size == 11 and run.t[-1] == pytest.approx(1.0, rel=1e-15)
+    run = simulate(scene, dt=0.1, method="rk4", save_every=3)  # 10 steps -> 12, a multiple of 3
+    np.testing.assert_allclose(run.t, [0.0, 0.3, 0.6, 0.9, 1.2], rtol=1e-15)
+    run = simulate(scene, dt=0.1, method="rk4", t_end=0.5)
+    assert run.t[-1] == pytest.approx(0.5, rel=1e-15)
+
+
+def test_trajectory_shapes_and_meta():
+    batch = swinging_rod([0.5, 1.0], theta0=[[0.1], [0.2], [0.3]], t_end=1.0)
+    run = simulate(batch, dt=0.01, method="rk4")
+    assert run["theta"].shape == (101, 3, 2)
+    assert run.observables == ("theta", "omega", "energy")
+    assert run.meta == {"scene": "swinging_rod", "backend": "rbody", "method": "rk4", "dt": 0.01}
+    np.testing.assert_array_equal(run.t, np.arange(101) * 0.01)
+
+
+# ----- Trajectory ---------------------------------------------------------------------------------------
+
+
+def test_trajectory_save_load_round_trip(tmp_path):
+    chain = pendulum_chain(3, theta0=[[0.3, 0.2, 0.1], [1.0, 0.0, -1.0]], t_end=0.5)
+    run = simulate(chain, dt=1e-2, method="rk4", save_every=5)
+    path = run.save(tmp_path / "chain")  # the suffix is added
+    assert path.suffix == ".npz" and path.exists()
+    loaded = Trajectory.load(path)
+    np.testing.assert_array_equal(loaded.t, run.t)
+    assert loaded.observables == run.observables
+    for name in run.observables:
+        np.testing.assert_array_equal(loaded[name], run[name])
+        assert loaded[name].dtype == run[name].dtype
+    assert loaded.meta == run.meta
+    assert loaded.final("theta").shape == (2, 3)
+
+
+def test_trajectory_rejects_mismatched_lengths_and_unknown_names():
+    with pytest.raises(ValueError, match="observable 'x'"):
+        Trajectory(np.arange(3.0), {"x": np.zeros(4)})
+    run = Trajectory(np.arange(3.0), {"x": np.zeros(3)})
+    with pytest.raises(KeyError, match="'y'"):
+        run["y"]
