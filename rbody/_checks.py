@@ -54,6 +54,14 @@ def in_interval(value: Any, name: str, low: float, high: float, *, closed: bool 
     return float(array) if array.ndim == 0 else array
 
 
+def single_number(value: Any, name: str, check=finite_array) -> float:
+    """One number (not an array: an event-driven scene is not a batch), checked by `check`."""
+    array = finite_array(value, name)
+    if array.ndim != 0:
+        raise ValueError(f"{name}={value!r}: expected one number (an event-driven scene is not a batch)")
+    return float(check(array, name))
+
+
 def one_of(value: Any, name: str, choices) -> Any:
     """`value` checked to be one of `choices` (the message lists them)."""
     try:

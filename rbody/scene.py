@@ -159,7 +159,10 @@ class NativeModel:
     rhs:       compiled f(y (n,), params (p,), out (n,)): y' = f(y), for every general method
     accel:     compiled a(q (m,), params, out (m,)) when y = (q, q') and q'' depends on q only
                (enables the symplectic methods); None otherwise
-    split:     name -> compiled flow step, for methods that are splittings of this scene ("splitting")
+    split:     name -> (step, weights): the scene's own symmetric one-step map step(y, p, h) and the
+               composition weights (free rotation: "splitting" and its 6th-order "yoshida6")
+    rhs, accel and step must be numba @njit functions over C-contiguous float64 arrays: the engine
+    calls them through C function pointers (see rbody/engine/integrators.py)
     observe:   function (t (T,), y (T, B, n)) -> dict of observables (T, B, ...)
     """
 

@@ -72,6 +72,7 @@ c = (v_i - v_j).n > 0,
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from fractions import Fraction
 
@@ -79,7 +80,19 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike
 
+from rbody._checks import finite_array
 from rbody.errors import SimulationError
+
+
+def sample_times(t_end: float, sample_dt: float) -> np.ndarray:
+    """(T,) sampling grid 0, dt, 2 dt, ... reaching t_end (rounded up to round-off) [s], both checked."""
+    t_end = float(finite_array(t_end, "t_end"))
+    sample_dt = float(finite_array(sample_dt, "sample_dt"))
+    if not (t_end > 0 and 0 < sample_dt <= t_end):
+        raise ValueError(f"t_end={t_end!r}, sample_dt={sample_dt!r}: need 0 < sample_dt <= t_end [s]")
+    steps = max(1, math.ceil(t_end / sample_dt * (1 - 1e-12)))
+    return np.arange(steps + 1) * sample_dt
+
 
 # stats[STATUS] after a run
 DONE, STOPPED, TOO_MANY = 0, 1, 2

@@ -36,7 +36,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from rbody._checks import finite_array, in_interval, nonnegative, one_of, positive
-from rbody.engine.events import DONE, TOO_MANY, Line, LineRun, exact_line
+from rbody.engine.events import DONE, TOO_MANY, Line, LineRun, exact_line, sample_times
 from rbody.errors import SimulationError
 from rbody.inertia import Inertia
 from rbody.scene import Body, Contact, Joint, Layout, Scene, Shape
@@ -197,12 +197,8 @@ class LineCollisions(Scene):
         record_events: True keep every impact; False none; None keep them when the arrays take at
         most MAX_EVENT_BYTES (meta["events_recorded"] says which; meta["event_count"] is the count).
         """
-        t_end = float(finite_array(t_end, "t_end"))
-        sample_dt = float(finite_array(sample_dt, "sample_dt"))
-        if not (t_end > 0 and 0 < sample_dt <= t_end):
-            raise ValueError(f"t_end={t_end!r}, sample_dt={sample_dt!r}: need 0 < sample_dt <= t_end [s]")
-        steps = max(1, math.ceil(t_end / sample_dt * (1 - 1e-12)))
-        t = np.arange(steps + 1) * sample_dt
+        t = sample_times(t_end, sample_dt)
+        sample_dt = float(sample_dt)
         final = self._final
         if final is not None and final.status == DONE and t[-1] >= final.t_last:
             count = final.events

@@ -66,6 +66,7 @@ import numpy as np
 from numba import njit
 from scipy.special import elliprf, elliprj
 
+from rbody.elliptic import jacobi
 from rbody._checks import finite_array
 from rbody.engine import integrators
 from rbody.inertia import Inertia
@@ -415,12 +416,12 @@ class _EulerTop:
         quarter, m, m1 = self.K, self.m, self.m1
         turns = np.floor((u + quarter) / (2.0 * quarter))  # u = 2 K j + r, r in [-K, K)
         r = u - 2.0 * quarter * turns
-        sn, cn, dn, _am = _jacobi(r, m, m1)
+        sn, cn, dn, _am = jacobi(r, m, m1)
         far = np.abs(r) > quarter / 2
         if np.any(far):
             # sn(K - w) = cn w / dn w, cn(K - w) = sqrt(m1) sn w / dn w, dn(K - w) = sqrt(m1) / dn w:
             # cn and dn keep their relative accuracy where they are small (near the separatrix).
-            snw, cnw, dnw, _ = _jacobi(quarter - np.abs(r[far]), m, m1)
+            snw, cnw, dnw, _ = jacobi(quarter - np.abs(r[far]), m, m1)
             sn[far] = np.sign(r[far]) * cnw / dnw
             cn[far] = np.sqrt(m1) * snw / dnw
             dn[far] = np.sqrt(m1) / dnw
@@ -447,7 +448,7 @@ class _EulerTop:
                        - n / 3.0 * s**3 * elliprj(c * c, dn[direct] ** 2, 1.0, 1.0 + n * s * s))
         if np.any(reflect):
             w = self.K - np.abs(r[reflect])
-            s, c, d, _am = _jacobi(w, m, m1)
+            s, c, d, _am = jacobi(w, m, m1)
             N = (m + n) / (1.0 + n)
             pi_n = (s * elliprf(c * c, d * d, 1.0)
                     + N / 3.0 * s**3 * elliprj(c * c, d * d, 1.0, c * c + m1 / (1.0 + n) * s * s))
@@ -501,22 +502,3 @@ def _qx(angle: np.ndarray) -> np.ndarray:
     return np.stack([np.cos(angle / 2), np.sin(angle / 2), zero, zero], axis=-1)
 
 
-def _jacobi(u: np.ndarray, m: float, m1: float):
-    """sn, cn, dn, am of u (T,) at parameter m in [0, 1), with m1 = 1 - m given separately.
-
-    Descending Landen transformation by the arithmetic-geometric mean (Abramowitz & Stegun 16.4),
-    started from b0 = sqrt(m1) so that it stays accurate as m -> 1; dn = sqrt(cn^2 + m1 sn^2)
-    avoids the cancellation in 1 - m sn^2.
-    """
-    a, c = [1.0], [np.sqrt(m)]
-    b = np.sqrt(m1)
-    while abs(c[-1]) > np.finfo(float).eps * a[-1] and len(a) < 64:
-        previous = a[-1]
-        c.append((previous - b) / 2)
-        a.append((previous + b) / 2)
-        b = np.sqrt(previous * b)
-    phi = 2.0 ** (len(a) - 1) * a[-1] * np.asarray(u, dtype=np.float64)
-    for i in range(len(a) - 1, 0, -1):
-        phi = (np.arcsin(c[i] * np.sin(phi) / a[i]) + phi) / 2
-    sn, cn = np.sin(phi), np.cos(phi)
-    return sn, cn, np.sqrt(cn * cn + m1 * sn * sn), phi

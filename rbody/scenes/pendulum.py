@@ -33,6 +33,7 @@ import numpy as np
 from numba import njit
 from scipy.special import ellipkm1, elliprf
 
+from rbody.elliptic import jacobi
 from rbody._checks import finite_array, positive
 from rbody.inertia import Inertia, AxisLike, unit_axis
 from rbody.motion import quat_from_matrix
@@ -192,7 +193,7 @@ def _swinging(t: np.ndarray, theta0: float, omega0: float, w0: float, m: float, 
     quarter = ellipkm1(m1)
     u = w0 * t + _elliptic_f(phi0, m1, quarter)
     u = u - 4 * quarter * np.round(u / (4 * quarter))  # sn, cn have period 4K
-    sn, cn, dn, _am = _jacobi(u, m, m1)
+    sn, cn, dn, _am = jacobi(u, m, m1)
     return turns + 2 * np.arctan2(k * sn, dn), 2 * k * w0 * cn
 
 
@@ -205,7 +206,7 @@ def _whirling(t: np.ndarray, theta0: float, omega0: float, w0: float, m: float, 
     u = _elliptic_f(theta0 / 2, parameter1, quarter) + direction * k * w0 * t
     # am(u + 2nK) = am(u) + n pi: reduce u to [-K, K] and count the half turns of theta/2.
     turns = np.round(u / (2 * quarter))
-    _sn, _cn, dn, am = _jacobi(u - 2 * quarter * turns, parameter, parameter1)
+    _sn, _cn, dn, am = jacobi(u - 2 * quarter * turns, parameter, parameter1)
     return 2 * (turns * np.pi + am), direction * 2 * k * w0 * dn
 
 
@@ -225,27 +226,6 @@ def _elliptic_f(phi: float | np.ndarray, m1: float, quarter: float) -> np.ndarra
     reduced = phi - n * np.pi
     s, c = np.sin(reduced), np.cos(reduced)
     return s * elliprf(c * c, c * c + m1 * s * s, 1.0) + 2 * n * quarter
-
-
-def _jacobi(u: np.ndarray, m: float, m1: float):
-    """sn, cn, dn, am of u (T,) at parameter m in [0, 1], with m1 = 1 - m given exactly.
-
-    Descending Landen transformation by the arithmetic-geometric mean (Abramowitz & Stegun 16.4),
-    started from b0 = sqrt(m1) so that it stays accurate as m -> 1; dn = sqrt(cn^2 + m1 sn^2)
-    avoids the cancellation in 1 - m sn^2 near the turning points.
-    """
-    a, c = [1.0], [np.sqrt(m)]
-    b = np.sqrt(m1)
-    while abs(c[-1]) > np.finfo(float).eps * a[-1] and len(a) < 64:
-        previous = a[-1]
-        c.append((previous - b) / 2)
-        a.append((previous + b) / 2)
-        b = np.sqrt(previous * b)
-    phi = 2.0 ** (len(a) - 1) * a[-1] * np.asarray(u, dtype=np.float64)
-    for i in range(len(a) - 1, 0, -1):
-        phi = (np.arcsin(c[i] * np.sin(phi) / a[i]) + phi) / 2
-    sn, cn = np.sin(phi), np.cos(phi)
-    return sn, cn, np.sqrt(cn * cn + m1 * sn * sn), phi
 
 
 def _hinge_frame(offset_body: np.ndarray, axis_body: np.ndarray) -> np.ndarray:

@@ -40,8 +40,8 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike
 
-from rbody._checks import finite_array, nonnegative, positive
-from rbody.engine.events import DONE, TOO_MANY, Discs
+from rbody._checks import finite_array, nonnegative, positive, single_number
+from rbody.engine.events import DONE, TOO_MANY, Discs, sample_times
 from rbody.errors import SimulationError
 from rbody.inertia import Inertia
 from rbody.scene import Body, Contact, Joint, Layout, Scene, Shape
@@ -49,14 +49,6 @@ from rbody.trajectory import Trajectory
 
 # Default start: the projectile's centre this many radii behind the target's along x.
 DEFAULT_DISTANCE_RADII = 5.0
-
-
-def _one_number(value: Any, name: str, check) -> float:
-    """A single number checked by `check` (rbody._checks): event-driven scenes are not batched."""
-    array = finite_array(value, name)
-    if array.ndim != 0:
-        raise ValueError(f"{name}={value!r}: expected one number (an event-driven scene is not a batch)")
-    return float(check(array, name))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -87,11 +79,11 @@ class Scattering(Scene):
         if b.ndim == 0 and b < 0:
             raise ValueError(f"impact_parameter={float(b)!r}: must be >= 0 [m] (the scene is symmetric: a negative b "
                              "is its mirror image)")
-        object.__setattr__(self, "impact_parameter", _one_number(b, "impact_parameter", nonnegative))
+        object.__setattr__(self, "impact_parameter", single_number(b, "impact_parameter", nonnegative))
         for name in ("speed", "mass", "radius"):
-            object.__setattr__(self, name, _one_number(getattr(self, name), name, positive))
+            object.__setattr__(self, name, single_number(getattr(self, name), name, positive))
         distance = DEFAULT_DISTANCE_RADII * self.radius if self.distance is None else self.distance
-        distance = _one_number(distance, "distance", positive)
+        distance = single_number(distance, "distance", positive)
         if not distance > 2 * self.radius:
             raise ValueError(f"distance={distance!r}: must be > 2 radius = {2 * self.radius!r} m so that the discs do "
                              "not overlap at t = 0")
@@ -188,12 +180,8 @@ class Scattering(Scene):
 
         Observables as exact(); events: time (E,) [s], velocity_1, velocity_2 (E, 2) just after each
         impact [m/s] (one impact when b < 2r, none otherwise)."""
-        t_end = float(finite_array(t_end, "t_end"))
-        sample_dt = float(finite_array(sample_dt, "sample_dt"))
-        if not (t_end > 0 and 0 < sample_dt <= t_end):
-            raise ValueError(f"t_end={t_end!r}, sample_dt={sample_dt!r}: need 0 < sample_dt <= t_end [s]")
-        steps = max(1, math.ceil(t_end / sample_dt * (1 - 1e-12)))
-        t = np.arange(steps + 1) * sample_dt
+        t = sample_times(t_end, sample_dt)
+        sample_dt = float(sample_dt)
         x0, v0 = self._initial()
         run = self.discs.run(x0, v0, t_stop=t[-1], sample_t=t, record=True, max_events=16)
         if run.status == TOO_MANY:  # two discs without walls meet at most once

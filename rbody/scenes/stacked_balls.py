@@ -53,8 +53,8 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike
 
-from rbody._checks import finite_array, nonnegative, positive
-from rbody.engine.events import DONE, TOO_MANY, Line, LineRun
+from rbody._checks import finite_array, nonnegative, positive, single_number
+from rbody.engine.events import DONE, TOO_MANY, Line, LineRun, sample_times
 from rbody.errors import SimulationError
 from rbody.inertia import Inertia
 from rbody.scene import Body, Contact, Joint, Layout, Scene, Shape
@@ -64,14 +64,6 @@ from rbody.trajectory import Trajectory
 BALL_BALL, FLOOR = 0, 1
 # Half size of the drawn floor, in radii of the large ball (the contact is with the infinite plane).
 FLOOR_HALF_SIZE = 5.0
-
-
-def _one_number(value: Any, name: str, check) -> float:
-    """A single number checked by `check` (rbody._checks): event-driven scenes are not batched."""
-    array = finite_array(value, name)
-    if array.ndim != 0:
-        raise ValueError(f"{name}={value!r}: expected one number (an event-driven scene is not a batch)")
-    return float(check(array, name))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -102,8 +94,8 @@ class StackedBalls(Scene):
 
     def __post_init__(self) -> None:
         for name in ("large_mass", "small_mass", "drop_height", "radius_large", "radius_small"):
-            object.__setattr__(self, name, _one_number(getattr(self, name), name, positive))
-        gap = _one_number(self.gap, "gap", nonnegative)
+            object.__setattr__(self, name, single_number(getattr(self, name), name, positive))
+        gap = single_number(self.gap, "gap", nonnegative)
         if not gap < 8 * self.drop_height:
             raise ValueError(f"gap={gap!r}: must be < 8 drop_height = {8 * self.drop_height!r} m, so that the balls "
                              "meet while the large ball rises from its first bounce (the chapter's sequence)")
@@ -319,12 +311,8 @@ class StackedBalls(Scene):
 
         Observables (T,) as exact(); events: time (E,) [s], kind (E,) (0 ball-ball, 1 floor),
         large_velocity, small_velocity (E,) just after each impact [m/s]."""
-        t_end = float(finite_array(t_end, "t_end"))
-        sample_dt = float(finite_array(sample_dt, "sample_dt"))
-        if not (t_end > 0 and 0 < sample_dt <= t_end):
-            raise ValueError(f"t_end={t_end!r}, sample_dt={sample_dt!r}: need 0 < sample_dt <= t_end [s]")
-        steps = max(1, math.ceil(t_end / sample_dt * (1 - 1e-12)))
-        t = np.arange(steps + 1) * sample_dt
+        t = sample_times(t_end, sample_dt)
+        sample_dt = float(sample_dt)
         run = self._run(t_stop=t[-1], sample_t=t, record=True)
         centres = self.line.positions(run.samples["gaps"], run.samples["x0"])
         data = self._observed(centres - self.radii, run.samples["velocities"])
