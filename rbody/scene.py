@@ -181,6 +181,21 @@ class Scene:
     name:    the scene's identifier (used in file names and reports)
     t_end:   duration [s]
     gravity: magnitude g [m/s^2] along -z (9.81, MuJoCo's default)
+
+    Optional hooks, for physics a Layout cannot hold. The base class does not define them: a backend
+    looks them up with getattr and applies those a scene defines (validation.backends.mujoco and
+    .pymunk); all are for an unbatched scene and take and return float64 arrays.
+
+    body_mass(t, distance) -> (T,) mass [kg] of the layout's one body, held by one slide joint, at
+        times t (T,) [s] and slide coordinates distance (T,) [m] (the rocket, the avalanche). Backends
+        set it before every step and hold it over the step.
+    slide_force(t, distance, speed) -> (T,) force [N] along that slide axis besides gravity, from t (T,)
+        [s], distance (T,) [m] and speed (T,) [m/s] (thrust, drag, momentum given to picked-up mass),
+        so that m(t) v' = slide_force + m g . axis.
+    pair_force(x1, x2) -> (T, 3) force [N] on body 1 of the layout's two bodies from their centres of
+        mass x1, x2 (T, 3) [m], world frame; body 2 feels its opposite (the two-body problem).
+    applies_gravity (class flag): False when the scene accepts `gravity` but no body feels it;
+        backends then switch gravity off.
     """
 
     name: str

@@ -26,8 +26,9 @@ free rotation: max over one period of the exact motion of |omega|/2 (the quatern
 rate) and the eigenvalues of Euler's equations linearised, I^-1 ([L]x - [omega]x I) (a wobble, or the
 growth rate near the intermediate axis), and for the splitting and its yoshida6 composition also
 |omega_perp| sqrt(I3/I1), the rate of its sub-rotations on the smallest moment (fastest_rate); rolling: 0 (the
-accelerations are constant, any step is exact); other scenes: the Jacobian at the initial state
-(chains also the fastest normal mode).
+accelerations are constant, any step is exact); chains: the Jacobian at the initial state and the
+fastest normal mode; other scenes: no estimate (an infinite limit; the check for non-finite states
+after every step remains).
 
 Float64 resolution. A pendulum released near the top (k^2 -> 1) carries the margin of its swing below
 the top, 1 - k^2 = cos^2(theta0/2) - omega0^2 / (4 w0^2), in its state only as the speed at the bottom,
@@ -118,19 +119,18 @@ def fastest_rate(scene: Scene, method: str | None = None) -> np.ndarray:
     from rbody.scenes.chain import PendulumChain
     from rbody.scenes.free_rotation import FreeRotation
     from rbody.scenes.pendulum import Pendulum
-    from rbody.scenes.rolling import Rolling, RollingRace
 
     if isinstance(scene, Pendulum):
         return np.sqrt(scene._w0_squared())
     if isinstance(scene, FreeRotation):
         split = {"splitting": 1.0, "yoshida6": 0.25}.get(method, 0.0)
         return np.array([_rotation_rate(scene.item(index), split) for index in np.ndindex(*scene.batch_shape)])
-    if isinstance(scene, (Rolling, RollingRace)):
-        return np.zeros(scene.native().y0.shape[0])
-    rate = _jacobian_rate(scene)
     if isinstance(scene, PendulumChain):
-        rate = np.maximum(rate, float(np.max(scene.normal_modes()[0])))
-    return rate
+        return np.maximum(_jacobian_rate(scene), float(np.max(scene.normal_modes()[0])))
+    # Rolling: constant accelerations, any step is exact. Other scenes: no estimate (their Jacobian at the
+    # start says little about the motion, and costs O(n) right-hand sides for n coordinates): the limit is
+    # inf there and the non-finite check after each step is the guard.
+    return np.zeros(scene.native().y0.shape[0])
 
 
 def _rotation_rate(scene, split: float = 0.0) -> float:

@@ -20,6 +20,7 @@ from rbody._checks import finite_array
 from rbody.engine import integrators
 from rbody.errors import MethodNotApplicable, SimulationError
 from rbody.scene import Scene
+from rbody.stability import check_step
 from rbody.trajectory import Trajectory
 
 EVENT_METHOD = "events"
@@ -37,7 +38,9 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
                 multiple of save_every, so the last saved time is t_end or up to save_every dt past it
     Returns a Trajectory whose observables have shape (T, *scene.batch_shape, ...).
     Raises ValueError for bad arguments, MethodNotApplicable when the method cannot run the scene,
-    SimulationError when a step gives a non-finite state (never a trajectory holding NaN).
+    SimulationError, before any step, when dt is beyond the method's estimated stability limit on the
+    scene (rbody.stability) and, after, when a step gives a non-finite state (never a trajectory
+    holding NaN).
     """
     if not isinstance(scene, Scene):
         raise ValueError(f"scene={scene!r}: expected an rbody.Scene (see rbody.scenes)")
@@ -53,6 +56,7 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
 
     if scene.event_driven:
         return scene.run_events(t_end, dt * save_every)
+    check_step(scene, method, dt, t_end)  # beyond the method's stability limit: refuse before any step
 
     model = scene.native()
     nsteps = _steps(t_end, dt, save_every)
@@ -72,6 +76,11 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
     t = np.arange(out.shape[0]) * (dt * save_every)
     data = model.observe(t, out)
     data = {name: value.reshape((t.size,) + scene.batch_shape + value.shape[2:]) for name, value in data.items()}
+    for name, value in data.items():  # a finite state can still give a non-finite observable
+        if not np.all(np.isfinite(value)):
+            raise SimulationError(
+                f"scene {scene.describe()}: method {method!r} with dt={dt} gave a non-finite {name!r}; try a "
+                "smaller dt")
     return Trajectory(t, data, meta={"scene": scene.name, "backend": "rbody", "method": method, "dt": dt})
 
 

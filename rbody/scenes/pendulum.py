@@ -188,10 +188,13 @@ def _swinging(t: np.ndarray, theta0: float, omega0: float, w0: float, m: float, 
     k = np.sqrt(m)
     turns = 2 * np.pi * np.round(theta0 / (2 * np.pi))  # the swing is about the nearest bottom
     half = (theta0 - turns) / 2
-    # sn(u0) = sin(theta0/2)/k, cn(u0) = omega0/(2 k w0): u0 = F(phi0 | m) with am(u0) = phi0.
-    phi0 = np.arctan2(np.sin(half), omega0 / (2 * w0))
+    # sn(u0) = sin(theta0/2)/k, cn(u0) = omega0/(2 k w0), dn(u0) = cos(theta0/2): u0 = F(am u0 | m) in
+    # Carlson's form sn R_F(cn^2, dn^2, 1), from sn, cn, dn directly: an amplitude rounded to fl(pi/2) would
+    # carry cos = 6e-17, not small beside sqrt(1 - m) near the top. cn < 0: F = 2K sign(sn) - F(pi - am).
     quarter = ellipkm1(m1)
-    u = w0 * t + _elliptic_f(phi0, m1, quarter)
+    sn0, cn0, dn0 = np.sin(half) / k, omega0 / (2 * k * w0), np.cos(half)
+    f = sn0 * elliprf(cn0 * cn0, dn0 * dn0, 1.0)
+    u = w0 * t + (f if cn0 >= 0 else np.copysign(2 * quarter, sn0) - f)
     u = u - 4 * quarter * np.round(u / (4 * quarter))  # sn, cn have period 4K
     sn, cn, dn, _am = jacobi(u, m, m1)
     return turns + 2 * np.arctan2(k * sn, dn), 2 * k * w0 * cn

@@ -1,7 +1,6 @@
 """rbody on the hard cases of issue 6 (numerical stability), one fast test per behaviour.
 
-The cross-simulator suite is validation/hard.py (tests/validation/test_hard.py). Tests marked
-xfail(strict=True) state a change rbody still needs (their reason says which); they pass once it is made.
+The cross-simulator suite is validation/hard.py (tests/validation/test_hard.py).
 """
 
 from __future__ import annotations
@@ -104,12 +103,6 @@ def test_near_top_theta_against_mpmath_at_1e_3():
     assert _near_top_theta_error(1e-3) <= NEAR_TOP_THETA
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "rbody/scenes/pendulum.py _swinging: u0 = F(phi0 | m) with phi0 = atan2(sin(theta0/2), 0) = fl(pi/2), whose "
-    "cosine 6.1e-17 is not small against sqrt(1 - m) = cos(theta0/2) near the top: theta(t) is off by "
-    "2.4e-10 rad at pi - 1e-6 and 2.4e-7 at pi - 1e-9 (the error is 2 eps / gap). Fix: form u0 from "
-    "sn0 = sin(theta0/2)/k, cn0 = omega0/(2 k w0), dn0 = cos(theta0/2) as "
-    "u0 = sn0 R_F(cn0^2, dn0^2, 1) (2K - that when cn0 < 0), as free_rotation does; measured then 1.2e-12 rad"))
 @pytest.mark.parametrize("gap", [1e-6, 1e-9])
 def test_near_top_theta_against_mpmath_close_to_the_top(gap):
     assert _near_top_theta_error(gap) <= NEAR_TOP_THETA
@@ -161,10 +154,6 @@ def test_resolution_problem_of_the_near_top_swing():
     assert stability.resolution_problem(far, dt, 1e4 * far.period) is None
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "rbody/engine/simulate.py does not call rbody.stability.check_step(scene, method, dt, t_end) before "
-    "stepping: at theta0 = pi - 1e-9 every method returns a run (verlet and symplectic_euler whirl over the "
-    "top, rk4's period is off by 65 %) instead of raising SimulationError"))
 @pytest.mark.parametrize("method", ["verlet", "rk4"])
 def test_simulate_refuses_a_swing_float64_cannot_carry(method):
     scene = swinging_rod(1.0, theta0=math.pi - 1e-9, t_end=100.0)
@@ -381,10 +370,6 @@ def test_too_large_a_step_never_returns_non_finite_values(scene_name, method, fa
     assert all(np.all(np.isfinite(run[name])) for name in run.observables)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "rbody/engine/simulate.py must call rbody.stability.check_step(scene, method, dt, t_end) before stepping: "
-    "beyond the limit verlet, rk4, yoshida6, splitting and euler return silently wrong runs and gauss6 and rk4 "
-    "fail late with a message that does not name the limit"))
 @pytest.mark.parametrize("scene_name, method, factor", STEP_CASES)
 def test_too_large_a_step_is_refused_naming_the_limit(scene_name, method, factor):
     scene = _step_scene(scene_name)
@@ -393,19 +378,11 @@ def test_too_large_a_step_is_refused_naming_the_limit(scene_name, method, factor
         simulate(scene, dt=factor * limit, method=method)
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "rbody/engine/simulate.py must call rbody.stability.check_step before stepping: the needle's splitting at "
-    "dt = 1e-3 s (beyond its limit ~5e-4 s, see rbody.stability.fastest_rate) returns omega 20 % off"))
 def test_needle_splitting_beyond_its_limit_is_refused():
     with pytest.raises(SimulationError, match="limit"):
         simulate(free_rotation(NEEDLE, omega0=(1.0, 0.1, 0.0), t_end=2.0), dt=1e-3, method="splitting")
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "an euler run whose quaternion grows to ~1e150 is returned to FreeRotation.native().observe, where "
-    "quat_normalize raises ValueError('quaternion ... must be finite and non-zero'): simulate must refuse it "
-    "before stepping (check_step) and, as a backstop, raise SimulationError when observe meets non-finite or "
-    "overflowing values"))
 @pytest.mark.filterwarnings("ignore::RuntimeWarning")
 def test_overflowing_state_is_a_simulation_error():
     with pytest.raises(SimulationError):

@@ -3,12 +3,17 @@ Trajectory it returns (save/load round trip). The physics of the runs is tested 
 
 from __future__ import annotations
 
+import importlib
+
 import numpy as np
 import pytest
 
 import rbody
 from rbody import MethodNotApplicable, SimulationError, Trajectory, simulate
-from rbody.scenes import pendulum_chain, swinging_rod
+from rbody.scenes import pendulum_chain, rocket, rolling, swinging_rod, two_body
+
+
+engine = importlib.import_module("rbody.engine.simulate")  # the module (rbody.engine.simulate is the function)
 
 
 @pytest.fixture
@@ -32,9 +37,12 @@ def test_bad_t_end(rod, t_end):
         simulate(rod, dt=1e-3, t_end=t_end)
 
 
-def test_dt_equal_to_t_end_is_one_step(rod):
-    run = simulate(rod, dt=1.0, method="rk4")
+def test_dt_equal_to_t_end_is_one_step():
+    # rolling has constant accelerations: no step is beyond a stability limit
+    scene = rolling("disc", radius=0.1, incline=0.3, t_end=1.0)
+    run = simulate(scene, dt=1.0, method="rk4")
     np.testing.assert_array_equal(run.t, [0.0, 1.0])
+    assert run["distance"][-1] == pytest.approx(scene.exact([1.0])["distance"][0], rel=1e-14)
 
 
 def test_unknown_method_lists_the_valid_ones(rod):
@@ -75,32 +83,43 @@ def test_default_method_is_verlet_where_it_applies(rod):
 # ----- failures -----------------------------------------------------------------------------------------
 
 
-def test_euler_blow_up_raises_and_names_scene_time_and_step():
-    """Euler's energy error on the pendulum grows without bound, but the state stays finite until a
-    step is so large that theta += dt omega overflows: a whirling rod with dt = 1e160 overflows at the
-    second step (t = 2e160 s). simulate must raise, not hand back a trajectory holding inf or NaN."""
-    whirling = swinging_rod(1.0, theta0=1.0, omega0=20.0, t_end=1e162)
+def test_step_beyond_the_stability_limit_is_refused_before_any_step():
+    """rk4 keeps an oscillation bounded while dt w0 < 2 sqrt(2) (rbody.stability): at dt = 1 s on the rod
+    (w0 = 3.84 rad/s) simulate refuses, naming the limit it estimated, instead of returning a wrong run."""
+    rod = swinging_rod(1.0, theta0=1.0, t_end=10.0)
+    with pytest.raises(SimulationError, match=r"stability limit 0\.737\d* s") as error:
+        simulate(rod, dt=1.0, method="rk4")
+    assert "swinging_rod" in str(error.value) and "use dt <=" in str(error.value)
+
+
+def test_non_finite_state_raises_and_names_scene_time_and_step():
+    """A step that overflows: two bodies flung apart at 1e10 m/s with dt = 1e300 s reach x = inf at the
+    first step. (The two-body scene has no stability estimate, so the loop itself must catch it.)"""
+    scene = two_body(1.0, 1.0, separation=1.0, relative_velocity=1e10, t_end=1e305)
     with pytest.raises(SimulationError) as error:
-        simulate(whirling, dt=1e160, method="euler")
+        simulate(scene, dt=1e300, method="euler")
     message = str(error.value)
-    assert "swinging_rod" in message
-    assert "dt=1e+160" in message
-    assert "t=2e+160 s" in message
+    assert "two_body" in message and "dt=1e+300" in message and "t=1e+300 s" in message
     assert "non-finite" in message
 
 
 def test_failure_names_the_batch_element():
-    # elements 0 and 2 rest at the bottom, exactly an equilibrium of every step; element 1 overflows
-    batch = swinging_rod(1.0, theta0=[0.0, 1.0, 0.0], omega0=[0.0, 20.0, 0.0], t_end=1e162)
+    # element 1 exhausts at 1e300 m/s: its first step overflows the speed; elements 0 and 2 stay finite
+    batch = rocket(1.0, burn_rate=0.1, exhaust_speed=[1.0, 1e300, 2.0], dry_mass=0.5, t_end=1e11)
     with pytest.raises(SimulationError, match="batch element 1 of 3"):
-        simulate(batch, dt=1e160, method="rk4")
+        simulate(batch, dt=1e10, method="euler")
 
 
 def test_gauss6_reports_stage_equations_it_cannot_solve():
-    """dt = 1 s on a whirling rod (w0 = 3.8 rad/s, |df/dy| ~ 20 /s): fixed-point iteration diverges."""
+    """dt = 1 s on a whirling rod (|df/dy| ~ 20 /s): simulate refuses it beyond gauss6's limit, and the
+    compiled loop itself, run there anyway, reports the step whose fixed-point iteration diverged."""
     whirling = swinging_rod(1.0, theta0=1.0, omega0=20.0, t_end=10.0)
-    with pytest.raises(SimulationError, match="fixed-point"):
+    with pytest.raises(SimulationError, match="stability limit"):
         simulate(whirling, dt=1.0, method="gauss6")
+    model = whirling.native()
+    out = np.empty((11,) + model.y0.shape)
+    failed = engine._integrate(model, "gauss6", 1.0, 10, 1, out)
+    assert failed[0] >= 1
     # at dt = 0.01 it converges and the run is accurate
     run = simulate(whirling, dt=1e-2, method="gauss6", t_end=1.0)
     assert np.max(np.abs(run["theta"] - whirling.exact(run.t)["theta"])) < 1e-9
