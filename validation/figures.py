@@ -33,4 +33,19 @@ def make_figures(runs: dict, out: Path) -> list[tuple[str, str]]:
     if "free_rotation" in runs:
         _case, by_backend = runs["free_rotation"]
         figures.append(("Free rotation: drift of the energy and of |L|", report.figure_rotation(by_backend, out)))
+    if "stacked_balls" in runs:
+        case, by_backend = runs["stacked_balls"]
+        figures.append(("Stacked balls: heights against time, exact and each engine",
+                        report.figure_series(by_backend, case.scene.exact, "small_height", {"small": ""},
+                                             "small ball height [m]", "Stacked balls (M = 1 kg, m = 0.05 kg, "
+                                             "gap 0.02 m)", out, "stacked_balls.png")))
+    if "two_body" in runs:
+        case, by_backend = runs["two_body"]
+        figures.append(("The two-body problem: orbits, exact and each engine",
+                        report.figure_orbit(by_backend, case.scene.exact, out)))
+    if "rocket" in runs:
+        case, by_backend = runs["rocket"]
+        figures.append(("The rocket with drag: speed against time, exact and each engine",
+                        report.figure_series(by_backend, case.scene.exact, "speed", {"": ""}, "speed [m/s]",
+                                             "Rocket: burning to dry mass, then coasting", out, "rocket.png")))
     return figures

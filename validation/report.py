@@ -123,6 +123,42 @@ def figure_rotation(runs: Mapping[str, Trajectory], out: Path) -> str:
     return _save(figure, out, "free_rotation.png")
 
 
+def figure_series(runs: Mapping[str, Trajectory], exact_of, name: str, columns: Mapping[str, str], ylabel: str,
+                  title: str, out: Path, file: str) -> str:
+    """Observable `name` against time, exact (solid black) and each engine; columns: label -> index
+    expression for a (T, k) observable ("" for a (T,) one)."""
+    figure, axis = plt.subplots(figsize=(7, 4.2))
+    first = next(iter(runs.values()))
+    t = np.linspace(0.0, float(first.t[-1]), 800)
+    exact = np.asarray(exact_of(t)[name])
+    for k, (label, index) in enumerate(columns.items()):
+        pick = (lambda a: a) if index == "" else (lambda a, i=int(index): a[:, i])
+        axis.plot(t, pick(exact), color="black", lw=1, label="exact" if k == 0 else None)
+        for backend, run in runs.items():
+            axis.plot(run.t, pick(np.asarray(run[name])), STYLES[backend], color=COLOURS[backend], lw=1.3,
+                      label=backend if k == 0 else None)
+        axis.annotate(label, (t[-1], pick(exact)[-1]), fontsize=8)
+    axis.set(xlabel="t [s]", ylabel=ylabel, title=title)
+    axis.legend()
+    return _save(figure, out, file)
+
+
+def figure_orbit(runs: Mapping[str, Trajectory], exact_of, out: Path) -> str:
+    """The two bodies' paths in the x-z plane: exact (solid black) and each engine."""
+    figure, axis = plt.subplots(figsize=(6, 6))
+    first = next(iter(runs.values()))
+    exact = exact_of(np.linspace(0.0, float(first.t[-1]), 2000))
+    for body in ("r1", "r2"):
+        axis.plot(exact[body][:, 0], exact[body][:, 2], color="black", lw=1, label="exact" if body == "r1" else None)
+        for backend, run in runs.items():
+            axis.plot(run[body][:, 0], run[body][:, 2], STYLES[backend], color=COLOURS[backend], lw=1.3,
+                      label=backend if body == "r1" else None)
+    axis.set(xlabel="x [m]", ylabel="z [m]", title="The two-body problem: orbits about the centre of mass",
+             aspect="equal")
+    axis.legend()
+    return _save(figure, out, "two_body.png")
+
+
 def write(out: Path, rows: list, figures: list[tuple[str, str]], header: str, regressions: list[str]) -> Path:
     """report.md with the header, the table, the notes, the figures and the regressions."""
     parts = [header, "## Results", "", table(rows, markdown=True), "",

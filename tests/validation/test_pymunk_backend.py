@@ -207,12 +207,62 @@ def test_free_rotation_is_refused_as_three_dimensional():
     assert not ok and "3-D rotation" in reason
 
 
-def test_forces_the_layout_does_not_carry_are_refused():
+def _two_body_orbit(periods: float = 1.0):
     from rbody.scenes import two_body
 
-    scene = two_body(1.0, 2.0, separation=(1.0, 0.0, 0.0), relative_velocity=(0.0, 0.0, 1.0), t_end=1.0)
-    with pytest.raises(NotImplementedError, match="force between its bodies"):
-        pm.check(scene)
+    scene = two_body(1.0, 2.0, separation=(1.0, 0.0, 0.0), relative_velocity=(0.0, 0.0, np.sqrt(3.9)), t_end=1.0)
+    return dataclasses.replace(scene, t_end=periods * scene.period)
+
+
+def test_pair_force_runs_as_symplectic_euler_first_order():
+    # e = 0.3, one period (6.19 s): the orbit error halves with dt (first order); the energy error stays
+    # bounded (symplectic Euler), 4.5e-4 of |E| at dt = 1e-3 over two periods (measured).
+    scene = _two_body_orbit(1.0)
+    errors = []
+    for dt in (2e-3, 4e-3):
+        trajectory = pm.run(scene, dt)
+        exact = scene.exact(trajectory.t)
+        errors.append(np.max(np.linalg.norm(trajectory["r1"] - exact["r1"], axis=1)))
+        # equal and opposite forces: the centre of mass (at rest at the origin) does not move
+        centre = (1.0 * trajectory["r1"] + 2.0 * trajectory["r2"]) / 3.0
+        assert np.max(np.abs(centre)) < 1e-12
+        energy = np.max(np.abs(trajectory["energy"] - exact["energy"])) / np.max(np.abs(exact["energy"]))
+        assert energy < 2e-3 * dt / 1e-3
+    assert 1.7 < errors[1] / errors[0] < 2.3, "first order in dt"
+    assert errors[0] < 8e-3  # about 2.9e-3 m per ms of step (measured)
+    assert "pair_force" in trajectory.meta["stepping"]
+
+
+def test_varying_mass_and_slide_force_are_first_order():
+    from rbody.scenes import avalanche, rocket
+
+    scenes = (rocket(100.0, burn_rate=10.0, exhaust_speed=50.0, dry_mass=40.0, drag=2.0, t_end=8.0),
+              avalanche(0.5, t_end=2.0))
+    for scene in scenes:
+        errors = []
+        for dt in (2e-3, 4e-3):
+            trajectory = pm.run(scene, dt)
+            exact = scene.exact(trajectory.t)
+            errors.append(np.max(np.abs(trajectory["distance"] - exact["distance"])))
+            assert np.allclose(trajectory["mass"], scene.body_mass(trajectory.t, trajectory["distance"]))
+        assert 1.7 < errors[1] / errors[0] < 2.3, f"{scene.name}: first order in dt, got {errors}"
+        assert "body_mass" in trajectory.meta["stepping"]
+    # The rocket burns to its dry mass and coasts: the coasting speed decays as exp(-beta t / dry).
+    assert trajectory.t[-1] == pytest.approx(2.0)
+
+
+def test_hooks_on_an_unsuitable_layout_are_refused():
+    from rbody.scenes import stacked_balls
+
+    scene = stacked_balls(1.0, 0.05, drop_height=1.0, gap=0.02)
+
+    class Pushed(type(scene)):
+        def slide_force(self, t, distance, speed):
+            return np.zeros(np.size(t))
+
+    pushed = Pushed(**{f.name: getattr(scene, f.name) for f in dataclasses.fields(scene)})
+    with pytest.raises(NotImplementedError, match="one body on one slide"):
+        pm.check(pushed)
 
 
 def test_batched_scene_is_refused_one_at_a_time():
