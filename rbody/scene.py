@@ -276,6 +276,12 @@ class Scene:
         """The minimal-coordinate model rbody integrates (continuous scenes)."""
         raise NotImplementedError(f"{type(self).__name__} has no time-stepped native model")
 
+    @cached_property
+    def native_model(self) -> NativeModel:
+        """self.native(), built once per scene (a scene is frozen, so its model never changes); simulate
+        and the stability check use it, so repeated runs of one scene skip rebuilding its arrays."""
+        return self.native()
+
     def run_events(self, t_end: float, sample_dt: float | None):
         """Event-driven scenes: the exact event-by-event run (see rbody.engine.events)."""
         raise NotImplementedError(f"{type(self).__name__} is not event-driven")

@@ -115,7 +115,25 @@ def fastest_rate(scene: Scene, method: str | None = None) -> np.ndarray:
     grows as (dt |omega_perp| sqrt(I3/I1))^2 (measured on tumbling needles: 0.0165 (I3/I1) (dt |omega|)^2
     over 2 s, for I3/I1 from 17 to 1.7e7), so a needle's splitting needs far smaller steps than its
     dynamics. yoshida6 (6th order) gets a quarter of that rate: measured on the same needles its error is
-    ~1.4e-11 (dt |omega_perp| sqrt(I3/I1))^6 (6.6e-8 at 4.1, 6 % at 41)."""
+    ~1.4e-11 (dt |omega_perp| sqrt(I3/I1))^6 (6.6e-8 at 4.1, 6 % at 41).
+
+    The rate depends only on the scene and the kind of method (the splitting, its yoshida6 composition, or
+    any other), and simulate asks for it on every call: it is computed once and kept in the scene's own
+    __dict__ (read-only). Scenes are frozen dataclasses holding arrays, hence unhashable, so no outside
+    cache could key on them; the scene's __dict__ is where its cached_property values live too, and a
+    frozen scene never changes, so the kept rate never goes stale."""
+    from rbody.scenes.free_rotation import FreeRotation
+
+    kind = {"splitting": "splitting", "yoshida6": "yoshida6"}.get(method) if isinstance(scene, FreeRotation) else None
+    cache = scene.__dict__.setdefault("_fastest_rate", {})  # frozen: no setattr, but __dict__ is writable
+    if kind not in cache:
+        rate = np.array(_fastest_rate(scene, kind), dtype=np.float64)
+        rate.setflags(write=False)
+        cache[kind] = rate
+    return cache[kind]
+
+
+def _fastest_rate(scene: Scene, method: str | None) -> np.ndarray:
     from rbody.scenes.chain import PendulumChain
     from rbody.scenes.free_rotation import FreeRotation
     from rbody.scenes.pendulum import Pendulum
@@ -130,7 +148,7 @@ def fastest_rate(scene: Scene, method: str | None = None) -> np.ndarray:
     # Rolling: constant accelerations, any step is exact. Other scenes: no estimate (their Jacobian at the
     # start says little about the motion, and costs O(n) right-hand sides for n coordinates): the limit is
     # inf there and the non-finite check after each step is the guard.
-    return np.zeros(scene.native().y0.shape[0])
+    return np.zeros(scene.native_model.y0.shape[0])
 
 
 def _rotation_rate(scene, split: float = 0.0) -> float:
@@ -159,7 +177,7 @@ def _cross_matrix(v: np.ndarray) -> np.ndarray:
 
 def _jacobian_rate(scene: Scene) -> np.ndarray:
     """(B,) spectral radius of df/dy at the initial state, by central differences of the scene's rhs."""
-    model = scene.native()
+    model = scene.native_model
     y0, params = np.ascontiguousarray(model.y0, dtype=np.float64), np.ascontiguousarray(model.params)
     batch, n = y0.shape
     rates = np.empty(batch)

@@ -2,7 +2,7 @@
 
 The pipeline of a time-stepped run, as a short list of calls:
 
-    model = scene.native()                    # minimal coordinates, compiled rhs/accel, batch of states
+    model = scene.native_model                # minimal coordinates, compiled rhs/accel, batch of states
     out   = _integrate(model, method, ...)    # the compiled loop of the method
     data  = model.observe(t, out)             # observables, (T, *batch, ...)
 
@@ -58,7 +58,7 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
         return scene.run_events(t_end, dt * save_every)
     check_step(scene, method, dt, t_end)  # beyond the method's stability limit: refuse before any step
 
-    model = scene.native()
+    model = scene.native_model  # built once per scene
     nsteps = _steps(t_end, dt, save_every)
     out = np.empty((nsteps // save_every + 1,) + model.y0.shape)
     failed = _integrate(model, method, dt, nsteps, save_every, out)
@@ -79,8 +79,16 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
     except (ValueError, FloatingPointError) as error:
         raise SimulationError(f"scene {scene.describe()}: method {method!r} with dt={dt} gave states whose "
                               f"observables cannot be formed ({error}); try a smaller dt") from None
-    data = {name: value.reshape((t.size,) + scene.batch_shape + value.shape[2:]) for name, value in data.items()}
+    data = {name: _shaped(value, (t.size,) + scene.batch_shape) for name, value in data.items()}
     return Trajectory(t, data, meta={"scene": scene.name, "backend": "rbody", "method": method, "dt": dt})
+
+
+def _shaped(value, leading: tuple[int, ...]):
+    """An observable (T, B, ...) reshaped to (T, *batch_shape, ...): a view where numpy can make one (theta
+    of a pendulum, a strided view of the states, stays one); a lazy observable (a callable) stays lazy."""
+    if callable(value):
+        return lambda: _shaped(value(), leading)
+    return value.reshape(leading + value.shape[2:])
 
 
 def _choose_method(scene: Scene, method: str | None) -> str:
