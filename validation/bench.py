@@ -12,8 +12,8 @@ methods or settings, a sweep of dt; at each point
              warm-up run per series, the minimum of up to REPEATS runs (fewer when a run is long: the
              `repeats` column says how many)
 
-A run that blows up (SimulationError, non-finite state), miscounts impacts or slips is a row with its
-`failure` reason, never dropped. What each backend's step_seconds holds: rbody the whole simulate call
+A run that blows up or is refused as beyond the stability limit (SimulationError: "unstable"), miscounts
+impacts or slips is a row with its `failure` reason, never dropped. What each backend's step_seconds holds: rbody the whole simulate call
 after its kernels are compiled (stepping and the observables); MuJoCo the mujoco.rollout calls alone;
 pymunk the space.step calls alone (so MuJoCo's and pymunk's translation of states into observables is
 free here and rbody's is not).
@@ -133,8 +133,8 @@ def measure(bench: BenchScene, series: Series, dt: float, truth: Truth, *, quick
         while len(seconds) < REPEATS and (not seconds or time.perf_counter() - started < REPEAT_BUDGET[quick]):
             try:
                 run = get(series.backend).run(scene, dt, None, save_every=save_every, **settings)
-            except SimulationError as error:
-                point.failure = f"blow-up: {_first_line(error)}"
+            except SimulationError as error:  # a non-finite state, or a step refused beyond the stability limit
+                point.failure = f"unstable: {_first_line(error)}"
                 return point
             except (ValueError, RuntimeError, ArithmeticError) as error:  # the simulator refused the settings
                 point.failure = f"error: {type(error).__name__}: {_first_line(error)}"

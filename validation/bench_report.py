@@ -29,7 +29,7 @@ def _series_of(points: Iterable) -> dict[tuple[str, str, str], list]:
 
 
 def _estimated_cost(point, series: list) -> float:
-    """Cost of a point that has none (a blow-up): cost x dt of the series' measured points / dt."""
+    """Cost of a point that has none (unstable): cost x dt of the series' measured points / dt."""
     if not math.isnan(point.seconds_per_sim_second):
         return point.seconds_per_sim_second
     known = [q.seconds_per_sim_second * q.dt for q in series if not math.isnan(q.seconds_per_sim_second)]
@@ -83,7 +83,7 @@ def plot_scene(points: Sequence, bench, out: Path) -> str:
         axis.set_ylabel("cost: seconds of stepping per simulated second")
     axes[2].set_ylim(FLOOR / 3, CEILING * 3)
     axes[2].set_ylabel(f"max |{bench.measure} - exact| [{bench.unit}]")
-    axes[0].plot([], [], "x", color="black", label="failure (blow-up, miscount, slip)")
+    axes[0].plot([], [], "x", color="black", label="failure (unstable, miscount, slip)")
     figure.legend(loc="lower center", ncol=4, fontsize=7, frameon=False)
     figure.tight_layout(rect=(0, 0.17, 1, 1))
     name = f"wp_{bench.name}.png"
