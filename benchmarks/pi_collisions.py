@@ -21,17 +21,7 @@ import numpy as np
 
 from rbody import simulate
 from rbody.scenes import pi_collisions
-
-
-def cpu_model() -> str:
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
+from validation.machine import cpu_model
 
 
 def best_of(function, repeats: int = 3) -> tuple[float, object]:

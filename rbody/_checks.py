@@ -62,6 +62,25 @@ def single_number(value: Any, name: str, check=finite_array) -> float:
     return float(check(array, name))
 
 
+def whole_number(value: Any, name: str, minimum: int = 1) -> int:
+    """A whole number (not a bool) >= minimum."""
+    if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < minimum:
+        raise ValueError(f"{name}={value!r}: expected a whole number >= {minimum}")
+    return int(value)
+
+
+def run_times(scene_t_end: float, dt: Any, t_end: Any = None) -> tuple[float, float]:
+    """(dt, t_end) of a run [s], checked: t_end (default the scene's) > 0 and 0 < dt <= t_end; both
+    single finite numbers. Every backend checks its time arguments with this, before any work."""
+    t_end = scene_t_end if t_end is None else float(finite_array(t_end, "t_end", ndim=0))
+    if not t_end > 0:
+        raise ValueError(f"t_end={t_end!r}: must be > 0 [s]")
+    dt = float(finite_array(dt, "dt", ndim=0))
+    if not 0 < dt <= t_end:
+        raise ValueError(f"dt={dt!r}: must satisfy 0 < dt <= t_end={t_end} [s]")
+    return dt, t_end
+
+
 def one_of(value: Any, name: str, choices) -> Any:
     """`value` checked to be one of `choices` (the message lists them)."""
     try:

@@ -45,8 +45,6 @@ def _pi_phase(digits: range) -> list[tuple[int, int, float, float, float]]:
     alpha = atan(sqrt(m/M)), and every wall impact reflects it: the count is set by the direction of P,
     whose error after the last impact is the phase error [rad]; it changes the count once it passes the
     margin alpha dist(pi/alpha, Z). The energy error is |P|/|P*| - 1 (it does not change the count)."""
-    import mpmath
-
     out = []
     for d in digits:
         scene = pi_collisions(d)

@@ -16,7 +16,7 @@ import math
 
 import numpy as np
 
-from rbody._checks import finite_array
+from rbody._checks import run_times, whole_number
 from rbody.engine import integrators
 from rbody.errors import MethodNotApplicable, SimulationError
 from rbody.scene import Scene
@@ -44,14 +44,8 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
     """
     if not isinstance(scene, Scene):
         raise ValueError(f"scene={scene!r}: expected an rbody.Scene (see rbody.scenes)")
-    t_end = scene.t_end if t_end is None else float(finite_array(t_end, "t_end", ndim=0))
-    if not t_end > 0:
-        raise ValueError(f"t_end={t_end!r}: must be > 0 [s]")
-    dt = float(finite_array(dt, "dt", ndim=0))
-    if not 0 < dt <= t_end:
-        raise ValueError(f"dt={dt!r}: must satisfy 0 < dt <= t_end={t_end} [s]")
-    if not isinstance(save_every, (int, np.integer)) or isinstance(save_every, bool) or save_every < 1:
-        raise ValueError(f"save_every={save_every!r}: expected a whole number >= 1")
+    dt, t_end = run_times(scene.t_end, dt, t_end)
+    whole_number(save_every, "save_every")
     method = _choose_method(scene, method)
 
     if scene.event_driven:

@@ -27,7 +27,6 @@ impact n with cos(n theta) < 0.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Any, ClassVar

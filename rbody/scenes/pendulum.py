@@ -37,7 +37,7 @@ from rbody.elliptic import jacobi
 from rbody._checks import finite_array, positive
 from rbody.inertia import Inertia, AxisLike, unit_axis
 from rbody.motion import quat_from_matrix
-from rbody.scene import Body, BodyStates, Joint, Layout, NativeModel, Scene, Shape
+from rbody.scene import Body, Joint, Layout, NativeModel, Scene, Shape
 
 # y = (theta, omega); params = (w0^2, I [kg m^2], M g d [N m])
 

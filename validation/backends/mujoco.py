@@ -38,7 +38,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout as mj_rollout
 
-from rbody._checks import finite_array
+from rbody._checks import run_times, whole_number
 from rbody.errors import SimulationError
 from rbody.mjcf import INITIAL_KEY, has_impacts, to_mjcf
 from rbody.scene import BodyStates, Scene
@@ -106,14 +106,8 @@ def run(scene: Scene, dt: float, t_end: float | None = None, *, integrator: str 
     SimulationError when MuJoCo reports an unstable state (it would reset the state and go on).
     """
     check(scene)
-    t_end = scene.t_end if t_end is None else float(finite_array(t_end, "t_end"))
-    if not t_end > 0:
-        raise ValueError(f"t_end={t_end!r}: must be > 0 [s]")
-    dt = float(finite_array(dt, "dt"))
-    if not 0 < dt <= t_end:
-        raise ValueError(f"dt={dt!r}: must satisfy 0 < dt <= t_end={t_end} [s]")
-    if not isinstance(save_every, (int, np.integer)) or isinstance(save_every, bool) or save_every < 1:
-        raise ValueError(f"save_every={save_every!r}: expected a whole number >= 1")
+    dt, t_end = run_times(scene.t_end, dt, t_end)
+    whole_number(save_every, "save_every")
     settings = {"integrator": integrator, "solref": solref, "solimp": solimp, "condim": condim, "cone": cone,
                 "impratio": impratio, "noslip_iterations": noslip_iterations, "min_inertia": min_inertia}
     model, xml = build(scene, dt, **{k: v for k, v in settings.items() if v is not None})

@@ -57,7 +57,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pymunk
 
-from rbody._checks import finite_array, nonnegative
+from rbody._checks import nonnegative, run_times, whole_number
 from rbody.errors import SimulationError
 from rbody.motion import quat_from_axis_angle, quat_from_matrix, quat_multiply, quat_to_matrix
 from rbody.scene import WORLD, Body, BodyStates, Joint, Layout, Scene, Shape
@@ -498,15 +498,9 @@ def run(scene: Scene, dt: float, t_end: float | None = None, *, iterations: int 
     """
     if not isinstance(scene, Scene):
         raise ValueError(f"scene={scene!r}: expected an rbody.Scene (see rbody.scenes)")
-    t_end = scene.t_end if t_end is None else float(finite_array(t_end, "t_end"))
-    if not t_end > 0:
-        raise ValueError(f"t_end={t_end!r}: must be > 0 [s]")
-    dt = float(finite_array(dt, "dt"))
-    if not 0 < dt <= t_end:
-        raise ValueError(f"dt={dt!r}: must satisfy 0 < dt <= t_end={t_end} [s]")
-    for setting, value in (("save_every", save_every), ("iterations", 1 if iterations is None else iterations)):
-        if not isinstance(value, (int, np.integer)) or isinstance(value, bool) or value < 1:
-            raise ValueError(f"{setting}={value!r}: expected a whole number >= 1")
+    dt, t_end = run_times(scene.t_end, dt, t_end)
+    whole_number(save_every, "save_every")
+    whole_number(1 if iterations is None else iterations, "iterations")
     if collision_slop is not None:
         nonnegative(collision_slop, "collision_slop")
     plan = _plan(scene)
