@@ -172,6 +172,11 @@ class NativeModel:
     observe: Any
     accel: Any = None
     split: Mapping[str, Any] = field(default_factory=dict)
+    # A time [s] at which rhs jumps (a rocket's burn-out), shared by the batch, and the params column
+    # that tells rhs which side it is on (1 before, 0 after, -1 decide from the state). simulate splits
+    # the step that straddles it at the break, so that no step integrates across the jump.
+    break_time: float | None = None
+    break_column: int | None = None
 
 
 @dataclass(frozen=True, kw_only=True)

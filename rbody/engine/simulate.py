@@ -12,6 +12,7 @@ only sets where the trajectory is sampled.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
@@ -55,7 +56,10 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
     model = scene.native_model  # built once per scene
     nsteps = _steps(t_end, dt, save_every)
     out = np.empty((nsteps // save_every + 1,) + model.y0.shape)
-    failed = _integrate(model, method, dt, nsteps, save_every, out)
+    if model.break_time is not None and 0 < model.break_time < nsteps * dt:
+        failed = _integrate_across_break(model, method, dt, nsteps, save_every, out)
+    else:
+        failed = _integrate(model, method, dt, nsteps, save_every, out)
     if np.any(failed >= 0):
         b = int(np.argmax(failed >= 0))
         what = "a non-finite state"
@@ -109,6 +113,44 @@ def _steps(t_end: float, dt: float, save_every: int) -> int:
     """Number of steps: t_end/dt rounded up (to round-off), then up to a multiple of save_every."""
     nsteps = max(1, math.ceil(t_end / dt * (1 - 1e-12)))
     return -(-nsteps // save_every) * save_every
+
+
+def _integrate_across_break(model, method: str, dt: float, nsteps: int, save_every: int,
+                            out: np.ndarray) -> np.ndarray:
+    """The run on the same grid, with the step that straddles model.break_time t_b split there:
+    n_b = floor(t_b/dt) steps on the first side, then h1 = t_b - n_b dt on the first side and dt - h1
+    on the second, then the rest on the second side; rhs is told its side through break_column, so
+    no stage ever evaluates across the jump and each method keeps its order."""
+    every = np.empty((nsteps + 1,) + model.y0.shape)
+    before, after = np.array(model.params, dtype=np.float64), np.array(model.params, dtype=np.float64)
+    before[:, model.break_column], after[:, model.break_column] = 1.0, 0.0
+    n_b = int(np.floor(model.break_time / dt))
+    h1 = model.break_time - n_b * dt
+    every[0] = model.y0
+    failed = np.full(model.y0.shape[0], -1, dtype=np.int64)
+
+    def leg(params, start, steps, h, into):
+        """`steps` steps of h from `start` (B, n), states written to into[1:]; returns the end state."""
+        buffer = np.empty((steps + 1,) + model.y0.shape)
+        bad = _integrate(dataclasses.replace(model, y0=start, params=params), method, h, steps, 1, buffer)
+        failed[(failed < 0) & (bad >= 0)] = n_b  # the step near which it failed (for the message)
+        if into is not None:
+            into[:] = buffer[1:]
+        return buffer[-1]
+
+    state = every[0]
+    if n_b > 0:
+        state = leg(before, state, n_b, dt, every[1:n_b + 1])
+    if h1 > 0:  # the straddling step, cut at the break
+        state = leg(before, state, 1, h1, None)
+        state = leg(after, state, 1, dt - h1, every[n_b + 1:n_b + 2])
+        n_done = n_b + 1
+    else:
+        n_done = n_b
+    if nsteps > n_done:
+        leg(after, every[n_done], nsteps - n_done, dt, every[n_done + 1:])
+    out[:] = every[::save_every]
+    return failed
 
 
 def _integrate(model, method: str, dt: float, nsteps: int, save_every: int, out: np.ndarray) -> np.ndarray:

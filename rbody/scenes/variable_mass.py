@@ -84,13 +84,15 @@ def _unflatten(flat: np.ndarray, batch_shape: tuple[int, ...]) -> np.ndarray | f
 
 # ----- rocket ----------------------------------------------------------------------------------------
 
-# y = (x, v, s); params = (alpha [kg/s], u [m/s], beta [kg/s], dry mass [kg])
+# y = (x, v, s); params = (alpha [kg/s], u [m/s], beta [kg/s], dry mass [kg], phase): phase 1 burning,
+# 0 coasting, -1 decided by the burn clock s (simulate sets 1 or 0 on each side of a shared burn-out).
 
 
 @njit(cache=True)
 def rocket_rhs(y, p, out):
     out[0] = y[1]
-    if y[2] > p[3]:  # burning: m v' = alpha u - beta v, m = s
+    burning = p[4] > 0.5 if p[4] >= 0.0 else y[2] > p[3]
+    if burning:  # m v' = alpha u - beta v, m = s
         out[1] = (p[0] * p[1] - p[2] * y[1]) / y[2]
     else:            # coasting: dry_mass v' = -beta v
         out[1] = -p[2] * y[1] / p[3]
@@ -211,8 +213,12 @@ class Rocket(Scene):
         def observe(t, y):
             return {"distance": y[..., 0], "speed": y[..., 1], "mass": np.maximum(y[..., 2], dry)}
 
+        burnout = (m0 - dry) / alpha
+        shared = burnout.size > 0 and np.all(burnout == burnout[0])
         return NativeModel(y0=np.stack([np.zeros_like(m0), v0, m0], axis=1),
-                           params=np.stack([alpha, u, beta, dry], axis=1), rhs=rocket_rhs, observe=observe)
+                           params=np.stack([alpha, u, beta, dry, np.full_like(m0, -1.0)], axis=1),
+                           rhs=rocket_rhs, observe=observe,
+                           break_time=float(burnout[0]) if shared else None, break_column=4)
 
     def why_not(self, method: str) -> str:
         if method in ("symplectic_euler", "verlet", "yoshida6"):
