@@ -24,7 +24,7 @@ def finite_array(value: Any, name: str, *, shape: tuple | None = None, ndim: int
     if ndim is not None and array.ndim != ndim:
         raise ValueError(f"{name} has {array.ndim} dimensions: expected {ndim}")
     if not np.all(np.isfinite(array)):
-        raise ValueError(f"{name}={_short(array)}: every value must be finite (no NaN or inf)")
+        raise ValueError(f"{name}={describe_values(array)}: every value must be finite (no NaN or inf)")
     return array
 
 
@@ -32,7 +32,7 @@ def positive(value: Any, name: str) -> Any:
     """`value` (scalar or array) checked finite and > 0; a float for a scalar, else a float64 array."""
     array = finite_array(value, name)
     if np.any(array <= 0):
-        raise ValueError(f"{name}={_short(array)}: must be > 0")
+        raise ValueError(f"{name}={describe_values(array)}: must be > 0")
     return float(array) if array.ndim == 0 else array
 
 
@@ -40,7 +40,7 @@ def nonnegative(value: Any, name: str) -> Any:
     """`value` checked finite and >= 0."""
     array = finite_array(value, name)
     if np.any(array < 0):
-        raise ValueError(f"{name}={_short(array)}: must be >= 0")
+        raise ValueError(f"{name}={describe_values(array)}: must be >= 0")
     return float(array) if array.ndim == 0 else array
 
 
@@ -50,7 +50,7 @@ def in_interval(value: Any, name: str, low: float, high: float, *, closed: bool 
     inside = (array >= low) & (array <= high) if closed else (array > low) & (array < high)
     if not np.all(inside):
         brackets = "[]" if closed else "()"
-        raise ValueError(f"{name}={_short(array)}: must lie in {brackets[0]}{low}, {high}{brackets[1]}")
+        raise ValueError(f"{name}={describe_values(array)}: must lie in {brackets[0]}{low}, {high}{brackets[1]}")
     return float(array) if array.ndim == 0 else array
 
 
@@ -92,7 +92,8 @@ def one_of(value: Any, name: str, choices) -> Any:
     return value
 
 
-def _short(array: np.ndarray) -> str:
+def describe_values(array: np.ndarray) -> str:
+    """A short text of an array's values for an error message."""
     if array.ndim == 0:
         return repr(float(array))
     if array.size <= 6:

@@ -244,6 +244,17 @@ class Scene:
         return np.broadcast_to(np.asarray(getattr(self, name), dtype=np.float64),
                                self.batch_shape).reshape(-1)
 
+    def unflatten(self, flat) -> Any:
+        """A per-element value (B, ...) shaped back to (*batch_shape, ...); a Python scalar when unbatched."""
+        shaped = np.asarray(flat).reshape(self.batch_shape + np.shape(flat)[1:])
+        return shaped.item() if shaped.ndim == 0 else shaped
+
+    def require_single(self, what: str) -> None:
+        """Raise ValueError when the scene is a batch: `what` is defined for one scene only."""
+        if self.batch_shape:
+            raise ValueError(f"scene {self.name!r} is a batch of shape {self.batch_shape}: {what} is for one "
+                             "scene, use scene.item(i)")
+
     def item(self, index: int | tuple = ()) -> "Scene":
         """One element of a batched scene, as an unbatched scene."""
         if not self.batch_shape:
@@ -259,10 +270,7 @@ class Scene:
     @cached_property
     def layout(self) -> Layout:
         """Bodies, joints, fixed shapes and contacts (unbatched scenes only)."""
-        if self.batch_shape:
-            raise ValueError(
-                f"scene {self.name!r} is a batch of shape {self.batch_shape}: other simulators take one "
-                "scene at a time, use scene.item(i)")
+        self.require_single("the physical layout other simulators build")
         return self._layout()
 
     def _layout(self) -> Layout:

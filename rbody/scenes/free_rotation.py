@@ -226,8 +226,7 @@ class FreeRotation(Scene):
         """Period of omega_body [s], batch_shape: 4 K(m) / |lam| (2 pi / |lam| for a spin about the
         largest or smallest axis, the period of a small wobble), inf on the separatrix and where
         omega_body is constant with no wobble about it (equal moments across the spin)."""
-        period = np.array([top.period for top in self._tops]).reshape(self.batch_shape)
-        return float(period) if period.ndim == 0 else period
+        return self.unflatten(np.array([top.period for top in self._tops]))
 
     # --- closed form -------------------------------------------------------------------------------
 

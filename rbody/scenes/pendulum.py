@@ -99,13 +99,13 @@ class Pendulum(Scene):
     @property
     def equivalent_length(self) -> np.ndarray | float:
         """Length I / (M d) [m] of the simple pendulum with the same motion."""
-        return self._unflatten(self._moment_pivot() / (self._mass() * self._distance()))
+        return self.unflatten(self._moment_pivot() / (self._mass() * self._distance()))
 
     @property
     def modulus(self) -> np.ndarray | float:
         """k^2 = sin^2(theta0/2) + omega0^2 / (4 w0^2) [-]: < 1 swinging, > 1 whirling."""
         theta0, omega0 = self._state0()
-        return self._unflatten(np.sin(theta0 / 2) ** 2 + omega0**2 / (4 * self._w0_squared()))
+        return self.unflatten(np.sin(theta0 / 2) ** 2 + omega0**2 / (4 * self._w0_squared()))
 
     def _one_minus_modulus(self) -> np.ndarray:
         """1 - k^2 formed without cancellation near the top."""
@@ -125,11 +125,7 @@ class Pendulum(Scene):
             # 1 - 1/k^2 = -(1 - k^2)/k^2, without cancellation near the separatrix
             whirling = 2 * ellipkm1(np.maximum(-complement, 0.0) / np.maximum(m, 1.0)) / (k * w0)
         period = np.where(complement > 0, swinging, np.where(complement < 0, whirling, np.inf))
-        return self._unflatten(period)
-
-    def _unflatten(self, flat: np.ndarray) -> np.ndarray | float:
-        shaped = np.asarray(flat).reshape(self.batch_shape)
-        return float(shaped) if shaped.ndim == 0 else shaped
+        return self.unflatten(period)
 
     def energy_of(self, theta: np.ndarray, omega: np.ndarray) -> np.ndarray:
         """E = 1/2 I omega^2 - M g d cos(theta) [J]; theta, omega (..., B)."""

@@ -226,34 +226,30 @@ class Rolling(Scene):
         return (ratio, mass, radius, incline, friction) + _accelerations(
             ratio, mass, radius, incline, friction, self.gravity)
 
-    def _unflatten(self, flat: np.ndarray):
-        shaped = np.asarray(flat).reshape(self.batch_shape)
-        return shaped.item() if shaped.ndim == 0 else shaped
-
     @property
     def inertia_ratio(self):
         """k = I / (M a^2) [-] (float, or an array of the batch shape)."""
-        return self._unflatten(self._flat()[0])
+        return self.unflatten(self._flat()[0])
 
     @property
     def acceleration(self):
         """x'' [m/s^2]: g sin(alpha)/(1 + k) rolling, g (sin(alpha) - mu cos(alpha)) sliding."""
-        return self._unflatten(self._flat()[5])
+        return self.unflatten(self._flat()[5])
 
     @property
     def angular_acceleration(self):
         """phi'' [rad/s^2]: x''/a rolling, mu M g cos(alpha) a / I sliding."""
-        return self._unflatten(self._flat()[6])
+        return self.unflatten(self._flat()[6])
 
     @property
     def rolls(self):
         """True where friction >= mu_min (rolling without slipping), False where the body slides."""
-        return self._unflatten(self._flat()[7])
+        return self.unflatten(self._flat()[7])
 
     @property
     def mu_min(self):
         """Least friction coefficient for rolling, tan(alpha) / (1 + M a^2 / I) [-]."""
-        return self._unflatten(self._flat()[8])
+        return self.unflatten(self._flat()[8])
 
     def _energy(self, x, phi, speed, spin) -> np.ndarray:
         """E = 1/2 M x'^2 + 1/2 I phi'^2 - M g x sin(alpha) [J]; arguments (..., B)."""

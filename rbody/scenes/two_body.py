@@ -43,7 +43,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numba import njit
 
-from rbody._checks import finite_array, positive
+from rbody._checks import describe_values, finite_array, positive
 from rbody.inertia import Inertia
 from rbody.particles import reduced_mass
 from rbody.scene import Body, Joint, Layout, NativeModel, Scene, Shape
@@ -134,7 +134,7 @@ class TwoBody(Scene):
         eccentricity = self._elements()["e"]
         if np.any(np.abs(eccentricity - 1) < PARABOLIC_BAND):
             raise ValueError(
-                f"eccentricity {_short(eccentricity)}: the orbit is parabolic to within {PARABOLIC_BAND:g} "
+                f"eccentricity {describe_values(eccentricity)}: the orbit is parabolic to within {PARABOLIC_BAND:g} "
                 "(|v0|^2 = 2 G (m1 + m2)/|r0|, escape speed); Kepler's equation in E or H loses accuracy "
                 "as 1/|1 - e| there and parabolic orbits are not provided: change the relative speed")
 
@@ -143,10 +143,6 @@ class TwoBody(Scene):
     def _flat(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """m1, m2, G (B,)."""
         return self.batched("m1"), self.batched("m2"), self.batched("G")
-
-    def _unflatten(self, flat: np.ndarray) -> np.ndarray | float:
-        shaped = np.asarray(flat).reshape(self.batch_shape + np.shape(flat)[1:])
-        return shaped.item() if shaped.ndim == 0 else shaped
 
     def _elements(self) -> dict[str, np.ndarray]:
         """Orbit elements of the relative motion, each (B,) or (B, 3)."""
@@ -167,23 +163,23 @@ class TwoBody(Scene):
     def total_mass(self) -> np.ndarray | float:
         """M = m1 + m2 [kg]."""
         m1, m2, _G = self._flat()
-        return self._unflatten(m1 + m2)
+        return self.unflatten(m1 + m2)
 
     @property
     def reduced_mass(self) -> np.ndarray | float:
         """mu = m1 m2 / (m1 + m2) [kg] (rbody.particles.reduced_mass)."""
         m1, m2, _G = self._flat()
-        return self._unflatten(np.array([reduced_mass(a, b) for a, b in zip(m1, m2)]))
+        return self.unflatten(np.array([reduced_mass(a, b) for a, b in zip(m1, m2)]))
 
     @property
     def eccentricity(self) -> np.ndarray | float:
         """e [-] of the relative orbit: < 1 bound (ellipse), > 1 unbound (hyperbola)."""
-        return self._unflatten(self._elements()["e"])
+        return self.unflatten(self._elements()["e"])
 
     @property
     def semi_major_axis(self) -> np.ndarray | float:
         """a = 1/(2/|r0| - |v0|^2/K) [m]: > 0 for an ellipse, < 0 for a hyperbola."""
-        return self._unflatten(1 / self._elements()["inverse_a"])
+        return self.unflatten(1 / self._elements()["inverse_a"])
 
     @property
     def period(self) -> np.ndarray | float:
@@ -192,7 +188,7 @@ class TwoBody(Scene):
         inverse_a, K = elements["inverse_a"], elements["K"]
         bound = elements["e"] < 1
         safe = np.where(bound, inverse_a, 1.0)
-        return self._unflatten(np.where(bound, 2 * np.pi / np.sqrt(K * safe**3), np.inf))
+        return self.unflatten(np.where(bound, 2 * np.pi / np.sqrt(K * safe**3), np.inf))
 
     def energy_constant(self) -> np.ndarray:
         """E = 1/2 M |V|^2 + 1/2 mu |r0'|^2 - G m1 m2 / |r0| [J], (B,)."""
@@ -297,9 +293,7 @@ class TwoBody(Scene):
     def pair_force(self, x1, x2) -> np.ndarray:
         """Force on body 1 (T, 3) [N] from positions (T, 3) [m]: -G m1 m2 r/|r|^3, r = x1 - x2 (unbatched);
         body 2 feels its opposite."""
-        if self.batch_shape:
-            raise ValueError(f"scene {self.name!r} is a batch of shape {self.batch_shape}: pair_force is for "
-                             "one scene, use scene.item(i)")
+        self.require_single("pair_force")
         r = finite_array(x1, "x1").reshape(-1, 3) - finite_array(x2, "x2").reshape(-1, 3)
         distance = np.linalg.norm(r, axis=1, keepdims=True)
         return -float(self.G) * float(self.m1) * float(self.m2) * r / distance**3
@@ -385,8 +379,3 @@ def two_body(m1, m2, *, separation, relative_velocity, G=1.0, com_velocity=(0.0,
     """
     return TwoBody(name="two_body", t_end=t_end, gravity=gravity, m1=m1, m2=m2, separation=separation,
                    relative_velocity=relative_velocity, G=G, com_velocity=com_velocity)
-
-
-def _short(array: np.ndarray) -> str:
-    flat = np.asarray(array).ravel()
-    return repr(flat.tolist()) if flat.size <= 6 else f"array of {flat.size} values"

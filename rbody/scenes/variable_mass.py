@@ -63,7 +63,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numba import njit
 
-from rbody._checks import finite_array, nonnegative, positive
+from rbody._checks import describe_values, finite_array, nonnegative, positive
 from rbody.inertia import Inertia
 from rbody.scene import Body, Joint, Layout, NativeModel, Scene, Shape
 
@@ -75,11 +75,6 @@ def _phi1(z: np.ndarray) -> np.ndarray:
     z = np.asarray(z, dtype=np.float64)
     zero = z == 0
     return np.where(zero, 1.0, np.expm1(z) / np.where(zero, 1.0, z))
-
-
-def _unflatten(flat: np.ndarray, batch_shape: tuple[int, ...]) -> np.ndarray | float:
-    shaped = np.asarray(flat).reshape(batch_shape)
-    return shaped.item() if shaped.ndim == 0 else shaped
 
 
 # ----- rocket ----------------------------------------------------------------------------------------
@@ -153,15 +148,14 @@ class Rocket(Scene):
     def burnout_time(self) -> np.ndarray | float:
         """t_b = (m0 - dry_mass) / alpha [s]: the engine stops."""
         m0, alpha, _u, _beta, dry, _v0 = self._flat()
-        return _unflatten((m0 - dry) / alpha, self.batch_shape)
+        return self.unflatten((m0 - dry) / alpha)
 
     @property
     def limiting_speed(self) -> np.ndarray | float:
         """alpha u / beta [m/s], the speed the burning rocket tends to (inf without drag)."""
         _m0, alpha, u, beta, _dry, _v0 = self._flat()
         with np.errstate(divide="ignore"):
-            return _unflatten(np.where(beta > 0, alpha * u / np.where(beta > 0, beta, 1.0), np.inf),
-                              self.batch_shape)
+            return self.unflatten(np.where(beta > 0, alpha * u / np.where(beta > 0, beta, 1.0), np.inf))
 
     def speed_at_mass(self, mass) -> np.ndarray:
         """The chapter's v(m) while burning: v0 (m/m0)^k + (alpha u/beta)(1 - (m/m0)^k), k = beta/alpha
@@ -169,7 +163,7 @@ class Rocket(Scene):
         mass = finite_array(mass, "mass").reshape(-1)[:, None]
         m0, alpha, u, beta, dry, v0 = self._flat()
         if np.any(mass < dry) or np.any(mass > m0):
-            raise ValueError(f"mass={_short(mass)}: the rocket burns from m0={self.m0!r} down to "
+            raise ValueError(f"mass={describe_values(mass)}: the rocket burns from m0={self.m0!r} down to "
                              f"dry_mass={self.dry_mass!r} [kg]; v(m) is defined between them")
         log_ratio = np.log(m0 / mass)
         z = -beta / alpha * log_ratio
@@ -230,23 +224,18 @@ class Rocket(Scene):
 
     def body_mass(self, t, distance=None) -> np.ndarray:
         """Mass of the rocket (T,) at times t (T,) [s] (unbatched scene) [kg]; distance is not needed."""
-        self._unbatched("body_mass")
+        self.require_single("body_mass")
         t = finite_array(t, "t").reshape(-1)
         return np.maximum(float(self.m0) - float(self.burn_rate) * t, float(self.dry_mass))
 
     def slide_force(self, t, distance, speed) -> np.ndarray:
         """Force along the slide (T,) besides gravity [N]: thrust alpha u while burning (t < t_b), minus
         drag beta v, so that m(t) v' = slide_force (the rocket equation with -u m' moved to the right)."""
-        self._unbatched("slide_force")
+        self.require_single("slide_force")
         t = finite_array(t, "t").reshape(-1)
         speed = finite_array(speed, "speed").reshape(-1)
         thrust = np.where(t < float(self.burnout_time), float(self.burn_rate) * float(self.exhaust_speed), 0.0)
         return thrust - float(self.drag) * speed
-
-    def _unbatched(self, what: str) -> None:
-        if self.batch_shape:
-            raise ValueError(f"scene {self.name!r} is a batch of shape {self.batch_shape}: {what} is for one "
-                             "scene, use scene.item(i)")
 
     def _layout(self) -> Layout:
         m0 = float(self.m0)
@@ -336,19 +325,19 @@ class Avalanche(Scene):
     @property
     def acceleration(self) -> np.ndarray | float:
         """g sin(theta) / 3 [m/s^2]: one third of a free slide."""
-        return _unflatten(self._flat()[0] / 3, self.batch_shape)
+        return self.unflatten(self._flat()[0] / 3)
 
     @property
     def start_time(self) -> np.ndarray | float:
         """t0 = sqrt(6 x0 / (g sin(theta))) [s]: when the exact avalanche from rest at x = 0 passes x0."""
         drive, _rho, x0 = self._flat()
-        return _unflatten(np.sqrt(6 * x0 / drive), self.batch_shape)
+        return self.unflatten(np.sqrt(6 * x0 / drive))
 
     @property
     def start_speed(self) -> np.ndarray | float:
         """v0 = sqrt(2/3 x0 g sin(theta)) [m/s], the exact speed at x0."""
         drive, _rho, x0 = self._flat()
-        return _unflatten(np.sqrt(2.0 / 3.0 * x0 * drive), self.batch_shape)
+        return self.unflatten(np.sqrt(2.0 / 3.0 * x0 * drive))
 
     def exact(self, t) -> dict[str, np.ndarray]:
         t = finite_array(t, "t").reshape(-1)[:, None]
@@ -378,20 +367,15 @@ class Avalanche(Scene):
 
     def body_mass(self, t, distance) -> np.ndarray:
         """Mass of the slab (T,) at slide coordinates distance (T,) [m]: rho h w x [kg] (unbatched)."""
-        self._unbatched("body_mass")
+        self.require_single("body_mass")
         return self._flat()[1][0] * finite_array(distance, "distance").reshape(-1)
 
     def slide_force(self, t, distance, speed) -> np.ndarray:
         """Force along the slide (T,) besides gravity [N]: -m' v = -rho h w v^2, the momentum given to the
         snow picked up, so that m v' = m g sin(theta) - rho h w v^2."""
-        self._unbatched("slide_force")
+        self.require_single("slide_force")
         speed = finite_array(speed, "speed").reshape(-1)
         return -self._flat()[1][0] * speed**2
-
-    def _unbatched(self, what: str) -> None:
-        if self.batch_shape:
-            raise ValueError(f"scene {self.name!r} is a batch of shape {self.batch_shape}: {what} is for one "
-                             "scene, use scene.item(i)")
 
     def _layout(self) -> Layout:
         slope, height, width, x0 = (float(self.slope), float(self.snow_height), float(self.width),
@@ -424,10 +408,3 @@ def avalanche(slope, *, snow_density=300.0, snow_height=0.5, width=1.0, x0=1e-3,
     """
     return Avalanche(name="avalanche", t_end=t_end, gravity=gravity, slope=slope, snow_density=snow_density,
                      snow_height=snow_height, width=width, x0=x0)
-
-
-def _short(array: np.ndarray) -> str:
-    flat = np.asarray(array).ravel()
-    if flat.size <= 6:
-        return repr(flat.tolist())
-    return f"array of {flat.size} values from {flat.min()!r} to {flat.max()!r}"
