@@ -5,6 +5,7 @@ from __future__ import annotations
 from rbody.scene import Scene
 from rbody.trajectory import Trajectory
 from validation.backends import BACKENDS, get, supports
+from validation.comparison import Comparison, Divergence, check_baseline, compare, save_baseline
 
 
 def run(scene: Scene, backend: str, *, dt: float, t_end: float | None = None, **settings) -> Trajectory:
@@ -19,4 +20,4 @@ def run(scene: Scene, backend: str, *, dt: float, t_end: float | None = None, **
     return module.run(scene, dt, t_end, **settings)
 
 
-__all__ = ["BACKENDS", "run", "supports"]
+__all__ = ["BACKENDS", "Comparison", "Divergence", "check_baseline", "compare", "run", "save_baseline", "supports"]
