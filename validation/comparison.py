@@ -213,7 +213,8 @@ class Comparison:
                 series = [self.curves[(m, pair)] for m in members if (m, pair) in self.curves]
                 if series:
                     worst = np.max(np.stack(series), axis=0)
-                    axis.semilogy(self.t, np.maximum(worst, floor), lw=1.1, color=f"C{k}", label=pair)
+                    axis.semilogy(self.t, np.maximum(worst, floor), ("-", "--", ":", "-.")[k % 4], lw=1.1, color=f"C{k}",
+                                  label=pair)
             axis.set(title=title, xlabel="t [s]", ylabel="divergence")
             axis.grid(True, which="major", alpha=0.3)
         for axis in axes.ravel()[len(groups):]:

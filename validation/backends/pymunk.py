@@ -18,6 +18,14 @@ Joints, modelled with what each needs and nothing more:
   the slides span the plane (a rolling body's x, z, phi); one slide: a GrooveJoint along the axis to
   the static body, pivoting at the hinge's anchor if a hinge follows the slide. Without a hinge the
   moment is infinite: the slides do not turn the body.
+- any planar tree (hinge axes along y, slide axes in the x-z plane), each body held to its parent by
+  its joints in order: one slide to a moving body is a GrooveJoint fixed in the parent (then a hinge
+  pivots at its anchor); a hinge then a slide (a telescoping arm) is a GrooveJoint fixed in the body,
+  along the turned slide, through the pivot on the parent; two slides (and a hinge after them) leave the
+  body free relative to its parent. A body without a hinge whose parent turns turns with it: a GearJoint
+  of ratio 1 keeps their angles together. Joint coordinates are read back from the body's motion
+  relative to its parent's (_observe_states). Refused, with the reason: welded bodies (no joint) on a
+  moving parent, two hinges on one body, a hinge before one of two slides, ball and free joints.
 - balls on a horizontal line: free bodies and no gravity, when every moving body slides on one
   horizontal line and every contact acts along it (circles centred on the line, walls facing along
   it). Gravity is then balanced by the line's reaction and does no work, and nothing pushes a ball
@@ -228,6 +236,9 @@ def _joint_plan(joint: Joint, rot0: np.ndarray, origin0: np.ndarray) -> _JointPl
     direction = rot0 @ np.array(joint.axis)
     if joint.kind == "free":
         raise NotImplementedError(f"joint {joint.name!r} is free: pymunk is 2-D and cannot express 3-D rotation")
+    if joint.kind not in ("hinge", "slide"):
+        raise NotImplementedError(f"joint {joint.name!r} is a {joint.kind} joint: pymunk's plane has hinges about "
+                                  "its normal and slides along it only")
     if joint.kind == "hinge":
         if abs(abs(direction[1]) - 1.0) > AXIS_TOL:
             raise NotImplementedError(
@@ -243,6 +254,10 @@ def _joint_plan(joint: Joint, rot0: np.ndarray, origin0: np.ndarray) -> _JointPl
 
 
 def _classify(plan: _BodyPlan) -> str:
+    """How pymunk holds the body to its parent (the world or a moving body), from its joints in order:
+    pivot (one hinge), groove (one slide, then at most one hinge), rail (a hinge, then a slide along a
+    direction that turns with it), free (two slides spanning the plane, at most one hinge: every planar
+    motion relative to the parent)."""
     hinges = [j for j in plan.joints if j.joint.kind == "hinge"]
     slides = [j for j in plan.joints if j.joint.kind == "slide"]
     if not plan.joints:
@@ -255,18 +270,32 @@ def _classify(plan: _BodyPlan) -> str:
                                   "about one axis; give each hinge its own body")
     if not slides:
         return "pivot"
-    if plan.parent != WORLD:
-        raise NotImplementedError(f"body {plan.name!r} slides on body {plan.parent!r}: this backend models "
-                                  "slides to the world only")
-    if np.linalg.matrix_rank(np.array([j.axis for j in slides]), tol=1e-9) < len(slides):
-        raise NotImplementedError(f"body {plan.name!r} has parallel slides {[j.joint.name for j in slides]}")
+    if len(slides) > 2:
+        raise NotImplementedError(f"body {plan.name!r} has {len(slides)} slides: a planar body moves along two "
+                                  "directions at most")
     if len(slides) == 2:
+        if hinges and plan.joints.index(hinges[0]) < max(plan.joints.index(j) for j in slides):
+            raise NotImplementedError(f"body {plan.name!r}: hinge {hinges[0].joint.name!r} comes before a slide "
+                                      "of its two and turns its axis; give the hinge after the slides")
+        if np.linalg.matrix_rank(np.array([j.axis for j in slides]), tol=1e-9) < len(slides):
+            raise NotImplementedError(f"body {plan.name!r} has parallel slides {[j.joint.name for j in slides]}")
         return "free"
     if hinges and plan.joints.index(hinges[0]) < plan.joints.index(slides[0]):
-        raise NotImplementedError(f"body {plan.name!r}: hinge {hinges[0].joint.name!r} comes before slide "
-                                  f"{slides[0].joint.name!r} and turns its axis; this backend models a slide "
-                                  "along a fixed direction")
+        return "rail"  # the slide's direction turns with the hinge: a groove on the body through the pivot
     return "groove"
+
+
+def _turns(plan: _BodyPlan, parent: _BodyPlan | None) -> bool:
+    """The body can turn in the plane: it has a hinge, or it hangs from a body that turns (and then turns
+    with it: a body on slides alone keeps its orientation relative to its parent)."""
+    return (any(j.joint.kind == "hinge" for j in plan.joints)
+            or (parent is not None and parent.kind != "static" and math.isfinite(parent.moment)))
+
+
+def _locked(p: _BodyPlan, parent: _BodyPlan | None) -> bool:
+    """True when the body has no hinge but its parent turns: a GearJoint keeps their angles together."""
+    return (not any(j.joint.kind == "hinge" for j in p.joints) and parent is not None
+            and parent.kind != "static" and math.isfinite(parent.moment))
 
 
 def _initial_state(plan: _BodyPlan, parent: _BodyPlan | None) -> None:
@@ -395,7 +424,7 @@ def _plan(scene: Scene) -> _Plan:
         plan.kind = _classify(plan)
         plan.cog = _xz(rot0 @ body.inertia.com)
         plan.com_y = float((plan.origin0 + rot0 @ body.inertia.com)[1])
-        if any(j.joint.kind == "hinge" for j in plan.joints):  # else the body does not turn: moment inf
+        if _turns(plan, parent):  # else the body does not turn: moment inf
             plan.moment = body.inertia.moment(rot0.T @ Y_AXIS)
             if not plan.moment > 0:
                 raise NotImplementedError(f"body {body.name!r} turns about world y but has no moment about it")
@@ -421,8 +450,8 @@ def _plan(scene: Scene) -> _Plan:
     plan = _Plan(layout, list(bodies.values()), shapes, False, scale, min(sizes, default=scale), scene=scene)
 
     moving = [p for p in plan.bodies if p.kind != "static"]
-    on_line = bool(moving) and all(p.kind == "groove" and len(p.joints) == 1 and p.joints[0].axis[1] == 0.0
-                                   for p in moving)
+    on_line = bool(moving) and all(p.kind == "groove" and p.parent == WORLD and len(p.joints) == 1
+                                   and p.joints[0].axis[1] == 0.0 for p in moving)
     if on_line and _aligned_with_line(plan):
         plan.line_mode = True
         for p in moving:
@@ -671,21 +700,49 @@ def _make_shape(s: _ShapePlan, body: pymunk.Body, smallest: float, slop: float, 
 
 
 def _constrain(space: pymunk.Space, p: _BodyPlan, handles: dict, plan: _Plan, reach: float) -> None:
+    """The joints of body p to its parent (the static body for the world), placed in the initial state:
+    pivot a PivotJoint at the hinge's anchor; groove a GrooveJoint along the slide, fixed in the parent,
+    through the hinge's anchor (or the centre of mass); rail a GrooveJoint along the slide fixed in the
+    body, through the hinge's anchor on the parent; free nothing. A body without a hinge on a parent that
+    turns also gets a GearJoint (ratio 1) that keeps their angles together."""
     body, parent = handles[p.name], handles[p.parent]
+    parent_plan = next((q for q in plan.bodies if q.name == p.parent), None)
+    motion = (0.0, np.zeros(2)) if parent_plan is None else (parent_plan.phi, parent_plan.tau)
     if p.kind == "pivot":
         hinge = p.joints[0]
-        parent_plan = next((q for q in plan.bodies if q.name == p.parent), None)
-        motion = (0.0, np.zeros(2)) if parent_plan is None else (parent_plan.phi, parent_plan.tau)
         joint = pymunk.PivotJoint(parent, body, tuple(_apply(*motion, hinge.anchor)))  # anchor at t = 0
         joint.collide_bodies = False
         space.add(joint)
-    elif p.kind == "groove":
+    elif p.kind == "groove" and p.parent == WORLD:
         slide = next(j for j in p.joints if j.joint.kind == "slide")
         hinge = next((j for j in p.joints if j.joint.kind == "hinge"), None)
         local = p.cog if hinge is None else hinge.anchor - _xz(p.origin0)  # the pivot, pymunk local
         point = np.asarray(body.local_to_world(tuple(local)))
         space.add(pymunk.GrooveJoint(space.static_body, body, tuple(point - reach * slide.axis),
                                      tuple(point + reach * slide.axis), tuple(local)))
+    elif p.kind == "groove":  # on a moving parent: the groove is fixed in the parent, along its turned axis
+        slide = next(j for j in p.joints if j.joint.kind == "slide")
+        hinge = next((j for j in p.joints if j.joint.kind == "hinge"), None)
+        local = p.cog if hinge is None else hinge.anchor - _xz(p.origin0)
+        point = np.asarray(body.local_to_world(tuple(local)))
+        axis = _rot(motion[0]) @ slide.axis  # the slide's direction at t = 0, world (x, z)
+        ends = [tuple(parent.world_to_local(tuple(point + sign * reach * axis))) for sign in (-1, 1)]
+        joint = pymunk.GrooveJoint(parent, body, ends[0], ends[1], tuple(local))
+        joint.collide_bodies = False
+        space.add(joint)
+    elif p.kind == "rail":  # hinge, then slide: the body's line through the pivot turns with it
+        hinge = next(j for j in p.joints if j.joint.kind == "hinge")
+        slide = next(j for j in p.joints if j.joint.kind == "slide")
+        pivot = _apply(*motion, hinge.anchor)                 # on the parent, world at t = 0
+        axis = _rot(p.phi) @ slide.axis                        # the body's slide direction at t = 0
+        ends = [tuple(body.world_to_local(tuple(pivot + sign * reach * axis))) for sign in (-1, 1)]
+        joint = pymunk.GrooveJoint(body, parent, ends[0], ends[1], tuple(parent.world_to_local(tuple(pivot))))
+        joint.collide_bodies = False
+        space.add(joint)
+    if p.kind != "static" and _locked(p, parent_plan):
+        gear = pymunk.GearJoint(parent, body, body.angle - parent.angle, 1.0)
+        gear.collide_bodies = False
+        space.add(gear)
 
 
 def _contacts(space: pymunk.Space, plan: _Plan, made: dict) -> _Counter:
@@ -750,8 +807,23 @@ def _observe_states(plan: _Plan, position, angle, velocity, angular):
             relative = phi[:, i] - (0.0 if j is None else phi[:, j])
             rate = omega[:, i] - (0.0 if j is None else omega[:, j])
             joints[hinge.joint.name] = (hinge.sign * relative, hinge.sign * rate)
-        elif p.kind != "static":
+        elif p.kind != "static" and p.parent not in index:
             joints.update(_slide_coordinates(p, phi[:, i], omega[:, i], position[:, i], com[:, i], velocity[:, i]))
+        elif p.kind != "static":
+            # Relative to the parent's motion r -> R(phi_j) r + tau_j: the joints move the body as if the parent
+            # stood in its reference pose. Position x -> R(-phi_j)(x - tau_j); velocity: that of the parent's
+            # point at x taken away, turned back, v_rel = R(-phi_j)(v - v_j - omega_j y x (x - com_j)).
+            j = index[p.parent]
+            back = _rot(-phi[:, j])
+            tau_j = position[:, j] - np.einsum("tij,j->ti", _rot(phi[:, j]), _xz(plan.bodies[j].origin0))
+
+            def relative(x):
+                return np.einsum("tij,tj->ti", back, x - tau_j)
+
+            carried = velocity[:, j] + _cross_y(omega[:, j], com[:, i] - com[:, j])
+            joints.update(_slide_coordinates(p, phi[:, i] - phi[:, j], omega[:, i] - omega[:, j],
+                                             relative(position[:, i]), relative(com[:, i]),
+                                             np.einsum("tij,tj->ti", back, velocity[:, i] - carried)))
     return bodies, joints
 
 
