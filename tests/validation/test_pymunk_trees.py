@@ -1,0 +1,204 @@
+"""pymunk on planar trees: slides on moving bodies, a hinge then a slide, chains; what it refuses.
+
+The trees here have no closed-form motion, so each run is judged by what holds exactly: the joint
+coordinates pymunk's bodies are read back into equal the layout's initial ones at t = 0; the bodies'
+centres of mass equal the forward kinematics of those coordinates at every step (the joints hold); the
+energy is conserved by the physics, and pymunk's energy error is first order in dt (DESIGN.md: its
+position-first update and PivotJoint lose or gain energy at a rate proportional to dt); the motion
+converges at first order as dt is halved.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from typing import Any, ClassVar
+
+import numpy as np
+import pytest
+
+import rbody
+from rbody import Body, Inertia, Joint, Layout, Scene
+from rbody.motion import quat_to_matrix
+from rbody.scenes import free_rotation, pendulum_chain
+from validation import run, supports
+from validation.comparison import divergence
+
+pytestmark = pytest.mark.crosssim
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class PlanarTree(Scene):
+    """A layout as a scene: observables are each joint's coordinate and rate ("<joint>.q", "<joint>.v"),
+    each body's centre of mass and velocity, and the energy sum 1/2 m v^2 + 1/2 w^T I_world w + m g z."""
+
+    tree: Any
+    observables: ClassVar[tuple[str, ...]] = ("energy",)
+
+    def _layout(self) -> Layout:
+        return self.tree
+
+    def observe(self, t, bodies, joints):
+        out = {}
+        for j in self.tree.joints:
+            out[f"{j.name}.q"], out[f"{j.name}.v"] = np.asarray(joints[j.name][0]), np.asarray(joints[j.name][1])
+        energy = np.zeros(len(t))
+        for b in self.tree.bodies:
+            s = bodies[b.name]
+            rotation = quat_to_matrix(s.quat)
+            inertia = np.einsum("tij,jk,tlk->til", rotation, b.inertia.tensor, rotation)
+            energy += (0.5 * b.inertia.mass * np.sum(s.velocity**2, axis=-1)
+                       + 0.5 * np.einsum("ti,tij,tj->t", s.omega, inertia, s.omega)
+                       + b.inertia.mass * self.gravity * s.com[:, 2])
+            out[f"{b.name}.com"], out[f"{b.name}.velocity"], out[f"{b.name}.quat"] = s.com, s.velocity, s.quat
+        out["energy"] = energy
+        return out
+
+
+def _rod(mass: float, length: float) -> Inertia:
+    """A thin cylinder hanging from its body origin along -z."""
+    return Inertia.solid_cylinder(mass, 0.02, length, "z").translated([0.0, 0.0, -length / 2])
+
+
+def cart_pole_bead(t_end: float = 1.0) -> PlanarTree:
+    """A cart on a rail along x; a pole hinged to it; a bead sliding along the pole (a slide on a body that
+    turns: a groove fixed in the pole and a gear that turns the bead with it)."""
+    cart = Body("cart", Inertia.box(2.0, (0.2, 0.1, 0.05)))
+    pole = Body("pole", _rod(1.0, 1.0), parent="cart")
+    bead = Body("bead", Inertia.solid_sphere(0.3, 0.05), parent="pole", pos=(0.0, 0.0, -0.6))
+    joints = (Joint("x", "slide", "cart", axis=(1, 0, 0), qvel0=0.3),
+              Joint("hinge", "hinge", "pole", axis=(0, 1, 0), qpos0=0.8, qvel0=-0.5),
+              Joint("along", "slide", "bead", axis=(0, 0, 1), qpos0=0.1, qvel0=0.2))
+    return PlanarTree(name="cart_pole_bead", t_end=t_end, tree=Layout(bodies=(cart, pole, bead), joints=joints))
+
+
+def telescope(t_end: float = 1.0) -> PlanarTree:
+    """An arm hinged to the world at (0.1, 0, 0.2) that extends along itself (a hinge, then a slide: a
+    groove fixed in the arm through the pivot), and a rod hinged at its end about -y."""
+    arm = Body("arm", _rod(1.0, 1.0), pos=(0.1, 0.0, 0.2))
+    tip = Body("tip", _rod(0.5, 0.5), parent="arm", pos=(0.0, 0.0, -1.0))
+    joints = (Joint("swing", "hinge", "arm", axis=(0, 1, 0), qpos0=0.6, qvel0=0.4),
+              Joint("extend", "slide", "arm", axis=(0, 0, -1), qpos0=0.2, qvel0=0.1),
+              Joint("tip_hinge", "hinge", "tip", axis=(0, -1, 0), qpos0=-0.3))
+    return PlanarTree(name="telescope", t_end=t_end, tree=Layout(bodies=(arm, tip), joints=joints))
+
+
+def _initial(scene: PlanarTree, trajectory) -> None:
+    for joint in scene.tree.joints:
+        assert trajectory[f"{joint.name}.q"][0] == pytest.approx(joint.qpos0, abs=1e-12), joint.name
+        assert trajectory[f"{joint.name}.v"][0] == pytest.approx(joint.qvel0, abs=1e-12), joint.name
+
+
+@pytest.mark.parametrize("make", [cart_pole_bead, telescope])
+def test_joint_coordinates_read_back_at_the_start(make):
+    scene = make()
+    assert supports(scene, "pymunk") == (True, "")
+    _initial(scene, run(scene, "pymunk", dt=1e-3, t_end=0.01))
+
+
+def _kinematic_gaps(dt: float) -> dict[str, float]:
+    """Largest distance [m] (and speed [m/s]) between each body's com (velocity) as pymunk reports it and
+    the forward kinematics of the joint coordinates read back from it:
+    R_y(theta) (0, 0, z) = (z sin theta, 0, z cos theta)."""
+    trajectory = run(cart_pole_bead(), "pymunk", dt=dt)
+    x, theta, s = trajectory["x.q"], trajectory["hinge.q"], trajectory["along.q"]
+    xv, w, sv = trajectory["x.v"], trajectory["hinge.v"], trajectory["along.v"]
+    zero, r = np.zeros_like(x), s - 0.6
+    expected = {"cart.com": np.stack([x, zero, zero], axis=1),
+                "pole.com": np.stack([x - 0.5 * np.sin(theta), zero, -0.5 * np.cos(theta)], axis=1),
+                "bead.com": np.stack([x + r * np.sin(theta), zero, r * np.cos(theta)], axis=1),
+                # the slide rate along the pole, the pole's turn and the cart's speed
+                "bead.velocity": np.stack([xv + sv * np.sin(theta) + r * w * np.cos(theta), zero,
+                                           sv * np.cos(theta) - r * w * np.sin(theta)], axis=1)}
+    gaps = {name: float(np.max(np.linalg.norm(trajectory[name] - value, axis=1))) for name, value in expected.items()}
+    # the bead has no hinge: it turns with the pole (the gear), so their orientations stay equal [rad]
+    gaps["bead.turn"] = float(np.max(divergence("bead.quat", trajectory["bead.quat"], trajectory["pole.quat"])))
+    return gaps
+
+
+def test_cart_pole_bead_bodies_follow_the_kinematics_of_the_joint_coordinates():
+    """The read-back relative to a moving, turning parent is right: what is left is pymunk's joint drift
+    (its constraints are corrected softly), which halves with dt. Measured at dt = 1e-3: cart 6.6e-10 m,
+    pole 2.2e-4 m, bead 1.1e-3 m; bead velocity 7.1e-3 m/s (each halving with dt through 2.5e-4). A wrong
+    read-back (the parent's turn or velocity left out) leaves an O(1) gap that does not halve."""
+    coarse, fine = _kinematic_gaps(1e-3), _kinematic_gaps(5e-4)
+    assert coarse["cart.com"] < 1e-8  # a groove on the world along x: nothing lifts the cart
+    assert coarse["bead.turn"] < 1e-9  # the gear holds the bead's angle to the pole's (measured 0; 0.78 rad without)
+    for name, bound in (("pole.com", 1e-3), ("bead.com", 3e-3), ("bead.velocity", 1.5e-2)):
+        assert coarse[name] < bound, name
+        assert coarse[name] / fine[name] == pytest.approx(2.0, rel=0.1), name
+
+
+@pytest.mark.parametrize("make", [cart_pole_bead, telescope])
+def test_energy_error_is_first_order_in_dt(make):
+    """The physics conserves E; pymunk's E(t) - E(0) halves with dt (measured at dt = 1e-3: 1.08e-2 J of
+    |E0| = 4.16 J for the cart-pole-bead, 7.2e-2 J of 8.2 J for the telescope)."""
+    scene = make()
+    drift = []
+    for dt in (1e-3, 5e-4):
+        energy = run(scene, "pymunk", dt=dt)["energy"]
+        drift.append(np.max(np.abs(energy - energy[0])))
+    assert drift[0] / drift[1] == pytest.approx(2.0, rel=0.05)
+    assert drift[0] < 0.02 * abs(energy[0])
+
+
+def test_telescope_converges_at_first_order():
+    """|q(dt) - q(dt/2)| / |q(dt/2) - q(dt/4)| -> 2 for a first-order method, for every joint at t_end."""
+    scene = telescope()
+    final = [{j.name: run(scene, "pymunk", dt=dt)[f"{j.name}.q"][-1] for j in scene.tree.joints}
+             for dt in (1e-3, 5e-4, 2.5e-4)]
+    for name in final[0]:
+        ratio = abs(final[0][name] - final[1][name]) / abs(final[1][name] - final[2][name])
+        assert ratio == pytest.approx(2.0, rel=0.1), name
+
+
+def test_three_link_chain_energy_and_native():
+    """A planar 3-link chain: rbody's rk4 keeps E to 1e-8; pymunk's PivotJoints lose it in proportion to
+    dt (DESIGN.md); the angles differ from rbody's by what that loss does to the phase (0.05 rad, the chain
+    tolerance of validation/compare.py). Uses Scene.from_layout (the general engine) when it exists."""
+    chain = pendulum_chain(3, theta0=[0.6, 0.3, -0.2], t_end=2.0)
+    scene = chain
+    if hasattr(Scene, "from_layout"):
+        scene = Scene.from_layout(chain.layout, t_end=2.0, name="chain3")
+    main = "qpos" if "qpos" in scene.observables else "theta"
+    native = run(scene, "rbody", dt=1e-3, method="rk4")
+    e0 = chain.energy_of(np.asarray(chain.theta0), np.zeros(3))
+    assert np.max(np.abs(native["energy"] - e0)) < 1e-8
+    losses = []
+    for dt in (1e-3, 5e-4):
+        trajectory = run(scene, "pymunk", dt=dt)
+        assert trajectory["energy"][0] == pytest.approx(e0, abs=1e-12)
+        losses.append(np.max(np.abs(trajectory["energy"] - e0)))
+        if dt == 1e-3:
+            assert np.max(np.abs(trajectory[main] - native[main])) < 0.05
+    assert losses[0] / losses[1] == pytest.approx(2.0, rel=0.15)
+
+
+def test_refusals_name_the_reason():
+    bead = cart_pole_bead()
+    welded = dataclasses.replace(bead, tree=Layout(bodies=bead.tree.bodies, joints=bead.tree.joints[:2]))
+    ok, reason = supports(welded, "pymunk")
+    assert not ok and "welded" in reason and "bead" in reason
+    tilted = dataclasses.replace(bead, tree=Layout(bodies=bead.tree.bodies, joints=(
+        bead.tree.joints[0], dataclasses.replace(bead.tree.joints[1], axis=(1.0, 0.0, 0.0)), bead.tree.joints[2])))
+    ok, reason = supports(tilted, "pymunk")
+    assert not ok and "hinge" in reason and "world y" in reason
+    arm = telescope()
+    swapped = dataclasses.replace(arm, tree=Layout(bodies=arm.tree.bodies, joints=(
+        arm.tree.joints[0], arm.tree.joints[1], Joint("up", "slide", "arm", axis=(1, 0, 0)), arm.tree.joints[2])))
+    ok, reason = supports(swapped, "pymunk")
+    assert not ok and "hinge 'swing' comes before" in reason
+    ok, reason = supports(free_rotation(Inertia(1.0, np.zeros(3), np.diag([1.0, 2.0, 3.0])), omega0=(0, 1, 0),
+                                        t_end=1.0), "pymunk")
+    assert not ok and "not planar" in reason
+    ok, reason = supports(pendulum_chain(2, theta0=[[0.1, 0.2], [0.3, 0.4]], t_end=1.0), "pymunk")
+    assert not ok and "batch" in reason
+    # rbody refuses a scene with nothing to integrate, MuJoCo a body its compiler rejects
+    ok, reason = supports(bead, "rbody")
+    assert not ok and "no native model" in reason
+    thin = dataclasses.replace(bead, tree=Layout(bodies=(bead.tree.bodies[0], dataclasses.replace(
+        bead.tree.bodies[1], inertia=Inertia.rod(1.0, 1.0, "z")), bead.tree.bodies[2]), joints=bead.tree.joints))
+    ok, reason = supports(thin, "mujoco")
+    assert not ok and "principal moments" in reason
+    with pytest.raises(ValueError, match="expected one of"):
+        supports(bead, "bullet")
