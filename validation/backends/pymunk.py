@@ -68,7 +68,7 @@ import pymunk
 from rbody._checks import nonnegative, run_times, whole_number
 from rbody.errors import SimulationError
 from rbody.motion import quat_from_axis_angle, quat_from_matrix, quat_multiply, quat_to_matrix
-from rbody.scene import WORLD, Body, BodyStates, Joint, Layout, Scene, Shape
+from rbody.scene import WORLD, Body, BodyStates, Joint, Layout, Scene, Shape, TreeScene
 from rbody.trajectory import Trajectory
 
 name = "pymunk"
@@ -188,7 +188,7 @@ def _check_scene(scene) -> None:
         raise NotImplementedError(
             f"scene {scene.name!r} is a batch of shape {scene.batch_shape}: pymunk runs one scene at a time; "
             "use scene.item(i)")
-    if not scene.planar:
+    if not scene.planar and not isinstance(scene, TreeScene):  # a user's tree: its joints decide (_joint_plan)
         raise NotImplementedError(
             f"scene {scene.name!r} is not planar: pymunk is 2-D and cannot express 3-D rotation or motion "
             "out of its plane")
@@ -239,6 +239,12 @@ def _joint_plan(joint: Joint, rot0: np.ndarray, origin0: np.ndarray) -> _JointPl
     if joint.kind not in ("hinge", "slide"):
         raise NotImplementedError(f"joint {joint.name!r} is a {joint.kind} joint: pymunk's plane has hinges about "
                                   "its normal and slides along it only")
+    if joint.armature:
+        raise NotImplementedError(f"joint {joint.name!r} has armature {joint.armature:g}: pymunk has no inertia "
+                                  "added to a joint's coordinate")
+    if joint.kind == "slide" and (joint.stiffness or joint.damping):
+        raise NotImplementedError(f"slide {joint.name!r} has stiffness {joint.stiffness:g} and damping "
+                                  f"{joint.damping:g}: pymunk's springs act between points, not along a slide")
     if joint.kind == "hinge":
         if abs(abs(direction[1]) - 1.0) > AXIS_TOL:
             raise NotImplementedError(
@@ -306,7 +312,8 @@ def _initial_state(plan: _BodyPlan, parent: _BodyPlan | None) -> None:
     omega = 0.0 if parent is None else parent.omega
     hinge_rates, slide_velocity = [], np.zeros(2)
     for jp in plan.joints:
-        q, rate = float(jp.joint.qpos0), float(np.asarray(jp.joint.qvel0, dtype=float))
+        # the displacement from the reference pose is q - ref (MJCF's ref: the coordinate of the reference pose)
+        q, rate = float(jp.joint.qpos0) - jp.joint.ref, float(np.asarray(jp.joint.qvel0, dtype=float))
         if jp.joint.kind == "hinge":
             alpha = jp.sign * q
             hinge_rates.append((jp.sign * rate, _apply(phi, tau, jp.anchor)))
@@ -414,6 +421,7 @@ def _plan(scene: Scene) -> _Plan:
 
     bodies: dict[str, _BodyPlan] = {}
     shapes: list[_ShapePlan] = []
+    in_contact = {n for c in layout.contacts for n in (c.shape_a, c.shape_b)}
     for body in _order(layout):
         parent = bodies.get(body.parent)
         rot_p = np.eye(3) if parent is None else parent.rot0
@@ -432,7 +440,12 @@ def _plan(scene: Scene) -> _Plan:
         bodies[body.name] = plan
         moving = plan.kind != "static"
         for shape in body.shapes:
-            side = _side_view(shape, rot0, np.zeros(3) if moving else plan.origin0, body.name, moving)
+            try:
+                side = _side_view(shape, rot0, np.zeros(3) if moving else plan.origin0, body.name, moving)
+            except NotImplementedError:
+                if shape.name in in_contact:
+                    raise
+                continue  # a shape that touches nothing does not act: no side view needed
             side.world_z = float((plan.origin0 + rot0 @ np.array(shape.pos))[2] + plan.tau[1])
             shapes.append(side)
     shapes += [_side_view(s, np.eye(3), np.zeros(3), WORLD, False) for s in layout.fixed]
@@ -444,7 +457,6 @@ def _plan(scene: Scene) -> _Plan:
             if n not in names:
                 raise ValueError(f"a contact names shape {n!r}, which the layout does not have")
 
-    in_contact = {n for c in layout.contacts for n in (c.shape_a, c.shape_b)}
     sizes = [s.size for s in shapes if s.name in in_contact and s.size > 0] or [s.size for s in shapes if s.size > 0]
     scale = max(sizes + [float(np.linalg.norm(p.origin0)) for p in bodies.values()] + [float(np.finfo(float).tiny)])
     plan = _Plan(layout, list(bodies.values()), shapes, False, scale, min(sizes, default=scale), scene=scene)
@@ -739,6 +751,14 @@ def _constrain(space: pymunk.Space, p: _BodyPlan, handles: dict, plan: _Plan, re
         joint = pymunk.GrooveJoint(body, parent, ends[0], ends[1], tuple(parent.world_to_local(tuple(pivot))))
         joint.collide_bodies = False
         space.add(joint)
+    hinge = next((j for j in p.joints if j.joint.kind == "hinge"), None)
+    if hinge is not None and (hinge.joint.stiffness or hinge.joint.damping):
+        # torque -k (q - springref) - c q' on the body, its opposite on the parent. Chipmunk's spring angle is
+        # a.angle - b.angle (parent minus body) = sign (q - ref) (body.angle = -phi), so it rests at
+        # sign (springref - ref).
+        rest = hinge.sign * (hinge.joint.springref - hinge.joint.ref)
+        spring = pymunk.DampedRotarySpring(parent, body, rest, hinge.joint.stiffness, hinge.joint.damping)
+        space.add(spring)
     if p.kind != "static" and _locked(p, parent_plan):
         gear = pymunk.GearJoint(parent, body, body.angle - parent.angle, 1.0)
         gear.collide_bodies = False
@@ -806,7 +826,7 @@ def _observe_states(plan: _Plan, position, angle, velocity, angular):
             hinge, j = p.joints[0], index.get(p.parent)
             relative = phi[:, i] - (0.0 if j is None else phi[:, j])
             rate = omega[:, i] - (0.0 if j is None else omega[:, j])
-            joints[hinge.joint.name] = (hinge.sign * relative, hinge.sign * rate)
+            joints[hinge.joint.name] = (hinge.sign * relative + hinge.joint.ref, hinge.sign * rate)
         elif p.kind != "static" and p.parent not in index:
             joints.update(_slide_coordinates(p, phi[:, i], omega[:, i], position[:, i], com[:, i], velocity[:, i]))
         elif p.kind != "static":
@@ -839,7 +859,7 @@ def _slide_coordinates(p: _BodyPlan, phi, omega, origin, com, velocity) -> dict:
             hinges.append((jp, _apply(psi, tau0, jp.anchor), len(axes)))
             tau0 = _apply(psi, tau0, jp.anchor) - np.einsum("tij,j->ti", _rot(psi + phi), jp.anchor)
             psi = psi + phi
-            out[jp.joint.name] = (jp.sign * phi, jp.sign * omega)
+            out[jp.joint.name] = (jp.sign * phi + jp.joint.ref, jp.sign * omega)
         else:
             axes.append((jp, np.einsum("tij,j->ti", _rot(psi), jp.axis)))
     W = np.stack([w for _jp, w in axes], axis=-1)  # (T, 2, k)
@@ -851,7 +871,7 @@ def _slide_coordinates(p: _BodyPlan, phi, omega, origin, com, velocity) -> dict:
         rhs = rhs - _cross_y(omega, com - anchor)
     rate = _solve(W, rhs)
     for m, (jp, _w) in enumerate(axes):
-        out[jp.joint.name] = (d[:, m], rate[:, m])
+        out[jp.joint.name] = (d[:, m] + jp.joint.ref, rate[:, m])
     return out
 
 
