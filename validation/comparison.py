@@ -124,20 +124,30 @@ class Comparison:
 
     # ----- the test helper ------------------------------------------------------------------------
 
-    def assert_agree(self, tolerances: float | Mapping[str, float]) -> None:
+    def assert_agree(self, tolerances: float | Mapping[str, float], *, between: Iterable[str] | None = None) -> None:
         """Raise AssertionError listing every breach: an observable whose divergence between two engines
         (or from the exact solution) exceeds its tolerance, and every engine whose run failed.
 
         tolerances: one bound for every observable, or observable -> bound (in the observable's unit;
         "*" sets the bound of the observables not named; observables not named and no "*": not checked).
+        between:    only the pairs of these engines ("exact" for the closed form), e.g. ("rbody", "mujoco")
+                    for a tight bound where both run the same scheme; default every pair
         Raises ValueError for a tolerance that is negative or not a number, or that names an observable
-        the comparison does not have (a typo would otherwise check nothing)."""
+        the comparison does not have, or an engine in `between` it did not try (a typo would otherwise check
+        nothing)."""
         bounds = _tolerances(tolerances, self.observables)
-        breaches = [f"engine {e} failed: {r.note}" for e, r in self.runs.items() if r.status == "failed"]
+        chosen = set(self.runs) | {EXACT}
+        if between is not None:
+            chosen = {between} if isinstance(between, str) else set(between)
+            unknown = chosen - set(self.runs) - {EXACT}
+            if unknown:
+                raise ValueError(f"between={sorted(unknown)}: not engines of this comparison ({list(self.runs)})")
+        breaches = [f"engine {e} failed: {r.note}" for e, r in self.runs.items()
+                    if r.status == "failed" and e in chosen]
         checked = 0
         for r in self.rows:
             bound = bounds.get(r.observable, bounds.get("*"))
-            if bound is None:
+            if bound is None or not set(r.engines) <= chosen:
                 continue
             checked += 1
             if not r.largest <= bound:

@@ -86,6 +86,13 @@ def test_assert_agree_passes_and_fails_when_it_should(rod_comparison):
     rod_comparison.assert_agree({"theta": worst})
     with pytest.raises(AssertionError, match="breach"):
         rod_comparison.assert_agree({"theta": worst * (1 - 1e-9)})
+    # only the pairs of the engines named: rbody and MuJoCo run the same RK4
+    rod_comparison.assert_agree({"theta": 1e-13, "omega": 1e-13}, between=("rbody", "mujoco"))
+    rod_comparison.assert_agree({"theta": 1e-9}, between=("rbody", "mujoco", "exact"))
+    with pytest.raises(AssertionError, match="theta rbody-pymunk"):
+        rod_comparison.assert_agree({"theta": 1e-3}, between=("rbody", "pymunk"))
+    with pytest.raises(ValueError, match="bullet"):
+        rod_comparison.assert_agree(1.0, between=("rbody", "bullet"))
     with pytest.raises(ValueError, match="thetta"):
         rod_comparison.assert_agree({"thetta": 1e-3})  # a typo would check nothing
     with pytest.raises(ValueError, match=">= 0"):
