@@ -255,3 +255,14 @@ def test_report_files_are_renamed_into_place(tmp_path, rod_comparison):
     path = write_report(rod_comparison, tmp_path)
     assert path.name == "swinging_rod.md" and "![Divergence against time](swinging_rod_divergence.png)" in path.read_text()
     assert not [p for p in os.listdir(tmp_path) if p.startswith(".")]
+
+
+def test_the_name_compare_stays_the_function_beside_the_tolerance_table():
+    """validation/compare.py (the tolerance table) and validation.compare (the function) share a name: the
+    package loads the table first, so importing it again leaves the function in place."""
+    import validation
+    import validation.compare  # noqa: F401 - the table, already loaded
+    from validation.compare import TOLERANCES, tolerance
+
+    assert callable(validation.compare) and validation.compare is compare
+    assert TOLERANCES and tolerance("pendulum", "rbody", "max_abs_error").value == 1e-9
