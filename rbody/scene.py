@@ -78,7 +78,7 @@ class Body:
     quat: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
 
 
-JOINT_KINDS = ("hinge", "slide", "free")
+JOINT_KINDS = ("hinge", "slide", "ball", "free")
 
 
 @dataclass(frozen=True)
@@ -101,6 +101,11 @@ class Joint:
     anchor: tuple[float, float, float] = (0.0, 0.0, 0.0)
     qpos0: float = 0.0
     qvel0: Any = 0.0
+    damping: float = 0.0
+    stiffness: float = 0.0
+    springref: float = 0.0
+    armature: float = 0.0
+    ref: float = 0.0
 
     def __post_init__(self) -> None:
         if self.kind not in JOINT_KINDS:
