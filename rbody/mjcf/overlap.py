@@ -3,8 +3,8 @@
 Decided exactly, up to round-off (a shared face or a touching point is no overlap), for spheres and boxes
 (the separating-axis theorem) and for capsules against spheres and capsules (segment distances);
 conservatively for everything else: bounding boxes that do not intersect mean no overlap; otherwise
-a regular grid of points over the intersection of their bounding boxes, one inside both (trimesh's
-containment test) proves an overlap, and when none is the answer is "may overlap" (refused too: rbody cannot rule it out).
+a regular grid of points over the intersection of their bounding boxes, one inside both (its winding
+number) proves an overlap, and when none is the answer is "may overlap" (refused too: rbody cannot rule it out).
 """
 
 from __future__ import annotations
@@ -116,6 +116,13 @@ def _segment_distance(p1, q1, p2, q2) -> float:
     return float(np.linalg.norm((p1 + d1 * s) - (p2 + d2 * t)))
 
 
+def _contains(mesh, points: np.ndarray) -> np.ndarray:
+    """(Q,) True where points (Q, 3) lie inside the closed mesh: winding number above 1/2."""
+    from rbody.mesh import _winding_number
+
+    return _winding_number(points, np.asarray(mesh.vertices)[np.asarray(mesh.faces)]) > 0.5
+
+
 def overlapping(a: Solid, b: Solid) -> str:
     """"" when the solids do not overlap (or only touch); otherwise a phrase saying how they overlap."""
     tol = TOUCH_RTOL * max(a.scale(), b.scale())
@@ -145,7 +152,7 @@ def overlapping(a: Solid, b: Solid) -> str:
     if np.all(high - low > tol):
         axes = [np.linspace(lo, hi, GRID + 2)[1:-1] for lo, hi in zip(low, high)]
         points = np.stack(np.meshgrid(*axes, indexing="ij"), axis=-1).reshape(-1, 3)
-        inside = mesh_a.contains(points)
-        if np.any(inside) and np.any(mesh_b.contains(points[inside])):
+        inside = _contains(mesh_a, points)
+        if np.any(inside) and np.any(_contains(mesh_b, points[inside])):
             return "overlap"
     return "may overlap (their bounding boxes intersect and rbody cannot rule out a common volume)"
