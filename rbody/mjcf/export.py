@@ -2,7 +2,7 @@
 
 ``to_mjcf(scene)`` writes the scene's layout (rbody.scene.Layout) as one MJCF document:
 
-- the joints the scene uses (hinge, slide, free), bodies nested along ``Body.parent``, each body at its
+- the joints the scene uses (hinge, slide, ball, free), bodies nested along ``Body.parent``, each body at its
   reference pose (every hinge and slide coordinate zero, as in rbody);
 - explicit mass properties from rbody's Inertia: ``<inertial pos mass fullinertia="Ixx Iyy Izz Ixy
   Ixz Iyz">`` about the centre of mass in the body frame, with ``inertiafromgeom="false"`` so that no
@@ -88,7 +88,7 @@ INITIAL_KEY = "initial"
 
 _SIZE_COUNT = {"sphere": 1, "cylinder": 2, "capsule": 2, "box": 3, "plane": 2, "mesh": 0}
 _MJCF_JOINT = {"hinge": "hinge", "slide": "slide", "ball": "ball", "free": "free"}
-_JOINT_ATTRIBUTES = ("ref", "damping", "stiffness", "springref", "armature")  # written when non-zero
+_JOINT_ATTRIBUTES = ("damping", "stiffness", "springref", "armature", "ref")  # written only when non-zero
 
 
 # ----- mass properties as MuJoCo will hold them --------------------------------------------------------
@@ -315,15 +315,14 @@ def initial_state(layout: Layout) -> tuple[np.ndarray, np.ndarray]:
             velocity = _free_velocity(joint)
             qpos.extend(list(body.pos) + quat.tolist())
             qvel.extend(velocity[0].tolist() + (quat_to_matrix(quat).T @ velocity[1]).tolist())
-        elif joint.kind == "ball":
-            quat = np.zeros(4) if np.ndim(joint.qpos0) == 0 else finite_array(joint.qpos0, f"joint {joint.name!r}: qpos0",
-                                                                               shape=(4,))
-            if not np.any(quat):
-                quat = np.array([1.0, 0.0, 0.0, 0.0])  # the reference pose
-            spin = np.zeros(3) if np.ndim(joint.qvel0) == 0 and float(joint.qvel0) == 0 else finite_array(
-                joint.qvel0, f"joint {joint.name!r}: qvel0", shape=(3,))
+        elif joint.kind == "ball":  # quaternion (0.0: identity); body-frame angular velocity (0.0: at rest)
+            quat = np.atleast_1d(np.asarray(joint.qpos0, dtype=float))
+            quat = np.array([1.0, 0.0, 0.0, 0.0]) if quat.size == 1 and quat[0] == 0 else quat_normalize(quat)
+            omega = np.atleast_1d(np.asarray(joint.qvel0, dtype=float))
+            omega = np.zeros(3) if omega.size == 1 and omega[0] == 0 else finite_array(
+                omega, f"joint {joint.name!r}: qvel0", shape=(3,))
             qpos.extend(quat.tolist())
-            qvel.extend(spin.tolist())
+            qvel.extend(omega.tolist())
         else:
             qpos.append(float(joint.qpos0))
             qvel.append(float(finite_array(joint.qvel0, f"joint {joint.name!r}: qvel0", shape=())))
@@ -465,11 +464,14 @@ def _inertial(exported: ExportedInertia, indent: str) -> str:
 
 
 def _joint(joint: Joint, indent: str) -> str:
+    extra = {name: _num(getattr(joint, name)) for name in _JOINT_ATTRIBUTES if getattr(joint, name, 0.0) != 0.0}
     if joint.kind == "free":
+        extra.pop("ref", None)
+        if extra:  # <freejoint> takes no damping or armature; <joint type="free"> does
+            return f"{indent}<joint {_attrs(name=joint.name, type='free', **extra)}/>"
         return f"{indent}<freejoint {_attrs(name=joint.name)}/>"
-    extra = {key: _num(getattr(joint, key, 0.0)) for key in _JOINT_ATTRIBUTES if getattr(joint, key, 0.0) != 0}
     if joint.kind == "ball":
-        extra.pop("ref", None), extra.pop("springref", None)
+        extra.pop("ref", None)
         return f"{indent}<joint {_attrs(name=joint.name, type='ball', pos=_vec(joint.anchor), **extra)}/>"
     attrs = _attrs(name=joint.name, type=_MJCF_JOINT[joint.kind], pos=_vec(joint.anchor), axis=_vec(joint.axis),
                    **extra)
@@ -548,10 +550,8 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
         f"{sum(len(b.shapes) for b in order)} body geoms; {len(pairs)} contact pairs.",
         "Only what the scene uses: every geom has contype=conaffinity=0, so nothing collides except the",
         "<pair>s below. Mass properties are explicit (inertiafromgeom=false): rbody's mass, centre of mass",
-        "and tensor about it, body frame; joints have no damping, armature, friction, springs or limits."
-        if not any(getattr(j, key, 0.0) for j in layout.joints for key in _JOINT_ATTRIBUTES) else
-        "and tensor about it, body frame; joints carry the scene's ref, damping, stiffness, springref and "
-        "armature (no friction, no limits).",
+        "and tensor about it, body frame; joints have no friction or limits, and damping, stiffness, springref,",
+        "armature and ref only where the scene gives them.",
         (f"gravity {gravity!r} m/s^2 along -z" if gravity == scene.gravity else
          f"gravity 0 (the scene applies no uniform gravity, though it states g = {scene.gravity!r} m/s^2)")
         + f"; timestep {dt!r} s; integrator {integrator}.",
