@@ -59,6 +59,7 @@ Contacts (defaults; every one can be overridden):
 from __future__ import annotations
 
 import math
+import os
 import textwrap
 from dataclasses import dataclass
 from typing import Iterable, Sequence
@@ -501,7 +502,13 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
     if scene.batch_shape:
         raise ValueError(f"scene {scene.name!r} is a batch of shape {scene.batch_shape}: an MJCF model holds one "
                          "scene; use scene.item(i)")
-    dt = DEFAULT_TIMESTEP if dt is None else positive(dt, "dt")
+    if dt is None:  # a scene read from MJCF keeps its model's step and integrator
+        dt = getattr(scene, "timestep", None) or DEFAULT_TIMESTEP
+        integrator = integrator or getattr(scene, "integrator", None)
+    dt = positive(dt, "dt")
+    if not 1e-150 < dt < 1e150:  # K = (1/dt)^2 and (pi / (30 dt))^2 must be finite and > 0
+        raise ValueError(f"dt={dt!r} s: outside 1e-150..1e150, where the contact stiffness (1/dt)^2 would "
+                         "overflow or vanish")
     if integrator is not None:
         one_of(integrator, "integrator", INTEGRATORS)
     if cone is not None:
@@ -572,7 +579,8 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
     if meshes:
         out.append("  <asset>")
         for shape in meshes:
-            out.append(f"    <mesh {_attrs(name=shape.name, file=str(shape.mesh), inertia='exact')}/>")
+            # an absolute path: the model compiles from any folder (the mesh file stays where it is)
+            out.append(f"    <mesh {_attrs(name=shape.name, file=os.path.abspath(shape.mesh), inertia='exact')}/>")
         out.append("  </asset>")
     out.append("  <worldbody>")
     for shape in layout.fixed:
