@@ -104,6 +104,7 @@ class Comparison:
     rows: tuple[Divergence, ...]
     t: np.ndarray
     curves: Mapping[tuple[str, str], np.ndarray] = field(repr=False)
+    source: str | None = None
 
     @property
     def trajectories(self) -> dict[str, Trajectory]:
@@ -182,7 +183,7 @@ class Comparison:
         from validation.machine import describe_machine
 
         parts = [f"# Cross-simulator comparison: {self.scene.name}", "",
-                 f"- model: {self.scene.describe()}",
+                 f"- model: {self.scene.describe()}" + (f", from {self.source}" if self.source else ""),
                  f"- dt = {self.dt:g} s, t_end = {self.t_end:g} s, rbody method: {self.method or 'default'}",
                  f"- machine: {describe_machine()}",
                  "- versions: " + ", ".join(f"{k} {v}" for k, v in versions().items()), "",
@@ -286,18 +287,50 @@ def compare(model: Scene | str | Path, engines: Iterable[str] | None = None, *, 
             what = f"{r.seconds:.3g} s" if r.status == "ran" else f"{r.status}: {r.note}"
             progress(f"[{k}/{len(engines)}] {engine}: {what}")
     t, rows, curves = _divergences(scene, {e: r.trajectory for e, r in runs.items() if r.status == "ran"})
-    return Comparison(scene, dt, t_end, method, runs, tuple(rows), t, curves)
+    source = None if isinstance(model, Scene) else str(model)
+    return Comparison(scene, dt, t_end, method, runs, tuple(rows), t, curves, source)
+
+
+def _settings_of(scene: Scene, engine: str, method: str | None) -> dict:
+    """rbody: the method; MuJoCo: the model's own integrator where it records one (an MJCF <option>), as the
+    user runs it, else the backend's default (RK4 without impacts); pymunk: its defaults."""
+    if engine == "rbody":
+        return {"method": method}
+    if engine == "mujoco" and getattr(scene, "integrator", None):
+        return {"integrator": scene.integrator}
+    return {}
 
 
 def _run(scene: Scene, engine: str, dt: float, t_end: float, method: str | None) -> EngineRun:
-    settings = {"method": method} if engine == "rbody" else {}
     start = time.perf_counter()
     try:
-        trajectory = get(engine).run(scene, dt, t_end, **settings)
+        trajectory = get(engine).run(scene, dt, t_end, **_settings_of(scene, engine, method))
+        _within_limits(scene, trajectory, engine)
     except Exception as error:  # a blow-up or a simulator's error is a result to report, not to hide
         return EngineRun(engine, "failed", seconds=time.perf_counter() - start, note=f"{type(error).__name__}: {error}")
     seconds = float(trajectory.meta.get("step_seconds", time.perf_counter() - start))
     return EngineRun(engine, "ran", trajectory, seconds)
+
+
+def _within_limits(scene: Scene, trajectory: Trajectory, engine: str) -> None:
+    """Raise SimulationError when a hinge or slide of the model leaves its declared range (an MJCF joint limit,
+    scene.limits): no engine here models limits, so such a run is not the model's motion."""
+    limits = getattr(scene, "limits", None)
+    if not limits or "qpos" not in trajectory:
+        return
+    arrays = scene.multibody.arrays
+    qpos = np.asarray(trajectory["qpos"])
+    for name, (low, high) in limits.items():
+        j = list(arrays.joint_names).index(name)
+        if arrays.joint_kinds[j] not in ("hinge", "slide"):
+            continue
+        value = qpos[:, int(arrays.qposadr[j])]
+        outside = (value < low) | (value > high)
+        if np.any(outside):
+            k = int(np.argmax(outside))
+            raise rbody.SimulationError(
+                f"{engine}: joint {name!r} left its range [{low:.6g}, {high:.6g}] at t={trajectory.t[k]:.6g} s (value "
+                f"{value[k]:.6g}); no engine here models joint limits")
 
 
 def _engine_names(engines: Iterable[str] | None) -> tuple[str, ...]:

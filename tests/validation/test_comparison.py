@@ -174,6 +174,8 @@ def test_command_on_an_mjcf_double_pendulum(tmp_path, capsys):
     assert (tmp_path / "out" / "double_pendulum.md").exists() or list((tmp_path / "out").glob("*.md"))
     c = compare(model, t_end=1.0)
     assert c.dt == 1e-3  # the model's <option timestep>
+    assert c.runs["mujoco"].trajectory.meta["integrator"] == "RK4"  # and its integrator
+    assert c.source == str(model) and str(model) in c.to_markdown()
     assert c.runs["pymunk"].status == "ran", c.runs["pymunk"].note
     assert c.row("qpos", "rbody", "mujoco").largest < 1e-12
     assert 1e-5 < c.row("qpos", "rbody", "pymunk").largest < 0.05
@@ -266,3 +268,28 @@ def test_the_name_compare_stays_the_function_beside_the_tolerance_table():
 
     assert callable(validation.compare) and validation.compare is compare
     assert TOLERANCES and tolerance("pendulum", "rbody", "max_abs_error").value == 1e-9
+
+
+@pytest.mark.skipif(not hasattr(rbody.Scene, "from_layout"), reason="needs the general engine (Scene.from_layout)")
+def test_a_run_that_leaves_a_declared_joint_limit_is_a_failure_in_every_engine():
+    """A model's declared range (an MJCF limit, scene.limits) that a run leaves: no engine here models limits,
+    so the run is reported failed with the joint and the time, and assert_agree names it."""
+    import dataclasses
+    from typing import Mapping
+
+    from rbody.scene import TreeScene
+
+    @dataclasses.dataclass(frozen=True, kw_only=True, eq=False)
+    class Limited(TreeScene):
+        limits: Mapping = dataclasses.field(default_factory=dict)
+
+    layout = pendulum_chain(2, theta0=[0.5, 0.3], t_end=1.0).layout
+    scene = Limited(name="limited", t_end=1.0, tree=layout, limits={"hinge_1": (-0.35, 0.35)})
+    c = compare(scene, dt=1e-3)
+    for engine in ("rbody", "mujoco", "pymunk"):
+        run = c.runs[engine]
+        assert run.status == "failed" and "joint 'hinge_1' left its range [-0.35, 0.35] at t=" in run.note, engine
+    with pytest.raises(AssertionError, match="engine mujoco failed"):
+        c.assert_agree(1.0)
+    wide = dataclasses.replace(scene, limits={"hinge_1": (-3.0, 3.0)})
+    assert all(r.status == "ran" for r in compare(wide, dt=1e-3).runs.values())
