@@ -24,8 +24,11 @@ Joints, modelled with what each needs and nothing more:
   along the turned slide, through the pivot on the parent; two slides (and a hinge after them) leave the
   body free relative to its parent. A body without a hinge whose parent turns turns with it: a GearJoint
   of ratio 1 keeps their angles together. Joint coordinates are read back from the body's motion
-  relative to its parent's (_observe_states). Refused, with the reason: welded bodies (no joint) on a
-  moving parent, two hinges on one body, a hinge before one of two slides, ball and free joints.
+  relative to its parent's (_observe_states). A body without a joint on a moving parent (MJCF's parts) is
+  welded to it: one pymunk body carries both, with their summed mass, their centre of mass and the moment
+  about it by the parallel-axis theorem (_merge_welded), and each is read back from that body's motion.
+  Hinge stiffness and damping are a DampedRotarySpring. Refused, with the reason: two hinges on one body, a
+  hinge before one of two slides, ball and free joints, slide springs, armature.
 - balls on a horizontal line: free bodies and no gravity, when every moving body slides on one
   horizontal line and every contact acts along it (circles centred on the line, walls facing along
   it). Gravity is then balanced by the line's reaction and does no work, and nothing pushes a ball
@@ -143,6 +146,14 @@ class _BodyPlan:
     omega: float = 0.0                     # initial omega_y [rad/s]
     com: np.ndarray = field(default_factory=lambda: np.zeros(2))  # initial centre of mass, world (x, z)
     velocity: np.ndarray = field(default_factory=lambda: np.zeros(2))  # of the centre of mass
+
+    # The pymunk body that carries this one: itself, or for a body welded to a moving one (no joint) the
+    # nearest ancestor with joints; that body then holds the sum of their masses (see _merge_welded).
+    carrier: str = ""
+    frame0: np.ndarray = field(default_factory=lambda: np.zeros(3))  # carrier's origin0 (zeros for static)
+    total_mass: float = 0.0                # carrier: mass of it and the bodies welded to it [kg]
+    total_cog: np.ndarray = field(default_factory=lambda: np.zeros(2))  # their centre of mass, pymunk local
+    total_moment: float = math.inf         # their moment about world y through total_cog [kg m^2]
 
     @property
     def name(self) -> str:
@@ -267,10 +278,7 @@ def _classify(plan: _BodyPlan) -> str:
     hinges = [j for j in plan.joints if j.joint.kind == "hinge"]
     slides = [j for j in plan.joints if j.joint.kind == "slide"]
     if not plan.joints:
-        if plan.parent != WORLD:
-            raise NotImplementedError(f"body {plan.name!r} is welded to body {plan.parent!r}: this backend does "
-                                      "not merge welded bodies")
-        return "static"
+        return "static" if plan.parent == WORLD else "welded"
     if len(hinges) > 1:
         raise NotImplementedError(f"body {plan.name!r} has {len(hinges)} hinges to its parent: pymunk turns a body "
                                   "about one axis; give each hinge its own body")
@@ -430,7 +438,12 @@ def _plan(scene: Scene) -> _Plan:
         plan = _BodyPlan(body, rot0, origin_p + rot_p @ np.array(body.pos))
         plan.joints = [_joint_plan(joint, rot0, plan.origin0) for joint in joints_of[body.name]]
         plan.kind = _classify(plan)
-        plan.cog = _xz(rot0 @ body.inertia.com)
+        if plan.kind == "welded" and parent.kind == "static":
+            plan.kind = "static"  # welded to a body welded to the world
+        carrier = plan if plan.kind != "welded" else bodies[parent.carrier]
+        plan.carrier = carrier.name
+        plan.frame0 = np.zeros(3) if plan.kind == "static" else carrier.origin0
+        plan.cog = _xz(plan.origin0 + rot0 @ body.inertia.com - plan.frame0)  # in the pymunk body's coordinates
         plan.com_y = float((plan.origin0 + rot0 @ body.inertia.com)[1])
         if _turns(plan, parent):  # else the body does not turn: moment inf
             plan.moment = body.inertia.moment(rot0.T @ Y_AXIS)
@@ -441,13 +454,15 @@ def _plan(scene: Scene) -> _Plan:
         moving = plan.kind != "static"
         for shape in body.shapes:
             try:
-                side = _side_view(shape, rot0, np.zeros(3) if moving else plan.origin0, body.name, moving)
+                side = _side_view(shape, rot0, plan.origin0 - plan.frame0, carrier.name if moving else body.name,
+                                  moving)
             except NotImplementedError:
                 if shape.name in in_contact:
                     raise
                 continue  # a shape that touches nothing does not act: no side view needed
             side.world_z = float((plan.origin0 + rot0 @ np.array(shape.pos))[2] + plan.tau[1])
             shapes.append(side)
+    _merge_welded(bodies)
     shapes += [_side_view(s, np.eye(3), np.zeros(3), WORLD, False) for s in layout.fixed]
     if len({s.name for s in shapes}) != len(shapes):
         raise ValueError("layout has two shapes of the same name: contacts name shapes, so names must be unique")
@@ -470,6 +485,23 @@ def _plan(scene: Scene) -> _Plan:
             p.kind = "line"
     plan.hooks = _drive_plan(scene, plan)
     return plan
+
+
+def _merge_welded(bodies: dict[str, _BodyPlan]) -> None:
+    """Each moving body with the bodies welded to it as one pymunk body: the mass summed, the centre of mass
+    the mass-weighted mean, the moment about world y through it by the parallel-axis theorem,
+    sum (I_k + m_k |c_k - c|^2) (infinite when the carrier does not turn)."""
+    for carrier in bodies.values():
+        if carrier.kind in ("static", "welded"):
+            continue
+        parts = [p for p in bodies.values() if p.carrier == carrier.name]
+        masses = np.array([p.body.inertia.mass for p in parts])
+        carrier.total_mass = float(masses.sum())
+        cogs = np.stack([p.cog for p in parts])
+        carrier.total_cog = masses @ cogs / carrier.total_mass if carrier.total_mass > 0 else carrier.cog
+        if math.isfinite(carrier.moment):
+            carrier.total_moment = float(sum(p.moment + m * np.sum((c - carrier.total_cog) ** 2)
+                                             for p, m, c in zip(parts, masses, cogs)))
 
 
 def _reach(plan: _Plan, gravity: float, t_end: float) -> float:
@@ -678,11 +710,15 @@ def _build(plan: _Plan, gravity: float, iterations: int, slop: float, reach: flo
         if p.kind == "static":
             handles[p.name] = space.static_body
             continue
-        body = pymunk.Body(p.body.inertia.mass, p.moment)
-        body.center_of_gravity = tuple(p.cog)
+        if p.kind == "welded":
+            handles[p.name] = handles[p.carrier]
+            continue
+        body = pymunk.Body(p.total_mass, p.total_moment)
+        body.center_of_gravity = tuple(p.total_cog)
         body.angle = -p.phi  # before the position: pymunk turns a body about its centre of mass
         body.position = tuple(_apply(p.phi, p.tau, _xz(p.origin0)))
-        body.velocity = tuple(p.velocity)
+        # pymunk's velocity is that of its centre of mass, the welded bodies' included
+        body.velocity = tuple(p.velocity + _cross_y(p.omega, _rot(p.phi) @ (p.total_cog - p.cog)))
         body.angular_velocity = -p.omega
         space.add(body)
         handles[p.name] = body
@@ -717,6 +753,8 @@ def _constrain(space: pymunk.Space, p: _BodyPlan, handles: dict, plan: _Plan, re
     through the hinge's anchor (or the centre of mass); rail a GrooveJoint along the slide fixed in the
     body, through the hinge's anchor on the parent; free nothing. A body without a hinge on a parent that
     turns also gets a GearJoint (ratio 1) that keeps their angles together."""
+    if p.kind in ("static", "welded"):
+        return  # the world holds it, or it is part of its carrier's pymunk body
     body, parent = handles[p.name], handles[p.parent]
     parent_plan = next((q for q in plan.bodies if q.name == p.parent), None)
     motion = (0.0, np.zeros(2)) if parent_plan is None else (parent_plan.phi, parent_plan.tau)
@@ -759,7 +797,7 @@ def _constrain(space: pymunk.Space, p: _BodyPlan, handles: dict, plan: _Plan, re
         rest = hinge.sign * (hinge.joint.springref - hinge.joint.ref)
         spring = pymunk.DampedRotarySpring(parent, body, rest, hinge.joint.stiffness, hinge.joint.damping)
         space.add(spring)
-    if p.kind != "static" and _locked(p, parent_plan):
+    if _locked(p, parent_plan):
         gear = pymunk.GearJoint(parent, body, body.angle - parent.angle, 1.0)
         gear.collide_bodies = False
         space.add(gear)
@@ -813,6 +851,11 @@ def _observe_states(plan: _Plan, position, angle, velocity, angular):
     phi, omega = -angle, -angular                               # (T, nb): rotation about world +y
     cog = np.stack([p.cog for p in plan.bodies])                 # (nb, 2)
     com = position + np.einsum("tbij,bj->tbi", _rot(phi), cog)  # pymunk local -> world (x, z)
+    # pymunk's velocity is its body's centre of mass's (the welded bodies' included): each body's own com moves
+    # with v + omega y x (com - c), c that centre of mass
+    by_name = {p.name: p for p in plan.bodies}
+    total = np.stack([by_name[p.carrier].total_cog if p.kind != "static" else p.cog for p in plan.bodies])
+    velocity = velocity + _cross_y(omega, com - position - np.einsum("tbij,bj->tbi", _rot(phi), total))
     index = {p.name: i for i, p in enumerate(plan.bodies)}
     zeros = np.zeros(position.shape[0])
     bodies, joints = {}, {}
@@ -827,15 +870,18 @@ def _observe_states(plan: _Plan, position, angle, velocity, angular):
             relative = phi[:, i] - (0.0 if j is None else phi[:, j])
             rate = omega[:, i] - (0.0 if j is None else omega[:, j])
             joints[hinge.joint.name] = (hinge.sign * relative + hinge.joint.ref, hinge.sign * rate)
-        elif p.kind != "static" and p.parent not in index:
+        elif p.kind in ("static", "welded"):
+            continue  # no joint of its own
+        elif p.parent not in index:
             joints.update(_slide_coordinates(p, phi[:, i], omega[:, i], position[:, i], com[:, i], velocity[:, i]))
-        elif p.kind != "static":
+        else:
             # Relative to the parent's motion r -> R(phi_j) r + tau_j: the joints move the body as if the parent
             # stood in its reference pose. Position x -> R(-phi_j)(x - tau_j); velocity: that of the parent's
             # point at x taken away, turned back, v_rel = R(-phi_j)(v - v_j - omega_j y x (x - com_j)).
             j = index[p.parent]
             back = _rot(-phi[:, j])
-            tau_j = position[:, j] - np.einsum("tij,j->ti", _rot(phi[:, j]), _xz(plan.bodies[j].origin0))
+            # position j is the origin of the parent's pymunk body (its carrier's, when it is welded)
+            tau_j = position[:, j] - np.einsum("tij,j->ti", _rot(phi[:, j]), _xz(plan.bodies[j].frame0))
 
             def relative(x):
                 return np.einsum("tij,tj->ti", back, x - tau_j)
