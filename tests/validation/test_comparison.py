@@ -42,6 +42,9 @@ DOUBLE_PENDULUM_MJCF = """\
       <body name="lower" pos="0 0 -1">
         <joint name="elbow" type="hinge" axis="0 1 0"/>
         <geom type="capsule" fromto="0 0 0 0 0 -1" size="0.02" mass="1" contype="0" conaffinity="0"/>
+        <body name="weight" pos="0 0 -1">
+          <geom type="sphere" size="0.05" mass="0.2" contype="0" conaffinity="0"/>
+        </body>
       </body>
     </body>
   </worldbody>
@@ -166,7 +169,8 @@ def test_command_end_to_end(tmp_path, capsys):
 @pytest.mark.skipif(not hasattr(rbody, "from_mjcf"), reason="rbody.from_mjcf (MJCF import) not on this branch yet")
 def test_command_on_an_mjcf_double_pendulum(tmp_path, capsys):
     """A user's MJCF: rbody (rk4) and MuJoCo (RK4) run the same equations, so they agree to round-off; the
-    model is planar (hinges along y), so pymunk runs it too, within its PivotJoint phase lag."""
+    model is planar (hinges along y; the weight, a body without a joint, welded to the lower link), so pymunk
+    runs it too, within its PivotJoint phase lag."""
     model = tmp_path / "double_pendulum.xml"
     model.write_text(DOUBLE_PENDULUM_MJCF)
     status = main(["compare", str(model), "--t-end", "1.0", "--out", str(tmp_path / "out")])
@@ -179,6 +183,7 @@ def test_command_on_an_mjcf_double_pendulum(tmp_path, capsys):
     assert c.runs["pymunk"].status == "ran", c.runs["pymunk"].note
     assert c.row("qpos", "rbody", "mujoco").largest < 1e-12
     assert 1e-5 < c.row("qpos", "rbody", "pymunk").largest < 0.05
+    assert c.row("weight.com", "rbody", "mujoco").largest < 1e-12
 
 
 def test_baseline_round_trip_and_exit_codes(tmp_path, capsys, monkeypatch):
