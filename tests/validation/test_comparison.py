@@ -240,10 +240,12 @@ def test_save_baseline_then_check_through_the_api(tmp_path):
     (["MODEL:rod", "--baseline", "/nonexistent/dir"], "no such folder"),
     (["MODEL:nothing"], "has no 'nothing'"),
     (["model.txt"], "expected an MJCF file"),
+    (["BROKEN"], "broken.xml"),
 ])
 def test_bad_input_exits_2_with_a_message_and_no_traceback(tmp_path, capsys, arguments, message):
     model = _write_model(tmp_path)
-    arguments = [a.replace("MODEL", model) for a in arguments]
+    (tmp_path / "broken.xml").write_text("<mujoco>\n  <worldbody>\n    <body>\n</mujoco>\n")  # malformed XML
+    arguments = [a.replace("MODEL", model).replace("BROKEN", str(tmp_path / "broken.xml")) for a in arguments]
     assert main(["compare", *arguments, "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
     assert "error:" in err and message in err and "Traceback" not in err
