@@ -54,12 +54,13 @@ by rbody, so a run that reaches it must fail (the scene's limits are checked aft
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import xml.parsers.expat
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -67,7 +68,8 @@ from rbody.inertia import Inertia
 from rbody.mjcf.geoms import (MESH_INERTIA_MODES, MJ_EPS, GeomMass, MeshMass, mesh_mass, mujoco_principal,
                               primitive_moments, primitive_volume, principal_tensor, quat_matrix, quat_product,
                               sum_geoms)
-from rbody.scene import WORLD, Body, Joint, Layout, Shape
+from rbody.errors import SimulationError
+from rbody.scene import WORLD, Body, Joint, Layout, NativeModel, Shape, TreeScene
 
 DEFAULT_T_END = 1.0        # [s] duration of a scene read from MJCF when t_end is not given
 OVERLAP_CHOICES = ("refuse", "sum")
@@ -1088,7 +1090,7 @@ class _Reader:
                     if not low < high:
                         raise element.error(f"range={attrib['range']!r}: needs lo < hi")
                     margin = _number(element, "margin", attrib, 0.0)
-                    limit = (low + margin, high - margin) if kind != "ball" else (0.0, high - margin)
+                    limit = (float(low + margin), float(high - margin)) if kind != "ball" else (0.0, float(high - margin))
             out.append((joint, qpos, nv, limit))
         return out
 
@@ -1134,6 +1136,7 @@ class _Reader:
             state_qpos = _state_vector(qpos0, "qpos0", len(model_qpos0))
         if qvel0 is not None:
             state_qvel = _state_vector(qvel0, "qvel0", nv)
+        state_qpos = self.unit_quaternions(joints, state_qpos)
         joints = self.joints_at(joints, state_qpos, state_qvel)
         layout = self.layout(joints)
         return MJCFModel(layout=layout, name=self.name, gravity=self.gravity, timestep=self.timestep,
@@ -1153,6 +1156,23 @@ class _Reader:
                 raise key.error(f"two keyframes are called {name!r}")
             keys[name] = (qpos, qvel)
         return keys
+
+    def unit_quaternions(self, joints: list[Joint], qpos: np.ndarray) -> np.ndarray:
+        """qpos with every ball and free quaternion made unit, as MuJoCo does before using it (noted)."""
+        qpos, p = qpos.copy(), 0
+        for joint in joints:
+            start, width = {"free": (3, 7), "ball": (0, 4)}.get(joint.kind, (0, 1))
+            if joint.kind in ("free", "ball"):
+                quat = qpos[p + start:p + start + 4]
+                norm = math.sqrt(float(quat @ quat))
+                if norm == 0:
+                    raise MJCFError(f"{self.root.file}: the initial quaternion of joint {joint.name!r} is zero")
+                if abs(norm - 1) > 1e-12:
+                    qpos[p + start:p + start + 4] = quat / norm
+                    self.note(f"unit {joint.name}", f"joint {joint.name!r}: the initial quaternion (length {norm:.6g}) "
+                                                    "made unit, as MuJoCo uses it")
+            p += width
+        return qpos
 
     def joints_at(self, joints: list[Joint], qpos: np.ndarray, qvel: np.ndarray) -> list[Joint]:
         """The joints with their initial state set from MuJoCo's qpos and qvel."""
@@ -1266,26 +1286,59 @@ def layout_from_mjcf(source, *, qpos0=None, qvel0=None, keyframe: int | str | No
 
 
 def from_mjcf(source, *, t_end: float | None = None, qpos0=None, qvel0=None, keyframe: int | str | None = None,
-              overlapping_geoms: str = "refuse"):
+              overlapping_geoms: str = "refuse") -> "MJCFScene":
     """The Scene of an MJCF model (a path or an XML string), run natively by rbody's general engine.
 
     t_end: duration [s] (default DEFAULT_T_END = 1 s); qpos0, qvel0, keyframe, overlapping_geoms: as
-    layout_from_mjcf. The scene carries import_notes (what was ignored), timestep and integrator (the
-    model's option), and the declared joint limits.
+    layout_from_mjcf. The scene is a TreeScene (Scene.from_layout) that also carries import_notes (what
+    was ignored), timestep and integrator (the model's option) and the declared joint limits.
     """
-    import dataclasses
-
-    from rbody.scene import Scene
-
     model = layout_from_mjcf(source, qpos0=qpos0, qvel0=qvel0, keyframe=keyframe,
                              overlapping_geoms=overlapping_geoms)
-    if not hasattr(Scene, "from_layout"):
-        raise NotImplementedError("from_mjcf needs the general multibody engine (Scene.from_layout); "
-                                  "layout_from_mjcf reads the model without it")
-    scene = Scene.from_layout(model.layout, t_end=DEFAULT_T_END if t_end is None else t_end, name=model.name,
-                              qpos0=model.qpos0, qvel0=model.qvel0, gravity=model.gravity)
-    changes = {"import_notes": model.notes, "timestep": model.timestep, "integrator": model.integrator}
-    names = {f.name for f in dataclasses.fields(scene)}
-    if "limits" in names:
-        changes["limits"] = dict(model.limits)
-    return dataclasses.replace(scene, **{k: v for k, v in changes.items() if k in names})
+    return MJCFScene(name=model.name, t_end=DEFAULT_T_END if t_end is None else t_end, gravity=model.gravity,
+                     tree=model.layout, qpos0=model.qpos0, qvel0=model.qvel0, import_notes=model.notes,
+                     timestep=model.timestep, integrator=model.integrator, limits=dict(model.limits))
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class MJCFScene(TreeScene):
+    """Scene.from_layout's TreeScene of a model read from MJCF, with its declared joint limits.
+
+    limits: joint name -> (lo, hi) [rad | m] (ball joints: (0, largest rotation angle) [rad]). rbody does
+    not model a limit's constraint force, so a native run whose coordinates leave a range raises
+    SimulationError naming the joint and the first time it happened (checked on the run's saved states).
+    A limit declared but never reached changes nothing.
+    """
+
+    limits: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+
+    def native(self) -> NativeModel:
+        model = super().native()
+        if not self.limits:
+            return model
+        arrays = self.multibody.arrays
+        checks = []
+        for name, (low, high) in self.limits.items():
+            j = arrays.joint_names.index(name)
+            checks.append((name, arrays.joint_kinds[j], int(arrays.qposadr[j]), low, high))
+        observe = model.observe
+
+        def observe_within_limits(t: np.ndarray, y: np.ndarray) -> dict:
+            data = observe(t, y)
+            qpos = np.asarray(data["qpos"])          # (T, B, nq)
+            for name, kind, address, low, high in checks:
+                if kind == "ball":
+                    quat = qpos[..., address:address + 4]
+                    value = 2 * np.arctan2(np.linalg.norm(quat[..., 1:], axis=-1), np.abs(quat[..., 0]))
+                else:
+                    value = qpos[..., address]
+                outside = (value < low) | (value > high)
+                if np.any(outside):
+                    step = int(np.argmax(np.any(outside.reshape(len(t), -1), axis=1)))
+                    raise SimulationError(
+                        f"scene {self.name!r}: joint {name!r} left its range [{low:.6g}, {high:.6g}] at t={t[step]:.6g} s "
+                        f"(value {float(np.ravel(value[step])[np.argmax(np.ravel(outside[step]))]):.6g}); rbody does not "
+                        "model joint limits: remove the range, or shorten the run (t_end)")
+            return data
+
+        return dataclasses.replace(model, observe=observe_within_limits)
