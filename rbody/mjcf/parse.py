@@ -20,6 +20,12 @@ equal MuJoCo's body_mass, body_ipos and body_inertia/body_iquat to round-off):
   shellinertia; several geoms summed about the body's centre of mass, as MuJoCo does;
 - ``<mesh file>`` assets (STL, OBJ, any format trimesh reads) with scale, refpos, refquat and inertia
   legacy (MuJoCo's default), exact, convex or shell; vertices are rounded to float32 as MuJoCo does;
+  meshdir/assetdir relative to the model file's folder (the working folder for an XML string); the Shape
+  holds the mesh file's absolute path (a scale applies to the mass properties only, noted);
+- principal axes as MuJoCo's compiler finds them (its Jacobi solver, geoms.mujoco_principal): for a body
+  of several geoms, a fullinertia or a mesh, MuJoCo's compiled tensor can differ from the exact one by
+  more than round-off (a small rotation left undone); rbody takes MuJoCo's, noting any difference
+  beyond 1e-12, so that both engines run the same bodies;
 - joints hinge, slide, ball, free and ``<freejoint>``, with pos, axis, ref, damping, stiffness,
   springref, armature, range and limited;
 - ``<option>``: timestep, gravity (along -z: rbody's scenes have gravity -g z), integrator; flags
@@ -43,13 +49,20 @@ explicit <pair>, while the contact flag is on: set contype="0" conaffinity="0" o
 actuators that push with a zero control (position, velocity, damper, ... or damping/armature on the
 actuator); fluid forces (option density or viscosity, geom fluidshape); joint frictionloss and
 springdamper; body gravcomp; heightfields, flexes, composites, plugins, <frame>, <replicate>,
-<attach>; gravity not along -z; boundmass, boundinertia, settotalmass, fusestatic, alignfree; a body
+<attach>; gravity not along -z; stiffness on a ball joint; boundmass, boundinertia, settotalmass, fusestatic, alignfree; a body
 with a joint but no mass; an orientation given twice; unknown elements or attributes; geoms of one body
 that overlap, which MuJoCo would count twice (``overlapping_geoms="sum"`` sums them as MuJoCo does).
 
-Joint limits: a limited joint's range is kept (``MJCFModel.limits``: joint name -> (lo, hi) [rad | m];
-ball: (0, max angle)). A limit declared but never reached changes nothing; reaching it is not modelled
-by rbody, so a run that reaches it must fail (the scene's limits are checked after a run).
+Joint limits: a limited joint's range (less its margin) is kept (``MJCFModel.limits``, ``MJCFScene.limits``:
+joint name -> (lo, hi) [rad | m]; ball: (0, largest rotation angle)). A limit declared but never reached
+changes nothing; rbody does not model the limit's force, so a native run whose saved states leave a range
+raises SimulationError with the joint and the time (checked on the saved states: with save_every > 1 a
+brief excursion between two saved states can pass unseen).
+
+Initial state: the model's reference (qpos0: hinge and slide at ref, balls at identity, free bodies at
+their pos/quat; at rest), a keyframe's (``keyframe=``), or the qpos0/qvel0 arguments, in MuJoCo's layout
+(free joints: world velocity of the body origin, then body-frame angular velocity). Quaternions are made
+unit (noted), as MuJoCo uses them.
 """
 
 from __future__ import annotations
@@ -616,7 +629,7 @@ class _Reader:
             elif child.tag in ("texture", "material", "skin"):
                 self.note(child.tag, f"<{child.tag}> assets ignored (appearance only)")
             elif child.tag == "hfield":
-                self.hfields = True
+                self.note("hfield", "<hfield> assets ignored (a geom that uses one is refused)")
             elif child.tag == "model":
                 raise child.error("<model> assets (model composition) are not supported")
             else:
@@ -1032,6 +1045,20 @@ class _Reader:
                 "contact-free models only. Set contype=\"0\" conaffinity=\"0\" on the geoms that must not collide, "
                 "or disable contacts with <option><flag contact=\"disable\"/></option>")
 
+    def passive(self, element: Element, attrib: dict) -> dict:
+        """damping, stiffness, armature of a joint, >= 0; stiffness and damping 0 where the flags disable them."""
+        values = {key: _number(element, key, attrib, 0.0) for key in ("damping", "stiffness", "armature")}
+        for key, value in values.items():
+            if value < 0:
+                raise element.error(f"{key}={value!r}: must be >= 0")
+        if not self.spring_on and values["stiffness"]:
+            self.note("spring", "joint stiffness ignored (<flag spring=\"disable\"/>)")
+            values["stiffness"] = 0.0
+        if not self.damper_on and values["damping"]:
+            self.note("damper", "joint damping ignored (<flag damper=\"disable\"/>)")
+            values["damping"] = 0.0
+        return values
+
     def joints_of(self, body: _Body) -> list[tuple[Joint, np.ndarray, int, tuple | None]]:
         """(rbody Joint at the reference state, qpos0 (MuJoCo), nv, limit) for each joint of `body`."""
         out = []
@@ -1045,7 +1072,9 @@ class _Reader:
                 return value / 180.0 * math.pi if angular else value
 
             if kind == "free":
-                joint = Joint(name, "free", body.name)
+                values = self.passive(element, attrib)
+                values.pop("stiffness")  # MuJoCo gives a free joint no spring
+                joint = Joint(name, "free", body.name, **values)
                 qpos = np.concatenate([body.pos, body.quat])
                 nv = 6
             else:
@@ -1054,19 +1083,12 @@ class _Reader:
                 axis, norm = _normalize(axis)
                 if kind in ("hinge", "slide") and norm < MJ_EPS:
                     raise element.error(f"axis={attrib.get('axis')!r}: a joint axis must be non-zero")
-                values = {key: _number(element, key, attrib, 0.0) for key in ("damping", "stiffness", "armature")}
-                for key, value in values.items():
-                    if value < 0:
-                        raise element.error(f"{key}={value!r}: must be >= 0")
-                if not self.spring_on and values["stiffness"]:
-                    self.note("spring", "joint stiffness ignored (<flag spring=\"disable\"/>)")
-                    values["stiffness"] = 0.0
-                if not self.damper_on and values["damping"]:
-                    self.note("damper", "joint damping ignored (<flag damper=\"disable\"/>)")
-                    values["damping"] = 0.0
+                values = self.passive(element, attrib)
                 ref = angle("ref") if kind in ("hinge", "slide") else 0.0
                 springref = angle("springref") if kind in ("hinge", "slide") else 0.0
                 if kind == "ball":
+                    if values["stiffness"]:
+                        raise element.error("stiffness on a ball joint (MuJoCo's quaternion spring) is not supported")
                     qpos = np.array([1.0, 0.0, 0.0, 0.0])
                     joint = Joint(name, "ball", body.name, anchor=tuple(pos.tolist()), qpos0=(1.0, 0.0, 0.0, 0.0),
                                   qvel0=(0.0, 0.0, 0.0), **values)
