@@ -132,9 +132,13 @@ def run(scene: Scene, dt: float, t_end: float | None = None, *, integrator: str 
                                        velocity=values[:, 7:10].copy(), omega=values[:, 10:13].copy())
     joints = {}
     for joint in layout.joints:
+        j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, joint.name)
+        qa, da = model.jnt_qposadr[j], model.jnt_dofadr[j]
         if joint.kind in ("hinge", "slide"):
-            j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, joint.name)
-            joints[joint.name] = (qpos[:, model.jnt_qposadr[j]].copy(), qvel[:, model.jnt_dofadr[j]].copy())
+            joints[joint.name] = (qpos[:, qa].copy(), qvel[:, da].copy())
+        else:  # ball (T, 4), (T, 3); free (T, 7), (T, 6): MuJoCo's qpos and qvel (body-frame angular velocity)
+            nq_j, nv_j = (4, 3) if joint.kind == "ball" else (7, 6)
+            joints[joint.name] = (qpos[:, qa:qa + nq_j].copy(), qvel[:, da:da + nv_j].copy())
     observables = dict(scene.observe(t, bodies, joints))
     if has_impacts(layout):
         observables["collisions"] = run_.collisions
