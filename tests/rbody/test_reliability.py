@@ -94,3 +94,75 @@ def test_non_finite_values_in_a_large_array_are_named_briefly():
     with pytest.raises(ValueError) as error:
         finite_array(values, "positions")
     assert len(str(error.value)) < 300 and "(777, 2)" in str(error.value)
+
+
+# ----- work estimated before it starts ------------------------------------------------------------------
+
+ROD = swinging_rod(1.0, theta0=1.0, t_end=1.0)
+
+
+@pytest.mark.parametrize("dt", [1e-300, 5e-324])
+def test_a_step_too_small_is_refused_as_too_many_steps(dt):
+    with pytest.raises(ValueError, match="too many steps") as error:
+        simulate(ROD, dt=dt)
+    assert "margin below the top" not in str(error.value) and len(str(error.value)) < 600
+
+
+def test_save_every_beyond_the_run_is_an_error_not_a_round_up():
+    with pytest.raises(ValueError, match=r"save_every=1000000000000: beyond the run of 1000 steps"):
+        simulate(ROD, dt=1e-3, save_every=10**12)
+    assert simulate(ROD, dt=1e-3, save_every=1000).t[-1] == pytest.approx(1.0)  # the whole run is allowed
+
+
+def test_a_batch_beyond_the_memory_is_refused_with_the_estimate(monkeypatch):
+    import importlib
+
+    module = importlib.import_module("rbody.engine.simulate")  # the module, not the function of that name
+    monkeypatch.setattr(module, "available_memory", lambda: 10**9)  # 1 GB free
+    batch = swinging_rod(np.ones(1000), theta0=1.0, t_end=1.0)      # 1001 x 1000 x 2 x 8 B = 16 MB
+    assert simulate(batch, dt=1e-3).t.size == 1001
+    monkeypatch.setattr(module, "available_memory", lambda: 10**7)  # 10 MB free
+    with pytest.raises(ValueError, match=r"0.016 GB of saved states.*allow_large=True"):
+        simulate(batch, dt=1e-3)
+    assert simulate(batch, dt=1e-3, allow_large=True).t.size == 1001
+
+
+def test_estimate_counts_steps_samples_and_bytes():
+    from rbody.engine.simulate import estimate_work
+
+    work = estimate_work(swinging_rod(np.ones(4), theta0=1.0, t_end=1.0), 1e-3, 1.0, 10)
+    assert work == {"steps": 1000.0, "batch": 4.0, "samples": 101.0, "bytes": 8.0 * 101 * 4 * 2, "impacts": 0.0}
+
+
+@pytest.mark.parametrize("digits", [10, 11])
+def test_pi_factory_sets_t_end_without_running_the_impacts_and_simulate_refuses(digits):
+    import time
+
+    start = time.perf_counter()
+    scene = pi_collisions(digits)
+    assert time.perf_counter() - start < 5.0       # the run of 3e10 impacts takes ~15 min
+    with pytest.raises(ValueError, match=r"about 3.14e\+1[01] impacts"):
+        simulate(scene, dt=scene.t_end / 10)
+
+
+@pytest.mark.parametrize("convention", ["galperin", "chapter"])
+@pytest.mark.parametrize("digits", [0, 1, 2, 3])
+def test_closed_form_last_impact_matches_the_run(digits, convention):
+    scene = pi_collisions(digits, convention=convention, speed=0.7, spacing=1.3)
+    counts = scene.counts()
+    assert counts["done"] and counts["total"] == scene.exact_counts["total"]
+    assert scene.last_impact_time == pytest.approx(counts["t_last"], rel=1e-11)
+    assert scene.t_end == pytest.approx(1.1 * counts["t_last"], rel=1e-11)
+
+
+# ----- a burn shorter than the step ------------------------------------------------------------------
+
+def test_burn_shorter_than_the_step_is_refused_not_a_wrong_speed():
+    scene = rocket(100.0, burn_rate=1e6, exhaust_speed=50.0, dry_mass=40.0, t_end=1.0)
+    for method in ("euler", "rk4"):
+        with pytest.raises(SimulationError, match=r"jumps at t = 6e-05 s.*dt <= 6e-06"):
+            simulate(scene, dt=1e-3, method=method)
+    # Below the step it asks for, rk4 converges on the exact final speed u log(m0/dry) = 45.81 m/s.
+    exact = 50.0 * np.log(100 / 40)
+    errors = [abs(simulate(scene, dt=dt, t_end=1e-4, method="rk4")["speed"][-1] - exact) for dt in (6e-6, 6e-7)]
+    assert errors[1] < 1e-3 * errors[0] and errors[1] < 1e-8 * exact  # fourth order: 1e-4 per tenfold
