@@ -166,3 +166,54 @@ def test_burn_shorter_than_the_step_is_refused_not_a_wrong_speed():
     exact = 50.0 * np.log(100 / 40)
     errors = [abs(simulate(scene, dt=dt, t_end=1e-4, method="rk4")["speed"][-1] - exact) for dt in (6e-6, 6e-7)]
     assert errors[1] < 1e-3 * errors[0] and errors[1] < 1e-8 * exact  # fourth order: 1e-4 per tenfold
+
+
+# ----- meshes: overlapping parts and self-intersection ------------------------------------------------
+
+def _box_with_corner_tetrahedron():
+    import trimesh
+
+    box = trimesh.creation.box(extents=(1.0, 2.0, 3.0))            # 6 m^3
+    corner = np.array([-0.5, -1.0, -1.5])
+    tet = trimesh.Trimesh(corner + np.array([[0, 0, 0], [0.5, 0, 0], [0, 0.5, 0], [0, 0, 0.5]]),
+                          [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]], process=False)  # 1/48 m^3, inside
+    assert tet.volume > 0
+    return trimesh.util.concatenate([box, tet])
+
+
+def test_part_inside_another_sharing_one_vertex_is_refused():
+    # Before: the shared vertex joined the two into one part, and the mass came out 6.0208 instead of 6.
+    with pytest.raises(ValueError, match=r"part 1 of 2 .*overlapping solids count their mass twice"):
+        Inertia.from_mesh(_box_with_corner_tetrahedron(), density=1.0)
+
+
+@pytest.mark.parametrize("moved_to", [[-0.9, -1.8, 2.9], [-1.5, 1.0, 1.5]])
+def test_box_folded_through_itself_is_refused(moved_to):
+    import trimesh
+
+    box = trimesh.creation.box(extents=(1.0, 2.0, 3.0))
+    vertices = box.vertices.copy()
+    vertices[int(np.argmax(vertices.sum(axis=1)))] = moved_to       # the corner (+, +, +) pushed through
+    folded = trimesh.Trimesh(vertices, box.faces, process=False)
+    assert folded.volume > 0                                         # closed, wound, with a volume: plausible
+    with pytest.raises(ValueError, match=r"surface intersects itself: faces \d+ and \d+ cross"):
+        Inertia.from_mesh(folded, density=1.0)
+
+
+def test_bodies_touching_at_a_corner_or_a_face_are_still_accepted():
+    import trimesh
+
+    a = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
+    b = trimesh.creation.box(extents=(1.0, 1.0, 1.0))
+    b.apply_translation((1.0, 1.0, 1.0))                               # meets a at one corner only
+    both = Inertia.from_mesh(trimesh.util.concatenate([a, b]), density=1.0)
+    want = Inertia.box(1.0, (1, 1, 1)) + Inertia.box(1.0, (1, 1, 1)).translated((1, 1, 1))
+    assert both.mass == pytest.approx(2.0, rel=1e-14)
+    np.testing.assert_allclose(both.tensor, want.tensor, rtol=1e-13)
+
+
+def test_a_mesh_too_large_to_check_is_refused_not_left_unchecked():
+    import trimesh
+
+    with pytest.raises(ValueError, match="cannot check in reasonable time"):
+        Inertia.from_mesh(trimesh.creation.cylinder(radius=1.0, height=2.0, sections=1500), mass=1.0)
