@@ -41,6 +41,9 @@ def unit_axis(axis: AxisLike, name: str = "axis") -> np.ndarray:
     largest = float(np.max(np.abs(vector)))
     if largest == 0.0:
         raise ValueError(f"{name}={vector.tolist()}: a direction must be non-zero")
+    norm = np.linalg.norm(vector)
+    if np.isfinite(norm) and norm > 0:
+        return vector / norm
     scaled = vector / largest
     return scaled / np.linalg.norm(scaled)
 

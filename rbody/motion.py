@@ -83,7 +83,10 @@ def quat_normalize(q: np.ndarray) -> np.ndarray:
         where = f"row {tuple(int(i) for i in rows[0])}" if q.ndim > 1 else "it"
         raise ValueError(f"quaternion of shape {q.shape}: {len(rows)} of {q.size // 4} are zero (first: {where}); "
                          "a rotation needs a non-zero quaternion (w, x, y, z)")
-    scaled = q / largest
+    norm = np.linalg.norm(q, axis=-1, keepdims=True)
+    if np.all(np.isfinite(norm)) and np.all(norm > 0):
+        return q / norm
+    scaled = q / largest  # |q|^2 overflowed or underflowed: the same direction from the scaled quaternion
     return scaled / np.linalg.norm(scaled, axis=-1, keepdims=True)
 
 
