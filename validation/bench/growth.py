@@ -22,6 +22,8 @@ from pathlib import Path
 
 import numpy as np
 
+from rbody._files import atomic_path
+
 PI_DIGITS = {False: tuple(range(9)), True: tuple(range(6))}
 PI_GOALS = {7: 1.0, 8: 10.0}  # digits -> seconds
 PI_FIT_FROM = 4
@@ -183,7 +185,8 @@ def _plot(rows: list[dict], fitted: list[dict], out: Path) -> str:
         axis.set(xlabel=xlabel, ylabel=ylabel, title=f"cost growth: {kind}")
         axis.legend(fontsize=7)
     figure.tight_layout()
-    figure.savefig(out / "growth.png", dpi=100)
+    with atomic_path(out / "growth.png") as temporary:
+        figure.savefig(temporary, dpi=100, format="png")
     plt.close(figure)
     return "growth.png"
 

@@ -12,6 +12,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from rbody._files import atomic_path, write_atomic  # noqa: E402
+
 LEVELS = (1e-3, 1e-6, 1e-9, 1e-12)
 GOAL_RATIO = 10.0  # rbody at least this many times cheaper than the best other simulator
 FLOOR, CEILING = 1e-17, 1e2  # error axis: zero error is drawn at FLOOR, larger or NaN errors at CEILING
@@ -87,7 +89,8 @@ def plot_scene(points: Sequence, bench, out: Path) -> str:
     figure.legend(loc="lower center", ncol=4, fontsize=7, frameon=False)
     figure.tight_layout(rect=(0, 0.17, 1, 1))
     name = f"wp_{bench.name}.png"
-    figure.savefig(out / name, dpi=100)
+    with atomic_path(out / name) as temporary:
+        figure.savefig(temporary, dpi=100, format="png")
     plt.close(figure)
     return name
 
@@ -179,7 +182,7 @@ def write_summary(out: Path, points: Sequence, benches: Sequence, figures: Seque
         parts += growth["markdown"] + [""]
     parts += goals(standings, batch, growth, {b.name: b.scene.t_end for b in benches})
     path = out / "summary.md"
-    path.write_text("\n".join(parts) + "\n")
+    write_atomic(path, "\n".join(parts) + "\n")
     return path
 
 

@@ -9,6 +9,7 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Iterable
 
+from rbody._files import replaced_folder
 from validation.bench import batch, growth, report
 from validation.bench.csvfile import header_lines, write_csv
 from validation.bench.scenes import bench_scenes
@@ -32,23 +33,24 @@ def run_bench(out: Path, *, names: Iterable[str] | None = None, quick: bool = Fa
     unknown = [n for n in names if n not in known]
     if unknown:
         raise ValueError(f"--scene {', '.join(unknown)}: expected one of {', '.join(known)}")
-    out.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
     header = header_lines(quick)
     points: list[Point] = []
-    for bench in benches:
-        if bench.name in names:
-            print(f"[bench] {bench.name} ({bench.scene.describe()})", file=log, flush=True)
-            points += run_scene(bench, quick=quick, log=log)
-    csv_path = write_csv(out / "bench.csv", (asdict(p) for p in points), COLUMNS, header)
-    figures = [report.plot_scene(points, b, out) for b in benches if b.name in names]
-    batch_result = batch.run_batch(out, quick=quick, header=header, log=log) if "batch" in names else None
-    growth_result = (growth.run_growth(out, quick=quick, header=header, batch=batch_result, log=log)
-                     if "growth" in names else None)
-    wall = time.perf_counter() - started
-    path = report.write_summary(out, points, [b for b in benches if b.name in names], figures, batch_result,
-                                growth_result, header, quick=quick, seconds=wall)
-    print(f"[bench] {csv_path}\n[bench] {path} ({wall:.0f} s)", file=log)
+    with replaced_folder(out) as staging:  # the CSVs, figures and summary all new, or all as they were
+        for bench in benches:
+            if bench.name in names:
+                print(f"[bench] {bench.name} ({bench.scene.describe()})", file=log, flush=True)
+                points += run_scene(bench, quick=quick, log=log)
+        csv_name = write_csv(staging / "bench.csv", (asdict(p) for p in points), COLUMNS, header).name
+        figures = [report.plot_scene(points, b, staging) for b in benches if b.name in names]
+        batch_result = batch.run_batch(staging, quick=quick, header=header, log=log) if "batch" in names else None
+        growth_result = (growth.run_growth(staging, quick=quick, header=header, batch=batch_result, log=log)
+                         if "growth" in names else None)
+        wall = time.perf_counter() - started
+        name = report.write_summary(staging, points, [b for b in benches if b.name in names], figures,
+                                    batch_result, growth_result, header, quick=quick, seconds=wall).name
+    path = out / name
+    print(f"[bench] {out / csv_name}\n[bench] {path} ({wall:.0f} s)", file=log)
     return path
 
 
