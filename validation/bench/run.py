@@ -21,11 +21,16 @@ QUICK_DEFAULT = ("swinging_rod", "rolling_disc", "line_collisions", "pi_collisio
                  "pendulum_chain") + EXTRA_WORK
 
 
-def run_bench(out: Path, *, names: Iterable[str] | None = None, quick: bool = False, log=sys.stderr) -> Path:
+def run_bench(out: Path, *, names: Iterable[str] | None = None, quick: bool = False, repeat: int = 1,
+              log=sys.stderr) -> Path:
     """Run the benchmark into folder `out` and return the path of summary.md.
 
     names: scene names of bench_scenes() and/or "batch", "growth" (default: all of them; quick: QUICK_DEFAULT).
+    repeat: how many times every sweep is run (the `run` column of bench.csv); the summary gives each
+    ratio's median and its range over the runs. Batch and growth are measured once.
     """
+    if isinstance(repeat, bool) or not isinstance(repeat, int) or repeat < 1:
+        raise ValueError(f"repeat={repeat!r}: expected a whole number >= 1")
     benches = bench_scenes(quick)
     known = [b.name for b in benches] + list(EXTRA_WORK)
     names = list(names) if names else list(QUICK_DEFAULT if quick else known)
@@ -36,10 +41,11 @@ def run_bench(out: Path, *, names: Iterable[str] | None = None, quick: bool = Fa
     started = time.perf_counter()
     header = header_lines(quick)
     points: list[Point] = []
-    for bench in benches:
-        if bench.name in names:
-            print(f"[bench] {bench.name} ({bench.scene.describe()})", file=log, flush=True)
-            points += run_scene(bench, quick=quick, log=log)
+    for run in range(1, repeat + 1):
+        for bench in benches:
+            if bench.name in names:
+                print(f"[bench] run {run} of {repeat}: {bench.name} ({bench.scene.describe()})", file=log, flush=True)
+                points += run_scene(bench, quick=quick, log=log, run=run)
     csv_path = write_csv(out / "bench.csv", (asdict(p) for p in points), COLUMNS, header)
     figures = [report.plot_scene(points, b, out) for b in benches if b.name in names]
     batch_result = batch.run_batch(out, quick=quick, header=header, log=log) if "batch" in names else None
@@ -53,7 +59,7 @@ def run_bench(out: Path, *, names: Iterable[str] | None = None, quick: bool = Fa
 
 
 def main(args) -> int:
-    """Entry of `python -m validation bench` (args: scene, quick, out)."""
-    path = run_bench(args.out, names=args.scene, quick=args.quick)
+    """Entry of `python -m validation bench` (args: scene, quick, out, repeat)."""
+    path = run_bench(args.out, names=args.scene, quick=args.quick, repeat=getattr(args, "repeat", 1))
     print(path.read_text())
     return 0
