@@ -321,6 +321,13 @@ def write_summary(out: Path, points: Sequence, benches: Sequence, figures: Seque
     return path
 
 
+def _label(reading: Reading) -> str:
+    """'MuJoCo RK4', or 'MuJoCo on rbody's reduction (slide + armature I/R^2) RK4'."""
+    if reading.settings.startswith(REDUCED_LABEL):
+        return f"{NAMES['mujoco reduced']} ({reading.settings.removeprefix(REDUCED_LABEL)}) {reading.method}"
+    return f"{NAMES.get(reading.backend, reading.backend)} {reading.method}"
+
+
 def goals(standings: Sequence[dict], batch, growth, t_end: dict[str, float] | None = None) -> list[str]:
     """The issue's goals, each met or missed with the measured margin and, for a miss, where rbody's time
     goes: the fixed cost of a simulate call (measured by bench.batch) or the steps themselves."""
@@ -335,7 +342,7 @@ def goals(standings: Sequence[dict], batch, growth, t_end: dict[str, float] | No
     for s in missed:
         own, rival = s["rbody"], s["rival"]
         if own is None:
-            lines.append(f"  - {s['scene']} at {s['level']:.0e}: rbody never reaches it; {NAMES[rival.backend]} "
+            lines.append(f"  - {s['scene']} at {s['level']:.0e}: rbody never reaches it; {_label(rival)} "
                          f"does at {rival.seconds_per_sim_second:.2g} s/s.")
             continue
         why = ""
@@ -355,7 +362,7 @@ def goals(standings: Sequence[dict], batch, growth, t_end: dict[str, float] | No
             why += "."
         lines.append(f"  - {s['scene']} at {s['level']:.0e}: {s['ratio']:.3g}x (short by a factor "
                      f"{GOAL_RATIO / s['ratio']:.2g}): rbody {own.method} dt={own.dt:.3g} at "
-                     f"{own.seconds_per_sim_second:.2g} s/s against {NAMES[rival.backend]} {rival.method} "
+                     f"{own.seconds_per_sim_second:.2g} s/s against {_label(rival)} "
                      f"dt={rival.dt:.3g} at {rival.seconds_per_sim_second:.2g} s/s.{why}")
     only = sorted({(s["scene"], s["level"]) for s in standings if s["ratio"] == math.inf})
     lines.append("- levels only rbody reaches: "

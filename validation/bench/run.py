@@ -18,7 +18,7 @@ EXTRA_WORK = ("batch", "growth")
 # --quick without --scene: the scenes that exercise every kind of truth and failure (the compound pendulum
 # and the race repeat the rod and the disc), so that the smoke test stays under 2 minutes.
 QUICK_DEFAULT = ("swinging_rod", "rolling_disc", "line_collisions", "pi_collisions", "free_rotation",
-                 "pendulum_chain") + EXTRA_WORK
+                 "pendulum_chain", "chain_general") + EXTRA_WORK
 
 
 def run_bench(out: Path, *, names: Iterable[str] | None = None, quick: bool = False, repeat: int = 1,

@@ -246,4 +246,16 @@ def bench_scenes(quick: bool = False) -> list[BenchScene]:
     out.append(BenchScene("pendulum_chain", chain, "theta", "rad", tuple(series), reference=True,
                           note="Truth: rbody's reference run (scipy DOP853, rtol 1e-13); the finest gauss6, rk4 and "
                                "MuJoCo RK4 runs agree with it to about 6e-14 rad, the floor of this measure"))
+
+    # --- the same chain on the general engine: any Layout tree, by the articulated-body algorithm ----------
+    general = Scene.from_layout(chain.layout, t_end=t_end, name="chain_general")
+    series = (_rbody(general, chain_ranges, n, sample)
+              + _mujoco(1e-2, 1e-4 if quick else 3e-5, n, sample, quick=quick))
+    if quick:  # the smoke test: rk4 and gauss6 against MuJoCo's RK4
+        series = tuple(s for s in series if s.method in ("rk4", "gauss6", "RK4"))
+    out.append(BenchScene("chain_general", general, "qpos", "rad", tuple(series), reference=True,
+                          note="The three-link chain above as a user's model: Scene.from_layout(chain.layout), run by "
+                               "rbody's general engine (articulated-body algorithm) instead of the chain's own kernel; "
+                               "truth: its reference run (DOP853, rtol 1e-13); MuJoCo with contacts and constraints "
+                               "disabled"))
     return out
