@@ -95,7 +95,7 @@ def test_level_table_gives_each_ratio_with_its_range_over_runs():
     table, standing = level_table(points, "s", ["rbody", "mujoco"])
     first = standing[0]
     assert sorted(first["ratios"]) == pytest.approx([10.0, 15.0, 20.0]) and first["ratio"] == pytest.approx(15.0)
-    assert "15x (10-20)" in table
+    assert "15x (10..20)" in table
     reduced = _point(0.1, 1e-8, 1e-3 * 2, backend="mujoco", method="RK4", settings=REDUCED_LABEL + "slide")
     assert column(reduced) == "mujoco reduced"
     _table, standing = level_table(points + [reduced], "s", ["rbody", "mujoco", "mujoco reduced"])

@@ -172,7 +172,7 @@ def _cell(reading: Reading | None, spread: tuple[float, float] | None = None) ->
                else f", {reading.settings.removeprefix(REDUCED_LABEL)}")
     cost = f"{reading.seconds_per_sim_second:.2g}"
     if spread is not None and spread[1] > spread[0]:
-        cost += f" [{spread[0]:.2g}-{spread[1]:.2g}]"
+        cost += f" [{spread[0]:.2g}..{spread[1]:.2g}]"
     where = f"dt~{reading.dt:.3g}" if reading.interpolated else f"dt={reading.dt:.3g}"
     return f"{cost} ({reading.method}{setting}, {where})"
 
@@ -183,7 +183,7 @@ def _ratio_text(ratios: list[float]) -> str:
     median = float(np.median(finite))
     text = f"{median:.3g}x"
     if len(finite) > 1:
-        text += f" ({finite[0]:.3g}-{finite[-1]:.3g})"
+        text += f" ({finite[0]:.3g}..{finite[-1]:.3g})"
     return text + ("" if median >= GOAL_RATIO else " (goal 10x missed)")
 
 
@@ -288,8 +288,8 @@ def write_summary(out: Path, points: Sequence, benches: Sequence, figures: Seque
               "straight-line interpolation in log error - log cost (`dt~`), or at a measured point (`dt=`); never "
               "by extrapolation. `never`: no series got there. "
               + (f"**Over {len(runs)} runs.** Every sweep was run {len(runs)} times; a cell is the median "
-                 "cost over the runs [min-max], and the last column the ratio of the best other column's cost to "
-                 "rbody's, computed in each run: its median (range over the runs)." if len(runs) > 1 else
+                 "cost over the runs [min..max], and the last column the ratio of the best other column's cost to "
+                 "rbody's, computed in each run: its median (min..max over the runs)." if len(runs) > 1 else
                  "**One run**: the ratios carry the noise of one run on this machine (use --repeat 3)."),
               "",
               "**Each peer at its best.** MuJoCo: its four integrators; models without contact pairs run with "

@@ -69,10 +69,10 @@ def ratio_table(points: list[Point]) -> str:
                 cells.append("none" if s["rival"] is None and s["rbody"] is None else "in some runs only")
             else:
                 finite = sorted(s["ratios"])
-                text = f"{s['ratio']:.3g}x" + (f" ({finite[0]:.3g}-{finite[-1]:.3g})" if len(finite) > 1 else "")
+                text = f"{s['ratio']:.3g}x" + (f" ({finite[0]:.3g}..{finite[-1]:.3g})" if len(finite) > 1 else "")
                 cells.append(f"**{text}**" if s["ratio"] < GOAL_RATIO else text)
         lines.append(f"| {scene} | " + " | ".join(cells) + " |")
-    note = (f"Median over {len(runs)} runs, (range over the runs); " if len(runs) > 1 else "One run; ")
+    note = (f"Median over {len(runs)} runs (min..max over the runs); " if len(runs) > 1 else "One run; ")
     note += ("bold: under the 10x goal; \"only rbody\": no other column reaches the level anywhere in its sweep "
              "(MuJoCo and pymunk at every setting swept, MuJoCo also on rbody's reduction where there is one).")
     return "\n".join(lines + ["", note])
