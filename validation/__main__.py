@@ -35,6 +35,8 @@ def _parser() -> argparse.ArgumentParser:
                        help="only this scene, or 'batch' or 'growth' (repeatable; default: all)")
     bench.add_argument("--quick", action="store_true", help="short sweeps, under 2 minutes (the test suite's)")
     bench.add_argument("--out", type=Path, default=Path("report/bench"), help="folder (default: report/bench/)")
+    bench.add_argument("--repeat", type=int, default=1, metavar="N",
+                       help="run every sweep N times; the summary gives each ratio with its range (default: 1)")
     hard = commands.add_parser("hard", help="numerical stability on hard cases (validation/hard/): DIR/hard.md")
     hard.add_argument("--quick", action="store_true", help="short runs, under 2 minutes")
     hard.add_argument("--out", type=Path, default=Path("report"), help="report folder (default: report/)")
