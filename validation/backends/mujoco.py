@@ -73,6 +73,14 @@ def check(scene: Scene) -> None:
     _drive_plan(scene, layout)
 
 
+def preflight(scene: Scene) -> None:
+    """Build the scene's model as run() would at its default settings (MJCF export and MuJoCo's compiler),
+    without stepping: raises ValueError for what they refuse (a body with a principal moment MuJoCo
+    rejects, ...). validation.backends.supports calls it."""
+    check(scene)
+    build(scene, min(1e-3, scene.t_end))
+
+
 def _drive_plan(scene: Scene, layout) -> dict | None:
     """What must be set before every step for a scene MuJoCo's model alone does not hold, or None.
 

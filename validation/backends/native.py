@@ -11,7 +11,10 @@ name = "rbody"
 
 
 def check(scene: rbody.Scene) -> None:
-    """rbody runs every scene it defines."""
+    """rbody runs every scene that has a native model (time-stepped) or exact events (event-driven)."""
+    if not scene.event_driven and type(scene).native is rbody.Scene.native:
+        raise NotImplementedError(f"{type(scene).__name__} defines no native model (Scene.native) and is not "
+                                  "event-driven: rbody has nothing to integrate")
 
 
 def run(scene: rbody.Scene, dt: float, t_end: float | None = None, *, method: str | None = None,

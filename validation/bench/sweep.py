@@ -13,7 +13,7 @@ import numpy as np
 import rbody
 from rbody.errors import SimulationError
 from rbody.trajectory import Trajectory
-from validation import compare
+from validation.compare import energy_error, max_abs_error, max_slip
 from validation.backends import BACKENDS, get, supports
 from validation.bench.scenes import SAMPLES, BenchScene, Series
 
@@ -84,7 +84,7 @@ def _failure(bench: BenchScene, trajectory: Trajectory, truth: Mapping[str, np.n
         if got != want:
             return f"miscount: {got} impacts, exact {want}"
     if bench.rolling:
-        slip = compare.max_slip(trajectory)
+        slip = max_slip(trajectory)
         bound = SLIP_FRACTION * float(np.max(np.abs(truth["speed"])))
         if not slip <= bound:
             return f"slips: max |slip| {slip:.3g} m/s > {bound:.3g} m/s ({SLIP_FRACTION:g} of the peak speed)"
@@ -124,8 +124,8 @@ def measure(bench: BenchScene, series: Series, dt: float, truth: Truth, *, quick
             if trajectory is None:
                 trajectory = trial
         truth_values = truth.at(trajectory.t)
-        point.error = compare.max_abs_error(trajectory, truth_values, bench.measure)
-        point.energy_drift = compare.energy_error(trajectory, truth_values)
+        point.error = max_abs_error(trajectory, truth_values, bench.measure)
+        point.energy_drift = energy_error(trajectory, truth_values)
         point.failure = _failure(bench, trajectory, truth_values, point.error)
     simulated = float(trajectory.t[-1])
     best = min(seconds)
