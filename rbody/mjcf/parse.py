@@ -20,6 +20,12 @@ equal MuJoCo's body_mass, body_ipos and body_inertia/body_iquat to round-off):
   shellinertia; several geoms summed about the body's centre of mass, as MuJoCo does;
 - ``<mesh file>`` assets (STL, OBJ, any format trimesh reads) with scale, refpos, refquat and inertia
   legacy (MuJoCo's default), exact, convex or shell; vertices are rounded to float32 as MuJoCo does;
+  meshdir/assetdir relative to the model file's folder (the working folder for an XML string); the Shape
+  holds the mesh file's absolute path (a scale applies to the mass properties only, noted);
+- principal axes as MuJoCo's compiler finds them (its Jacobi solver, geoms.mujoco_principal): for a body
+  of several geoms, a fullinertia or a mesh, MuJoCo's compiled tensor can differ from the exact one by
+  more than round-off (a small rotation left undone); rbody takes MuJoCo's, noting any difference
+  beyond 1e-12, so that both engines run the same bodies;
 - joints hinge, slide, ball, free and ``<freejoint>``, with pos, axis, ref, damping, stiffness,
   springref, armature, range and limited;
 - ``<option>``: timestep, gravity (along -z: rbody's scenes have gravity -g z), integrator; flags
@@ -43,23 +49,31 @@ explicit <pair>, while the contact flag is on: set contype="0" conaffinity="0" o
 actuators that push with a zero control (position, velocity, damper, ... or damping/armature on the
 actuator); fluid forces (option density or viscosity, geom fluidshape); joint frictionloss and
 springdamper; body gravcomp; heightfields, flexes, composites, plugins, <frame>, <replicate>,
-<attach>; gravity not along -z; boundmass, boundinertia, settotalmass, fusestatic, alignfree; a body
+<attach>; gravity not along -z; stiffness on a ball joint; boundmass, boundinertia, settotalmass, fusestatic, alignfree; a body
 with a joint but no mass; an orientation given twice; unknown elements or attributes; geoms of one body
 that overlap, which MuJoCo would count twice (``overlapping_geoms="sum"`` sums them as MuJoCo does).
 
-Joint limits: a limited joint's range is kept (``MJCFModel.limits``: joint name -> (lo, hi) [rad | m];
-ball: (0, max angle)). A limit declared but never reached changes nothing; reaching it is not modelled
-by rbody, so a run that reaches it must fail (the scene's limits are checked after a run).
+Joint limits: a limited joint's range (less its margin) is kept (``MJCFModel.limits``, ``MJCFScene.limits``:
+joint name -> (lo, hi) [rad | m]; ball: (0, largest rotation angle)). A limit declared but never reached
+changes nothing; rbody does not model the limit's force, so a native run whose saved states leave a range
+raises SimulationError with the joint and the time (checked on the saved states: with save_every > 1 a
+brief excursion between two saved states can pass unseen).
+
+Initial state: the model's reference (qpos0: hinge and slide at ref, balls at identity, free bodies at
+their pos/quat; at rest), a keyframe's (``keyframe=``), or the qpos0/qvel0 arguments, in MuJoCo's layout
+(free joints: world velocity of the body origin, then body-frame angular velocity). Quaternions are made
+unit (noted), as MuJoCo uses them.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import xml.parsers.expat
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -67,7 +81,8 @@ from rbody.inertia import Inertia
 from rbody.mjcf.geoms import (MESH_INERTIA_MODES, MJ_EPS, GeomMass, MeshMass, mesh_mass, mujoco_principal,
                               primitive_moments, primitive_volume, principal_tensor, quat_matrix, quat_product,
                               sum_geoms)
-from rbody.scene import WORLD, Body, Joint, Layout, Shape
+from rbody.errors import SimulationError
+from rbody.scene import WORLD, Body, Joint, Layout, NativeModel, Shape, TreeScene
 
 DEFAULT_T_END = 1.0        # [s] duration of a scene read from MJCF when t_end is not given
 OVERLAP_CHOICES = ("refuse", "sum")
@@ -614,7 +629,7 @@ class _Reader:
             elif child.tag in ("texture", "material", "skin"):
                 self.note(child.tag, f"<{child.tag}> assets ignored (appearance only)")
             elif child.tag == "hfield":
-                self.hfields = True
+                self.note("hfield", "<hfield> assets ignored (a geom that uses one is refused)")
             elif child.tag == "model":
                 raise child.error("<model> assets (model composition) are not supported")
             else:
@@ -1030,6 +1045,20 @@ class _Reader:
                 "contact-free models only. Set contype=\"0\" conaffinity=\"0\" on the geoms that must not collide, "
                 "or disable contacts with <option><flag contact=\"disable\"/></option>")
 
+    def passive(self, element: Element, attrib: dict) -> dict:
+        """damping, stiffness, armature of a joint, >= 0; stiffness and damping 0 where the flags disable them."""
+        values = {key: _number(element, key, attrib, 0.0) for key in ("damping", "stiffness", "armature")}
+        for key, value in values.items():
+            if value < 0:
+                raise element.error(f"{key}={value!r}: must be >= 0")
+        if not self.spring_on and values["stiffness"]:
+            self.note("spring", "joint stiffness ignored (<flag spring=\"disable\"/>)")
+            values["stiffness"] = 0.0
+        if not self.damper_on and values["damping"]:
+            self.note("damper", "joint damping ignored (<flag damper=\"disable\"/>)")
+            values["damping"] = 0.0
+        return values
+
     def joints_of(self, body: _Body) -> list[tuple[Joint, np.ndarray, int, tuple | None]]:
         """(rbody Joint at the reference state, qpos0 (MuJoCo), nv, limit) for each joint of `body`."""
         out = []
@@ -1043,7 +1072,9 @@ class _Reader:
                 return value / 180.0 * math.pi if angular else value
 
             if kind == "free":
-                joint = Joint(name, "free", body.name)
+                values = self.passive(element, attrib)
+                values.pop("stiffness")  # MuJoCo gives a free joint no spring
+                joint = Joint(name, "free", body.name, **values)
                 qpos = np.concatenate([body.pos, body.quat])
                 nv = 6
             else:
@@ -1052,19 +1083,12 @@ class _Reader:
                 axis, norm = _normalize(axis)
                 if kind in ("hinge", "slide") and norm < MJ_EPS:
                     raise element.error(f"axis={attrib.get('axis')!r}: a joint axis must be non-zero")
-                values = {key: _number(element, key, attrib, 0.0) for key in ("damping", "stiffness", "armature")}
-                for key, value in values.items():
-                    if value < 0:
-                        raise element.error(f"{key}={value!r}: must be >= 0")
-                if not self.spring_on and values["stiffness"]:
-                    self.note("spring", "joint stiffness ignored (<flag spring=\"disable\"/>)")
-                    values["stiffness"] = 0.0
-                if not self.damper_on and values["damping"]:
-                    self.note("damper", "joint damping ignored (<flag damper=\"disable\"/>)")
-                    values["damping"] = 0.0
+                values = self.passive(element, attrib)
                 ref = angle("ref") if kind in ("hinge", "slide") else 0.0
                 springref = angle("springref") if kind in ("hinge", "slide") else 0.0
                 if kind == "ball":
+                    if values["stiffness"]:
+                        raise element.error("stiffness on a ball joint (MuJoCo's quaternion spring) is not supported")
                     qpos = np.array([1.0, 0.0, 0.0, 0.0])
                     joint = Joint(name, "ball", body.name, anchor=tuple(pos.tolist()), qpos0=(1.0, 0.0, 0.0, 0.0),
                                   qvel0=(0.0, 0.0, 0.0), **values)
@@ -1088,7 +1112,7 @@ class _Reader:
                     if not low < high:
                         raise element.error(f"range={attrib['range']!r}: needs lo < hi")
                     margin = _number(element, "margin", attrib, 0.0)
-                    limit = (low + margin, high - margin) if kind != "ball" else (0.0, high - margin)
+                    limit = (float(low + margin), float(high - margin)) if kind != "ball" else (0.0, float(high - margin))
             out.append((joint, qpos, nv, limit))
         return out
 
@@ -1134,6 +1158,7 @@ class _Reader:
             state_qpos = _state_vector(qpos0, "qpos0", len(model_qpos0))
         if qvel0 is not None:
             state_qvel = _state_vector(qvel0, "qvel0", nv)
+        state_qpos = self.unit_quaternions(joints, state_qpos)
         joints = self.joints_at(joints, state_qpos, state_qvel)
         layout = self.layout(joints)
         return MJCFModel(layout=layout, name=self.name, gravity=self.gravity, timestep=self.timestep,
@@ -1153,6 +1178,23 @@ class _Reader:
                 raise key.error(f"two keyframes are called {name!r}")
             keys[name] = (qpos, qvel)
         return keys
+
+    def unit_quaternions(self, joints: list[Joint], qpos: np.ndarray) -> np.ndarray:
+        """qpos with every ball and free quaternion made unit, as MuJoCo does before using it (noted)."""
+        qpos, p = qpos.copy(), 0
+        for joint in joints:
+            start, width = {"free": (3, 7), "ball": (0, 4)}.get(joint.kind, (0, 1))
+            if joint.kind in ("free", "ball"):
+                quat = qpos[p + start:p + start + 4]
+                norm = math.sqrt(float(quat @ quat))
+                if norm == 0:
+                    raise MJCFError(f"{self.root.file}: the initial quaternion of joint {joint.name!r} is zero")
+                if abs(norm - 1) > 1e-12:
+                    qpos[p + start:p + start + 4] = quat / norm
+                    self.note(f"unit {joint.name}", f"joint {joint.name!r}: the initial quaternion (length {norm:.6g}) "
+                                                    "made unit, as MuJoCo uses it")
+            p += width
+        return qpos
 
     def joints_at(self, joints: list[Joint], qpos: np.ndarray, qvel: np.ndarray) -> list[Joint]:
         """The joints with their initial state set from MuJoCo's qpos and qvel."""
@@ -1266,26 +1308,59 @@ def layout_from_mjcf(source, *, qpos0=None, qvel0=None, keyframe: int | str | No
 
 
 def from_mjcf(source, *, t_end: float | None = None, qpos0=None, qvel0=None, keyframe: int | str | None = None,
-              overlapping_geoms: str = "refuse"):
+              overlapping_geoms: str = "refuse") -> "MJCFScene":
     """The Scene of an MJCF model (a path or an XML string), run natively by rbody's general engine.
 
     t_end: duration [s] (default DEFAULT_T_END = 1 s); qpos0, qvel0, keyframe, overlapping_geoms: as
-    layout_from_mjcf. The scene carries import_notes (what was ignored), timestep and integrator (the
-    model's option), and the declared joint limits.
+    layout_from_mjcf. The scene is a TreeScene (Scene.from_layout) that also carries import_notes (what
+    was ignored), timestep and integrator (the model's option) and the declared joint limits.
     """
-    import dataclasses
-
-    from rbody.scene import Scene
-
     model = layout_from_mjcf(source, qpos0=qpos0, qvel0=qvel0, keyframe=keyframe,
                              overlapping_geoms=overlapping_geoms)
-    if not hasattr(Scene, "from_layout"):
-        raise NotImplementedError("from_mjcf needs the general multibody engine (Scene.from_layout); "
-                                  "layout_from_mjcf reads the model without it")
-    scene = Scene.from_layout(model.layout, t_end=DEFAULT_T_END if t_end is None else t_end, name=model.name,
-                              qpos0=model.qpos0, qvel0=model.qvel0, gravity=model.gravity)
-    changes = {"import_notes": model.notes, "timestep": model.timestep, "integrator": model.integrator}
-    names = {f.name for f in dataclasses.fields(scene)}
-    if "limits" in names:
-        changes["limits"] = dict(model.limits)
-    return dataclasses.replace(scene, **{k: v for k, v in changes.items() if k in names})
+    return MJCFScene(name=model.name, t_end=DEFAULT_T_END if t_end is None else t_end, gravity=model.gravity,
+                     tree=model.layout, qpos0=model.qpos0, qvel0=model.qvel0, import_notes=model.notes,
+                     timestep=model.timestep, integrator=model.integrator, limits=dict(model.limits))
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class MJCFScene(TreeScene):
+    """Scene.from_layout's TreeScene of a model read from MJCF, with its declared joint limits.
+
+    limits: joint name -> (lo, hi) [rad | m] (ball joints: (0, largest rotation angle) [rad]). rbody does
+    not model a limit's constraint force, so a native run whose coordinates leave a range raises
+    SimulationError naming the joint and the first time it happened (checked on the run's saved states).
+    A limit declared but never reached changes nothing.
+    """
+
+    limits: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+
+    def native(self) -> NativeModel:
+        model = super().native()
+        if not self.limits:
+            return model
+        arrays = self.multibody.arrays
+        checks = []
+        for name, (low, high) in self.limits.items():
+            j = arrays.joint_names.index(name)
+            checks.append((name, arrays.joint_kinds[j], int(arrays.qposadr[j]), low, high))
+        observe = model.observe
+
+        def observe_within_limits(t: np.ndarray, y: np.ndarray) -> dict:
+            data = observe(t, y)
+            qpos = np.asarray(data["qpos"])          # (T, B, nq)
+            for name, kind, address, low, high in checks:
+                if kind == "ball":
+                    quat = qpos[..., address:address + 4]
+                    value = 2 * np.arctan2(np.linalg.norm(quat[..., 1:], axis=-1), np.abs(quat[..., 0]))
+                else:
+                    value = qpos[..., address]
+                outside = (value < low) | (value > high)
+                if np.any(outside):
+                    step = int(np.argmax(np.any(outside.reshape(len(t), -1), axis=1)))
+                    raise SimulationError(
+                        f"scene {self.name!r}: joint {name!r} left its range [{low:.6g}, {high:.6g}] at t={t[step]:.6g} s "
+                        f"(value {float(np.ravel(value[step])[np.argmax(np.ravel(outside[step]))]):.6g}); rbody does not "
+                        "model joint limits: remove the range, or shorten the run (t_end)")
+            return data
+
+        return dataclasses.replace(model, observe=observe_within_limits)

@@ -565,7 +565,8 @@ def run(scene: Scene, dt: float, t_end: float | None = None, *, iterations: int 
     Returns a Trajectory with the scene's observables (scene.observe) and, for scenes with elastic
     contacts, `collisions` (T,) contact onsets so far over all pairs and `ball_collisions` (T,) over
     pairs of two moving bodies. meta: scene, backend, dt, settings, pymunk version, model (how each
-    body is held), line_mode, step_seconds (time spent in space.step only) [s].
+    body is held), line_mode, step_seconds (time spent in space.step only) [s], run_seconds (the step loop
+    with the reading of every saved body state and their translation into the observables) [s].
     Raises ValueError for bad arguments, NotImplementedError when pymunk cannot model the scene,
     SimulationError when the state becomes non-finite.
     """
@@ -600,6 +601,7 @@ def run(scene: Scene, dt: float, t_end: float | None = None, *, iterations: int 
             angular[k, i] = b.angular_velocity
         collisions[k], ball_collisions[k] = counter.total, counter.between_bodies
 
+    started = time.perf_counter()
     record(0)
     step, seconds = space.step, 0.0
     if plan.hooks:
@@ -628,9 +630,11 @@ def run(scene: Scene, dt: float, t_end: float | None = None, *, iterations: int 
     data = dict(scene.observe(t, bodies, joints))
     if counter.elastic:
         data["collisions"], data["ball_collisions"] = collisions, ball_collisions
+    run_seconds = time.perf_counter() - started
     meta = {"scene": scene.name, "backend": name, "dt": dt, "pymunk": pymunk.version,
             "settings": {"iterations": int(iterations), "collision_slop": slop, "save_every": int(save_every)},
-            "model": {p.name: p.kind for p in plan.bodies}, "line_mode": plan.line_mode, "step_seconds": seconds}
+            "model": {p.name: p.kind for p in plan.bodies}, "line_mode": plan.line_mode, "step_seconds": seconds,
+            "run_seconds": run_seconds}
     if plan.hooks:
         meta["stepping"] = (f"space.step loop, setting {', '.join(plan.hooks)} from the scene before every step "
                             "(timed with that Python work): explicit Euler in the applied forces")
