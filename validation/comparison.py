@@ -28,10 +28,7 @@ from __future__ import annotations
 
 import importlib
 import importlib.util
-import json
 import math
-import os
-import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -41,6 +38,7 @@ import numpy as np
 
 import rbody
 from rbody._checks import run_times
+from rbody._files import atomic_path, write_atomic
 from rbody.scene import Scene
 from rbody.trajectory import Trajectory
 from validation import baselines
@@ -243,7 +241,9 @@ class Comparison:
         path = Path(path)
         fig = self.figure()
         try:
-            _write_atomic(path, lambda f: fig.savefig(f, format="png", dpi=110))
+            path.parent.mkdir(parents=True, exist_ok=True)
+            with atomic_path(path) as temporary:
+                fig.savefig(temporary, format="png", dpi=110)
         finally:
             plt.close(fig)
         return path
@@ -509,10 +509,19 @@ def save_baseline(comparison: Comparison, path: str | Path) -> list[Path]:
 
 
 def check_baseline(comparison: Comparison, path: str | Path) -> list[str]:
-    """Messages for every divergence worse than recorded in folder `path` (validation.baselines' margin: a
-    factor 2 plus 1e-13), and for every recorded (observable, pair) of this model between engines the
-    comparison ran or tried that it no longer measures (an engine that failed or now refuses). [] when everything is within its baseline.
-    Raises ValueError when `path` is not a folder holding baselines of this model."""
+    """[] when every divergence is within its baseline in folder `path` (str or Path), else one message per
+    problem: a divergence worse than recorded (validation.baselines' margin: a factor 2 plus 1e-13); a recorded
+    (observable, pair) of this model between engines the comparison ran or tried that it no longer measures
+    (an engine that failed or now refuses); a divergence measured now with no baseline (not a pass).
+    Raises ValueError when `path` is not a folder holding baselines of this model, and
+    validation.baselines.BaselineError (a ValueError) for a broken baseline file."""
+    regressions, missing = baseline_findings(comparison, path)
+    return regressions + missing
+
+
+def baseline_findings(comparison: Comparison, path: str | Path) -> tuple[list[str], list[str]]:
+    """(regressions, missing) of check_baseline: worse than recorded or no longer measured, and measured
+    without a baseline (the command exits 1 on the first, 2 on the second alone)."""
     directory = _folder(path)
     if not directory.is_dir():
         raise ValueError(f"baseline {str(path)!r}: no such folder (record one with save_baseline or "
@@ -520,14 +529,19 @@ def check_baseline(comparison: Comparison, path: str | Path) -> list[str]:
     recorded = _recorded(directory, comparison.scene.name)
     if not recorded:
         raise ValueError(f"baseline {str(path)!r} holds no divergences of model {comparison.scene.name!r}")
-    found = list(baselines.regressions(_baseline_rows(comparison), directory))
-    measured = {(r.pair, r.observable) for r in comparison.rows if math.isfinite(r.largest)}
+    rows = _baseline_rows(comparison)
+    regressions, _ = baselines.compare(rows, directory)
+    missing = [f"no baseline for {r.backend} {r.case}/{r.metric} in {str(path)!r}: record it with "
+               f"`python -m validation compare MODEL --baseline {path} --update-baseline` (or save_baseline)"
+               for r in rows if (r.backend, r.metric) not in recorded]
+    measured = {(r.backend, r.metric) for r in rows}
     asked = set(comparison.runs) | {EXACT}
     for pair, observable in sorted(recorded):
         # a pair of engines asked for (refused, failed, or an observable gone) must still be measured
         if set(pair.split("-")) <= asked and (pair, observable) not in measured:
-            found.append(f"{pair} {comparison.scene.name}/{observable}: recorded in the baseline, not measured now")
-    return found
+            regressions.append(f"{pair} {comparison.scene.name}/{observable}: recorded in the baseline, not "
+                               "measured now")
+    return regressions, missing
 
 
 def _folder(path: str | Path) -> Path:
@@ -537,14 +551,12 @@ def _folder(path: str | Path) -> Path:
 
 
 def _recorded(directory: Path, case: str) -> set[tuple[str, str]]:
-    """(pair, observable) of every divergence of model `case` recorded in `directory`."""
+    """(pair, observable) of every divergence of model `case` recorded in `directory` (each file read and
+    checked by validation.baselines.read: BaselineError naming a broken one)."""
     out = set()
+    prefix = f"{case}/"
     for file in sorted(directory.glob("*.json")):
-        try:
-            metrics = json.loads(file.read_text())["metrics"]
-        except (ValueError, KeyError, TypeError):
-            raise ValueError(f"baseline file {str(file)!r} is not a baseline (expected JSON with 'metrics')") from None
-        prefix = f"{case}/"
+        metrics = baselines.read(file)["metrics"]
         out.update((file.stem, key[len(prefix):]) for key in metrics if key.startswith(prefix))
     return out
 
@@ -599,31 +611,18 @@ def _format(header: Sequence[str], lines: list[Sequence[str]], markdown: bool) -
                      + [fmt.format(*map(str, line)) for line in lines])
 
 
-def _write_atomic(path: Path, write: Callable) -> None:
-    """write(file) into a temporary file in path's folder, then os.replace it onto path."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
-    try:
-        with os.fdopen(handle, "wb") as file:
-            write(file)
-        os.replace(temporary, path)
-    except BaseException:
-        if os.path.exists(temporary):
-            os.unlink(temporary)
-        raise
-
-
 def write_report(comparison: Comparison, out: str | Path, regressions: Sequence[str] | None = None) -> Path:
     """out/<model>.md with the tables, and its figure out/<model>_divergence.png; both written to a
     temporary name and renamed into place. Returns the report's path."""
     out = Path(out)
+    out.mkdir(parents=True, exist_ok=True)
     stem = "".join(c if c.isalnum() or c in "-_." else "_" for c in comparison.scene.name)
     figure = None
     if comparison.rows:
         figure = comparison.save_figure(out / f"{stem}_divergence.png").name
     text = comparison.to_markdown(figure, regressions)
     path = out / f"{stem}.md"
-    _write_atomic(path, lambda f: f.write(text.encode()))
+    write_atomic(path, text)
     return path
 
 
@@ -631,7 +630,8 @@ def write_report(comparison: Comparison, out: str | Path, regressions: Sequence[
 
 def main(args) -> int:
     """python -m validation compare MODEL ...: 0 agreed with the baseline (or none given), 1 a regression
-    against the baseline, 2 bad input (a message on stderr, no traceback)."""
+    against the baseline, 2 bad input (a message on stderr, no traceback) or a divergence without a baseline
+    (as the main command: a missing baseline is not a pass)."""
     import sys
 
     def say(line: str) -> None:
@@ -644,11 +644,15 @@ def main(args) -> int:
         if args.baseline is not None and not args.update_baseline and not Path(args.baseline).is_dir():
             raise ValueError(f"--baseline {str(args.baseline)!r}: no such folder (record one with --update-baseline)")
         scene = load_model(args.model, t_end=args.t_end)
+        if args.baseline is not None and not args.update_baseline and not _recorded(Path(args.baseline), scene.name):
+            # every file read and checked before the run (BaselineError names a broken one)
+            raise ValueError(f"baseline {str(args.baseline)!r} holds no divergences of model {scene.name!r} "
+                             "(record them with --update-baseline)")
         say(f"comparing {scene.describe()} in {', '.join(engines)}")
         comparison = compare(scene, engines, dt=args.dt, t_end=args.t_end, method=args.method, progress=say)
-        found = None
+        found, missing = None, []
         if args.baseline is not None and not args.update_baseline:
-            found = check_baseline(comparison, args.baseline)
+            found, missing = baseline_findings(comparison, args.baseline)
     except ValueError as error:
         say(f"error: {error}")
         return 2
@@ -656,8 +660,10 @@ def main(args) -> int:
     if args.update_baseline:
         for path in save_baseline(comparison, args.baseline):
             say(f"baseline written: {path}")
-    path = write_report(comparison, args.out, found)
+    path = write_report(comparison, args.out, None if found is None else found + missing)
     say(f"report: {path}")
     for message in found or ():
         say(f"REGRESSION {message}")
-    return 1 if found else 0
+    for message in missing:
+        say(f"MISSING {message}")
+    return 1 if found else 2 if missing else 0

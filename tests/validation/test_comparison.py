@@ -218,6 +218,21 @@ def test_baseline_round_trip_and_exit_codes(tmp_path, capsys, monkeypatch):
     assert "rbody-pymunk swinging_rod/theta: recorded in the baseline, not measured now" in check_baseline(refused, base)
 
 
+def test_a_divergence_without_a_baseline_or_a_broken_file_exits_2(tmp_path, capsys):
+    model, base, out = f"{_write_model(tmp_path)}:rod", tmp_path / "base", str(tmp_path / "out")
+    assert main(["compare", model, "--engines", "rbody,mujoco", "--out", out, "--baseline", str(base),
+                 "--update-baseline"]) == 0
+    capsys.readouterr()
+    assert main(["compare", model, "--out", out, "--baseline", str(base)]) == 2  # pymunk now runs too
+    err = capsys.readouterr().err
+    assert "MISSING no baseline for rbody-pymunk swinging_rod/theta" in err and "--update-baseline" in err
+    (base / "rbody-mujoco.json").write_text('{"metrics": {"swinging_rod/theta": ')  # an interrupted write
+    assert main(["compare", model, "--engines", "rbody,mujoco", "--out", out, "--baseline", str(base)]) == 2
+    err = capsys.readouterr().err
+    assert "error: baseline file" in err and "rbody-mujoco.json" in err and "Traceback" not in err
+    assert "comparing" not in err  # checked before any run
+
+
 def test_save_baseline_then_check_through_the_api(tmp_path):
     c = compare(swinging_rod(1.0, theta0=0.5, t_end=0.5), engines=["rbody", "mujoco"])
     written = save_baseline(c, str(tmp_path / "b"))
@@ -249,7 +264,8 @@ def test_bad_input_exits_2_with_a_message_and_no_traceback(tmp_path, capsys, arg
     assert main(["compare", *arguments, "--out", str(tmp_path / "out")]) == 2
     err = capsys.readouterr().err
     assert "error:" in err and message in err and "Traceback" not in err
-    assert not (tmp_path / "out").exists()  # nothing run, nothing written
+    out = tmp_path / "out"
+    assert not out.exists() or not any(out.iterdir())  # nothing run, nothing written
 
 
 def test_unknown_option_exits_2():
