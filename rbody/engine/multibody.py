@@ -100,16 +100,13 @@ def body_offset(p, i):
 
 # ----- kinematics -------------------------------------------------------------------------------------------
 
-@njit(cache=True)
-def kinematics(p, q, xpos, xquat, xmat, xaxis, xanchor):
+@njit(cache=True, inline="always")
+def kinematics(p, q, xpos, xquat, xmat, xaxis, xanchor, scratch):
     """World poses of every body from qpos q (nq,), as MuJoCo's mj_kinematics: xpos (nb, 3) body-frame
     origins [m], xquat (nb, 4), xmat (nb, 3, 3); per joint its world axis and anchor (nj, 3) [m]."""
     nb = int(p[H_BODIES])
     bo, jo = int(p[H_BODY]), int(p[H_JOINT])
-    qloc = np.empty(4)
-    quat = np.empty(4)
-    previous = np.empty(4)
-    vec = np.empty(3)
+    qloc, quat, previous, vec = scratch[0:4], scratch[4:8], scratch[8:12], scratch[12:15]
     for i in range(nb):
         b = bo + i * BODY_SIZE
         parent = int(p[b + B_PARENT])
@@ -166,14 +163,14 @@ def kinematics(p, q, xpos, xquat, xmat, xaxis, xanchor):
         quat_to_matrix(xquat[i], xmat[i])
 
 
-@njit(cache=True)
-def motion_subspaces(p, xpos, xmat, xaxis, xanchor, S):
+@njit(cache=True, inline="always")
+def motion_subspaces(p, xpos, xmat, xaxis, xanchor, S, scratch):
     """S (nv, 6): each degree of freedom's unit motion (omega; v at the world origin), world axes, as
     MuJoCo's cdof. Hinge (a; x x a) about its anchor x; slide (0; a); ball and free rotations about the
     body's own axes (columns of xmat) through the anchor; free translations along the world axes."""
     nv = int(p[H_DOFS])
     jo, do = int(p[H_JOINT]), int(p[H_DOF])
-    axis = np.empty(3)
+    axis = scratch[0:3]
     for d in range(nv):
         j = int(p[do + d * DOF_SIZE + D_JOINT])
         k = int(p[do + d * DOF_SIZE + D_INDEX])
@@ -201,14 +198,14 @@ def motion_subspaces(p, xpos, xmat, xaxis, xanchor, S):
         cross3(xanchor[j], axis, S[d, 3:])
 
 
-@njit(cache=True)
-def velocities(p, S, v, vel, bias):
+@njit(cache=True, inline="always")
+def velocities(p, S, v, vel, bias, scratch):
     """vel (nb, 6): each body's spatial velocity (world axes, about the origin); bias (nv, 6): each degree of
     freedom's velocity-product acceleration S' v_d = (v_before x S) v_d (MuJoCo's cdof_dot qvel), v_before
     the body's velocity before the joint (ball and free rotations: before the whole group)."""
     nb = int(p[H_BODIES])
     bo, do = int(p[H_BODY]), int(p[H_DOF])
-    base = np.empty(6)
+    base = scratch[0:6]
     for i in range(nb):
         b = bo + i * BODY_SIZE
         parent = int(p[b + B_PARENT])
@@ -226,12 +223,12 @@ def velocities(p, S, v, vel, bias):
                 vel[i, a] += S[d, a] * v[d]
 
 
-@njit(cache=True)
-def world_inertias(p, xpos, xmat, h, Ibar):
+@njit(cache=True, inline="always")
+def world_inertias(p, xpos, xmat, h, Ibar, scratch):
     """Each body's inertia about the world origin, world axes: h (nb, 3) = m c, Ibar (nb, 3, 3)."""
     nb = int(p[H_BODIES])
     bo = int(p[H_BODY])
-    Ic = np.empty((3, 3))
+    Ic = scratch[0:9].reshape((3, 3))
     for i in range(nb):
         b = bo + i * BODY_SIZE
         for a in range(3):
@@ -240,7 +237,7 @@ def world_inertias(p, xpos, xmat, h, Ibar):
         inertia_in_world(p[b + B_MASS], p[b + B_COM:b + B_COM + 3], Ic, xmat[i], xpos[i], h[i], Ibar[i])
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def passive(p, q, v, out):
     """out (nv,) = MuJoCo's qfrc_passive: -stiffness (q - springref) per hinge and slide, -damping v per dof."""
     nj, nv = int(p[H_JOINTS]), int(p[H_DOFS])
@@ -257,36 +254,70 @@ def passive(p, q, v, out):
 # ----- the state of one evaluation ------------------------------------------------------------------------
 
 @njit(cache=True)
-def _frames(p, q, v):
-    """Kinematics, motion subspaces, velocities and world inertias of one state (arrays allocated here)."""
-    nb, nj, nv = int(p[H_BODIES]), int(p[H_JOINTS]), int(p[H_DOFS])
-    xpos, xquat, xmat = np.empty((nb, 3)), np.empty((nb, 4)), np.empty((nb, 3, 3))
-    xaxis, xanchor = np.empty((nj, 3)), np.empty((nj, 3))
-    S, bias, vel = np.empty((nv, 6)), np.empty((nv, 6)), np.empty((nb, 6))
-    h, Ibar = np.empty((nb, 3)), np.empty((nb, 3, 3))
-    kinematics(p, q, xpos, xquat, xmat, xaxis, xanchor)
-    motion_subspaces(p, xpos, xmat, xaxis, xanchor, S)
-    velocities(p, S, v, vel, bias)
-    world_inertias(p, xpos, xmat, h, Ibar)
-    return xpos, xquat, xmat, S, bias, vel, h, Ibar
+def workspace_size(p) -> int:
+    """Floats of the workspace of one evaluation (see _views)."""
+    nb, nj, nv, nq = int(p[H_BODIES]), int(p[H_JOINTS]), int(p[H_DOFS]), int(p[H_NQ])
+    return 91 * nb + 6 * nj + 22 * nv + nq + SCRATCH
+
+
+SCRATCH = 32  # floats of small temporaries (quaternions, 3- and 6-vectors) at the end of the workspace
+
+
+@njit(cache=True, inline="always")
+def _views(p, w):
+    """The arrays of one evaluation, as views of one workspace w (workspace_size(p),): allocating each
+    (~25 small arrays) would cost more than the algorithms themselves. Five blocks are reshaped (a reshape
+    costs tens of ns in numba); the arrays are row slices of them."""
+    nb, nj, nv, nq = int(p[H_BODIES]), int(p[H_JOINTS]), int(p[H_DOFS]), int(p[H_NQ])
+    at = 0
+    six = w[at:at + 6 * (3 * nv + 4 * nb)].reshape((3 * nv + 4 * nb, 6))
+    at += 6 * (3 * nv + 4 * nb)
+    three = w[at:at + 3 * (2 * nb + 2 * nj)].reshape((2 * nb + 2 * nj, 3))
+    at += 3 * (2 * nb + 2 * nj)
+    matrices = w[at:at + 18 * nb].reshape((2 * nb, 3, 3))
+    at += 18 * nb
+    IA = w[at:at + 36 * nb].reshape((nb, 6, 6))
+    at += 36 * nb
+    xquat = w[at:at + 4 * nb].reshape((nb, 4))
+    at += 4 * nb
+    S, bias, U = six[0:nv], six[nv:2 * nv], six[2 * nv:3 * nv]
+    vel, pA = six[3 * nv:3 * nv + nb], six[3 * nv + nb:3 * nv + 2 * nb]
+    acc, force = six[3 * nv + 2 * nb:3 * nv + 3 * nb], six[3 * nv + 3 * nb:3 * nv + 4 * nb]
+    xpos, h = three[0:nb], three[nb:2 * nb]
+    xaxis, xanchor = three[2 * nb:2 * nb + nj], three[2 * nb + nj:2 * nb + 2 * nj]
+    xmat, Ibar = matrices[0:nb], matrices[nb:2 * nb]
+    u = w[at:at + nv]
+    mass = w[at + nv:at + nv + nb]
+    at += nv + nb
+    q = w[at:at + nq]
+    tau = w[at + nq:at + nq + nv]
+    pivots = w[at + nq + nv:at + nq + 2 * nv]
+    zero = w[at + nq + 2 * nv:at + nq + 3 * nv]
+    scratch = w[at + nq + 3 * nv:at + nq + 3 * nv + SCRATCH]
+    return (xpos, xquat, xmat, xaxis, xanchor, S, bias, vel, h, Ibar, IA, pA, U, u, acc, force, mass, q, tau,
+            pivots, zero, scratch)
+
+
+@njit(cache=True, inline="always")
+def _frames(p, q, v, xpos, xquat, xmat, xaxis, xanchor, S, bias, vel, h, Ibar, scratch):
+    """Kinematics, motion subspaces, velocities and world inertias of one state, into the given arrays."""
+    kinematics(p, q, xpos, xquat, xmat, xaxis, xanchor, scratch)
+    motion_subspaces(p, xpos, xmat, xaxis, xanchor, S, scratch)
+    velocities(p, S, v, vel, bias, scratch)
+    world_inertias(p, xpos, xmat, h, Ibar, scratch)
 
 
 # ----- the articulated-body algorithm ---------------------------------------------------------------------
 
-@njit(cache=True)
-def articulated_body(p, S, bias, vel, h, Ibar, tau, qacc, pivots):
+@njit(cache=True, inline="always")
+def articulated_body(p, S, bias, vel, h, Ibar, tau, qacc, pivots, IA, pA, U, u, acc, scratch):
     """ABA: qacc (nv,) from the generalised forces tau (nv,) (applied + passive), pivots (nv,) the D of every
     degree of freedom (armature included). Returns the first dof whose pivot is not positive beyond
     PIVOT_RTOL of its scale, or -1."""
     nb, nv = int(p[H_BODIES]), int(p[H_DOFS])
     bo, do = int(p[H_BODY]), int(p[H_DOF])
     g = p[H_GRAVITY]
-    IA = np.empty((nb, 6, 6))
-    pA = np.empty((nb, 6))
-    U = np.empty((nv, 6))
-    u = np.empty(nv)
-    acc = np.empty((nb, 6))
-    tmp = np.empty(6)
+    tmp = scratch[0:6]
     for i in range(nb):
         mass = p[bo + i * BODY_SIZE + B_MASS]
         inertia_matrix(mass, h[i], Ibar[i], IA[i])
@@ -346,29 +377,31 @@ def articulated_body(p, S, bias, vel, h, Ibar, tau, qacc, pivots):
     return bad
 
 
-@njit(cache=True)
-def forward_one(p, q, v, tau, qacc, pivots):
-    """qacc (nv,) = M^-1 (tau + passive - bias) at one state; returns the first singular dof or -1."""
-    _xpos, _xquat, _xmat, S, bias, vel, h, Ibar = _frames(p, q, v)
+@njit(cache=True, inline="always")
+def forward_one(p, q, v, tau, qacc, pivots, w):
+    """qacc (nv,) = M^-1 (tau + passive - bias) at one state, w the workspace; returns the first singular dof
+    or -1 (pivots (nv,) the ABA's D)."""
+    (xpos, xquat, xmat, xaxis, xanchor, S, bias, vel, h, Ibar, IA, pA, U, u, acc, _force, _mass, _q, force,
+     _pivots, _zero, scratch) = _views(p, w)
+    _frames(p, q, v, xpos, xquat, xmat, xaxis, xanchor, S, bias, vel, h, Ibar, scratch)
     nv = int(p[H_DOFS])
-    force = np.empty(nv)
     passive(p, q, v, force)
     for d in range(nv):
         force[d] += tau[d]
-    return articulated_body(p, S, bias, vel, h, Ibar, force, qacc, pivots)
+    return articulated_body(p, S, bias, vel, h, Ibar, force, qacc, pivots, IA, pA, U, u, acc, scratch)
 
 
 # ----- recursive Newton-Euler and composite rigid bodies -------------------------------------------------
 
 @njit(cache=True)
-def inverse_one(p, q, v, qacc, gravity_on, out):
+def inverse_one(p, q, v, qacc, gravity_on, out, w):
     """RNEA: out (nv,) = M qacc + bias (gravity included when gravity_on), passive forces not included."""
-    _xpos, _xquat, _xmat, S, bias, vel, h, Ibar = _frames(p, q, v)
+    (xpos, xquat, xmat, xaxis, xanchor, S, bias, vel, h, Ibar, _IA, _pA, _U, _u, acc, force, _mass, _q, _tau,
+     _pivots, _zero, scratch) = _views(p, w)
+    _frames(p, q, v, xpos, xquat, xmat, xaxis, xanchor, S, bias, vel, h, Ibar, scratch)
     nb = int(p[H_BODIES])
     bo, do = int(p[H_BODY]), int(p[H_DOF])
-    acc = np.empty((nb, 6))
-    force = np.empty((nb, 6))
-    tmp = np.empty(6)
+    tmp = scratch[0:6]
     for i in range(nb):
         b = bo + i * BODY_SIZE
         parent = int(p[b + B_PARENT])
@@ -396,13 +429,15 @@ def inverse_one(p, q, v, qacc, gravity_on, out):
 
 
 @njit(cache=True)
-def mass_matrix_one(p, q, out):
+def mass_matrix_one(p, q, out, w):
     """CRBA: out (nv, nv) = M(q), armature on the diagonal."""
     nb, nv = int(p[H_BODIES]), int(p[H_DOFS])
     bo, do = int(p[H_BODY]), int(p[H_DOF])
-    v = np.zeros(nv)
-    _xpos, _xquat, _xmat, S, _bias, _vel, h, Ibar = _frames(p, q, v)
-    mass = np.empty(nb)
+    (xpos, xquat, xmat, xaxis, xanchor, S, bias, vel, h, Ibar, _IA, _pA, _U, _u, _acc, _force, mass, _q, _tau,
+     _pivots, v, scratch) = _views(p, w)
+    for d in range(nv):
+        v[d] = 0.0
+    _frames(p, q, v, xpos, xquat, xmat, xaxis, xanchor, S, bias, vel, h, Ibar, scratch)
     for i in range(nb):
         mass[i] = p[bo + i * BODY_SIZE + B_MASS]
     for i in range(nb - 1, -1, -1):  # composite inertias: add each body's to its parent's
@@ -416,7 +451,7 @@ def mass_matrix_one(p, q, out):
     for a in range(nv):
         for c in range(nv):
             out[a, c] = 0.0
-    F = np.empty(6)
+    F = scratch[0:6]
     for i in range(nb):
         b = bo + i * BODY_SIZE
         d0, nd = int(p[b + B_DOF0]), int(p[b + B_NDOF])
@@ -432,12 +467,14 @@ def mass_matrix_one(p, q, out):
 
 
 @njit(cache=True)
-def energies_one(p, q, v):
+def energies_one(p, q, v, w):
     """(kinetic, potential) [J]: sum 1/2 v_i . I_i v_i; sum m g z_com + 1/2 stiffness (q - springref)^2."""
-    _xpos, _xquat, _xmat, _S, _bias, vel, h, Ibar = _frames(p, q, v)
+    (xpos, xquat, xmat, xaxis, xanchor, S, bias, vel, h, Ibar, _IA, _pA, _U, _u, _acc, _force, _mass, _q, _tau,
+     _pivots, _zero, scratch) = _views(p, w)
+    _frames(p, q, v, xpos, xquat, xmat, xaxis, xanchor, S, bias, vel, h, Ibar, scratch)
     nb, nj = int(p[H_BODIES]), int(p[H_JOINTS])
     bo, jo = int(p[H_BODY]), int(p[H_JOINT])
-    tmp = np.empty(6)
+    tmp = scratch[0:6]
     kinetic, potential = 0.0, 0.0
     for i in range(nb):
         mass = p[bo + i * BODY_SIZE + B_MASS]
@@ -452,10 +489,12 @@ def energies_one(p, q, v):
 
 
 @njit(cache=True)
-def body_states_one(p, q, v, com, quat, velocity, omega):
+def body_states_one(p, q, v, com, quat, velocity, omega, w):
     """World centre of mass (nb, 3) [m], orientation (nb, 4), centre-of-mass velocity (nb, 3) [m/s] and
     angular velocity (nb, 3) [rad/s] of every body."""
-    xpos, xquat, xmat, _S, _bias, vel, h, _Ibar = _frames(p, q, v)
+    (xpos, xquat, xmat, xaxis, xanchor, S, bias, vel, h, Ibar, _IA, _pA, _U, _u, _acc, _force, _mass, _q, _tau,
+     _pivots, _zero, scratch) = _views(p, w)
+    _frames(p, q, v, xpos, xquat, xmat, xaxis, xanchor, S, bias, vel, h, Ibar, scratch)
     nb = int(p[H_BODIES])
     bo = int(p[H_BODY])
     for i in range(nb):
@@ -473,14 +512,13 @@ def body_states_one(p, q, v, com, quat, velocity, omega):
 
 # ----- the native state of a TreeScene: y = (qpos, qvel, phi) ---------------------------------------------
 
-@njit(cache=True)
-def _effective_qpos(p, y, q):
+@njit(cache=True, inline="always")
+def _effective_qpos(p, y, q, turn):
     """q (nq,) = qpos with every ball/free quaternion q_n replaced by q_n (x) exp(phi)."""
     nj, nq, nv = int(p[H_JOINTS]), int(p[H_NQ]), int(p[H_DOFS])
     jo = int(p[H_JOINT])
     for a in range(nq):
         q[a] = y[a]
-    turn = np.empty(4)
     for j in range(nj):
         r = jo + j * JOINT_SIZE
         slot = int(p[r + J_ROT])
@@ -498,12 +536,15 @@ def tree_rhs(y, p, out):
     qvel' = forward dynamics at the turned quaternions. A singular mass matrix gives NaN (the run fails)."""
     nj, nq, nv = int(p[H_JOINTS]), int(p[H_NQ]), int(p[H_DOFS])
     jo = int(p[H_JOINT])
-    q = np.empty(nq)
-    _effective_qpos(p, y, q)
+    size = workspace_size(p)
+    w = np.empty(size + nq + 2 * nv + 4)  # the one allocation of an evaluation: the workspace, then q, tau, ...
+    q, tau = w[size:size + nq], w[size + nq:size + nq + nv]
+    pivots, turn = w[size + nq + nv:size + nq + 2 * nv], w[size + nq + 2 * nv:size + nq + 2 * nv + 4]
+    _effective_qpos(p, y, q, turn)
     v = y[nq:nq + nv]
-    tau = np.zeros(nv)
-    pivots = np.empty(nv)
-    forward_one(p, q, v, tau, out[nq:nq + nv], pivots)
+    for d in range(nv):
+        tau[d] = 0.0
+    forward_one(p, q, v, tau, out[nq:nq + nv], pivots, w)
     for j in range(nj):
         r = jo + j * JOINT_SIZE
         kind = int(p[r + J_KIND])
@@ -528,8 +569,8 @@ def tree_finish(y, p):
     """After a step: fold every phi into its quaternion, q <- q (x) exp(phi), and set phi = 0."""
     nj, nq, nv = int(p[H_JOINTS]), int(p[H_NQ]), int(p[H_DOFS])
     jo = int(p[H_JOINT])
-    turn = np.empty(4)
-    old = np.empty(4)
+    w = np.empty(8)
+    turn, old = w[0:4], w[4:8]
     for j in range(nj):
         r = jo + j * JOINT_SIZE
         slot = int(p[r + J_ROT])
@@ -550,10 +591,13 @@ def tree_accel(q, p, out):
     """q'' = a(q) for trees whose mass matrix is constant and forces depend on q only (no ball or free joint:
     nq = nv): forward dynamics at zero velocity."""
     nv = int(p[H_DOFS])
-    v = np.zeros(nv)
-    tau = np.zeros(nv)
-    pivots = np.empty(nv)
-    forward_one(p, q, v, tau, out, pivots)
+    w = np.empty(workspace_size(p))
+    (_xpos, _xquat, _xmat, _xaxis, _xanchor, _S, _bias, _vel, _h, _Ibar, _IA, _pA, _U, _u, _acc, _force, v,
+     _q, _tau, pivots, tau, _scratch) = _views(p, w)
+    for d in range(nv):
+        v[d] = 0.0
+        tau[d] = 0.0
+    forward_one(p, q, v, tau, out, pivots, w)
 
 
 # ----- batches: one compiled loop per algorithm -----------------------------------------------------------
@@ -561,21 +605,24 @@ def tree_accel(q, p, out):
 @njit(cache=True)
 def _forward_batch(p, Q, V, T, out, pivots):
     bad = np.full(Q.shape[0], -1, dtype=np.int64)
+    w = np.empty(workspace_size(p))
     for b in range(Q.shape[0]):
-        bad[b] = forward_one(p, Q[b], V[b], T[b], out[b], pivots[b])
+        bad[b] = forward_one(p, Q[b], V[b], T[b], out[b], pivots[b], w)
     return bad
 
 
 @njit(cache=True)
 def _inverse_batch(p, Q, V, A, gravity_on, out):
+    w = np.empty(workspace_size(p))
     for b in range(Q.shape[0]):
-        inverse_one(p, Q[b], V[b], A[b], gravity_on, out[b])
+        inverse_one(p, Q[b], V[b], A[b], gravity_on, out[b], w)
 
 
 @njit(cache=True)
 def _mass_matrix_batch(p, Q, out):
+    w = np.empty(workspace_size(p))
     for b in range(Q.shape[0]):
-        mass_matrix_one(p, Q[b], out[b])
+        mass_matrix_one(p, Q[b], out[b], w)
 
 
 @njit(cache=True)
@@ -586,14 +633,16 @@ def _passive_batch(p, Q, V, out):
 
 @njit(cache=True)
 def _energies_batch(p, Q, V, out):
+    w = np.empty(workspace_size(p))
     for b in range(Q.shape[0]):
-        out[b, 0], out[b, 1] = energies_one(p, Q[b], V[b])
+        out[b, 0], out[b, 1] = energies_one(p, Q[b], V[b], w)
 
 
 @njit(cache=True)
 def _body_states_batch(p, Q, V, com, quat, velocity, omega):
+    w = np.empty(workspace_size(p))
     for b in range(Q.shape[0]):
-        body_states_one(p, Q[b], V[b], com[b], quat[b], velocity[b], omega[b])
+        body_states_one(p, Q[b], V[b], com[b], quat[b], velocity[b], omega[b], w)
 
 
 # ----- building the model from a Layout -------------------------------------------------------------------

@@ -190,21 +190,21 @@ def inertia_in_world(mass, com, Ic, R, origin, h, Ibar):
     """A body's inertia about the world origin, world axes: mass [kg], com (3,) its centre of mass in the
     body frame, Ic (3, 3) its tensor about the com in body axes, R (3, 3) and origin (3,) the body frame's
     orientation and origin (world). Writes h = mass c and Ibar = R Ic R^T + mass (|c|^2 1 - c c^T)."""
-    c = np.empty(3)
-    matrix_vector(R, com, c)
+    c0 = R[0, 0] * com[0] + R[0, 1] * com[1] + R[0, 2] * com[2] + origin[0]
+    c1 = R[1, 0] * com[0] + R[1, 1] * com[1] + R[1, 2] * com[2] + origin[1]
+    c2 = R[2, 0] * com[0] + R[2, 1] * com[1] + R[2, 2] * com[2] + origin[2]
+    h[0], h[1], h[2] = mass * c0, mass * c1, mass * c2
+    c2sum = c0 * c0 + c1 * c1 + c2 * c2
     for a in range(3):
-        c[a] += origin[a]
-        h[a] = mass * c[a]
-    c2 = c[0] * c[0] + c[1] * c[1] + c[2] * c[2]
-    for a in range(3):
-        for b in range(3):
+        ca = c0 if a == 0 else (c1 if a == 1 else c2)
+        for b in range(a, 3):
+            cb = c0 if b == 0 else (c1 if b == 1 else c2)
             acc = 0.0
             for k in range(3):
-                rk = R[a, k]
-                if rk != 0.0:
-                    acc += rk * (Ic[k, 0] * R[b, 0] + Ic[k, 1] * R[b, 1] + Ic[k, 2] * R[b, 2])
-            Ibar[a, b] = acc - mass * c[a] * c[b]
-        Ibar[a, a] += mass * c2
+                acc += R[a, k] * (Ic[k, 0] * R[b, 0] + Ic[k, 1] * R[b, 1] + Ic[k, 2] * R[b, 2])
+            Ibar[a, b] = acc - mass * ca * cb
+            Ibar[b, a] = Ibar[a, b]
+        Ibar[a, a] += mass * c2sum
 
 
 @njit(**_JIT)
