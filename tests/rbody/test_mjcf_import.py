@@ -484,3 +484,25 @@ def test_reached_limit_raises_with_time_and_joint():
         simulate(scene, dt=1e-3, method="rk4")
     # the same joint, declared but not reached in a short run: nothing to say
     simulate(from_mjcf(xml, t_end=0.05), dt=1e-3, method="rk4")
+
+
+@pytest.mark.parametrize("pos, verdict", [("0 0 0.25", None), ("0.25 0 0", "overlap"),
+                                          ("0.3 0.35 0", "may overlap")])
+def test_overlapping_meshes(tmp_path, pos, verdict):
+    """Two U prisms (0.75 x 0.75 x 0.25): stacked face to face (no overlap), shifted along x (overlap),
+    and a small box mesh in the U's notch, inside its bounding box but outside its solid (undecided:
+    refused, conservatively)."""
+    trimesh = pytest.importorskip("trimesh")
+    u_prism(tmp_path, shift=(0.0, 0.0, 0.0))
+    trimesh.creation.box(extents=(0.1, 0.1, 0.1)).export(str(tmp_path / "cube.stl"))
+    second = "u" if verdict != "may overlap" else "cube"
+    xml = f"""<mujoco><compiler meshdir="{tmp_path}"/>{OFF}<asset><mesh file="u.stl" inertia="exact"/>
+      <mesh file="cube.stl" inertia="exact"/></asset><worldbody><body><joint/>
+      <geom name="one" type="mesh" mesh="u"/><geom name="two" type="mesh" mesh="{second}" pos="{pos}"/>
+      </body></worldbody></mujoco>"""
+    if verdict is None:
+        check(xml)
+    else:
+        with pytest.raises(MJCFError, match=f"'one' and 'two' {verdict}"):
+            layout_from_mjcf(xml)
+        check(xml, overlapping_geoms="sum")
