@@ -506,3 +506,16 @@ def test_overlapping_meshes(tmp_path, pos, verdict):
         with pytest.raises(MJCFError, match=f"'one' and 'two' {verdict}"):
             layout_from_mjcf(xml)
         check(xml, overlapping_geoms="sum")
+
+
+def test_declared_limits_are_written_back():
+    from rbody import from_mjcf
+
+    xml = f"""<mujoco>{OFF}<worldbody><body><joint name="j" range="-10 20"/><geom size="0.1"/>
+      <body pos="0 0 -1"><joint name="k" type="ball" range="0 40"/><geom size="0.1"/></body>
+      <body pos="1 0 0"><joint name="s" type="slide" range="-0.5 0.25"/><geom size="0.1"/></body></body>
+      </worldbody></mujoco>"""
+    original = mujoco.MjModel.from_xml_string(xml)
+    again = mujoco.MjModel.from_xml_string(to_mjcf(from_mjcf(xml)))
+    np.testing.assert_array_equal(again.jnt_limited, original.jnt_limited)
+    np.testing.assert_allclose(again.jnt_range, original.jnt_range, rtol=1e-15, atol=0)
