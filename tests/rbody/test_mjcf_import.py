@@ -349,7 +349,8 @@ BODY = '<body name="b"><joint/><geom size="0.1"/></body>'
      "explicit contact pairs"),
     (f"<mujoco>{OFF}<worldbody><body><joint frictionloss='1'/><geom size='0.1'/></body></worldbody></mujoco>",
      "frictionloss"),
-    (f"<mujoco>{OFF}<worldbody><body>\n<joint type='ball' stiffness='2'/><geom size='0.1'/></body></worldbody></mujoco>",
+    (f"<mujoco>{OFF}<worldbody><body>\n<joint type='ball' stiffness='2'/><geom size='0.1'/></body>"
+     "</worldbody></mujoco>",
      r"line 2, <joint>: stiffness on a ball joint"),
     (f"<mujoco><compiler settotalmass='3'/>{OFF}<worldbody>{BODY}</worldbody></mujoco>", "settotalmass"),
     (f"<mujoco>{OFF}<worldbody><body><geom class='nope' size='0.1'/></body></worldbody></mujoco>", "class='nope'|nope"),
@@ -424,7 +425,8 @@ CHAIN = """<mujoco model="chain"><compiler angle="radian"/>
 BALL_AND_FREE = """<mujoco model="ball"><option timestep="0.002"><flag contact="disable"/></option><worldbody>
 <body name="p" pos="0 0 1"><joint name="ball" type="ball" damping="0.01" armature="0.003" pos="0 0 0.05"/>
   <geom type="box" size="0.05 0.1 0.3" pos="0.1 0 -0.3"/></body>
-<body name="f" pos="1 0 1" euler="10 20 30"><joint type="free" damping="0.02" armature="0.01"/><geom type="box" size="0.1 0.2 0.3" pos="0.05 0 0"/></body>
+<body name="f" pos="1 0 1" euler="10 20 30"><joint type="free" damping="0.02" armature="0.01"/>
+  <geom type="box" size="0.1 0.2 0.3" pos="0.05 0 0"/></body>
 </worldbody><keyframe><key qpos="0.9 0.3 0.2 0.1  1 0 1 1 0 0 0" qvel="1 2 -1  0.1 0.2 3  2 -1 0.5"/></keyframe>
 </mujoco>"""
 
