@@ -8,7 +8,8 @@ from rbody.mjcf.export import (CONTACT_SOLIMP, DEFAULT_TIMESTEP, INITIAL_KEY, MU
                                ExportedInertia, body_order, contact_parameters, exported_inertia, has_impacts,
                                impact_damping_ratio, initial_state, joint_order, pushing_restitution,
                                shape_inertia, to_mjcf)
-from rbody.mjcf.parse import MJCFError, MJCFModel, MJCFScene, from_mjcf, layout_from_mjcf
+from rbody.mjcf.document import MJCFError
+from rbody.mjcf.parse import MJCFModel, MJCFScene, from_mjcf, layout_from_mjcf
 
 __all__ = ["to_mjcf", "from_mjcf", "layout_from_mjcf", "MJCFError", "MJCFModel", "MJCFScene", "exported_inertia",
            "ExportedInertia", "contact_parameters", "initial_state", "body_order", "joint_order", "has_impacts",

@@ -473,8 +473,10 @@ def _inertial(exported: ExportedInertia, indent: str) -> str:
     return f"{indent}<inertial {attrs}/>"
 
 
-def _joint(joint: Joint, indent: str) -> str:
+def _joint(joint: Joint, indent: str, limit: tuple[float, float] | None = None) -> str:
     extra = {name: _num(getattr(joint, name)) for name in _JOINT_ATTRIBUTES if getattr(joint, name, 0.0) != 0.0}
+    if limit is not None and joint.kind != "free":  # a scene's declared range (MJCFScene.limits) [rad | m]
+        extra.update(limited="true", range=_vec(limit))
     if joint.kind == "free":
         extra.pop("ref", None)
         if extra:  # <freejoint> takes no damping or armature; <joint type="free"> does
@@ -550,6 +552,7 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
     pairs = [(c, contact_parameters(c, dt, solref=solref, solimp=solimp, condim=condim)) for c in layout.contacts]
     qpos, qvel = initial_state(layout)
     order = body_order(layout)
+    limits = dict(getattr(scene, "limits", None) or {})  # MJCFScene: the model's declared joint ranges
 
     # --- the comment: what the model holds and where it came from ---
     counts = {kind: sum(j.kind == kind for j in layout.joints) for kind in ("hinge", "slide", "ball", "free")}
@@ -561,8 +564,8 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
         "Only what the scene uses: every geom has contype=conaffinity=0, so nothing collides except the",
         "<pair>s below. Mass properties are explicit (inertiafromgeom=false): rbody's mass, centre of mass",
         "and tensor about it, body frame; joints have no damping, armature, friction, springs or limits."
-        if not any(getattr(j, key, 0.0) for j in layout.joints for key in _JOINT_ATTRIBUTES) else
-        "and tensor about it, body frame; joints have no friction or limits, and damping, stiffness, springref, "
+        if not limits and not any(getattr(j, key, 0.0) for j in layout.joints for key in _JOINT_ATTRIBUTES) else
+        "and tensor about it, body frame; joints have no friction, and limits, damping, stiffness, springref, "
         "armature and ref only where the scene gives them.",
         (f"gravity {gravity!r} m/s^2 along -z" if gravity == scene.gravity else
          f"gravity 0 (the scene applies no uniform gravity, though it states g = {scene.gravity!r} m/s^2)")
@@ -606,7 +609,7 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
         out.append(f"{indent}<body {_attrs(name=body.name, pos=_vec(body.pos), quat=_vec(quat))}>")
         for joint in layout.joints:
             if joint.body == body.name:
-                out.append(_joint(joint, indent + "  "))
+                out.append(_joint(joint, indent + "  ", limits.get(joint.name)))
         out.append(_inertial(exported[body.name], indent + "  "))
         for shape in body.shapes:
             out.append(_geom(shape, indent + "  "))

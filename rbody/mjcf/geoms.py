@@ -27,20 +27,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-MJ_EPS = 1e-14      # mjEPS: MuJoCo's smallest meaningful mass or volume here
+from rbody.mjcf.frames import quat_matrix, quat_product, unit
+
 MJ_MINVAL = 1e-15   # mjMINVAL
 
 MESH_INERTIA_MODES = ("legacy", "exact", "convex", "shell")
-
-
-def quat_matrix(quat) -> np.ndarray:
-    """(3,3) rotation of a unit quaternion (w, x, y, z), as MuJoCo's mjuu_quat2mat."""
-    w, x, y, z = (float(v) for v in quat)
-    return np.array([
-        [w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z],
-    ])
 
 
 def primitive_volume(kind: str, size, shell: bool = False) -> float:
@@ -300,21 +291,6 @@ MESH_EIG_RTOL = 1e-7    # ... looser for a mesh's own principal axes (mujoco 4.0
 EIG_SORT_RTOL = 1e-12  # ... and swaps two eigenvalues only when they differ by more than this fraction
 
 
-def _unit(vector: np.ndarray) -> np.ndarray:
-    """MuJoCo's mjuu_normvec: unchanged when the norm is within 1e-14 of 1."""
-    norm = math.sqrt(float(sum(v * v for v in vector)))
-    if norm * norm < MJ_EPS:
-        return vector
-    return vector / norm if abs(norm - 1) > MJ_EPS else vector
-
-
-def quat_product(p, q) -> np.ndarray:
-    w1, x1, y1, z1 = p
-    w2, x2, y2, z2 = q
-    return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
-
-
 def mujoco_principal(tensor: np.ndarray, rtol: float = EIG_RTOL) -> tuple[np.ndarray, np.ndarray]:
     """(moments (3,) descending, quat (4,)) of a symmetric (3,3) tensor as MuJoCo's compiler finds them
     (mjuu_eig3 of mujoco 4: Jacobi rotations accumulated as a quaternion until the largest off-diagonal
@@ -346,7 +322,7 @@ def mujoco_principal(tensor: np.ndarray, rtol: float = EIG_RTOL) -> tuple[np.nda
         turn = np.zeros(4)
         turn[0] = 1.0 / math.sqrt(1.0 + h * h)
         turn[rotk + 1] = (h if rotk == 1 else -h) * turn[0]
-        quat = _unit(quat_product(quat, turn))
+        quat = unit(quat_product(quat, turn))
     eps = scale * max(rtol, EIG_SORT_RTOL)
     for j in range(3):
         lead = j % 2
@@ -355,7 +331,7 @@ def mujoco_principal(tensor: np.ndarray, rtol: float = EIG_RTOL) -> tuple[np.nda
             turn = np.zeros(4)
             turn[0] = 0.707106781186548
             turn[(lead + 2) % 3 + 1] = turn[0]
-            quat = _unit(quat_product(quat, turn))
+            quat = unit(quat_product(quat, turn))
     return eigval, quat
 
 

@@ -4,6 +4,8 @@
 integrator, initial state in MuJoCo's qpos/qvel layout, keyframes, declared joint limits, notes);
 ``from_mjcf`` hands it to ``Scene.from_layout`` (the general engine). `source` is a path or an XML string.
 Every error is an MJCFError (a ValueError) naming the file, the line and the element, raised before any run.
+The package: document.py reads the XML (lines kept, includes expanded), frames.py forms MuJoCo's frames,
+geoms.py its mass properties, overlap.py decides whether geoms of one body overlap; this module assembles.
 
 Supported (read as MuJoCo's compiler reads them; the compiled masses, centres of mass and inertia tensors
 equal MuJoCo's body_mass, body_ipos and body_inertia/body_iquat to round-off):
@@ -49,7 +51,8 @@ explicit <pair>, while the contact flag is on: set contype="0" conaffinity="0" o
 actuators that push with a zero control (position, velocity, damper, ... or damping/armature on the
 actuator); fluid forces (option density or viscosity, geom fluidshape); joint frictionloss and
 springdamper; body gravcomp; heightfields, flexes, composites, plugins, <frame>, <replicate>,
-<attach>; gravity not along -z; stiffness on a ball joint; boundmass, boundinertia, settotalmass, fusestatic, alignfree; a body
+<attach>; gravity not along -z; stiffness on a ball joint; boundmass, boundinertia, settotalmass,
+fusestatic, alignfree; a body
 with a joint but no mass; an orientation given twice; unknown elements or attributes; geoms of one body
 that overlap, which MuJoCo would count twice (``overlapping_geoms="sum"`` sums them as MuJoCo does).
 
@@ -70,18 +73,19 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
-import xml.parsers.expat
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Mapping
 
 import numpy as np
 
-from rbody.inertia import Inertia
-from rbody.mjcf.geoms import (MESH_INERTIA_MODES, MJ_EPS, GeomMass, MeshMass, mesh_mass, mujoco_principal,
-                              primitive_moments, primitive_volume, principal_tensor, quat_matrix, quat_product,
-                              sum_geoms)
 from rbody.errors import SimulationError
+from rbody.inertia import Inertia
+from rbody.mjcf.document import (Element, MJCFError, boolean, choice, expand_includes, number, numbers,
+                                 read_source)
+from rbody.mjcf.frames import MJ_EPS, frame_to_quat, normalize, quat_matrix, quat_product, z_to_quat
+from rbody.mjcf.geoms import (MESH_INERTIA_MODES, GeomMass, MeshMass, mesh_mass, mujoco_principal, primitive_moments,
+                              primitive_volume, principal_tensor, sum_geoms)
 from rbody.scene import WORLD, Body, Joint, Layout, NativeModel, Shape, TreeScene
 
 DEFAULT_T_END = 1.0        # [s] duration of a scene read from MJCF when t_end is not given
@@ -89,167 +93,6 @@ OVERLAP_CHOICES = ("refuse", "sum")
 INTEGRATORS = {"Euler": "Euler", "RK4": "RK4", "implicit": "implicit", "implicitfast": "implicitfast"}
 ORIENTATIONS = ("quat", "axisangle", "xyaxes", "zaxis", "euler")
 PRINCIPAL_NOTE_RTOL = 1e-12  # a tensor MuJoCo's eigen-solver moves by more than this (relative) is noted
-
-
-class MJCFError(ValueError):
-    """An MJCF document rbody cannot read, or that would change the dynamics in a way rbody does not model."""
-
-
-# ----- the document as elements with their file and line ------------------------------------------------
-
-@dataclass
-class Element:
-    tag: str
-    attrib: dict
-    file: str
-    line: int
-    children: list = field(default_factory=list)
-
-    def where(self) -> str:
-        name = self.attrib.get("name")
-        label = f"<{self.tag} name={name!r}>" if name else f"<{self.tag}>"
-        return f"{self.file}, line {self.line}, {label}"
-
-    def error(self, message: str) -> MJCFError:
-        return MJCFError(f"{self.where()}: {message}")
-
-
-def _parse_text(text: str, file: str) -> Element:
-    """Elements of one XML document, each with its line (expat); comments and text are dropped."""
-    root: list[Element] = []
-    stack: list[Element] = []
-    parser = xml.parsers.expat.ParserCreate()
-
-    def start(tag, attrib):
-        element = Element(tag, dict(attrib), file, parser.CurrentLineNumber)
-        (stack[-1].children if stack else root).append(element)
-        stack.append(element)
-
-    def end(tag):
-        stack.pop()
-
-    parser.StartElementHandler = start
-    parser.EndElementHandler = end
-    try:
-        parser.Parse(text, True)
-    except xml.parsers.expat.ExpatError as error:
-        raise MJCFError(f"{file}, line {error.lineno}, column {error.offset}: malformed XML "
-                        f"({xml.parsers.expat.ErrorString(error.code)})") from None
-    return root[0]
-
-
-def _read(source: Any) -> tuple[Element, Path | None]:
-    """The root element of `source` (a path or an XML string) and the file's folder (None for a string)."""
-    if isinstance(source, (str, os.PathLike)) and not (isinstance(source, str) and source.lstrip().startswith("<")):
-        path = Path(source)
-        if not path.is_file():
-            raise MJCFError(f"source={os.fspath(source)!r}: no such file (give a path to an MJCF file or the XML text)")
-        return _parse_text(path.read_text(), str(path)), path.resolve().parent
-    if not isinstance(source, str):
-        raise MJCFError(f"source={source!r}: expected a path or an MJCF XML string")
-    return _parse_text(source, "<string>"), None
-
-
-def _expand_includes(element: Element, folder: Path, active: tuple[str, ...]) -> None:
-    """Replace every <include file> below `element` by the children of the included <mujoco>."""
-    expanded = []
-    for child in element.children:
-        if child.tag != "include":
-            _expand_includes(child, folder, active)
-            expanded.append(child)
-            continue
-        unknown = set(child.attrib) - {"file"}
-        if unknown or "file" not in child.attrib:
-            raise child.error("an include needs exactly one attribute, file")
-        path = (folder / child.attrib["file"]).resolve()
-        if not path.is_file():
-            raise child.error(f"included file {str(path)!r} does not exist")
-        if str(path) in active:
-            raise child.error(f"includes {str(path)!r}, which includes this file again (a cycle)")
-        included = _parse_text(path.read_text(), str(path))
-        if included.tag != "mujoco":
-            raise included.error("an included file must have <mujoco> as its root element")
-        _expand_includes(included, path.parent, active + (str(path),))
-        expanded.extend(included.children)
-    element.children = expanded
-
-
-# ----- numbers ------------------------------------------------------------------------------------------
-
-def _numbers(element: Element, key: str, attrib: dict, count: int | tuple | None = None) -> np.ndarray:
-    text = attrib[key]
-    try:
-        values = np.array([float(token) for token in text.split()], dtype=float)
-    except ValueError:
-        raise element.error(f"{key}={text!r}: expected numbers") from None
-    counts = (count,) if isinstance(count, int) else count
-    if counts is not None and len(values) not in counts:
-        raise element.error(f"{key}={text!r}: expected {' or '.join(map(str, counts))} numbers, got {len(values)}")
-    if not np.all(np.isfinite(values)):
-        raise element.error(f"{key}={text!r}: numbers must be finite")
-    return values
-
-
-def _number(element: Element, key: str, attrib: dict, default: float) -> float:
-    if key not in attrib:
-        return default
-    return float(_numbers(element, key, attrib, 1)[0])
-
-
-def _choice(element: Element, key: str, attrib: dict, choices: tuple, default: str) -> str:
-    value = attrib.get(key, default)
-    if value not in choices:
-        raise element.error(f"{key}={value!r}: expected one of {choices}")
-    return value
-
-
-def _bool(element: Element, key: str, attrib: dict, default: bool) -> bool:
-    return _choice(element, key, attrib, ("true", "false"), "true" if default else "false") == "true"
-
-
-# ----- quaternions, as MuJoCo's compiler forms them -------------------------------------------------------
-
-def _normalize(vector: np.ndarray) -> tuple[np.ndarray, float]:
-    """MuJoCo's mjuu_normvec: no division when the norm is within 1e-14 of 1; norm 0 below 1e-14."""
-    squared = float(sum(v * v for v in vector))
-    if squared < MJ_EPS:
-        return vector, 0.0
-    norm = math.sqrt(squared)
-    return (vector / norm if abs(norm - 1) > MJ_EPS else vector), norm
-
-
-def _quat_multiply(p, q) -> np.ndarray:
-    w1, x1, y1, z1 = p
-    w2, x2, y2, z2 = q
-    return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
-
-
-def _z_to_quat(vector: np.ndarray) -> np.ndarray:
-    """The rotation taking z to `vector` (MuJoCo's mjuu_z2quat)."""
-    axis, s = _normalize(np.cross([0.0, 0.0, 1.0], vector))
-    if s < 1e-10:
-        axis = np.array([1.0, 0.0, 0.0])
-    angle = math.atan2(s, vector[2])
-    return np.concatenate([[math.cos(angle / 2)], axis * math.sin(angle / 2)])
-
-
-def _frame_to_quat(x, y, z) -> np.ndarray:
-    """Quaternion of the rotation whose columns are x, y, z (MuJoCo's mjuu_frame2quat)."""
-    m = (x, y, z)  # m[c][r]
-    if m[0][0] + m[1][1] + m[2][2] > 0:
-        w = 0.5 * math.sqrt(1 + m[0][0] + m[1][1] + m[2][2])
-        q = [w, 0.25 * (m[1][2] - m[2][1]) / w, 0.25 * (m[2][0] - m[0][2]) / w, 0.25 * (m[0][1] - m[1][0]) / w]
-    elif m[0][0] > m[1][1] and m[0][0] > m[2][2]:
-        a = 0.5 * math.sqrt(1 + m[0][0] - m[1][1] - m[2][2])
-        q = [0.25 * (m[1][2] - m[2][1]) / a, a, 0.25 * (m[1][0] + m[0][1]) / a, 0.25 * (m[2][0] + m[0][2]) / a]
-    elif m[1][1] > m[2][2]:
-        b = 0.5 * math.sqrt(1 - m[0][0] + m[1][1] - m[2][2])
-        q = [0.25 * (m[2][0] - m[0][2]) / b, 0.25 * (m[1][0] + m[0][1]) / b, b, 0.25 * (m[2][1] + m[1][2]) / b]
-    else:
-        c = 0.5 * math.sqrt(1 - m[0][0] - m[1][1] + m[2][2])
-        q = [0.25 * (m[0][1] - m[1][0]) / c, 0.25 * (m[2][0] + m[0][2]) / c, 0.25 * (m[2][1] + m[1][2]) / c, c]
-    return _normalize(np.array(q))[0]
 
 
 # ----- the reader --------------------------------------------------------------------------------------
@@ -380,6 +223,9 @@ class _Reader:
         self.bodies: list[_Body] = []
         self.world: _Body | None = None
         self.excluded: set[frozenset] = set()
+        self.mesh_paths: dict[str, str] = {}                 # mesh name -> absolute file path
+        self.plane_bodies: list[tuple[Element, _Body]] = []  # planes on bodies (only static ones may hold them)
+        self.key_elements: list[Element] = []
 
     # ----- helpers -----
 
@@ -414,42 +260,42 @@ class _Reader:
             return np.array([1.0, 0.0, 0.0, 0.0])
         key = given[0]
         if key == "quat":
-            quat, norm = _normalize(_numbers(element, key, attrib, 4))
+            quat, norm = normalize(numbers(element, key, attrib, 4))
             if norm == 0:
                 raise element.error(f"quat={attrib[key]!r}: a quaternion must be non-zero")
             return quat
         if key == "axisangle":
-            values = _numbers(element, key, attrib, 4)
+            values = numbers(element, key, attrib, 4)
             angle = values[3] / 180.0 * math.pi if self.degree else values[3]
-            axis, norm = _normalize(values[:3])
+            axis, norm = normalize(values[:3])
             if norm < MJ_EPS:
                 raise element.error(f"axisangle={attrib[key]!r}: the axis is too small")
             return np.concatenate([[math.cos(angle / 2)], math.sin(angle / 2) * axis])
         if key == "xyaxes":
-            values = _numbers(element, key, attrib, 6)
-            x, nx = _normalize(values[:3])
+            values = numbers(element, key, attrib, 6)
+            x, nx = normalize(values[:3])
             if nx < MJ_EPS:
                 raise element.error(f"xyaxes={attrib[key]!r}: the x axis is too small")
             y = values[3:] - x * float(x @ values[3:])
-            y, ny = _normalize(y)
-            z, nz = _normalize(np.cross(x, y))
+            y, ny = normalize(y)
+            z, nz = normalize(np.cross(x, y))
             if ny < MJ_EPS or nz < MJ_EPS:
                 raise element.error(f"xyaxes={attrib[key]!r}: the y axis is parallel to the x axis or too small")
-            return _frame_to_quat(x, y, z)
+            return frame_to_quat(x, y, z)
         if key == "zaxis":
-            z, norm = _normalize(_numbers(element, key, attrib, 3))
+            z, norm = normalize(numbers(element, key, attrib, 3))
             if norm < MJ_EPS:
                 raise element.error(f"zaxis={attrib[key]!r}: the axis is too small")
-            return _z_to_quat(z)
-        angles = _numbers(element, key, attrib, 3)
+            return z_to_quat(z)
+        angles = numbers(element, key, attrib, 3)
         if self.degree:
             angles = angles / 180.0 * math.pi
         quat = np.array([1.0, 0.0, 0.0, 0.0])
         for angle, axis in zip(angles, self.eulerseq):
             turn = np.array([math.cos(angle / 2), 0.0, 0.0, 0.0])
             turn[1 + "xyz".index(axis.lower())] = math.sin(angle / 2)
-            quat = _quat_multiply(quat, turn) if axis.islower() else _quat_multiply(turn, quat)
-        return _normalize(quat)[0]
+            quat = quat_product(quat, turn) if axis.islower() else quat_product(turn, quat)
+        return normalize(quat)[0]
 
     # ----- sections -----
 
@@ -514,29 +360,29 @@ class _Reader:
                 if child.tag != "lengthrange":
                     raise child.error("unknown element in <compiler>")
         where = elements[-1] if elements else self.root
-        self.degree = _choice(where, "angle", attrib, ("degree", "radian"), "degree") == "degree"
+        self.degree = choice(where, "angle", attrib, ("degree", "radian"), "degree") == "degree"
         self.eulerseq = attrib.get("eulerseq", "xyz")
         if len(self.eulerseq) != 3 or any(c not in "xyzXYZ" for c in self.eulerseq):
             raise where.error(f"eulerseq={self.eulerseq!r}: expected three of x, y, z, X, Y, Z")
-        self.inertiafromgeom = _choice(where, "inertiafromgeom", attrib, ("true", "false", "auto"), "auto")
+        self.inertiafromgeom = choice(where, "inertiafromgeom", attrib, ("true", "false", "auto"), "auto")
         self.group_range = (0, 5)
         if "inertiagrouprange" in attrib:
-            low, high = _numbers(where, "inertiagrouprange", attrib, 2)
+            low, high = numbers(where, "inertiagrouprange", attrib, 2)
             self.group_range = (int(low), int(high))
-        self.autolimits = _bool(where, "autolimits", attrib, True)
-        self.balanceinertia = _bool(where, "balanceinertia", attrib, False)
-        self.strippath = _bool(where, "strippath", attrib, False)
+        self.autolimits = boolean(where, "autolimits", attrib, True)
+        self.balanceinertia = boolean(where, "balanceinertia", attrib, False)
+        self.strippath = boolean(where, "strippath", attrib, False)
         base = self.folder if self.folder is not None else Path.cwd()
         assetdir = attrib.get("assetdir", "")
         self.meshdir = base / attrib.get("meshdir", assetdir)
         for key, default in (("boundmass", 0.0), ("boundinertia", 0.0)):
-            if _number(where, key, attrib, default) != default:
+            if number(where, key, attrib, default) != default:
                 raise where.error(f"{key} is not supported: it changes bodies' masses; give the masses explicitly")
-        if _number(where, "settotalmass", attrib, -1.0) > 0:
+        if number(where, "settotalmass", attrib, -1.0) > 0:
             raise where.error("settotalmass is not supported: it rescales every mass; give the masses explicitly")
-        if _bool(where, "fusestatic", attrib, False):
+        if boolean(where, "fusestatic", attrib, False):
             raise where.error("fusestatic is not supported: rbody keeps one body per MJCF body")
-        if _bool(where, "alignfree", attrib, False):
+        if boolean(where, "alignfree", attrib, False):
             raise where.error("alignfree is not supported: it moves free bodies' frames to their inertial frames")
         if attrib.get("coordinate", "local") != "local":
             raise where.error("coordinate must be 'local'")
@@ -557,13 +403,13 @@ class _Reader:
                 flags.update(child.attrib)
         where = elements[-1] if elements else self.root
         self.option_element = where
-        self.timestep = _number(where, "timestep", attrib, 0.002)
+        self.timestep = number(where, "timestep", attrib, 0.002)
         if not self.timestep > 0:
             raise where.error(f"timestep={self.timestep!r}: must be > 0 [s]")
-        self.integrator = _choice(where, "integrator", attrib, tuple(INTEGRATORS), "Euler")
-        gravity = _numbers(where, "gravity", attrib, 3) if "gravity" in attrib else np.array([0.0, 0.0, -9.81])
+        self.integrator = choice(where, "integrator", attrib, tuple(INTEGRATORS), "Euler")
+        gravity = numbers(where, "gravity", attrib, 3) if "gravity" in attrib else np.array([0.0, 0.0, -9.81])
         for key in ("density", "viscosity"):
-            if _number(where, key, attrib, 0.0) != 0:
+            if number(where, key, attrib, 0.0) != 0:
                 raise where.error(f"{key}={attrib[key]!r}: fluid forces are not supported (set {key}=\"0\")")
         ignored = sorted(set(attrib) - {"timestep", "integrator", "gravity", "density", "viscosity"})
         if ignored:
@@ -669,11 +515,11 @@ class _Reader:
             childclass = attrib["childclass"]
             if childclass not in self.classes:
                 raise element.error(f"childclass={childclass!r} is not a <default> class of the model")
-        if _number(element, "gravcomp", attrib, 0.0) != 0:
+        if number(element, "gravcomp", attrib, 0.0) != 0:
             raise element.error("gravcomp is not supported: it cancels gravity on the body")
-        if _bool(element, "mocap", attrib, False):
+        if boolean(element, "mocap", attrib, False):
             self.note("mocap", "mocap bodies are held fixed (nothing moves them in a run)")
-        pos = _numbers(element, "pos", attrib, 3) if "pos" in attrib else np.zeros(3)
+        pos = numbers(element, "pos", attrib, 3) if "pos" in attrib else np.zeros(3)
         body = _Body(element, attrib.get("name", ""), len(self.bodies) + 1, parent, pos,
                      self.orientation(element, attrib))
         self.bodies.append(body)
@@ -688,18 +534,18 @@ class _Reader:
             return
         self.check_attrs(element, _JOINT_ATTRS)
         attrib = self.attrs(element, "joint", childclass)
-        kind = _choice(element, "type", attrib, ("hinge", "slide", "ball", "free"), "hinge")
+        kind = choice(element, "type", attrib, ("hinge", "slide", "ball", "free"), "hinge")
         attrib["type"] = kind
-        if "springdamper" in attrib and np.any(_numbers(element, "springdamper", attrib, 2) != 0):
+        if "springdamper" in attrib and np.any(numbers(element, "springdamper", attrib, 2) != 0):
             raise element.error("springdamper is not supported: give stiffness and damping")
-        if self.frictionloss_on and _number(element, "frictionloss", attrib, 0.0) != 0:
+        if self.frictionloss_on and number(element, "frictionloss", attrib, 0.0) != 0:
             raise element.error("frictionloss (dry joint friction) is not supported")
         body.joints.append((element, attrib))
 
     def read_geom(self, element: Element, body: _Body, childclass: str | None) -> None:
         self.check_attrs(element, _GEOM_ATTRS)
         attrib = self.attrs(element, "geom", childclass)
-        kind = _choice(element, "type", attrib, _GEOM_KINDS, "sphere")
+        kind = choice(element, "type", attrib, _GEOM_KINDS, "sphere")
         if kind in ("hfield", "sdf"):
             raise element.error(f"{kind} geoms are not supported")
         if attrib.get("fluidshape", "none") != "none":
@@ -709,11 +555,11 @@ class _Reader:
         if any(key in attrib for key in ("rgba", "material")):
             self.note("appearance", "geoms' appearance (rgba, material) ignored")
         name = attrib.get("name", "")
-        fromto = _numbers(element, "fromto", attrib, 6) if "fromto" in attrib else None
+        fromto = numbers(element, "fromto", attrib, 6) if "fromto" in attrib else None
         if kind == "mesh":
             size = np.zeros(3)
         else:
-            size = _numbers(element, "size", attrib, (1, 2, 3)) if "size" in attrib else np.zeros(0)
+            size = numbers(element, "size", attrib, (1, 2, 3)) if "size" in attrib else np.zeros(0)
             needed = _SIZES[kind] - (2 if fromto is not None and kind in ("ellipsoid", "box") else
                                      1 if fromto is not None else 0)
             if kind == "plane":
@@ -721,7 +567,7 @@ class _Reader:
             if len(size) < needed:
                 raise element.error(f"a {kind} needs {needed} sizes, got size={attrib.get('size', '')!r}")
             size = np.concatenate([size, np.zeros(3 - len(size))])
-        pos = _numbers(element, "pos", attrib, 3) if "pos" in attrib else np.zeros(3)
+        pos = numbers(element, "pos", attrib, 3) if "pos" in attrib else np.zeros(3)
         if fromto is not None:
             if kind not in ("capsule", "cylinder", "ellipsoid", "box"):
                 raise element.error("fromto needs a capsule, cylinder, ellipsoid or box")
@@ -730,22 +576,22 @@ class _Reader:
             if any(key in attrib for key in ORIENTATIONS):
                 raise element.error("orientation given twice (fromto and an orientation): give one")
             vector = fromto[:3] - fromto[3:]
-            vector, length = _normalize(vector)
+            vector, length = normalize(vector)
             size[1] = length / 2
             if size[1] < MJ_EPS:
                 raise element.error("fromto's two points are too close")
             if kind in ("ellipsoid", "box"):
                 size[2], size[1] = size[1], size[0]
             pos = (fromto[:3] + fromto[3:]) / 2
-            quat = _z_to_quat(vector)
+            quat = z_to_quat(vector)
         else:
             quat = self.orientation(element, attrib)
         if kind != "plane" and kind != "mesh" and np.any(size[:_SIZES[kind]] <= 0):
             raise element.error(f"size={attrib.get('size', '')!r}: a {kind} needs sizes > 0")
         if kind == "plane" and body.index != 0:
-            self.plane_bodies = getattr(self, "plane_bodies", []) + [(element, body)]
-        geom = _Geom(element, attrib, name, kind, size, pos, quat, int(_number(element, "contype", attrib, 1)),
-                     int(_number(element, "conaffinity", attrib, 1)), int(_number(element, "group", attrib, 0)),
+            self.plane_bodies.append((element, body))
+        geom = _Geom(element, attrib, name, kind, size, pos, quat, int(number(element, "contype", attrib, 1)),
+                     int(number(element, "conaffinity", attrib, 1)), int(number(element, "group", attrib, 0)),
                      mesh=attrib.get("mesh"))
         if kind == "mesh" and geom.mesh is None:
             raise element.error("a mesh geom needs mesh=\"name of a <mesh> asset\"")
@@ -783,7 +629,7 @@ class _Reader:
             attrib = self.attrs(child, "tendon", None)
             active = []
             for key in ("stiffness", "damping", "frictionloss"):
-                if _number(child, key, attrib, 0.0) != 0 and (key != "frictionloss" or self.frictionloss_on):
+                if number(child, key, attrib, 0.0) != 0 and (key != "frictionloss" or self.frictionloss_on):
                     active.append(key)
             limited = attrib.get("limited", "auto")
             if self.limits_on and (limited == "true" or (limited == "auto" and self.autolimits and "range" in attrib)):
@@ -799,7 +645,7 @@ class _Reader:
                 raise child.error(f"unknown element <{child.tag}> in <actuator>")
             attrib = self.attrs(child, child.tag, None)
             passive = [key for key in ("damping", "armature") if key in attrib and
-                       np.any(_numbers(child, key, attrib) != 0)]
+                       np.any(numbers(child, key, attrib) != 0)]
             pushes = child.tag not in ("motor", "general") or (
                 child.tag == "general" and attrib.get("biastype", "none") != "none")
             if pushes or passive:
@@ -825,16 +671,16 @@ class _Reader:
         path = (self.meshdir / file).resolve()
         if not path.is_file():
             raise element.error(f"mesh file {str(path)!r} does not exist")
-        mode = _choice(element, "inertia", attrib, MESH_INERTIA_MODES, "legacy")
+        mode = choice(element, "inertia", attrib, MESH_INERTIA_MODES, "legacy")
         import trimesh
 
         try:
             loaded = trimesh.load(str(path), force="mesh", process=False)
         except Exception as error:  # trimesh raises many types for unreadable files
             raise element.error(f"mesh file {str(path)!r} could not be read ({error})") from None
-        scale = _numbers(element, "scale", attrib, 3) if "scale" in attrib else np.ones(3)
-        refpos = _numbers(element, "refpos", attrib, 3) if "refpos" in attrib else np.zeros(3)
-        refquat = _numbers(element, "refquat", attrib, 4) if "refquat" in attrib else np.array([1.0, 0, 0, 0])
+        scale = numbers(element, "scale", attrib, 3) if "scale" in attrib else np.ones(3)
+        refpos = numbers(element, "refpos", attrib, 3) if "refpos" in attrib else np.zeros(3)
+        refquat = numbers(element, "refquat", attrib, 4) if "refquat" in attrib else np.array([1.0, 0, 0, 0])
         if np.any(scale != 1):
             self.note(f"scale {name}", f"mesh {name!r}: scale {scale.tolist()} applies to its mass properties; the "
                                        "rbody Shape keeps the unscaled file (drawing only)")
@@ -844,7 +690,6 @@ class _Reader:
         except ValueError as error:
             raise element.error(f"mesh {name!r} ({str(path)!r}): {error}") from None
         self.mesh_cache[name] = result
-        self.mesh_paths = getattr(self, "mesh_paths", {})
         self.mesh_paths[name] = str(path)
         return result
 
@@ -853,7 +698,7 @@ class _Reader:
         element, attrib = geom.element, geom.attrib
         if geom.kind == "plane":
             return None
-        shell = _bool(element, "shellinertia", attrib, False)
+        shell = boolean(element, "shellinertia", attrib, False)
         rotation = quat_matrix(geom.quat)
         if geom.kind == "mesh":
             if shell:
@@ -863,12 +708,12 @@ class _Reader:
         else:
             volume = primitive_volume(geom.kind, geom.size, shell)
         if "mass" in attrib:
-            given = _number(element, "mass", attrib, 0.0)
+            given = number(element, "mass", attrib, 0.0)
             if given < 0:
                 raise element.error(f"mass={given!r}: must be >= 0 [kg]")
             mass = given if (given != 0 and volume > MJ_EPS) else 0.0
         else:
-            density = _number(element, "density", attrib, 1000.0)
+            density = number(element, "density", attrib, 1000.0)
             if density < 0:
                 raise element.error(f"density={density!r}: must be >= 0")
             mass = density * volume
@@ -899,8 +744,8 @@ class _Reader:
         attrib = element.attrib
         if "mass" not in attrib:
             raise element.error("<inertial> needs mass")
-        mass = _number(element, "mass", attrib, 0.0)
-        pos = _numbers(element, "pos", attrib, 3) if "pos" in attrib else None
+        mass = number(element, "mass", attrib, 0.0)
+        pos = numbers(element, "pos", attrib, 3) if "pos" in attrib else None
         if pos is None:
             raise element.error("<inertial> needs pos")
         if "fullinertia" in attrib:
@@ -908,13 +753,13 @@ class _Reader:
                 raise element.error("both diaginertia and fullinertia are given: give one")
             if any(key in attrib for key in ORIENTATIONS):
                 raise element.error("fullinertia with an orientation: the full tensor is already in the body axes")
-            xx, yy, zz, xy, xz, yz = _numbers(element, "fullinertia", attrib, 6)
+            xx, yy, zz, xy, xz, yz = numbers(element, "fullinertia", attrib, 6)
             exact = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
             tensor = principal_tensor(*mujoco_principal(exact))
             self.compare_exact(element, f"body {body.name!r} fullinertia", tensor, exact)
         elif "diaginertia" in attrib:
             rotation = quat_matrix(self.orientation(element, attrib))
-            tensor = rotation @ np.diag(_numbers(element, "diaginertia", attrib, 3)) @ rotation.T
+            tensor = rotation @ np.diag(numbers(element, "diaginertia", attrib, 3)) @ rotation.T
         else:
             raise element.error("<inertial> needs diaginertia or fullinertia")
         if mass < 0:
@@ -1010,7 +855,7 @@ class _Reader:
         self.world.weld = 0
         for body in self.bodies:
             body.weld = body.index if body.joints else body.parent.weld
-        for element, body in getattr(self, "plane_bodies", []):
+        for element, body in self.plane_bodies:
             if body.weld != 0:
                 raise element.error("a plane can only be on the world or a body without joints (MuJoCo's rule)")
 
@@ -1047,7 +892,7 @@ class _Reader:
 
     def passive(self, element: Element, attrib: dict) -> dict:
         """damping, stiffness, armature of a joint, >= 0; stiffness and damping 0 where the flags disable them."""
-        values = {key: _number(element, key, attrib, 0.0) for key in ("damping", "stiffness", "armature")}
+        values = {key: number(element, key, attrib, 0.0) for key in ("damping", "stiffness", "armature")}
         for key, value in values.items():
             if value < 0:
                 raise element.error(f"{key}={value!r}: must be >= 0")
@@ -1068,7 +913,7 @@ class _Reader:
             angular = self.degree and kind == "hinge"
 
             def angle(key: str, default: float = 0.0) -> float:
-                value = _number(element, key, attrib, default)
+                value = number(element, key, attrib, default)
                 return value / 180.0 * math.pi if angular else value
 
             if kind == "free":
@@ -1078,9 +923,9 @@ class _Reader:
                 qpos = np.concatenate([body.pos, body.quat])
                 nv = 6
             else:
-                pos = _numbers(element, "pos", attrib, 3) if "pos" in attrib else np.zeros(3)
-                axis = _numbers(element, "axis", attrib, 3) if "axis" in attrib else np.array([0.0, 0.0, 1.0])
-                axis, norm = _normalize(axis)
+                pos = numbers(element, "pos", attrib, 3) if "pos" in attrib else np.zeros(3)
+                axis = numbers(element, "axis", attrib, 3) if "axis" in attrib else np.array([0.0, 0.0, 1.0])
+                axis, norm = normalize(axis)
                 if kind in ("hinge", "slide") and norm < MJ_EPS:
                     raise element.error(f"axis={attrib.get('axis')!r}: a joint axis must be non-zero")
                 values = self.passive(element, attrib)
@@ -1100,19 +945,20 @@ class _Reader:
                     nv = 1
             limit = None
             if kind != "free" and self.limits_on:
-                limited = _choice(element, "limited", attrib, ("true", "false", "auto"), "auto")
+                limited = choice(element, "limited", attrib, ("true", "false", "auto"), "auto")
                 if limited == "true" or (limited == "auto" and self.autolimits and "range" in attrib):
                     if "range" not in attrib:
                         raise element.error("limited=\"true\" needs a range")
-                    low, high = _numbers(element, "range", attrib, 2)
+                    low, high = numbers(element, "range", attrib, 2)
                     if angular or (kind == "ball" and self.degree):
                         low, high = low / 180.0 * math.pi, high / 180.0 * math.pi
                     if kind == "ball":
                         low = 0.0
                     if not low < high:
                         raise element.error(f"range={attrib['range']!r}: needs lo < hi")
-                    margin = _number(element, "margin", attrib, 0.0)
-                    limit = (float(low + margin), float(high - margin)) if kind != "ball" else (0.0, float(high - margin))
+                    margin = number(element, "margin", attrib, 0.0)
+                    low = 0.0 if kind == "ball" else low + margin
+                    limit = (float(low), float(high - margin))
             out.append((joint, qpos, nv, limit))
         return out
 
@@ -1169,9 +1015,9 @@ class _Reader:
         keys = {}
         for i, key in enumerate(self.key_elements):
             attrib = key.attrib
-            qpos = _numbers(key, "qpos", attrib, len(qpos0)) if "qpos" in attrib else qpos0.copy()
-            qvel = _numbers(key, "qvel", attrib, nv) if "qvel" in attrib else np.zeros(nv)
-            if "ctrl" in attrib and np.any(_numbers(key, "ctrl", attrib) != 0):
+            qpos = numbers(key, "qpos", attrib, len(qpos0)) if "qpos" in attrib else qpos0.copy()
+            qvel = numbers(key, "qvel", attrib, nv) if "qvel" in attrib else np.zeros(nv)
+            if "ctrl" in attrib and np.any(numbers(key, "ctrl", attrib) != 0):
                 self.note("ctrl", "keyframe controls ignored (actuators are ignored)")
             name = attrib.get("name") or f"key{i}"
             if name in keys:
@@ -1198,8 +1044,6 @@ class _Reader:
 
     def joints_at(self, joints: list[Joint], qpos: np.ndarray, qvel: np.ndarray) -> list[Joint]:
         """The joints with their initial state set from MuJoCo's qpos and qvel."""
-        import dataclasses
-
         out, p, v = [], 0, 0
         bodies = {b.name: b for b in self.bodies}
         for joint in joints:
@@ -1233,7 +1077,7 @@ class _Reader:
         for body in self.bodies:
             carrier, ppos, pquat = kept[body.parent.index]
             pos = ppos + quat_matrix(pquat) @ body.pos
-            quat = _quat_multiply(pquat, body.quat)
+            quat = quat_product(pquat, body.quat)
             if body.mass <= MJ_EPS and not body.joints:
                 kept[body.index] = (carrier, pos, quat)
                 self.note(f"fold {body.name}", f"body {body.name!r} has neither mass nor joints: folded into "
@@ -1241,8 +1085,6 @@ class _Reader:
                 for geom in body.geoms:
                     shapes[carrier].extend(self.shapes_of(geom, pos, quat))
                 continue
-            if carrier != body.parent.name and body.parent.index != 0:
-                pass  # the parent was folded: the frame is composed above
             if body.mass <= MJ_EPS:
                 raise body.element.error("the body has a joint but no mass")
             try:
@@ -1255,15 +1097,13 @@ class _Reader:
                 shapes[body.name].extend(self.shapes_of(geom, np.zeros(3), np.array([1.0, 0, 0, 0])))
             bodies.append(Body(body.name, inertia, parent=carrier, pos=tuple(pos.tolist()),
                                quat=tuple(quat.tolist())))
-        import dataclasses
-
         bodies = [dataclasses.replace(b, shapes=tuple(shapes[b.name])) for b in bodies]
         return Layout(bodies=tuple(bodies), joints=tuple(joints), fixed=tuple(shapes[WORLD]))
 
     def shapes_of(self, geom: _Geom, pos: np.ndarray, quat: np.ndarray) -> list[Shape]:
         """The rbody Shape of a geom, in the frame (pos, quat) of the body that carries it."""
         gpos = pos + quat_matrix(quat) @ geom.pos
-        gquat = _quat_multiply(quat, geom.quat)
+        gquat = quat_product(quat, geom.quat)
         common = dict(pos=tuple(gpos.tolist()), quat=tuple(gquat.tolist()))
         if geom.kind == "ellipsoid":
             self.note("ellipsoid", "ellipsoid geoms are not drawn (rbody Shapes have no ellipsoid); their mass counts")
@@ -1300,8 +1140,8 @@ def layout_from_mjcf(source, *, qpos0=None, qvel0=None, keyframe: int | str | No
     """
     if overlapping_geoms not in OVERLAP_CHOICES:
         raise MJCFError(f"overlapping_geoms={overlapping_geoms!r}: expected one of {OVERLAP_CHOICES}")
-    root, folder = _read(source)
-    _expand_includes(root, folder if folder is not None else Path.cwd(), (root.file,))
+    root, folder = read_source(source)
+    expand_includes(root, folder if folder is not None else Path.cwd(), (root.file,))
     reader = _Reader(root, folder, overlapping_geoms)
     reader.read()
     return reader.build(qpos0, qvel0, keyframe)
@@ -1357,10 +1197,11 @@ class MJCFScene(TreeScene):
                 outside = (value < low) | (value > high)
                 if np.any(outside):
                     step = int(np.argmax(np.any(outside.reshape(len(t), -1), axis=1)))
+                    found = float(np.ravel(value[step])[np.argmax(np.ravel(outside[step]))])
                     raise SimulationError(
-                        f"scene {self.name!r}: joint {name!r} left its range [{low:.6g}, {high:.6g}] at t={t[step]:.6g} s "
-                        f"(value {float(np.ravel(value[step])[np.argmax(np.ravel(outside[step]))]):.6g}); rbody does not "
-                        "model joint limits: remove the range, or shorten the run (t_end)")
+                        f"scene {self.name!r}: joint {name!r} left its range [{low:.6g}, {high:.6g}] at "
+                        f"t={t[step]:.6g} s (value {found:.6g}); rbody does not model joint limits: remove the "
+                        "range, or shorten the run (t_end)")
             return data
 
         return dataclasses.replace(model, observe=observe_within_limits)
