@@ -122,12 +122,18 @@ class UnwritableFolder(ValueError):
 
 
 def check_writable_folder(folder: str | os.PathLike) -> Path:
-    """`folder` created if missing and checked writable (a file made and removed there); UnwritableFolder
-    (a ValueError) naming the folder and the reason otherwise. Commands call this before any work."""
+    """`folder` checked writable without creating it (a command that then refuses its other inputs leaves
+    nothing behind): a file made and removed in the folder, or, where it does not exist yet, in its nearest
+    existing ancestor, which must be a folder. UnwritableFolder (a ValueError) naming the folder and the
+    reason otherwise. Commands call this before any work."""
     folder = Path(folder)
+    existing = folder
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
     try:
-        folder.mkdir(parents=True, exist_ok=True)
-        handle, name = tempfile.mkstemp(prefix=".write-check.", dir=folder)
+        if not existing.is_dir():
+            raise NotADirectoryError(f"{str(existing)!r} is not a folder")
+        handle, name = tempfile.mkstemp(prefix=".write-check.", dir=existing)
         os.close(handle)
         os.unlink(name)
     except OSError as error:

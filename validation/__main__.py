@@ -1,4 +1,4 @@
-"""python -m validation [run] | export | bench | hard — see `python -m validation --help`."""
+"""python -m validation [run] | export | bench | hard | compare MODEL — see `python -m validation --help`."""
 
 from __future__ import annotations
 
@@ -35,10 +35,23 @@ def _parser() -> argparse.ArgumentParser:
                        help="only this scene, or 'batch' or 'growth' (repeatable; default: all)")
     bench.add_argument("--quick", action="store_true", help="short sweeps, under 2 minutes (the test suite's)")
     bench.add_argument("--out", type=Path, default=Path("report/bench"), help="folder (default: report/bench/)")
+    bench.add_argument("--repeat", type=int, default=1, metavar="N",
+                       help="run every sweep N times; the summary gives each ratio with its range (default: 1)")
     hard = commands.add_parser("hard", help="numerical stability on hard cases (validation/hard/): DIR/hard.md")
     hard.add_argument("--quick", action="store_true", help="short runs, under 2 minutes")
     hard.add_argument("--out", type=Path, default=Path("report"), help="report folder (default: report/)")
     hard.add_argument("--case", action="append", type=int, metavar="N", help="only case N of 1..9 (repeatable)")
+    compare = commands.add_parser(
+        "compare", help="one model in every engine that can express it: where they diverge (validation/comparison.py)")
+    compare.add_argument("model", help="an MJCF file, or 'module:name' / 'file.py:name' naming an rbody Scene")
+    compare.add_argument("--t-end", type=float, metavar="S", help="duration [s] (default: the model's)")
+    compare.add_argument("--dt", type=float, metavar="S", help="time step [s] (default: the model's timestep, else 1e-3)")
+    compare.add_argument("--method", metavar="M", help="rbody's method (default: rk4 where it applies, MuJoCo's scheme)")
+    compare.add_argument("--engines", default=",".join(("rbody", "mujoco", "pymunk")),
+                         help="comma-separated engines (default: rbody,mujoco,pymunk)")
+    compare.add_argument("--out", type=Path, default=Path("report/compare"), help="folder (default: report/compare/)")
+    compare.add_argument("--baseline", type=Path, metavar="DIR", help="check the divergences against this folder")
+    compare.add_argument("--update-baseline", action="store_true", help="record this run's divergences in --baseline")
     return parser
 
 
@@ -103,6 +116,9 @@ def _command(args) -> int:
     if args.command == "bench":
         from validation.bench.run import main as bench_main
         return bench_main(args)
+    if args.command == "compare":
+        from validation.comparison import main as compare_main
+        return compare_main(args)
     if args.command == "hard":
         from validation.hard.suite import CASES, run_hard
         return run_hard(args.out, quick=args.quick, cases=tuple(args.case) if args.case else CASES)

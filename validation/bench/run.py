@@ -19,14 +19,19 @@ EXTRA_WORK = ("batch", "growth")
 # --quick without --scene: the scenes that exercise every kind of truth and failure (the compound pendulum
 # and the race repeat the rod and the disc), so that the smoke test stays under 2 minutes.
 QUICK_DEFAULT = ("swinging_rod", "rolling_disc", "line_collisions", "pi_collisions", "free_rotation",
-                 "pendulum_chain") + EXTRA_WORK
+                 "pendulum_chain", "chain_general") + EXTRA_WORK
 
 
-def run_bench(out: Path, *, names: Iterable[str] | None = None, quick: bool = False, log=sys.stderr) -> Path:
+def run_bench(out: Path, *, names: Iterable[str] | None = None, quick: bool = False, repeat: int = 1,
+              log=sys.stderr) -> Path:
     """Run the benchmark into folder `out` and return the path of summary.md.
 
     names: scene names of bench_scenes() and/or "batch", "growth" (default: all of them; quick: QUICK_DEFAULT).
+    repeat: how many times every sweep is run (the `run` column of bench.csv); the summary gives each
+    ratio's median and its range over the runs. Batch and growth are measured once.
     """
+    if isinstance(repeat, bool) or not isinstance(repeat, int) or repeat < 1:
+        raise ValueError(f"repeat={repeat!r}: expected a whole number >= 1")
     benches = bench_scenes(quick)
     known = [b.name for b in benches] + list(EXTRA_WORK)
     names = list(names) if names else list(QUICK_DEFAULT if quick else known)
@@ -37,10 +42,12 @@ def run_bench(out: Path, *, names: Iterable[str] | None = None, quick: bool = Fa
     header = header_lines(quick)
     points: list[Point] = []
     with replaced_folder(out) as staging:  # the CSVs, figures and summary all new, or all as they were
-        for bench in benches:
-            if bench.name in names:
-                print(f"[bench] {bench.name} ({bench.scene.describe()})", file=log, flush=True)
-                points += run_scene(bench, quick=quick, log=log)
+        for run in range(1, repeat + 1):
+            for bench in benches:
+                if bench.name in names:
+                    print(f"[bench] run {run} of {repeat}: {bench.name} ({bench.scene.describe()})", file=log,
+                          flush=True)
+                    points += run_scene(bench, quick=quick, log=log, run=run)
         csv_name = write_csv(staging / "bench.csv", (asdict(p) for p in points), COLUMNS, header).name
         figures = [report.plot_scene(points, b, staging) for b in benches if b.name in names]
         batch_result = batch.run_batch(staging, quick=quick, header=header, log=log) if "batch" in names else None
@@ -55,7 +62,7 @@ def run_bench(out: Path, *, names: Iterable[str] | None = None, quick: bool = Fa
 
 
 def main(args) -> int:
-    """Entry of `python -m validation bench` (args: scene, quick, out)."""
-    path = run_bench(args.out, names=args.scene, quick=args.quick)
+    """Entry of `python -m validation bench` (args: scene, quick, out, repeat)."""
+    path = run_bench(args.out, names=args.scene, quick=args.quick, repeat=getattr(args, "repeat", 1))
     print(path.read_text())
     return 0

@@ -116,7 +116,8 @@ def write_markdown(out: Path, results: list[CaseResult], *, quick: bool, seconds
              f"- machine: {describe_machine()}",
              "- versions: " + ", ".join(f"{k} {v}" for k, v in versions().items()),
              "- times are wall times of each run on a machine shared with other work; they include rbody's "
-             "model building and MuJoCo's and pymunk's Python loops", ""]
+             "model building and MuJoCo's and pymunk's Python loops, except in case 1, where MuJoCo's and "
+             "pymunk's are their stepping alone (the measure of the search's budget)", ""]
     summary = [(r.number, r.title, sum(row.verdict == "pass" for row in r.rows),
                 sum(row.verdict == "FAIL" for row in r.rows), r.seconds) for r in results]
     parts += ["| case | title | rbody pass | rbody FAIL | time [s] |", "|---|---|---|---|---|"]
