@@ -27,6 +27,7 @@ def stubbed(monkeypatch, tmp_path):
     import validation.hard.suite as suite
 
     def run_bench(out, **kwargs):
+        out.mkdir(parents=True, exist_ok=True)  # the command checks --out writable without creating it
         (out / "summary.md").write_text("stub")
         return out / "summary.md"
 
