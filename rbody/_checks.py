@@ -105,3 +105,52 @@ def describe_values(array: np.ndarray) -> str:
     if array.size <= 6:
         return repr(array.tolist())
     return f"array of shape {array.shape} containing {array.ravel()[:3].tolist()}..."
+
+
+def scene_arguments(gravity: Any, t_end: Any = None) -> None:
+    """The arguments every scene factory shares, checked before the scene is built: gravity one number >= 0
+    [m/s^2]; t_end (None: the scene's own) one number > 0 [s]."""
+    single_number(gravity, "gravity", nonnegative)
+    if t_end is not None:
+        single_number(t_end, "t_end", positive)
+
+
+# A batch larger than this is checked on its model arrays only (evaluating the exact solution of every
+# element would cost more than building the scene).
+REPRESENTABLE_EXACT_BATCH = 1000
+
+
+def representable(scene, *, exact: bool = True):
+    """`scene`, checked that float64 can carry it: its native model's arrays and (continuous scenes, batches up
+    to REPRESENTABLE_EXACT_BATCH elements, unless exact=False: a line of balls replays its impacts in rationals)
+    its exact solution at t = 0 and t = t_end are finite. ValueError naming the scene
+    and its parameters otherwise (a parameter too large or too small for float64: an overflow to inf, an
+    underflow to 0 that divides). Observables that mean "not yet" (an arrival time) may be NaN."""
+    size = int(np.prod(scene.batch_shape)) if scene.batch_shape else 1
+    with np.errstate(all="ignore"):
+        problem = None
+        if not scene.event_driven:
+            model = scene.native_model
+            for label, values in (("initial state", model.y0), ("model parameters", model.params)):
+                if not np.all(np.isfinite(values)):
+                    problem = f"its {label} are not finite ({describe_values(np.asarray(values, dtype=float))})"
+        if problem is None and exact and size <= REPRESENTABLE_EXACT_BATCH:
+            exact = {}
+            for times in ([0.0, float(scene.t_end)], [0.0]):  # exact() may hold only up to some time
+                try:
+                    exact = scene.exact(np.array(times))
+                    break
+                except (NotImplementedError, ValueError):
+                    continue
+            for name, values in exact.items():
+                values = np.asarray(values)
+                if "arrival" in name or values.dtype.kind not in "fc":
+                    continue
+                if not np.all(np.isfinite(values)):
+                    problem = f"its exact {name} at t = 0 or t_end = {float(scene.t_end):.6g} s is not finite"
+                    break
+    if problem is not None:
+        raise ValueError(f"scene {scene.describe()}: {problem}; a parameter is too large or too small for "
+                         "float64 arithmetic (an overflow to inf or an underflow to 0): give it in other units "
+                         "or nearer the scene's scale")
+    return scene

@@ -48,6 +48,16 @@ def unit_axis(axis: AxisLike, name: str = "axis") -> np.ndarray:
     return scaled / np.linalg.norm(scaled)
 
 
+def _positive(value, name: str) -> np.float64:
+    """positive(), as a numpy float: moments like M L^2 then overflow to inf (refused by Inertia as not
+    finite) instead of raising Python's OverflowError."""
+    return np.float64(positive(value, name))
+
+
+def _nonnegative(value, name: str) -> np.float64:
+    return np.float64(nonnegative(value, name))
+
+
 def _symmetric_tensor(moment_along: float, moment_across: float, axis: AxisLike) -> np.ndarray:
     """(3,3) tensor of a body symmetric about `axis`: moment_along n n^T + moment_across (1 - n n^T)."""
     n = unit_axis(axis)
@@ -160,26 +170,26 @@ class Inertia:
     @classmethod
     def rod(cls, mass: float, length: float, axis: AxisLike = "z") -> "Inertia":
         """Thin rod along `axis`: M L^2 / 12 across, zero along it."""
-        length = positive(length, "length")
-        return cls(mass, np.zeros(3), _symmetric_tensor(0.0, positive(mass, "mass") * length**2 / 12, axis))
+        length = _positive(length, "length")
+        return cls(mass, np.zeros(3), _symmetric_tensor(0.0, _positive(mass, "mass") * length**2 / 12, axis))
 
     @classmethod
     def hoop(cls, mass: float, radius: float, axis: AxisLike = "z") -> "Inertia":
         """Thin ring normal to `axis`: M a^2 about the axis, M a^2 / 2 across."""
-        moment = positive(mass, "mass") * positive(radius, "radius") ** 2
+        moment = _positive(mass, "mass") * _positive(radius, "radius") ** 2
         return cls(mass, np.zeros(3), _symmetric_tensor(moment, moment / 2, axis))
 
     @classmethod
     def disc(cls, mass: float, radius: float, axis: AxisLike = "z") -> "Inertia":
         """Thin disc normal to `axis`: M a^2 / 2 about the axis, M a^2 / 4 across."""
-        moment = positive(mass, "mass") * positive(radius, "radius") ** 2
+        moment = _positive(mass, "mass") * _positive(radius, "radius") ** 2
         return cls(mass, np.zeros(3), _symmetric_tensor(moment / 2, moment / 4, axis))
 
     @classmethod
     def solid_cylinder(cls, mass: float, radius: float, length: float, axis: AxisLike = "z") -> "Inertia":
         """Uniform cylinder: M a^2 / 2 about the axis, M (3 a^2 + L^2) / 12 across."""
-        mass, radius = positive(mass, "mass"), positive(radius, "radius")
-        length = positive(length, "length")
+        mass, radius = _positive(mass, "mass"), _positive(radius, "radius")
+        length = _positive(length, "length")
         return cls(mass, np.zeros(3), _symmetric_tensor(
             mass * radius**2 / 2, mass * (3 * radius**2 + length**2) / 12, axis))
 
@@ -193,10 +203,10 @@ class Inertia:
         inner_radius == outer_radius is the thin-walled cylinder, M a^2 about its axis;
         inner_radius == 0 is the solid cylinder.
         """
-        mass = positive(mass, "mass")
-        inner = nonnegative(inner_radius, "inner_radius")
-        outer = positive(outer_radius, "outer_radius")
-        length = positive(length, "length")
+        mass = _positive(mass, "mass")
+        inner = _nonnegative(inner_radius, "inner_radius")
+        outer = _positive(outer_radius, "outer_radius")
+        length = _positive(length, "length")
         if inner > outer:
             raise ValueError(
                 f"inner_radius={inner} > outer_radius={outer}: the bore must fit inside the tube")
@@ -207,13 +217,13 @@ class Inertia:
     @classmethod
     def solid_sphere(cls, mass: float, radius: float) -> "Inertia":
         """Uniform ball: 2/5 M a^2 about every axis."""
-        moment = 0.4 * positive(mass, "mass") * positive(radius, "radius") ** 2
+        moment = 0.4 * _positive(mass, "mass") * _positive(radius, "radius") ** 2
         return cls(mass, np.zeros(3), moment * np.eye(3))
 
     @classmethod
     def spherical_shell(cls, mass: float, radius: float) -> "Inertia":
         """Thin spherical shell: 2/3 M a^2 about every axis."""
-        moment = 2.0 / 3.0 * positive(mass, "mass") * positive(radius, "radius") ** 2
+        moment = 2.0 / 3.0 * _positive(mass, "mass") * _positive(radius, "radius") ** 2
         return cls(mass, np.zeros(3), moment * np.eye(3))
 
     @classmethod
@@ -224,7 +234,7 @@ class Inertia:
         One side may be 0: a thin rectangular plate (lamina), for which I_zz = I_xx + I_yy
         (the chapter's perpendicular-axis theorem, for c = 0).
         """
-        mass = positive(mass, "mass")
+        mass = _positive(mass, "mass")
         size = finite_array(size, "size", shape=(3,))
         if np.any(size < 0) or np.sum(size == 0) > 1:
             raise ValueError(f"size={size.tolist()}: side lengths must be >= 0 [m] with at most one "

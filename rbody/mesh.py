@@ -78,19 +78,35 @@ def inertia_from_mesh(mesh: Any, *, density: float | None = None, mass: float | 
         raise ValueError(f"shell={shell!r}: expected True (thin surface) or False (solid)")
 
     vertices, faces = _clean(*_load(mesh))
+    # In units of the body's size s about its vertex mean: the integrals (up to s^5) neither overflow nor
+    # underflow for a body 1e-100 or 1e100 m across; the results are scaled back once, per unit mass.
+    centre = vertices.mean(axis=0)
+    size = float(np.max(np.abs(vertices - centre)))
+    if size == 0.0:
+        raise ValueError("mesh has all its vertices at one point: it has no area or volume")
+    local = (vertices - centre) / size
     if shell:
-        measure, first, second = _shell_moments(vertices, faces)
+        measure, first, second = _shell_moments(local, faces)
     else:
-        measure, first, second = _solid_moments(vertices, faces)
+        measure, first, second = _solid_moments(local, faces)
 
-    # Uniform density rho: m = rho * measure, and every moment scales with rho.
-    rho = density if density is not None else mass / measure
-    total = rho * measure
-    offset = first / measure                            # centre of mass relative to the vertex mean
-    second_com = second - measure * np.outer(offset, offset)
-    second_com = rho * 0.5 * (second_com + second_com.T)
-    tensor = np.trace(second_com) * np.eye(3) - second_com
-    return Inertia(total, vertices.mean(axis=0) + offset, tensor)
+    # Uniform density rho: m = rho * measure s^k (k = 3 solid, 2 shell); the moments per unit mass do not
+    # depend on rho.
+    if density is not None:
+        with np.errstate(over="raise", under="ignore"):
+            try:
+                total = density * measure * size ** (2 if shell else 3)
+            except FloatingPointError:
+                raise ValueError(f"density={density!r} over a body {size:.3g} m across: the mass overflows float64") from None
+        if not total > 0:
+            raise ValueError(f"density={density!r} over a body {size:.3g} m across: the mass underflows to 0 in float64")
+    else:
+        total = mass
+    offset = first / measure                            # centre of mass relative to the vertex mean [s]
+    per_mass = second / measure - np.outer(offset, offset)
+    per_mass = 0.5 * (per_mass + per_mass.T) * size**2  # int x x^T dm / m about the centre of mass [m^2]
+    tensor = total * (np.trace(per_mass) * np.eye(3) - per_mass)
+    return Inertia(total, centre + offset * size, tensor)
 
 
 # ----- input ---------------------------------------------------------------------------------------
@@ -288,9 +304,17 @@ def _check_self_intersection(vertices: np.ndarray, faces: np.ndarray) -> None:
     passes through the inside of the other, both strictly (a touch along a face, an edge or at a point is not
     a crossing); edges at a vertex the faces share are not tested (they meet there), and faces sharing an
     edge, or of zero area, are skipped. Coplanar faces that overlap are not found."""
-    corner = vertices[faces]                                            # (F, 3, 3)
+    # In units of the mesh's size about its centre: the test is scale-free, and areas of a body 1e-100 m across
+    # do not underflow.
+    local = vertices - vertices.mean(axis=0)
+    size = float(np.max(np.abs(local)))
+    if size == 0:
+        return
+    corner = (local / size)[faces]                                      # (F, 3, 3)
     areas = np.linalg.norm(np.cross(corner[:, 1] - corner[:, 0], corner[:, 2] - corner[:, 0]), axis=1)
     keep = np.flatnonzero(areas > 1e-14 * max(float(areas.max()), np.finfo(float).tiny))
+    if keep.size < 2:
+        return
     first, second = _candidate_pairs(corner[keep])
     first, second = keep[first], keep[second]
     # Faces that cross each have corners strictly on both sides of the other's plane: most pairs (neighbours

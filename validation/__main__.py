@@ -66,9 +66,11 @@ def main(argv: list[str] | None = None) -> int:
 
     args = _parser().parse_args(argv)
     try:
+        if "\0" in str(args.out):
+            raise InputProblem(f"--out {str(args.out)!r}: a path cannot hold a NUL character")
         check_writable_folder(args.out)  # before any work: a run of minutes must not end in a traceback
         return _command(args)
-    except (BaselineError, UnwritableFolder) as error:
+    except (BaselineError, UnwritableFolder, InputProblem) as error:
         print(f"error: {error}", file=sys.stderr)
         return INPUT_PROBLEM
     except OSError as error:
@@ -82,7 +84,30 @@ def main(argv: list[str] | None = None) -> int:
 _WRITE_ERRORS = (errno.EACCES, errno.EPERM, errno.ENOSPC, errno.EDQUOT, errno.EROFS)
 
 
+class InputProblem(ValueError):
+    """A command-line value the command cannot use (named in the message), found before any work."""
+
+
+def _check_choices(args) -> None:
+    """--scene of bench and --case of hard, checked before any work (InputProblem)."""
+    if args.command == "bench" and args.scene:
+        from validation.bench.run import EXTRA_WORK
+        from validation.bench.scenes import bench_scenes
+
+        known = [b.name for b in bench_scenes(args.quick)] + list(EXTRA_WORK)
+        unknown = [name for name in args.scene if name not in known]
+        if unknown:
+            raise InputProblem(f"--scene {', '.join(unknown)}: expected one of {', '.join(known)}")
+    if args.command == "hard" and args.case:
+        from validation.hard.suite import CASES
+
+        unknown = [str(n) for n in args.case if n not in CASES]
+        if unknown:
+            raise InputProblem(f"--case {', '.join(unknown)}: expected case numbers {CASES[0]}..{CASES[-1]}")
+
+
 def _command(args) -> int:
+    _check_choices(args)
     if args.command == "export":
         from validation.export import export_models
         for path in export_models(args.out):

@@ -40,7 +40,7 @@ from typing import Any, ClassVar, Sequence
 import numpy as np
 from numba import njit
 
-from rbody._checks import finite_array, positive
+from rbody._checks import finite_array, positive, representable, scene_arguments
 from rbody.inertia import Inertia
 from rbody.scene import Body, Joint, Layout, NativeModel, Scene, Shape
 
@@ -323,5 +323,6 @@ def pendulum_chain(links: int | Sequence[float], *, masses: Sequence[float] | No
     else:
         lengths = finite_array(links, "links", ndim=1)
     masses = np.ones(lengths.size) if masses is None else masses
-    return PendulumChain(name="pendulum_chain", t_end=t_end, gravity=gravity, lengths=lengths, masses=masses,
-                         theta0=theta0, omega0=omega0)
+    scene_arguments(gravity, t_end)
+    return representable(PendulumChain(name="pendulum_chain", t_end=t_end, gravity=gravity, lengths=lengths, masses=masses,
+                         theta0=theta0, omega0=omega0))

@@ -34,7 +34,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike
 
-from rbody._checks import finite_array, in_interval, nonnegative, one_of, positive
+from rbody._checks import finite_array, in_interval, nonnegative, one_of, positive, representable, scene_arguments
 from rbody.engine.events import DONE, TOO_MANY, Line, LineRun, exact_line, sample_times
 from rbody.errors import SimulationError
 from rbody.inertia import Inertia
@@ -319,9 +319,10 @@ def line_collisions(masses: ArrayLike, positions: ArrayLike, velocities: ArrayLi
     is possible (then t_end = 1.1 x the last impact time; ValueError with walls on both sides);
     gravity [m/s^2] does no work on the horizontal line. simulate(scene, dt=...) samples every dt.
     """
-    return LineCollisions(name="line_collisions", t_end=t_end, gravity=gravity, masses=masses,
+    scene_arguments(gravity, t_end)
+    return representable(LineCollisions(name="line_collisions", t_end=t_end, gravity=gravity, masses=masses,
                           positions=positions, velocities=velocities, radii=radii, walls=walls,
-                          restitution=restitution, max_events=max_events)
+                          restitution=restitution, max_events=max_events), exact=False)
 
 
 # ----- the digits of pi ---------------------------------------------------------------------------
@@ -606,5 +607,6 @@ def pi_collisions(digits: int, *, light_mass: float = 1.0, speed: float = 1.0, c
     The run goes on until no further impact is possible: scene.count() is the simulated count,
     scene.expected_collisions the exact one, scene.exact_velocities(n) the chapter's closed form.
     """
-    return PiCollisions(name="pi_collisions", t_end=None, gravity=gravity, digits=digits, convention=convention,
-                        light_mass=light_mass, speed=speed, radius=radius, spacing=spacing)
+    scene_arguments(gravity)
+    return representable(PiCollisions(name="pi_collisions", t_end=None, gravity=gravity, digits=digits, convention=convention,
+                        light_mass=light_mass, speed=speed, radius=radius, spacing=spacing))

@@ -67,7 +67,7 @@ from numba import njit
 from scipy.special import elliprf, elliprj
 
 from rbody.elliptic import jacobi
-from rbody._checks import finite_array
+from rbody._checks import finite_array, representable, scene_arguments
 from rbody.engine import integrators
 from rbody.inertia import Inertia
 from rbody.motion import quat_conjugate, quat_exp, quat_from_matrix, quat_multiply, quat_to_matrix
@@ -322,7 +322,8 @@ def free_rotation(inertia: Inertia, *, omega0, t_end: float) -> FreeRotation:
     exerts no torque about the centre of mass, so it could only move the centre, which stays at rest).
     Observables omega_body, L_world, energy, quaternion; `period` is the period of omega_body.
     """
-    return FreeRotation(name="free_rotation", t_end=t_end, gravity=0.0, inertia=inertia, omega0=omega0)
+    scene_arguments(0.0, t_end)
+    return representable(FreeRotation(name="free_rotation", t_end=t_end, gravity=0.0, inertia=inertia, omega0=omega0))
 
 
 def _merge_equal(moments: np.ndarray) -> np.ndarray:

@@ -46,7 +46,7 @@ from typing import ClassVar
 import numpy as np
 from numba import njit
 
-from rbody._checks import finite_array, one_of, positive
+from rbody._checks import finite_array, one_of, positive, representable, scene_arguments
 from rbody.particles import Particles
 from rbody.scene import Layout, NativeModel, Scene
 
@@ -269,5 +269,6 @@ def particles(n: int, *, seed: int, forces: str = "central", strength: float = 1
     joining each pair; P conserved, L and E not). Random masses, positions and velocities from seed.
     gravity is accepted and not applied. Observables momentum, angular_momentum, energy.
     """
-    return ParticleSystem(name="particles", t_end=t_end, gravity=gravity, n=n, seed=seed, forces=forces,
-                          strength=strength, softening=softening)
+    scene_arguments(gravity, t_end)
+    return representable(ParticleSystem(name="particles", t_end=t_end, gravity=gravity, n=n, seed=seed, forces=forces,
+                          strength=strength, softening=softening))

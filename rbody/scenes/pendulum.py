@@ -34,7 +34,7 @@ from numba import njit
 from scipy.special import ellipkm1, elliprf
 
 from rbody.elliptic import jacobi
-from rbody._checks import finite_array, positive
+from rbody._checks import finite_array, positive, representable, scene_arguments
 from rbody.inertia import Inertia, AxisLike, unit_axis
 from rbody.motion import quat_from_matrix
 from rbody.scene import Body, Joint, Layout, NativeModel, Scene, Shape
@@ -382,8 +382,9 @@ def compound_pendulum(body: Inertia, *, pivot, axis: AxisLike = "y", theta0, ome
 
     theta0 [rad] and omega0 [rad/s] may be arrays (a batch). Observables theta, omega, energy.
     """
-    return CompoundPendulum(name="compound_pendulum", t_end=t_end, gravity=gravity, body=body, pivot=pivot,
-                            axis=axis, theta0=theta0, omega0=omega0, shapes=tuple(shapes))
+    scene_arguments(gravity, t_end)
+    return representable(CompoundPendulum(name="compound_pendulum", t_end=t_end, gravity=gravity, body=body, pivot=pivot,
+                            axis=axis, theta0=theta0, omega0=omega0, shapes=tuple(shapes)))
 
 
 def swinging_rod(length, mass=1.0, *, theta0, omega0=0.0, t_end: float, gravity: float = 9.81) -> SwingingRod:
@@ -391,5 +392,6 @@ def swinging_rod(length, mass=1.0, *, theta0, omega0=0.0, t_end: float, gravity:
 
     length [m], mass [kg], theta0 [rad], omega0 [rad/s] may be arrays that broadcast to a batch.
     """
-    return SwingingRod(name="swinging_rod", t_end=t_end, gravity=gravity, length=length, mass=mass,
-                       theta0=theta0, omega0=omega0)
+    scene_arguments(gravity, t_end)
+    return representable(SwingingRod(name="swinging_rod", t_end=t_end, gravity=gravity, length=length, mass=mass,
+                       theta0=theta0, omega0=omega0))

@@ -42,7 +42,7 @@ from typing import Any, ClassVar, Sequence
 import numpy as np
 from numba import njit
 
-from rbody._checks import finite_array, in_interval, nonnegative, positive
+from rbody._checks import finite_array, in_interval, nonnegative, positive, representable, scene_arguments
 from rbody.inertia import Inertia
 from rbody.motion import quat_to_matrix
 from rbody.scene import Body, BodyStates, Contact, Joint, Layout, NativeModel, Scene, Shape
@@ -570,8 +570,9 @@ def rolling(body: str | Inertia = "disc", *, radius, mass=None, incline, frictio
     Observables distance [m], speed [m/s], spin [rad/s], slip [m/s], energy [J]; scene.acceleration,
     scene.mu_min and scene.rolls give the closed form.
     """
-    return Rolling(name="rolling", t_end=t_end, gravity=gravity, body=_check_body(body),
-                   radius=radius, mass=_mass_of(body, mass), incline=incline, friction=friction)
+    scene_arguments(gravity, t_end)
+    return representable(Rolling(name="rolling", t_end=t_end, gravity=gravity, body=_check_body(body),
+                   radius=radius, mass=_mass_of(body, mass), incline=incline, friction=friction))
 
 
 def rolling_race(bodies: Sequence[str | Inertia] = ("disc", "hollow_cylinder"), *, radius, incline, length,
@@ -587,6 +588,7 @@ def rolling_race(bodies: Sequence[str | Inertia] = ("disc", "hollow_cylinder"), 
         masses = {b.mass for b in (bodies if not isinstance(bodies, (str, Inertia)) else (bodies,))
                   if isinstance(b, Inertia)}
         mass = masses.pop() if len(masses) == 1 else 1.0
+    scene_arguments(gravity, t_end)
     if t_end is None:
         probe = RollingRace(name="rolling_race", t_end=1.0, gravity=gravity, bodies=bodies, radius=radius,
                             incline=incline, length=length, mass=mass, friction=friction)
@@ -596,5 +598,5 @@ def rolling_race(bodies: Sequence[str | Inertia] = ("disc", "hollow_cylinder"), 
                              f"(accelerations {probe.acceleration.tolist()} m/s^2), so they never arrive; "
                              "give gravity > 0 or an explicit t_end")
         t_end = 1.1 * slowest
-    return RollingRace(name="rolling_race", t_end=t_end, gravity=gravity, bodies=bodies, radius=radius,
-                       incline=incline, length=length, mass=mass, friction=friction)
+    return representable(RollingRace(name="rolling_race", t_end=t_end, gravity=gravity, bodies=bodies, radius=radius,
+                       incline=incline, length=length, mass=mass, friction=friction))

@@ -40,7 +40,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike
 
-from rbody._checks import finite_array, nonnegative, positive, single_number
+from rbody._checks import finite_array, nonnegative, positive, single_number, representable, scene_arguments
 from rbody.engine.events import DONE, TOO_MANY, Discs, sample_times
 from rbody.errors import SimulationError
 from rbody.inertia import Inertia
@@ -240,5 +240,6 @@ def scattering(impact_parameter: float, *, speed: float = 1.0, mass: float = 1.0
     applied. Observables position_1, position_2, velocity_1, velocity_2 (T, 2) (x, z), angle_between
     (T,) [rad] (pi/2 after an off-centre impact), energy (T,) [J], momentum (T, 2) [kg m/s].
     """
-    return Scattering(name="scattering", t_end=t_end, gravity=gravity, impact_parameter=impact_parameter,
-                      speed=speed, mass=mass, radius=radius, distance=distance)
+    scene_arguments(gravity, t_end)
+    return representable(Scattering(name="scattering", t_end=t_end, gravity=gravity, impact_parameter=impact_parameter,
+                      speed=speed, mass=mass, radius=radius, distance=distance))

@@ -53,7 +53,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike
 
-from rbody._checks import finite_array, nonnegative, positive, single_number
+from rbody._checks import finite_array, nonnegative, positive, single_number, representable, scene_arguments
 from rbody.engine.events import DONE, TOO_MANY, Line, LineRun, sample_times
 from rbody.errors import SimulationError
 from rbody.inertia import Inertia
@@ -364,5 +364,12 @@ def stacked_balls(M: float, m: float, *, drop_height: float, radius_large: float
     the ball bottoms above the floor [m], energy (T,) [J]. scene.speed_ratio is the chapter's
     v/u = (3M - m)/(M + m), scene.height_ratio (v/u)^2.
     """
-    return StackedBalls(name="stacked_balls", t_end=t_end, gravity=gravity, large_mass=M, small_mass=m,
-                        drop_height=drop_height, radius_large=radius_large, radius_small=radius_small, gap=gap)
+    scene_arguments(gravity, t_end)
+    try:
+        return representable(StackedBalls(name="stacked_balls", t_end=t_end, gravity=gravity, large_mass=M,
+                                          small_mass=m, drop_height=drop_height, radius_large=radius_large,
+                                          radius_small=radius_small, gap=gap))
+    except (OverflowError, ZeroDivisionError) as error:  # the impact sequence left float64 (a mass ratio of 1e300)
+        raise ValueError(f"stacked_balls(M={M!r}, m={m!r}, drop_height={drop_height!r}, gap={gap!r}): the sequence "
+                         f"of impacts cannot be followed in float64 ({error}); give masses and heights nearer "
+                         "each other's scale") from None

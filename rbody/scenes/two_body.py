@@ -43,7 +43,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numba import njit
 
-from rbody._checks import describe_values, finite_array, positive
+from rbody._checks import describe_values, finite_array, positive, representable, scene_arguments
 from rbody.inertia import Inertia
 from rbody.particles import reduced_mass
 from rbody.scene import Body, Joint, Layout, NativeModel, Scene, Shape
@@ -377,5 +377,6 @@ def two_body(m1, m2, *, separation, relative_velocity, G=1.0, com_velocity=(0.0,
     com_velocity [m/s]: velocity of the centre of mass, which starts at the origin. gravity is accepted
     and not applied (no external force). Observables r1, r2, separation, energy, angular_momentum.
     """
-    return TwoBody(name="two_body", t_end=t_end, gravity=gravity, m1=m1, m2=m2, separation=separation,
-                   relative_velocity=relative_velocity, G=G, com_velocity=com_velocity)
+    scene_arguments(gravity, t_end)
+    return representable(TwoBody(name="two_body", t_end=t_end, gravity=gravity, m1=m1, m2=m2, separation=separation,
+                   relative_velocity=relative_velocity, G=G, com_velocity=com_velocity))

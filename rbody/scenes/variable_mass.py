@@ -63,7 +63,7 @@ from typing import Any, ClassVar
 import numpy as np
 from numba import njit
 
-from rbody._checks import describe_values, finite_array, nonnegative, positive
+from rbody._checks import describe_values, finite_array, nonnegative, positive, representable, scene_arguments
 from rbody.inertia import Inertia
 from rbody.scene import Body, Joint, Layout, NativeModel, Scene, Shape
 
@@ -266,8 +266,9 @@ def rocket(m0, *, burn_rate, exhaust_speed, dry_mass, drag=0.0, v0=0.0, t_end: f
     F = -beta v), v0 [m/s] may be arrays that broadcast to a batch. gravity is perpendicular to the
     motion and does no work (the chapter's examples have none). Observables distance, speed, mass.
     """
-    return Rocket(name="rocket", t_end=t_end, gravity=gravity, m0=m0, burn_rate=burn_rate,
-                  exhaust_speed=exhaust_speed, dry_mass=dry_mass, drag=drag, v0=v0)
+    scene_arguments(gravity, t_end)
+    return representable(Rocket(name="rocket", t_end=t_end, gravity=gravity, m0=m0, burn_rate=burn_rate,
+                  exhaust_speed=exhaust_speed, dry_mass=dry_mass, drag=drag, v0=v0))
 
 
 # ----- avalanche ----------------------------------------------------------------------------------
@@ -406,5 +407,6 @@ def avalanche(slope, *, snow_density=300.0, snow_height=0.5, width=1.0, x0=1e-3,
     slope [rad], snow_density [kg/m^3], snow_height [m], width [m], x0 [m] may be arrays (a batch).
     Observables distance, speed, mass; time 0 is when the slab passes x0.
     """
-    return Avalanche(name="avalanche", t_end=t_end, gravity=gravity, slope=slope, snow_density=snow_density,
-                     snow_height=snow_height, width=width, x0=x0)
+    scene_arguments(gravity, t_end)
+    return representable(Avalanche(name="avalanche", t_end=t_end, gravity=gravity, slope=slope, snow_density=snow_density,
+                     snow_height=snow_height, width=width, x0=x0))
