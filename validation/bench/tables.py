@@ -22,12 +22,12 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import math
-import os
 import re
 import shutil
 import sys
 from pathlib import Path
 
+from rbody._files import atomic_path, write_atomic
 from validation.bench.report import GOAL_RATIO, LEVELS, column, level_table
 from validation.bench.sweep import Point, read_points
 
@@ -108,16 +108,9 @@ def replace_block(text: str, name: str, body: str) -> str:
     return f"{head}{start}\n{body}\n{end}{tail}"
 
 
-def _write(path: Path, text: str) -> None:
-    temporary = path.with_name(f".{path.name}.tmp")
-    temporary.write_text(text)
-    os.replace(temporary, path)
-
-
 def _copy(source: Path, target: Path) -> None:
-    temporary = target.with_name(f".{target.name}.tmp")
-    shutil.copyfile(source, temporary)
-    os.replace(temporary, target)
+    with atomic_path(target) as temporary:
+        shutil.copyfile(source, temporary)
 
 
 def _copy_run(folder: Path, into: Path, patterns: tuple[str, ...]) -> list[Path]:
@@ -144,11 +137,12 @@ def main(argv: list[str] | None = None) -> int:
     readme = replace_block(readme, "bench-goals", goals_lines(args.bench[0] / "summary.md"))
     if args.hard is not None:
         readme = replace_block(readme, "hard-pi", pi_digits_line(args.hard / "hard.md"))
-    _write(args.readme, readme)
+    write_atomic(args.readme, readme)
     print(f"{args.readme}: tables rewritten", file=sys.stderr)
     if args.docs is not None:
         if len(args.bench) == 1:
             copied = _copy_run(args.bench[0], args.docs / "bench", ("*.csv", "*.png", "summary.md"))
+            (args.docs / "figures").mkdir(parents=True, exist_ok=True)
             for name in README_FIGURES:
                 if (args.bench[0] / name).is_file():
                     _copy(args.bench[0] / name, args.docs / "figures" / name)
@@ -157,11 +151,8 @@ def main(argv: list[str] | None = None) -> int:
             from validation.bench.sweep import COLUMNS
 
             (args.docs / "bench").mkdir(parents=True, exist_ok=True)
-            target = args.docs / "bench" / "bench.csv"
-            write_csv(target.with_name(".bench.csv.tmp"), (dataclasses.asdict(p) for p in points), COLUMNS,
-                      [f"merged from {', '.join(map(str, args.bench))}"])
-            os.replace(target.with_name(".bench.csv.tmp"), target)
-            copied = [target]
+            copied = [write_csv(args.docs / "bench" / "bench.csv", (dataclasses.asdict(p) for p in points), COLUMNS,
+                                [f"merged from {', '.join(map(str, args.bench))}"])]
         if args.hard is not None:
             copied += _copy_run(args.hard, args.docs / "hard", ("hard.md", "hard_*.png"))
         print(f"{len(copied)} files copied into {args.docs}", file=sys.stderr)
