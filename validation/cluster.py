@@ -65,10 +65,12 @@ def connect(scheduler: str | None = None, workers: int | None = None) -> Iterato
         yield client
 
 
-def run_tasks(client: Any, tasks: Sequence[Task], *, what: str, timed: bool = False, log=sys.stderr) -> list:
+def run_tasks(client: Any, tasks: Sequence[Task], *, what: str, timed: bool = False, log=None) -> list:
     """The result of each task, in the order of `tasks`: run here in that order (client None), or on the
     cluster of `client` (timed: one at a time per worker, module docstring). A task's error is raised with a
-    note naming the task; a task that lost more workers than Dask retries it on is a RuntimeError naming it."""
+    note naming the task; a task that lost more workers than Dask retries it on is a RuntimeError naming it.
+    Progress goes to `log` (default sys.stderr)."""
+    log = log or sys.stderr
     if client is None:
         results = []
         for k, (name, function, args) in enumerate(tasks, 1):

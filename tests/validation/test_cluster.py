@@ -1,0 +1,116 @@
+"""validation.cluster and the commands' --workers / --scheduler: the same results as the serial run."""
+
+from __future__ import annotations
+
+import os
+import re
+import time
+
+import pytest
+
+distributed = pytest.importorskip("distributed")
+
+from validation import cluster  # noqa: E402
+from validation.__main__ import main  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def client():
+    with cluster.connect(workers=2) as client:  # 2 processes, one thread and one "timing" resource each
+        yield client
+
+
+def _square(x: float) -> float:
+    return x * x
+
+
+def test_results_come_back_in_task_order(client, capsys):
+    tasks = [(f"square {k}", _square, (k,)) for k in range(12)]
+    assert cluster.run_tasks(client, tasks, what="test") == [k * k for k in range(12)]
+    assert cluster.run_tasks(None, tasks, what="test") == [k * k for k in range(12)]
+    assert "[test 12/12 tasks done" in capsys.readouterr().err  # the progress of the cluster run
+
+
+def test_timed_tasks_run_one_at_a_time_per_worker(client):
+    def span(seconds):  # a local function: Dask sends it by value
+        start = time.time()
+        time.sleep(seconds)
+        return distributed.get_worker().address, start, time.time()
+
+    spans = cluster.run_tasks(client, [(f"sleep {k}", span, (0.3,)) for k in range(6)], what="test", timed=True)
+    assert len({worker for worker, _, _ in spans}) == 2  # both workers used
+    for worker in {worker for worker, _, _ in spans}:
+        mine = sorted((start, stop) for w, start, stop in spans if w == worker)
+        assert all(later[0] >= earlier[1] for earlier, later in zip(mine, mine[1:])), "two timed tasks overlapped"
+
+
+def test_a_failing_task_is_raised_with_its_name(client):
+    def fails():
+        raise ArithmeticError("the simulator blew up")
+
+    with pytest.raises(ArithmeticError, match="blew up") as caught:
+        cluster.run_tasks(client, [("fine", _square, (2,)), ("the bad one", fails, ())], what="test")
+    assert any("in task the bad one of test" in note for note in caught.value.__notes__)
+
+
+def test_a_worker_killed_mid_task_is_retried(client, tmp_path):
+    marker = tmp_path / "killed"
+
+    def dies_once(marker, x):
+        try:
+            os.close(os.open(marker, os.O_CREAT | os.O_EXCL))
+        except FileExistsError:
+            return x * x
+        os._exit(1)  # the first attempt ends its worker's process
+
+    results = cluster.run_tasks(client, [(f"task {k}", dies_once, (str(marker), k)) for k in range(4)], what="test")
+    assert marker.exists() and results == [0, 1, 4, 9]
+
+
+def test_bad_cluster_options_are_refused():
+    with pytest.raises(ValueError, match="give one of them"):
+        with cluster.connect("tcp://127.0.0.1:8786", 2):
+            pass
+    with pytest.raises(ValueError, match="--workers 0: expected a whole number"):
+        with cluster.connect(workers=0):
+            pass
+    with cluster.connect() as none:
+        assert none is None
+
+
+def test_an_unreachable_scheduler_is_an_error_naming_its_address(monkeypatch):
+    monkeypatch.setattr(cluster, "CONNECT_TIMEOUT", "1s")
+    with pytest.raises(ValueError, match=re.escape("--scheduler tcp://127.0.0.1:9: no Dask scheduler answered")):
+        main(["--scheduler", "tcp://127.0.0.1:9", "--backend", "rbody", "--quick"])
+
+
+def test_timed_runs_refuse_a_cluster_without_the_timing_resource():
+    with distributed.LocalCluster(n_workers=1, processes=False, threads_per_worker=2, dashboard_address=":0") as plain:
+        with distributed.Client(plain) as client:
+            with pytest.raises(ValueError, match="none with the resource 'timing'.*--resources timing=1"):
+                cluster.run_tasks(client, [("one", _square, (1,))], what="bench", timed=True)
+
+
+def _table(text: str) -> list[list[str]]:
+    """The printed table without its last column (the wall time of each run)."""
+    return [line.split()[:-1] for line in text.splitlines() if line.strip()]
+
+
+def test_the_main_command_on_a_cluster_prints_the_serial_table(client, tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(cluster, "connect", _reuse(client))
+    assert main(["--quick", "--backend", "rbody", "--out", str(tmp_path / "serial")]) == 0
+    serial = capsys.readouterr().out
+    assert main(["--quick", "--backend", "rbody", "--workers", "2", "--out", str(tmp_path / "cluster")]) == 0
+    on_cluster = capsys.readouterr().out
+    assert len(_table(serial)) > 20 and _table(on_cluster) == _table(serial)
+
+
+def _reuse(client):
+    """connect() that hands out the module's cluster for --workers (starting one per command is slow)."""
+    import contextlib
+
+    @contextlib.contextmanager
+    def connect(scheduler=None, workers=None):
+        yield client if workers else None
+
+    return connect
