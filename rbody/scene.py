@@ -78,20 +78,29 @@ class Body:
     quat: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
 
 
-JOINT_KINDS = ("hinge", "slide", "free")
+JOINT_KINDS = ("hinge", "slide", "ball", "free")
 
 
 @dataclass(frozen=True)
 class Joint:
     """A joint between `body` and its parent.
 
-    kind:   "hinge" (angle about axis through anchor), "slide" (distance along axis), "free"
+    kind:   "hinge" (angle about axis through anchor), "slide" (distance along axis), "ball" (any
+            rotation about anchor), "free"
     axis:   (3,) direction in the body frame; anchor: (3,) point in the body frame [m]
     qpos0, qvel0: initial coordinate [rad or m] and rate [rad/s or m/s] (hinge and slide);
+            ball: qpos0 a quaternion (w, x, y, z) (0.0: identity), qvel0 (3,) the angular velocity in
+            the BODY frame [rad/s] (MuJoCo's ball qvel; 0.0: at rest);
             free joints start from the body's pos/quat with qvel0 = (v (3,) of the body-frame origin,
             omega (3,)), both in the world frame.
+    damping [N m s/rad or N s/m], stiffness [N m/rad or N/m], springref [rad or m], armature
+    [kg m^2 or kg], ref [rad or m]: MJCF's joint attributes of the same names. Passive force
+    -stiffness (q - springref) - damping qvel (stiffness on hinge and slide only); armature adds to the
+    diagonal of the mass matrix; ref is the coordinate at which the body sits at its reference pose
+    (the displacement applied is q - ref).
     A hinge turns the body by +angle about `axis` (right-handed); a slide moves it by +distance along
-    `axis`. Backends report hinge and slide joints as (qpos (T,), qvel (T,)) under the joint's name.
+    `axis`; several joints on one body compose in the order given (as MJCF). Backends report hinge and
+    slide joints as (qpos (T,), qvel (T,)) under the joint's name.
     """
 
     name: str
@@ -99,13 +108,24 @@ class Joint:
     body: str
     axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
     anchor: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    qpos0: float = 0.0
+    qpos0: Any = 0.0
     qvel0: Any = 0.0
+    damping: float = 0.0
+    stiffness: float = 0.0
+    springref: float = 0.0
+    armature: float = 0.0
+    ref: float = 0.0
 
     def __post_init__(self) -> None:
         if self.kind not in JOINT_KINDS:
             raise ValueError(f"joint {self.name!r}: kind={self.kind!r}, expected one of {JOINT_KINDS}")
         object.__setattr__(self, "axis", tuple(unit_axis(self.axis, "axis").tolist()))
+        for name in ("damping", "stiffness", "armature"):
+            value = finite_array(getattr(self, name), f"joint {self.name!r}: {name}", shape=())
+            object.__setattr__(self, name, float(nonnegative(value, f"joint {self.name!r}: {name}")))
+        for name in ("springref", "ref"):
+            object.__setattr__(self, name, float(finite_array(getattr(self, name), f"joint {self.name!r}: {name}",
+                                                              shape=())))
 
 
 @dataclass(frozen=True)
@@ -177,6 +197,11 @@ class NativeModel:
     # the step that straddles it at the break, so that no step integrates across the jump.
     break_time: float | None = None
     break_column: int | None = None
+    # finish(y, p): compiled, run after every whole step of euler, rk4 and gauss6 and at every sample of
+    # reference (a tree folds its rotation vectors into its quaternions: rbody.engine.multibody); None: nothing.
+    finish: Any = None
+    # True: the stability check takes the scene's fastest rate from the Jacobian of rhs at y0 (rbody.stability).
+    rate_from_jacobian: bool = False
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -306,3 +331,270 @@ class Scene:
     def describe(self) -> str:
         """One line naming the scene and its parameters, for reports and error messages."""
         return self.name
+
+    @classmethod
+    def from_layout(cls, layout: Layout, *, t_end: float, name: str = "model", qpos0=None, qvel0=None,
+                    gravity: float = 9.81) -> "TreeScene":
+        """Any Layout (a tree of Body and Joint) as a Scene that simulate runs natively: a TreeScene.
+
+        qpos0 (..., nq), qvel0 (..., nv): initial coordinates in MuJoCo's layout (rbody.Multibody), default
+        the joints' qpos0/qvel0; leading axes make a batch. Observables: qpos, qvel, energy, and for every
+        body "<body>.com", "<body>.quat", "<body>.velocity", "<body>.omega" (world frame).
+        Raises ValueError (before any work) for a layout that is not a tree rbody can run.
+        """
+        return TreeScene(name=name, t_end=t_end, gravity=gravity, tree=layout, qpos0=qpos0, qvel0=qvel0)
+
+
+# ----- any tree of bodies and joints, as a scene -------------------------------------------------------
+
+TREE_GENERAL_METHODS = ("rk4", "gauss6", "euler", "reference")
+TREE_SYMPLECTIC_METHODS = ("verlet", "symplectic_euler", "yoshida6")
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class TreeScene(Scene):
+    """A user's tree of bodies and joints, simulated by the general engine (rbody.Multibody).
+
+    tree:   the Layout (bodies, joints; contacts are not modelled natively)
+    qpos0:  (..., nq) initial qpos, MuJoCo's layout, or None (the joints' own qpos0); leading axes: a batch
+    qvel0:  (..., nv) initial qvel (free joints: world linear velocity of the body-frame origin, then the
+            body-frame angular velocity; ball: body-frame angular velocity), or None (the joints' qvel0)
+    import_notes, timestep, integrator: what an MJCF importer records (no effect on the dynamics)
+
+    Observables: qpos (T, *batch, nq), qvel (T, *batch, nv), energy (T, *batch) [J] (kinetic + gravity +
+    springs), and per body "<body>.com" (T, *batch, 3) [m], "<body>.quat" (T, *batch, 4),
+    "<body>.velocity" (T, *batch, 3) [m/s] of the centre of mass, "<body>.omega" (T, *batch, 3) [rad/s],
+    world frame. The native state is (qpos, qvel, phi): each ball or free joint's rotation within a step is
+    q_n (x) exp(phi) (Runge-Kutta-Munthe-Kaas), folded into q_n after every step, so quaternions stay unit
+    by construction and every method keeps its order.
+    """
+
+    tree: Layout
+    qpos0: Any = None
+    qvel0: Any = None
+    import_notes: tuple[str, ...] = ()
+    timestep: float | None = None
+    integrator: str | None = None
+
+    main_observable: ClassVar[str] = "qpos"
+    planar: ClassVar[bool] = False
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if not isinstance(self.tree, Layout):
+            raise ValueError(f"layout={self.tree!r}: expected an rbody.Layout")
+        model = self.multibody  # validates the tree (ValueError before any work)
+        for field_name, size, default in (("qpos0", model.nq, model.qpos0), ("qvel0", model.nv, model.qvel0)):
+            value = getattr(self, field_name)
+            array = default.copy() if value is None else np.array(value, dtype=np.float64)
+            if array.ndim == 0 or array.shape[-1] != size:
+                raise ValueError(f"{field_name} has shape {array.shape}: expected (..., {size}) for this tree "
+                                 f"(nq={model.nq}, nv={model.nv})")
+            if not np.all(np.isfinite(array)):
+                raise ValueError(f"{field_name} holds NaN or inf: expected finite numbers")
+            array.setflags(write=False)
+            object.__setattr__(self, field_name, array)
+        try:
+            np.broadcast_shapes(self.qpos0.shape[:-1], self.qvel0.shape[:-1])
+        except ValueError:
+            raise ValueError(f"qpos0 of shape {self.qpos0.shape} and qvel0 of shape {self.qvel0.shape} do not "
+                             "broadcast to one batch") from None
+        quats = self._quaternion_columns()
+        if quats:
+            norms = np.stack([np.linalg.norm(self.qpos0[..., c:c + 4], axis=-1) for c in quats])
+            if np.any(np.abs(norms - 1.0) > 1e-9):
+                raise ValueError(f"qpos0: the quaternions at qpos columns {quats} have lengths "
+                                 f"{np.unique(np.round(norms, 12)).tolist()}: expected unit quaternions")
+        model.check_pivots(self.qpos0)
+
+    @cached_property
+    def multibody(self):
+        """rbody.Multibody of the tree (validated on first use)."""
+        from rbody.engine.multibody import Multibody
+
+        return Multibody(self.tree, gravity=self.gravity)
+
+    def _quaternion_columns(self) -> list[int]:
+        model = self.multibody
+        columns = []
+        for kind, address in zip(model.arrays.joint_kinds, model.arrays.qposadr):
+            if kind == "ball":
+                columns.append(int(address))
+            elif kind == "free":
+                columns.append(int(address) + 3)
+        return columns
+
+    # ----- batches ---------------------------------------------------------------------------------
+
+    @cached_property
+    def batch_shape(self) -> tuple[int, ...]:
+        return tuple(np.broadcast_shapes(self.qpos0.shape[:-1], self.qvel0.shape[:-1]))
+
+    def _state0(self) -> tuple[np.ndarray, np.ndarray]:
+        """qpos0 (B, nq), qvel0 (B, nv)."""
+        model = self.multibody
+        return (np.broadcast_to(self.qpos0, self.batch_shape + (model.nq,)).reshape(-1, model.nq),
+                np.broadcast_to(self.qvel0, self.batch_shape + (model.nv,)).reshape(-1, model.nv))
+
+    def item(self, index: int | tuple = ()) -> "TreeScene":
+        if not self.batch_shape:
+            return self
+        qpos0, qvel0 = self._state0()
+        flat = np.arange(qpos0.shape[0]).reshape(self.batch_shape)[index]
+        if np.ndim(flat) != 0:
+            raise ValueError(f"index={index!r} picks {np.shape(flat)} trees from batch {self.batch_shape}: expected one")
+        return dataclasses.replace(self, qpos0=qpos0[int(flat)].copy(), qvel0=qvel0[int(flat)].copy())
+
+    def __eq__(self, other: object) -> bool:
+        if type(other) is not type(self):
+            return NotImplemented
+        return (self.name, self.t_end, self.gravity, self.tree, self.import_notes, self.timestep, self.integrator) == (
+            other.name, other.t_end, other.gravity, other.tree, other.import_notes, other.timestep,
+            other.integrator) and np.array_equal(self.qpos0, other.qpos0) and np.array_equal(self.qvel0, other.qvel0)
+
+    __hash__ = None  # type: ignore[assignment]
+
+    # ----- observables ------------------------------------------------------------------------------
+
+    @property
+    def observables(self) -> tuple[str, ...]:  # type: ignore[override]
+        names = ["qpos", "qvel", "energy"]
+        for body in self.multibody.body_names:
+            names += [f"{body}.com", f"{body}.quat", f"{body}.velocity", f"{body}.omega"]
+        return tuple(names)
+
+    def _observables(self, qpos: np.ndarray, qvel: np.ndarray) -> dict[str, Any]:
+        """From qpos (T, B, nq) and qvel (T, B, nv): qpos and qvel as given, the rest lazily (callables)."""
+        model = self.multibody
+        states: dict[str, np.ndarray] = {}
+
+        def body_states():
+            if not states:
+                states.update(model.body_states(qpos, qvel))
+            return states
+
+        def energy():
+            return model.kinetic_energy(qpos, qvel) + model.potential_energy(qpos)
+
+        data: dict[str, Any] = {"qpos": qpos, "qvel": qvel, "energy": energy}
+        for i, body in enumerate(model.body_names):
+            for what in ("com", "quat", "velocity", "omega"):
+                data[f"{body}.{what}"] = (lambda i=i, what=what: body_states()[what][..., i, :])
+        return data
+
+    def exact(self, t) -> dict[str, np.ndarray]:
+        raise NotImplementedError(
+            f"scene {self.name!r} is a user's tree of bodies and joints: it has no closed-form motion; check a run by "
+            "its energy and against simulate(scene, dt=..., method='reference') (scipy DOP853 at rtol 1e-13)")
+
+    # ----- native model ----------------------------------------------------------------------------
+
+    @cached_property
+    def symplectic_applies(self) -> str:
+        """"" when q'' = a(q) with a constant mass matrix (the explicit symplectic methods apply), else why not.
+
+        Decided from the structure: no ball or free joint (their rotations make M and the gyroscopic forces
+        depend on the state), no damping, and every hinge alone in its part of the tree (no other degree of
+        freedom above or below it: a hinge with a moving ancestor or descendant couples them through the
+        angle). Chains of slides alone keep M constant too."""
+        from rbody.engine.multibody import BALL, D_PARENT, DOF_SIZE, FREE, H_DOF, HINGE, KIND_CODE
+
+        model = self.multibody
+        kinds = [KIND_CODE[k] for k in model.arrays.joint_kinds]
+        if any(k in (BALL, FREE) for k in kinds):
+            return "the tree has a ball or free joint (its mass matrix and gyroscopic forces depend on the state)"
+        if any(j.damping != 0 for j in self.tree.joints):
+            return "a joint has damping (the force depends on the velocity)"
+        p = model.params
+        parent = [int(p[int(p[H_DOF]) + d * DOF_SIZE + D_PARENT]) for d in range(model.nv)]
+        related = [set() for _ in range(model.nv)]
+        for d in range(model.nv):
+            k = parent[d]
+            while k >= 0:
+                related[d].add(k)
+                related[k].add(d)
+                k = parent[k]
+        for d in range(model.nv):
+            if kinds[model.arrays.dof_joint[d]] == HINGE and related[d]:
+                joint = model.joint_names[model.arrays.dof_joint[d]]
+                return (f"hinge {joint!r} shares its branch of the tree with other joints, so the mass matrix depends "
+                        "on its angle")
+        return ""
+
+    @property
+    def methods(self) -> tuple[str, ...]:  # type: ignore[override]
+        extra = TREE_SYMPLECTIC_METHODS if not self.symplectic_applies else ()
+        return extra + TREE_GENERAL_METHODS
+
+    def why_not(self, method: str) -> str:
+        if method in TREE_SYMPLECTIC_METHODS:
+            return f"{method!r} needs q'' = a(q) with a constant mass matrix, and {self.symplectic_applies}"
+        return f"{method!r} is not a method of a general tree (no splitting into exact flows)"
+
+    def native(self) -> NativeModel:
+        from rbody.engine import multibody as mb
+
+        model = self.multibody
+        qpos0, qvel0 = self._state0()
+        y0 = np.concatenate([qpos0, qvel0, np.zeros((qpos0.shape[0], 3 * model.nrot))], axis=1)
+        params = np.tile(np.asarray(model.params), (qpos0.shape[0], 1))
+        nq, nv = model.nq, model.nv
+
+        def observe(t, y):
+            return self._observables(y[..., :nq], y[..., nq:nq + nv])
+
+        return NativeModel(y0=y0, params=params, rhs=mb.tree_rhs, observe=observe,
+                           accel=None if self.symplectic_applies else mb.tree_accel,
+                           finish=mb.tree_finish if model.nrot else None, rate_from_jacobian=True)
+
+    # ----- what other simulators build -----------------------------------------------------------------
+
+    def _layout(self) -> Layout:
+        """The tree with the first batch element's initial state in its joints (and free bodies' pos/quat)."""
+        model = self.multibody
+        qpos, qvel = (a[0] for a in self._state0())
+        from rbody.motion import quat_to_matrix
+
+        joints, bodies = [], {b.name: b for b in self.tree.bodies}
+        by_name = dict(zip(model.joint_names, zip(model.arrays.joint_kinds, model.arrays.qposadr, model.arrays.dofadr)))
+        for joint in self.tree.joints:
+            kind, qa, da = by_name[joint.name]
+            if kind in ("hinge", "slide"):
+                joints.append(dataclasses.replace(joint, qpos0=float(qpos[qa]), qvel0=float(qvel[da])))
+            elif kind == "ball":
+                joints.append(dataclasses.replace(joint, qpos0=tuple(qpos[qa:qa + 4].tolist()),
+                                                  qvel0=tuple(qvel[da:da + 3].tolist())))
+            else:
+                quat = qpos[qa + 3:qa + 7]
+                omega_world = quat_to_matrix(quat) @ qvel[da + 3:da + 6]
+                joints.append(dataclasses.replace(joint, qvel0=tuple(qvel[da:da + 3].tolist() + omega_world.tolist())))
+                bodies[joint.body] = dataclasses.replace(bodies[joint.body], pos=tuple(qpos[qa:qa + 3].tolist()),
+                                                         quat=tuple(quat.tolist()))
+        return dataclasses.replace(self.tree, bodies=tuple(bodies[b.name] for b in self.tree.bodies),
+                                   joints=tuple(joints))
+
+    def observe(self, t, bodies, joints) -> dict[str, np.ndarray]:
+        """From a backend's joint histories (hinge, slide: (qpos (T,), qvel (T,)); ball, free: (qpos (T, 4|7),
+        qvel (T, 3|6)), MuJoCo's conventions) and body states: the same observables as the native run."""
+        model = self.multibody
+        count = np.asarray(t).shape[0]
+        qpos, qvel = np.empty((count, model.nq)), np.empty((count, model.nv))
+        for name, kind, qa, da in zip(model.joint_names, model.arrays.joint_kinds, model.arrays.qposadr,
+                                      model.arrays.dofadr):
+            if name not in joints:
+                raise ValueError(f"the backend reported no history for joint {name!r}")
+            position, velocity = (np.asarray(a, dtype=np.float64).reshape(count, -1) for a in joints[name])
+            nq_j, nv_j = {"hinge": (1, 1), "slide": (1, 1), "ball": (4, 3), "free": (7, 6)}[kind]
+            qpos[:, qa:qa + nq_j], qvel[:, da:da + nv_j] = position, velocity
+        data = {"qpos": qpos, "qvel": qvel,
+                "energy": model.kinetic_energy(qpos, qvel) + model.potential_energy(qpos)}
+        for body in model.body_names:
+            states = bodies[body]
+            data.update({f"{body}.com": states.com, f"{body}.quat": states.quat,
+                         f"{body}.velocity": states.velocity, f"{body}.omega": states.omega})
+        return data
+
+    def describe(self) -> str:
+        model = self.multibody
+        batch = f", batch {self.batch_shape}" if self.batch_shape else ""
+        return f"{self.name}({len(model.body_names)} bodies, nq={model.nq}, nv={model.nv}{batch})"

@@ -145,6 +145,8 @@ def _fastest_rate(scene: Scene, method: str | None) -> np.ndarray:
         return np.array([_rotation_rate(scene.item(index), split) for index in np.ndindex(*scene.batch_shape)])
     if isinstance(scene, PendulumChain):
         return np.maximum(_jacobian_rate(scene), float(np.max(scene.normal_modes()[0])))
+    if scene.native_model.rate_from_jacobian:  # a tree (Scene.from_layout): the linearisation of its model
+        return _jacobian_rate(scene)
     # Rolling: constant accelerations, any step is exact. Other scenes: no estimate (their Jacobian at the
     # start says little about the motion, and costs O(n) right-hand sides for n coordinates): the limit is
     # inf there and the non-finite check after each step is the guard.

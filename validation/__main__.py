@@ -25,12 +25,12 @@ def _parser() -> argparse.ArgumentParser:
                        help="only these backends (repeatable)")
     export = commands.add_parser("export", help="write the MJCF of every scene into models/")
     export.add_argument("--out", type=Path, default=MODELS_DIR, help="folder (default: models/)")
-    bench = commands.add_parser("bench", help="speed against error: work-precision sweeps (validation/bench.py)")
+    bench = commands.add_parser("bench", help="speed against error: work-precision sweeps (validation/bench/)")
     bench.add_argument("--scene", action="append", metavar="NAME",
                        help="only this scene, or 'batch' or 'growth' (repeatable; default: all)")
     bench.add_argument("--quick", action="store_true", help="short sweeps, under 2 minutes (the test suite's)")
     bench.add_argument("--out", type=Path, default=Path("report/bench"), help="folder (default: report/bench/)")
-    hard = commands.add_parser("hard", help="numerical stability on hard cases (validation/hard.py): DIR/hard.md")
+    hard = commands.add_parser("hard", help="numerical stability on hard cases (validation/hard/): DIR/hard.md")
     hard.add_argument("--quick", action="store_true", help="short runs, under 2 minutes")
     hard.add_argument("--out", type=Path, default=Path("report"), help="report folder (default: report/)")
     hard.add_argument("--case", action="append", type=int, metavar="N", help="only case N of 1..9 (repeatable)")
@@ -56,10 +56,10 @@ def main(argv: list[str] | None = None) -> int:
             print(path)
         return 0
     if args.command == "bench":
-        from validation.bench import main as bench_main
+        from validation.bench.run import main as bench_main
         return bench_main(args)
     if args.command == "hard":
-        from validation.hard import CASES, run_hard
+        from validation.hard.suite import CASES, run_hard
         return run_hard(args.out, quick=args.quick, cases=tuple(args.case) if args.case else CASES)
     from validation.cluster import connect
     with connect(args.scheduler, args.workers) as client:

@@ -75,6 +75,8 @@ _F64P = types.CPointer(types.float64)
 # f(y, p, out) and a(q, p, out): (y, p, out, len(y), len(p)); a scene's own step(y, p, h): (y, p, h, len(y), len(p))
 RHS_SIGNATURE = types.void(_F64P, _F64P, _F64P, types.intp, types.intp)
 STEP_SIGNATURE = types.void(_F64P, _F64P, types.float64, types.intp, types.intp)
+# finish(y, p) after every whole step (a tree's rotation vectors folded into its quaternions): (y, p, len(y), len(p))
+FINISH_SIGNATURE = types.void(_F64P, _F64P, types.intp, types.intp)
 _POINTER_FUNCTIONS: dict[tuple[int, str], tuple[Any, Any]] = {}
 
 
@@ -91,10 +93,25 @@ def pointer_function(function, kind: str = "rhs"):
             @cfunc(STEP_SIGNATURE)
             def wrapper(y, p, h, n, m):
                 function(carray(y, n), carray(p, m), h)
+        elif kind == "finish":
+            @cfunc(FINISH_SIGNATURE)
+            def wrapper(y, p, n, m):
+                function(carray(y, n), carray(p, m))
         else:
-            raise ValueError(f"kind={kind!r}: expected 'rhs' or 'step'")
+            raise ValueError(f"kind={kind!r}: expected 'rhs', 'step' or 'finish'")
         _POINTER_FUNCTIONS[key] = (function, wrapper)  # holding the function keeps its id unique
     return _POINTER_FUNCTIONS[key][1]
+
+
+@njit(cache=True)
+def no_finish(y, p):
+    """The finish hook of every scene that has none: nothing (the loops do not even call it)."""
+
+
+def finish_pointer(finish):
+    """(pointer, flag) the loops take: the scene's finish(y, p) behind a C pointer and True, or a no-op and
+    False (the flag skips the call: scenes without a finish pay one predictable branch per step)."""
+    return (pointer_function(no_finish, "finish"), False) if finish is None else (pointer_function(finish, "finish"), True)
 
 
 @intrinsic
@@ -139,7 +156,7 @@ def chunk_size(batch: int) -> int:
 
 
 @njit(cache=True, parallel=True)
-def _euler_loop(rhs, y0, params, dt, nsteps, save_every, out, size):
+def _euler_loop(rhs, finish, finishing, y0, params, dt, nsteps, save_every, out, size):
     batch, n = y0.shape
     m = params.shape[1]
     failed = np.full(batch, -1, dtype=np.int64)
@@ -158,6 +175,8 @@ def _euler_loop(rhs, y0, params, dt, nsteps, save_every, out, size):
                 rhs(_row(y, b), _row(params, lo + b), _row(k, b), n, m)
                 for j in range(n):
                     y[b, j] += dt * k[b, j]
+                if finishing:
+                    finish(_row(y, b), _row(params, lo + b), n, m)
                 if not _finite_row(y, b):
                     failed[lo + b] = i
                     running -= 1
@@ -170,7 +189,7 @@ def _euler_loop(rhs, y0, params, dt, nsteps, save_every, out, size):
 
 
 @njit(cache=True, parallel=True)
-def _rk4_loop(rhs, y0, params, dt, nsteps, save_every, out, size):
+def _rk4_loop(rhs, finish, finishing, y0, params, dt, nsteps, save_every, out, size):
     batch, n = y0.shape
     m = params.shape[1]
     failed = np.full(batch, -1, dtype=np.int64)
@@ -206,6 +225,8 @@ def _rk4_loop(rhs, y0, params, dt, nsteps, save_every, out, size):
                 if failed[lo + b] < 0:
                     for j in range(n):
                         y[b, j] += dt / 6.0 * (k1[b, j] + 2.0 * k2[b, j] + 2.0 * k3[b, j] + k4[b, j])
+                    if finishing:
+                        finish(_row(y, b), _row(params, lo + b), n, m)
                     if not _finite_row(y, b):
                         failed[lo + b] = i
                         running -= 1
@@ -290,7 +311,7 @@ def _composed_verlet_loop(accel, weights, y0, params, dt, nsteps, save_every, ou
 
 
 @njit(cache=True, parallel=True)
-def _gauss_loop(rhs, A, weights, second, later, y0, params, dt, nsteps, save_every, out, size):
+def _gauss_loop(rhs, finish, finishing, A, weights, second, later, y0, params, dt, nsteps, save_every, out, size):
     """second, later (s, 2s): the starting guess of step 2, and of every later step i, from the slopes of
     steps i-2 and i-1 (see run_gauss6)."""
     batch, n = y0.shape
@@ -369,6 +390,8 @@ def _gauss_loop(rhs, A, weights, second, later, y0, params, dt, nsteps, save_eve
                     for s in range(stages):
                         acc += weights[s] * K[b, s, j]
                     y[b, j] += dt * acc
+                if finishing:
+                    finish(_row(y, b), _row(params, lo + b), n, m)
                 if state[b] != 1 or not _finite_row(y, b):
                     failed[lo + b] = i
                     running -= 1
@@ -442,20 +465,20 @@ def _c(array: np.ndarray) -> np.ndarray:
 # The compiled loops take the same, the functions as pointers, and last the chunk size.
 
 
-def run_euler(rhs, y0, params, dt, nsteps, save_every, out):
-    """y += dt f(y)."""
+def run_euler(rhs, y0, params, dt, nsteps, save_every, out, finish=None):
+    """y += dt f(y); then finish(y, p) when the scene has one (every method below: after each whole step)."""
     y0, params = _c(y0), _c(params)
     size = chunk_size(y0.shape[0])
     loop = _pick(_euler_loop, y0.shape[0], size)
-    return loop(pointer_function(rhs), y0, params, dt, nsteps, save_every, out, size)
+    return loop(pointer_function(rhs), *finish_pointer(finish), y0, params, dt, nsteps, save_every, out, size)
 
 
-def run_rk4(rhs, y0, params, dt, nsteps, save_every, out):
+def run_rk4(rhs, y0, params, dt, nsteps, save_every, out, finish=None):
     """Classical Runge-Kutta."""
     y0, params = _c(y0), _c(params)
     size = chunk_size(y0.shape[0])
     loop = _pick(_rk4_loop, y0.shape[0], size)
-    return loop(pointer_function(rhs), y0, params, dt, nsteps, save_every, out, size)
+    return loop(pointer_function(rhs), *finish_pointer(finish), y0, params, dt, nsteps, save_every, out, size)
 
 
 def run_symplectic_euler(accel, y0, params, dt, nsteps, save_every, out):
@@ -476,7 +499,7 @@ def run_composed_verlet(accel, weights, y0, params, dt, nsteps, save_every, out)
     return loop(pointer_function(accel), weights, y0, params, dt, nsteps, save_every, out, size)
 
 
-def run_gauss6(rhs, A, weights, y0, params, dt, nsteps, save_every, out):
+def run_gauss6(rhs, A, weights, y0, params, dt, nsteps, save_every, out, finish=None):
     """Gauss-Legendre collocation with tableau A (s, s) and weights (s,) (GAUSS6_A, GAUSS6_B).
 
     Stage slopes K_s = f(y + dt sum_r A_sr K_r) by fixed-point iteration, started from the last two
@@ -489,8 +512,8 @@ def run_gauss6(rhs, A, weights, y0, params, dt, nsteps, save_every, out):
     y0, params = _c(y0), _c(params)
     size = chunk_size(y0.shape[0])
     loop = _pick(_gauss_loop, y0.shape[0], size)
-    return loop(pointer_function(rhs), A, weights, second, later, y0, params, dt, nsteps,
-                       save_every, out, size)
+    return loop(pointer_function(rhs), *finish_pointer(finish), A, weights, second, later, y0, params, dt, nsteps,
+                save_every, out, size)
 
 
 def gauss_starting_guess(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -526,8 +549,11 @@ def run_composed_flow(step, weights, y0, params, dt, nsteps, save_every, out):
 
 
 def run_reference(rhs, y0: np.ndarray, params: np.ndarray, dt: float, nsteps: int, save_every: int,
-                  out: np.ndarray, rtol: float = 1e-13) -> np.ndarray:
-    """scipy's DOP853 at rtol 1e-13, sampled at the same times as the fixed-step methods."""
+                  out: np.ndarray, rtol: float = 1e-13, finish=None) -> np.ndarray:
+    """scipy's DOP853 at rtol 1e-13, sampled at the same times as the fixed-step methods. With a finish hook
+    (a tree's rotation vectors), from sample to sample, finish(y, p) applied at every sample."""
+    if finish is not None:
+        return _reference_in_legs(rhs, finish, y0, params, dt * save_every, out, rtol)
     from scipy.integrate import solve_ivp
 
     batch, n = y0.shape
@@ -548,4 +574,32 @@ def run_reference(rhs, y0: np.ndarray, params: np.ndarray, dt: float, nsteps: in
             failed[b] = 1
             continue
         out[:, b] = solution.y.T
+    return failed
+
+
+def _reference_in_legs(rhs, finish, y0, params, interval, out, rtol):
+    """DOP853 over each sampling interval [s], then finish(y, p) (phi folded into the quaternions, phi = 0)."""
+    from scipy.integrate import solve_ivp
+
+    batch, n = y0.shape
+    failed = np.full(batch, -1, dtype=np.int64)
+    for b in range(batch):
+        p = np.ascontiguousarray(params[b])
+
+        def f(_t, y, p=p):
+            k = np.empty(n)
+            rhs(np.ascontiguousarray(y), p, k)
+            return k
+
+        y = np.array(y0[b], dtype=np.float64)
+        out[0, b] = y
+        scale = max(float(np.max(np.abs(y))), 1.0)
+        for s in range(1, out.shape[0]):
+            solution = solve_ivp(f, (0.0, interval), y, method="DOP853", rtol=rtol, atol=rtol * 1e-2 * scale)
+            if not solution.success:
+                failed[b] = s
+                break
+            y = np.ascontiguousarray(solution.y[:, -1])
+            finish(y, p)
+            out[s, b] = y
     return failed

@@ -166,15 +166,16 @@ def _integrate_across_break(model, method: str, dt: float, nsteps: int, save_eve
 
 def _integrate(model, method: str, dt: float, nsteps: int, save_every: int, out: np.ndarray) -> np.ndarray:
     y0, p = np.ascontiguousarray(model.y0, dtype=np.float64), np.ascontiguousarray(model.params, dtype=np.float64)
+    finish = model.finish  # None, or the scene's hook after every whole step (a tree's quaternions)
     if method == "euler":
-        return integrators.run_euler(model.rhs, y0, p, dt, nsteps, save_every, out)
+        return integrators.run_euler(model.rhs, y0, p, dt, nsteps, save_every, out, finish=finish)
     if method == "rk4":
-        return integrators.run_rk4(model.rhs, y0, p, dt, nsteps, save_every, out)
+        return integrators.run_rk4(model.rhs, y0, p, dt, nsteps, save_every, out, finish=finish)
     if method == "gauss6":
         return integrators.run_gauss6(model.rhs, integrators.GAUSS6_A, integrators.GAUSS6_B,
-                                      y0, p, dt, nsteps, save_every, out)
+                                      y0, p, dt, nsteps, save_every, out, finish=finish)
     if method == "reference":
-        return integrators.run_reference(model.rhs, y0, p, dt, nsteps, save_every, out)
+        return integrators.run_reference(model.rhs, y0, p, dt, nsteps, save_every, out, finish=finish)
     if method in model.split:  # the scene's own flows (free rotation: "splitting", "yoshida6")
         step, weights = model.split[method]
         return integrators.run_composed_flow(step, weights, y0, p, dt, nsteps, save_every, out)

@@ -1,6 +1,6 @@
 """rbody on the hard cases of issue 6 (numerical stability), one fast test per behaviour.
 
-The cross-simulator suite is validation/hard.py (tests/validation/test_hard.py).
+The cross-simulator suite is validation/hard/ (tests/validation/test_hard.py).
 """
 
 from __future__ import annotations

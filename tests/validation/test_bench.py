@@ -5,9 +5,10 @@ import math
 import numpy as np
 import pytest
 
-from validation.bench import COLUMNS, read_csv
-from validation.bench_growth import exponent
-from validation.bench_scenes import sweep
+from validation.bench.csvfile import read_csv
+from validation.bench.growth import exponent
+from validation.bench.scenes import sweep
+from validation.bench.sweep import COLUMNS
 
 
 @pytest.mark.crosssim

@@ -1,4 +1,4 @@
-"""The hard-case suite (validation/hard.py): its measures, its report, and the cases that run other simulators.
+"""The hard-case suite (validation/hard/): its measures, its report, and the cases that run other simulators.
 
 The rbody behaviour of each case is tested in tests/rbody/test_hard_cases.py; here the suite itself."""
 
@@ -10,8 +10,9 @@ import time
 import numpy as np
 import pytest
 
-from validation.hard import OUTCOMES, CaseResult, HardRow, case_function, table, write_markdown
-from validation.hard_motion import energy_bounded, envelope, mean_period, rbody_verdict, upward_crossings
+from validation.hard.kit import energy_bounded, envelope, mean_period, rbody_verdict, upward_crossings
+from validation.hard.rows import OUTCOMES, CaseResult, HardRow
+from validation.hard.suite import case_function, table, write_markdown
 
 
 # ----- the measures, against closed forms ---------------------------------------------------------------
@@ -142,7 +143,7 @@ PENDING = ("should refuse", "does not name the estimated limit", "not a Simulati
 @pytest.mark.slow
 @pytest.mark.crosssim
 def test_quick_suite_under_two_minutes(tmp_path):
-    from validation.hard import run_hard
+    from validation.hard.suite import run_hard
 
     start = time.perf_counter()
     status = run_hard(tmp_path, quick=True)

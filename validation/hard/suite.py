@@ -1,131 +1,30 @@
-"""The numerical-stability suite: hard cases that break naive engines, run on rbody, MuJoCo and pymunk.
-
-    python -m validation hard [--quick] [--out DIR] [--case N ...]
-
-Each case exposes one failure mode (issue 6): the pi collisions to many digits, the swinging rod
-near the top, free rotation near the intermediate axis, needles and thin discs, rolling at the
-friction limit, too large a step, meshes at bad scales, long chains, time reversal. Every case runs
-on every backend that can express it and gives rows of one table:
-
-    outcome   exact (a count exact, or an error at round-off) | error (a finite run, its error
-              given) | wrong count | blew up (a non-finite or unstable state, reported as an error)
-              | refused (an error before any work, or a simulator that cannot express the case)
-              | not run (beyond the time budget; the estimate is in the note)
-    value     the measured error or count, `measure` says which
-    rbody     pass / FAIL: whether rbody met the case's requirement (rbody rows only); the other
-              simulators' rows are findings, reported and never judged against a loose bound
-
-The cases live in validation/hard_contact.py (1, 5), hard_motion.py (2, 3), hard_shapes.py (4, 7),
-hard_steps.py (6, 9) and hard_chains.py (8); their figures in hard_figures.py. DIR/hard.md holds the
-tables, the figures and each case's findings; the machine, the package versions and the wall time
-head it.
-"""
+"""The hard-case suite of `python -m validation hard` (validation/hard/__init__.py says what it runs):
+the case table, the command, and the tables and report hard.md."""
 
 from __future__ import annotations
 
 import sys
 import time
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-OUTCOMES = ("exact", "error", "wrong count", "blew up", "refused", "not run")
-
-
-@dataclass(frozen=True)
-class HardRow:
-    """One run of one case.
-
-    variant: what was run (parameters); backend: rbody, mujoco or pymunk; setting: method or
-    integrator and step; outcome: one of OUTCOMES; value: the measured number (None when there is
-    none) and measure: what it is; seconds: wall time of the run [s]; verdict: "pass"/"FAIL" for
-    rbody rows, "" otherwise; note: why (an error message, an estimate, a reference value)."""
-
-    variant: str
-    backend: str
-    setting: str
-    outcome: str
-    value: float | None
-    measure: str
-    seconds: float
-    verdict: str = ""
-    note: str = ""
-
-    def __post_init__(self) -> None:
-        if self.outcome not in OUTCOMES:
-            raise ValueError(f"outcome={self.outcome!r}: expected one of {OUTCOMES}")
-
-
-@dataclass
-class CaseResult:
-    """Everything one case reports: its rows, its figures (caption, file name), the findings in words."""
-
-    number: int
-    title: str
-    requirement: str
-    rows: list[HardRow] = field(default_factory=list)
-    figures: list[tuple[str, str]] = field(default_factory=list)
-    findings: list[str] = field(default_factory=list)
-    seconds: float = 0.0
-
-
-def timed(function: Callable, *args, **kwargs):
-    """(result, seconds) of one call."""
-    start = time.perf_counter()
-    result = function(*args, **kwargs)
-    return result, time.perf_counter() - start
-
-
-def attempt(function: Callable, *args, **kwargs):
-    """(result or None, error or None, seconds): a call whose failure is a result to report."""
-    start = time.perf_counter()
-    try:
-        result = function(*args, **kwargs)
-    except Exception as error:  # blow-ups and refusals of every simulator are outcomes
-        return None, error, time.perf_counter() - start
-    return result, None, time.perf_counter() - start
-
-
-def error_outcome(error: BaseException, *, started: bool = True) -> str:
-    """The outcome of a run that raised: refused (the simulator cannot express the case, the method does
-    not apply, rbody refused the step before any work, or the error came before the run: started=False)
-    or blew up (anything raised while or after stepping: an unstable or non-finite state, and also an
-    error of another type that escaped, which the rbody verdicts then count against rbody)."""
-    from rbody.errors import MethodNotApplicable, SimulationError
-
-    if isinstance(error, (NotImplementedError, MethodNotApplicable)) or not started:
-        return "refused"
-    text = str(error)
-    if isinstance(error, SimulationError) and ("beyond its estimated stability limit" in text
-                                               or "cannot run it" in text or "no stability interval" in text):
-        return "refused"
-    return "blew up"
-
-
-def short(error: BaseException, limit: int = 240) -> str:
-    text = f"{type(error).__name__}: {error}"
-    return text if len(text) <= limit else text[:limit - 3] + "..."
-
+from validation.hard import chains, contact, motion, shapes, steps
+from validation.hard.rows import CaseResult, HardRow, timed
 
 # ----- the cases --------------------------------------------------------------------------------------
 
-# case number -> (module, function(quick, out) -> CaseResult)
-_CASES = {1: ("hard_contact", "case_pi"), 2: ("hard_motion", "case_near_top"),
-          3: ("hard_motion", "case_intermediate_axis"), 4: ("hard_shapes", "case_extreme_shapes"),
-          5: ("hard_contact", "case_friction_limit"), 6: ("hard_steps", "case_large_steps"),
-          7: ("hard_shapes", "case_bad_meshes"), 8: ("hard_chains", "case_long_chains"),
-          9: ("hard_steps", "case_time_reversal")}
+# case number -> function(quick, out) -> CaseResult
+_CASES = {1: contact.case_pi, 2: motion.case_near_top, 3: motion.case_intermediate_axis,
+          4: shapes.case_extreme_shapes, 5: contact.case_friction_limit, 6: steps.case_large_steps,
+          7: shapes.case_bad_meshes, 8: chains.case_long_chains, 9: steps.case_time_reversal}
 CASES = tuple(_CASES)
 
 
 def case_function(number: int) -> Callable[[bool, Path], CaseResult]:
     """The function that runs hard case `number` (1..9)."""
-    import importlib
-
     if number not in _CASES:
         raise ValueError(f"case={number!r}: the hard cases are numbered {CASES[0]}..{CASES[-1]}")
-    module, name = _CASES[number]
-    return getattr(importlib.import_module(f"validation.{module}"), name)
+    return _CASES[number]
 
 
 def run_cases(out: Path, *, quick: bool, cases: tuple[int, ...] = CASES) -> list[CaseResult]:
@@ -235,4 +134,4 @@ def write_markdown(out: Path, results: list[CaseResult], *, quick: bool, seconds
     return path
 
 
-__all__ = ["HardRow", "CaseResult", "OUTCOMES", "CASES", "run_cases", "run_hard", "table", "write_markdown"]
+__all__ = ["CASES", "case_function", "run_cases", "run_hard", "table", "write_markdown"]

@@ -11,8 +11,8 @@ import rbody
 from rbody import stability
 from rbody.motion import quat_multiply, quat_to_matrix
 from rbody.scenes import free_rotation, pendulum_chain, swinging_rod
-from validation.hard import CaseResult, HardRow, attempt, error_outcome, short
-from validation.hard_motion import run_backend
+from validation.hard.rows import CaseResult, HardRow, attempt, error_outcome, short
+from validation.hard.kit import run_backend
 
 # ----- 6. too large a step -----------------------------------------------------------------------------
 
@@ -44,7 +44,7 @@ def _run_errors(scene, trajectory) -> tuple[bool, float, float]:
 
 
 def case_large_steps(quick: bool, out: Path) -> CaseResult:
-    from validation.hard_figures import figure_step_outcomes
+    from validation.hard.figures import figure_step_outcomes
 
     factors = STEP_FACTORS_QUICK if quick else STEP_FACTORS
     result = CaseResult(

@@ -9,7 +9,7 @@ Each is fitted as cost ~ x^p on log-log axes (least squares on the logs), p give
 - chain: n = 2..32 unit rods at theta0 from 0.3 to 0.1 rad, dt = 1e-3 for 5 s: rbody rk4 and gauss6,
   MuJoCo RK4, pymunk; cost per simulated second against n. rbody solves the n x n mass matrix by
   Cholesky at each evaluation (n^3 / 3 flops); MuJoCo's tree factorisation is cheaper for long chains.
-- batch: seconds per step of a batch of rods against its size (from validation.bench_batch), from
+- batch: seconds per step of a batch of rods against its size (from validation.bench.batch), from
   64 rods on (one rod leaves a core idle).
 """
 
@@ -142,7 +142,7 @@ def fits(rows: list[dict]) -> list[dict]:
 
 def run_growth(out: Path, *, quick: bool, header: list[str], batch: dict | None = None, log=sys.stderr) -> dict:
     """growth.csv, growth.png and the summary's lines."""
-    from validation.bench import write_csv
+    from validation.bench.csvfile import write_csv
 
     start = time.perf_counter()
     rows = pi_growth(quick)

@@ -10,8 +10,8 @@ import numpy as np
 import rbody
 from rbody import stability
 from rbody.scenes import compound_pendulum, free_rotation
-from validation.hard import CaseResult, HardRow, attempt, error_outcome, short
-from validation.hard_motion import rbody_verdict, run_backend
+from validation.hard.rows import CaseResult, HardRow, attempt, error_outcome, short
+from validation.hard.kit import rbody_verdict, run_backend
 
 EPS = float(np.finfo(np.float64).eps)
 

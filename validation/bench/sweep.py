@@ -1,37 +1,12 @@
-"""Speed against error: the work-precision benchmark of rbody, MuJoCo and pymunk.
-
-    python -m validation bench [--scene NAME ...] [--quick] [--out DIR]
-
-For every scene of validation/bench_scenes.py, every backend that can run it and each of its
-methods or settings, a sweep of dt; at each point
-
-    error  = max over the run of |x(t) - x*(t)| of the scene's main observable (compare.max_abs_error),
-             x* the exact solution (the chain: rbody's DOP853 reference run at rtol 1e-13)
-    drift  = compare.energy_error: max |E - E*| / max |E*|
-    cost   = seconds of stepping per simulated second: meta["step_seconds"] / simulated time, after one
-             warm-up run per series, the minimum of up to REPEATS runs (fewer when a run is long: the
-             `repeats` column says how many)
-
-A run that blows up or is refused as beyond the stability limit (SimulationError: "unstable"), miscounts
-impacts or slips is a row with its `failure` reason, never dropped. What each backend's step_seconds holds: rbody the whole simulate call
-after its kernels are compiled (stepping and the observables); MuJoCo the mujoco.rollout calls alone;
-pymunk the space.step calls alone (so MuJoCo's and pymunk's translation of states into observables is
-free here and rbody's is not).
-
-Outputs in DIR: bench.csv (every point; machine and versions in '#' lines), wp_<scene>.png (work-
-precision and energy panels), batch.csv and growth.csv (validation.bench_batch, bench_growth), their
-figures, and summary.md (validation.bench_report).
-"""
+"""The work-precision sweeps of `python -m validation bench` (validation/bench/__init__.py says what is
+measured): one point, one series of dt, one scene."""
 
 from __future__ import annotations
 
-import csv
 import math
-import sys
 import time
-from dataclasses import asdict, dataclass
-from pathlib import Path
-from typing import Iterable, Mapping
+from dataclasses import dataclass
+from typing import Mapping
 
 import numpy as np
 
@@ -40,7 +15,7 @@ from rbody.errors import SimulationError
 from rbody.trajectory import Trajectory
 from validation import compare
 from validation.backends import BACKENDS, get, supports
-from validation.bench_scenes import SAMPLES, BenchScene, Series, bench_scenes
+from validation.bench.scenes import SAMPLES, BenchScene, Series
 
 LEVELS = (1e-3, 1e-6, 1e-9, 1e-12)
 COLUMNS = ("scene", "backend", "method", "settings", "dt", "error", "energy_drift", "seconds_per_sim_second",
@@ -53,11 +28,6 @@ MAX_RUN_SECONDS = {False: 60.0, True: 5.0}
 # A rolling body slips when max |slip| > SLIP_FRACTION x its peak exact speed: the rolling constraint is
 # then broken by more than the distance error of 1e-3 (relative) the coarsest level asks for.
 SLIP_FRACTION = 1e-3
-EXTRA_WORK = ("batch", "growth")
-# --quick without --scene: the scenes that exercise every kind of truth and failure (the compound pendulum
-# and the race repeat the rod and the disc), so that the smoke test stays under 2 minutes.
-QUICK_DEFAULT = ("swinging_rod", "rolling_disc", "line_collisions", "pi_collisions", "free_rotation",
-                 "pendulum_chain") + EXTRA_WORK
 
 
 @dataclass
@@ -202,98 +172,3 @@ def run_scene(bench: BenchScene, *, quick: bool, log=None) -> list[Point]:
             print(f"  {bench.name}: {series.backend} {series.method} [{series.settings}] "
                   f"{time.perf_counter() - start:.1f} s", file=log, flush=True)
     return points
-
-
-# ----- the CSV ------------------------------------------------------------------------------------------
-
-def header_lines(quick: bool) -> list[str]:
-    """Machine, versions and mode: the '#' lines at the top of every CSV of the benchmark."""
-    from validation.baselines import versions
-    from validation.machine import describe_machine
-
-    return [f"machine: {describe_machine()}",
-            "versions: " + ", ".join(f"{k} {v}" for k, v in versions().items()),
-            f"mode: {'quick' if quick else 'full'}; load average at start: {_load()}",
-            "error: max abs error of the scene's main observable over the run [its unit]; energy_drift: "
-            "max |E - E*| / max |E*|; seconds_per_sim_second: min over `repeats` timed runs; event-driven "
-            "rows count impacts as steps"]
-
-
-def _load() -> str:
-    try:
-        with open("/proc/loadavg") as f:
-            return " ".join(f.read().split()[:3])
-    except OSError:
-        return "unknown"
-
-
-def write_csv(path: Path, rows: Iterable[Mapping], columns: tuple[str, ...], header: list[str]) -> Path:
-    with open(path, "w", newline="") as f:
-        for line in header:
-            f.write(f"# {line}\n")
-        writer = csv.DictWriter(f, fieldnames=columns)
-        writer.writeheader()
-        for row in rows:
-            writer.writerow({k: _cell(row[k]) for k in columns})
-    return path
-
-
-def _cell(value) -> str:
-    if isinstance(value, float):
-        return "nan" if math.isnan(value) else repr(value)
-    return str(value)
-
-
-def read_csv(path: Path) -> list[dict]:
-    """Rows of a benchmark CSV (the '#' lines skipped), numbers as floats."""
-    with open(path, newline="") as f:
-        rows = list(csv.DictReader(line for line in f if not line.startswith("#")))
-    for row in rows:
-        for key, value in row.items():
-            try:
-                row[key] = float(value) if key not in ("scene", "backend", "method", "settings", "failure") else value
-            except ValueError:
-                pass
-    return rows
-
-
-# ----- the command --------------------------------------------------------------------------------------
-
-def run_bench(out: Path, *, names: Iterable[str] | None = None, quick: bool = False, log=sys.stderr) -> Path:
-    """Run the benchmark into folder `out` and return the path of summary.md.
-
-    names: scene names of bench_scenes() and/or "batch", "growth" (default: all of them; quick: QUICK_DEFAULT).
-    """
-    from validation import bench_batch, bench_growth, bench_report
-
-    benches = bench_scenes(quick)
-    known = [b.name for b in benches] + list(EXTRA_WORK)
-    names = list(names) if names else list(QUICK_DEFAULT if quick else known)
-    unknown = [n for n in names if n not in known]
-    if unknown:
-        raise ValueError(f"--scene {', '.join(unknown)}: expected one of {', '.join(known)}")
-    out.mkdir(parents=True, exist_ok=True)
-    started = time.perf_counter()
-    header = header_lines(quick)
-    points: list[Point] = []
-    for bench in benches:
-        if bench.name in names:
-            print(f"[bench] {bench.name} ({bench.scene.describe()})", file=log, flush=True)
-            points += run_scene(bench, quick=quick, log=log)
-    csv_path = write_csv(out / "bench.csv", (asdict(p) for p in points), COLUMNS, header)
-    figures = [bench_report.plot_scene(points, b, out) for b in benches if b.name in names]
-    batch = bench_batch.run_batch(out, quick=quick, header=header, log=log) if "batch" in names else None
-    growth = (bench_growth.run_growth(out, quick=quick, header=header, batch=batch, log=log)
-              if "growth" in names else None)
-    wall = time.perf_counter() - started
-    path = bench_report.write_summary(out, points, [b for b in benches if b.name in names], figures, batch, growth,
-                                      header, quick=quick, seconds=wall)
-    print(f"[bench] {csv_path}\n[bench] {path} ({wall:.0f} s)", file=log)
-    return path
-
-
-def main(args) -> int:
-    """Entry of `python -m validation bench` (args: scene, quick, out)."""
-    path = run_bench(args.out, names=args.scene, quick=args.quick)
-    print(path.read_text())
-    return 0

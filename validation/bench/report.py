@@ -1,4 +1,4 @@
-"""The benchmark's figures and its Markdown summary (validation.bench)."""
+"""The benchmark's figures and its Markdown summary (validation.bench.run)."""
 
 from __future__ import annotations
 
@@ -185,7 +185,7 @@ def write_summary(out: Path, points: Sequence, benches: Sequence, figures: Seque
 
 def goals(standings: Sequence[dict], batch, growth, t_end: dict[str, float] | None = None) -> list[str]:
     """The issue's goals, each met or missed with the measured margin and, for a miss, where rbody's time
-    goes: the fixed cost of a simulate call (measured by bench_batch) or the steps themselves."""
+    goes: the fixed cost of a simulate call (measured by bench.batch) or the steps themselves."""
     lines = ["## Goals", ""]
     missed = [s for s in standings if 0 <= s["ratio"] < GOAL_RATIO]
     reached = [s for s in standings if s["rival"] is not None]

@@ -1,5 +1,4 @@
-"""Hard cases 2 and 3: the swinging rod near the top, free rotation near the intermediate axis; and the
-helpers of every time-stepped case (also used by hard_chains.py, hard_steps.py and hard_shapes.py)."""
+"""Hard cases 2 and 3: the swinging rod near the top, free rotation near the intermediate axis."""
 
 from __future__ import annotations
 
@@ -14,98 +13,8 @@ import validation
 from rbody import stability
 from rbody.engine.integrators import SYMPLECTIC
 from rbody.scenes import free_rotation, swinging_rod
-from validation.hard import CaseResult, HardRow, attempt, error_outcome, short
-
-EPS = float(np.finfo(np.float64).eps)
-
-
-# ----- shared helpers --------------------------------------------------------------------------------
-
-def run_backend(scene, backend: str, dt: float, **settings):
-    """(trajectory or None, error or None, seconds): validation.run, timed by the backend's own stepping
-    time where it reports one."""
-    trajectory, error, seconds = attempt(validation.run, scene, backend, dt=dt, **settings)
-    if trajectory is not None:
-        seconds = float(trajectory.meta.get("step_seconds", seconds))
-    return trajectory, error, seconds
-
-
-def refusal_expected(scene, method: str, dt: float, t_end: float | None = None) -> str | None:
-    """rbody's own estimate (rbody.stability.check_step): the message with which rbody should refuse
-    this run, or None when it should run it."""
-    try:
-        stability.check_step(scene, method, dt, t_end)
-    except rbody.SimulationError as error:
-        return str(error)
-    return None
-
-
-def rbody_verdict(scene, method: str, dt: float, t_end: float | None, outcome: str, wrong: str = "") -> tuple[str, str]:
-    """(verdict, reason) of an rbody run: refused is right when rbody's estimate refuses it (and a
-    refusal inside the estimate is a false alarm); a returned run is a FAIL when the estimate says it
-    should have been refused, or when `wrong` says it is qualitatively wrong."""
-    expected = refusal_expected(scene, method, dt, t_end)
-    if outcome in ("refused", "blew up"):
-        if expected is None:
-            return "FAIL", "rbody stopped a run inside its own stability estimate (a false alarm)"
-        return ("pass", "") if outcome == "refused" else ("FAIL", "rbody ran into the failure instead of refusing "
-                                                          f"before the first step: {expected}")
-    if expected is not None:
-        return "FAIL", f"rbody returned a run it should refuse: {expected}"
-    if wrong:
-        return "FAIL", wrong
-    return "pass", ""
-
-
-def envelope(x: np.ndarray, y: np.ndarray, bins: int = 300) -> tuple[np.ndarray, np.ndarray]:
-    """Max of |y| over log-spaced bins of x > 0: a drift curve small enough to draw."""
-    x, y = np.asarray(x, float), np.abs(np.asarray(y, float))
-    keep = x > 0
-    x, y = x[keep], y[keep]
-    if x.size == 0:
-        return x, y
-    edges = np.geomspace(x[0], x[-1] * (1 + 1e-12), bins + 1)
-    index = np.clip(np.searchsorted(edges, x, side="right") - 1, 0, bins - 1)
-    top = np.full(bins, -1.0)
-    np.maximum.at(top, index, y)
-    centres = np.sqrt(edges[:-1] * edges[1:])
-    used = top >= 0
-    return centres[used], top[used]
-
-
-def upward_crossings(t: np.ndarray, q: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Times where q crosses 0 upwards, from samples of q and q' = v: the cubic Hermite interpolant on
-    each bracketing interval, solved by Newton's method from the linear guess."""
-    i = np.flatnonzero((q[:-1] < 0) & (q[1:] >= 0))
-    if i.size == 0:
-        return np.empty(0)
-    h = t[i + 1] - t[i]
-    q0, q1, d0, d1 = q[i], q[i + 1], v[i] * h, v[i + 1] * h
-    s = -q0 / (q1 - q0)
-    for _ in range(8):
-        s2, s3 = s * s, s * s * s
-        p = (2 * s3 - 3 * s2 + 1) * q0 + (s3 - 2 * s2 + s) * d0 + (-2 * s3 + 3 * s2) * q1 + (s3 - s2) * d1
-        dp = (6 * s2 - 6 * s) * q0 + (3 * s2 - 4 * s + 1) * d0 + (-6 * s2 + 6 * s) * q1 + (3 * s2 - 2 * s) * d1
-        s = np.clip(s - p / np.where(dp == 0, 1.0, dp), 0.0, 1.0)
-    return t[i] + s * h
-
-
-def mean_period(t: np.ndarray, q: np.ndarray, v: np.ndarray) -> tuple[float, int]:
-    """Mean interval between upward zero crossings of q [s] (nan with fewer than two) and their count."""
-    crossings = upward_crossings(t, q, v)
-    if crossings.size < 2:
-        return float("nan"), int(crossings.size)
-    return float((crossings[-1] - crossings[0]) / (crossings.size - 1)), int(crossings.size)
-
-
-def energy_bounded(energy: np.ndarray, steps: int) -> bool:
-    """The energy error over the whole run stays within twice that of its first quarter (plus the round-off
-    random walk, 8 eps sqrt(steps) |E0|): bounded, not drifting (a linear drift gives 4 times)."""
-    error = np.abs(energy - energy[0])
-    quarter = max(2, energy.size // 4)
-    allowance = 8 * EPS * math.sqrt(max(steps, 1)) * abs(energy[0])
-    return float(np.max(error)) <= 2.0 * float(np.max(error[:quarter])) + allowance
-
+from validation.hard.kit import EPS, energy_bounded, envelope, mean_period, rbody_verdict, run_backend
+from validation.hard.rows import CaseResult, HardRow, attempt, error_outcome, short
 
 # ----- 2. the swinging rod near the top -----------------------------------------------------------
 
@@ -195,7 +104,7 @@ def _near_top_run(scene, backend: str, dt: float, period: float, settings: dict)
 
 
 def case_near_top(quick: bool, out: Path) -> CaseResult:
-    from validation.hard_figures import figure_panels
+    from validation.hard.figures import figure_panels
 
     periods = 100 if quick else 10_000
     other_periods = 10 if quick else 100
@@ -294,7 +203,7 @@ def _rotation_measures(scene, trajectory) -> tuple[float, float, float, int]:
 
 
 def case_intermediate_axis(quick: bool, out: Path) -> CaseResult:
-    from validation.hard_figures import figure_panels
+    from validation.hard.figures import figure_panels
 
     t_end = 100.0 if quick else 1000.0
     body = rbody.Inertia(1.0, np.zeros(3), np.diag(ROTATION_BODY))

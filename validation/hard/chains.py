@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 
 from rbody.scenes import pendulum_chain
-from validation.hard import CaseResult, HardRow, error_outcome, short
-from validation.hard_motion import energy_bounded, envelope, rbody_verdict, run_backend
+from validation.hard.rows import CaseResult, HardRow, error_outcome, short
+from validation.hard.kit import energy_bounded, envelope, rbody_verdict, run_backend
 
 # ----- 8. long chains ---------------------------------------------------------------------------------
 
@@ -27,7 +27,7 @@ def _departure(t: np.ndarray, a: np.ndarray, b: np.ndarray, threshold: float = 1
 
 
 def case_long_chains(quick: bool, out: Path) -> CaseResult:
-    from validation.hard_figures import figure_panels
+    from validation.hard.figures import figure_panels
 
     t_end = 10.0 if quick else 100.0
     links = (2, 8) if quick else CHAIN_LINKS

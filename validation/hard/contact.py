@@ -11,7 +11,7 @@ import rbody
 import validation
 from rbody.scenes import pi_collisions, rolling
 from validation.compare import pi_digits_right
-from validation.hard import CaseResult, HardRow, attempt, error_outcome, short
+from validation.hard.rows import CaseResult, HardRow, attempt, error_outcome, short
 
 EPS = float(np.finfo(np.float64).eps)
 
@@ -103,7 +103,7 @@ def _pi_rows_other(backend: str, digits: tuple[int, ...], result: CaseResult, po
 
 
 def case_pi(quick: bool, out: Path) -> CaseResult:
-    from validation.hard_figures import figure_pi_time
+    from validation.hard.figures import figure_pi_time
 
     result = CaseResult(
         1, "The pi collisions: digits of pi counted by impacts",

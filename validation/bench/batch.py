@@ -237,9 +237,9 @@ def measure(mode: str, size: int, quick: bool) -> dict:
     row = {"mode": mode, "size": size, "steps": steps, "samples": steps // max(1, steps // SAMPLES) + 1,
            "seconds": math.nan, "rod_steps_per_second": math.nan, "ns_per_rod_step": math.nan, "peak_mb": math.nan,
            "base_mb": math.nan, "repeats": repeats, "failure": ""}
-    command = [sys.executable, "-m", "validation.bench_batch", "--worker", mode, str(size), str(steps), str(repeats)]
+    command = [sys.executable, "-m", "validation.bench.batch", "--worker", mode, str(size), str(steps), str(repeats)]
     done = subprocess.run(command, capture_output=True, text=True, timeout=1800,
-                          cwd=Path(__file__).resolve().parent.parent)
+                          cwd=Path(__file__).resolve().parents[2])
     if done.returncode != 0:
         row["failure"] = f"worker failed: {(done.stderr.strip().splitlines() or ['?'])[-1][:200]}"
         return row
@@ -291,9 +291,9 @@ def single_step(quick: bool) -> dict:
         env = dict(os.environ)
         if threads:
             env["NUMBA_NUM_THREADS"] = threads
-        done = subprocess.run([sys.executable, "-m", "validation.bench_batch", "--single", str(steps)],
+        done = subprocess.run([sys.executable, "-m", "validation.bench.batch", "--single", str(steps)],
                               capture_output=True, text=True, timeout=600, env=env,
-                              cwd=Path(__file__).resolve().parent.parent)
+                              cwd=Path(__file__).resolve().parents[2])
         if done.returncode != 0:
             raise RuntimeError(f"single-step worker failed: {done.stderr.strip()[-300:]}")
         out[label] = json.loads(done.stdout.strip().splitlines()[-1])
@@ -304,7 +304,7 @@ def single_step(quick: bool) -> dict:
 
 def run_batch(out: Path, *, quick: bool, header: list[str], log=sys.stderr) -> dict:
     """batch.csv, batch.png and the Markdown and goal lines of the summary."""
-    from validation.bench import write_csv
+    from validation.bench.csvfile import write_csv
 
     rows = []
     for mode in MODES[quick]:
@@ -417,4 +417,4 @@ if __name__ == "__main__":
     elif len(sys.argv) == 3 and sys.argv[1] == "--single":
         print(json.dumps(_single_worker(int(sys.argv[2]))))
     else:
-        sys.exit("usage: python -m validation.bench_batch --worker MODE SIZE STEPS REPEATS | --single STEPS")
+        sys.exit("usage: python -m validation.bench.batch --worker MODE SIZE STEPS REPEATS | --single STEPS")
