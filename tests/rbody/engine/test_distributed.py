@@ -13,7 +13,7 @@ import pytest
 
 distributed = pytest.importorskip("distributed")
 
-from rbody import Inertia, SimulationError, simulate  # noqa: E402
+from rbody import Body, Inertia, Joint, Layout, Scene, SimulationError, simulate  # noqa: E402
 from rbody.engine.distributed import MIN_CHUNK, chunk_rows, portable  # noqa: E402
 from rbody.scenes import free_rotation, pendulum_chain, rocket, rolling_race, swinging_rod, two_body  # noqa: E402
 from rbody.scenes.pendulum import SwingingRod  # noqa: E402
@@ -45,9 +45,20 @@ def _batches():
         # the step cut at burn-out (simulate's other path)
         "rocket across burn-out": (rocket(1.0, burn_rate=0.1, exhaust_speed=np.linspace(1.0, 3.0, 37), dry_mass=0.5,
                                           t_end=8.0), "rk4"),
+        # a tree of the general engine: a hinge, then a ball joint whose quaternion the finish hook renormalises
+        "tree hinge + ball": (Scene.from_layout(_arm_and_ball(), t_end=0.5,
+                                                qvel0=np.stack([theta0, np.ones(37), -theta0, 0.5 * theta0], axis=1)),
+                              "rk4"),
         "two bodies": (two_body(1.0, np.linspace(0.5, 2.0, 37), separation=1.0, relative_velocity=1.0, t_end=2.0),
                        "verlet"),
     }
+
+
+def _arm_and_ball() -> Layout:
+    body = Inertia(1.0, np.zeros(3), np.diag([0.1, 0.2, 0.25]))
+    return Layout(bodies=(Body("arm", body, pos=(0.0, 0.0, -0.5)), Body("ball", body, parent="arm", pos=(0.3, 0.0, -0.5))),
+                  joints=(Joint("hinge", "hinge", "arm", axis=(0.0, 1.0, 0.0), anchor=(0.0, 0.0, 0.5)),
+                          Joint("socket", "ball", "ball")))
 
 
 @pytest.mark.parametrize("name", list(_batches()))
