@@ -58,10 +58,12 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "bench":
         from validation.bench.run import main as bench_main
         return bench_main(args)
+    from validation.cluster import connect
     if args.command == "hard":
         from validation.hard.suite import CASES, run_hard
-        return run_hard(args.out, quick=args.quick, cases=tuple(args.case) if args.case else CASES)
-    from validation.cluster import connect
+        with connect(args.scheduler, args.workers) as client:
+            return run_hard(args.out, quick=args.quick, cases=tuple(args.case) if args.case else CASES,
+                            client=client)
     with connect(args.scheduler, args.workers) as client:
         return run_all(args.out, quick=args.quick, update=args.update_baselines,
                        backends=tuple(args.backend) if args.backend else None, client=client)

@@ -114,3 +114,59 @@ def _reuse(client):
         yield client if workers else None
 
     return connect
+
+
+def _hard_rows(text: str) -> list[list[str]]:
+    """The hard tables' rows without the time column (the 7th of 8; the `rbody` column may be empty)."""
+    rows = []
+    for line in text.splitlines():
+        cells = re.split(r"\s{2,}", line.rstrip())
+        if len(cells) >= 7:
+            rows.append(cells[:6] + cells[7:])
+    return rows
+
+
+# Fast cases of the suite (a few seconds together), enough to cover rbody, MuJoCo and pymunk rows and figures.
+HARD_CASES = ["--case", "4", "--case", "5", "--case", "6", "--case", "9"]
+
+
+def test_hard_quick_on_a_cluster_gives_the_serial_tables(client, tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(cluster, "connect", _reuse(client))
+    main(["hard", "--quick", *HARD_CASES, "--out", str(tmp_path / "serial")])
+    serial = capsys.readouterr().out
+    main(["hard", "--quick", *HARD_CASES, "--workers", "2", "--out", str(tmp_path / "cluster")])
+    on_cluster = capsys.readouterr().out
+    assert len(_hard_rows(serial)) > 50 and _hard_rows(on_cluster) == _hard_rows(serial)
+    drawn = sorted(p.name for p in (tmp_path / "serial").iterdir())
+    assert "hard_large_steps.png" in drawn and sorted(p.name for p in (tmp_path / "cluster").iterdir()) == drawn
+
+
+def test_a_failed_hard_run_writes_nothing_to_its_report_folder(tmp_path, monkeypatch):
+    from validation.hard import suite
+
+    def breaks(quick, out):
+        (out / "hard_half_done.png").write_bytes(b"figure")
+        raise RuntimeError("a case that fails after drawing")
+
+    monkeypatch.setitem(suite._CASES, 9, breaks)
+    with pytest.raises(RuntimeError, match="fails after drawing") as caught:
+        main(["hard", "--quick", "--case", "5", "--case", "9", "--out", str(tmp_path / "report")])
+    assert any("in task case 9 of hard" in note for note in caught.value.__notes__)
+    assert not (tmp_path / "report").exists()
+
+
+def _bench_points(path) -> list[dict]:
+    """bench.csv's points without the timing columns (cost, steps per second, repeats)."""
+    from validation.bench.csvfile import read_csv
+
+    timing = ("seconds_per_sim_second", "steps_per_second", "repeats")
+    return [{k: "nan" if v != v else v for k, v in row.items() if k not in timing} for row in read_csv(path)]
+
+
+def test_bench_on_a_cluster_gives_the_serial_points(client, tmp_path, monkeypatch):
+    monkeypatch.setattr(cluster, "connect", _reuse(client))
+    main(["bench", "--quick", "--scene", "rolling_disc", "--out", str(tmp_path / "serial")])
+    main(["bench", "--quick", "--scene", "rolling_disc", "--workers", "2", "--out", str(tmp_path / "cluster")])
+    serial = _bench_points(tmp_path / "serial" / "bench.csv")
+    assert len(serial) > 20 and not any(row["failure"].startswith("not run") for row in serial)
+    assert _bench_points(tmp_path / "cluster" / "bench.csv") == serial

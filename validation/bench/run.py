@@ -12,7 +12,8 @@ from typing import Iterable
 from validation.bench import batch, growth, report
 from validation.bench.csvfile import header_lines, write_csv
 from validation.bench.scenes import bench_scenes
-from validation.bench.sweep import COLUMNS, Point, run_scene
+from validation.bench.sweep import COLUMNS, Point, refusals, run_scene, series_task
+from validation.cluster import run_tasks
 
 EXTRA_WORK = ("batch", "growth")
 # --quick without --scene: the scenes that exercise every kind of truth and failure (the compound pendulum
@@ -21,10 +22,14 @@ QUICK_DEFAULT = ("swinging_rod", "rolling_disc", "line_collisions", "pi_collisio
                  "pendulum_chain") + EXTRA_WORK
 
 
-def run_bench(out: Path, *, names: Iterable[str] | None = None, quick: bool = False, log=sys.stderr) -> Path:
+def run_bench(out: Path, *, names: Iterable[str] | None = None, quick: bool = False, log=sys.stderr,
+              client=None) -> Path:
     """Run the benchmark into folder `out` and return the path of summary.md.
 
     names: scene names of bench_scenes() and/or "batch", "growth" (default: all of them; quick: QUICK_DEFAULT).
+    client: a dask.distributed.Client, or None: each series (backend x method x setting, its sweep of dt) is
+    then one timed task on its cluster, one at a time per worker (validation.cluster); the batch and growth
+    measurements, which use every core, run here afterwards, with the cluster idle. bench.csv is the same.
     """
     benches = bench_scenes(quick)
     known = [b.name for b in benches] + list(EXTRA_WORK)
@@ -36,10 +41,13 @@ def run_bench(out: Path, *, names: Iterable[str] | None = None, quick: bool = Fa
     started = time.perf_counter()
     header = header_lines(quick)
     points: list[Point] = []
-    for bench in benches:
-        if bench.name in names:
-            print(f"[bench] {bench.name} ({bench.scene.describe()})", file=log, flush=True)
-            points += run_scene(bench, quick=quick, log=log)
+    if client is None:
+        for bench in benches:
+            if bench.name in names:
+                print(f"[bench] {bench.name} ({bench.scene.describe()})", file=log, flush=True)
+                points += run_scene(bench, quick=quick, log=log)
+    else:
+        points = _sweeps_on_cluster(client, [b for b in benches if b.name in names], quick=quick, log=log)
     csv_path = write_csv(out / "bench.csv", (asdict(p) for p in points), COLUMNS, header)
     figures = [report.plot_scene(points, b, out) for b in benches if b.name in names]
     batch_result = batch.run_batch(out, quick=quick, header=header, log=log) if "batch" in names else None
@@ -52,8 +60,24 @@ def run_bench(out: Path, *, names: Iterable[str] | None = None, quick: bool = Fa
     return path
 
 
+def _sweeps_on_cluster(client, benches: list, *, quick: bool, log) -> list[Point]:
+    """The points of run_scene for every bench scene, in the same order, each series a timed task."""
+    tasks = [(f"{bench.name} {series.backend} {series.method} [{series.settings}]", series_task,
+              (quick, bench.name, index)) for bench in benches for index, series in enumerate(bench.series)]
+    results = iter(run_tasks(client, tasks, what="bench", timed=True, log=log))
+    points: list[Point] = []
+    for bench in benches:
+        points += refusals(bench)
+        for _ in bench.series:
+            points += next(results)
+    return points
+
+
 def main(args) -> int:
-    """Entry of `python -m validation bench` (args: scene, quick, out)."""
-    path = run_bench(args.out, names=args.scene, quick=args.quick)
+    """Entry of `python -m validation bench` (args: scene, quick, out, workers, scheduler)."""
+    from validation.cluster import connect
+
+    with connect(args.scheduler, args.workers) as client:
+        path = run_bench(args.out, names=args.scene, quick=args.quick, client=client)
     print(path.read_text())
     return 0
