@@ -56,7 +56,8 @@ def _batches():
 
 def _arm_and_ball() -> Layout:
     body = Inertia(1.0, np.zeros(3), np.diag([0.1, 0.2, 0.25]))
-    return Layout(bodies=(Body("arm", body, pos=(0.0, 0.0, -0.5)), Body("ball", body, parent="arm", pos=(0.3, 0.0, -0.5))),
+    return Layout(bodies=(Body("arm", body, pos=(0.0, 0.0, -0.5)),
+                          Body("ball", body, parent="arm", pos=(0.3, 0.0, -0.5))),
                   joints=(Joint("hinge", "hinge", "arm", axis=(0.0, 1.0, 0.0), anchor=(0.0, 0.0, 0.5)),
                           Joint("socket", "ball", "ball")))
 
