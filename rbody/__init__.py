@@ -11,12 +11,13 @@ from rbody.scene import Body, Contact, Joint, Layout, Scene, Shape
 from rbody.trajectory import Trajectory
 from rbody.errors import MethodNotApplicable, SimulationError
 from rbody.engine import METHODS, METHOD_ORDER, simulate
-from rbody.mjcf import to_mjcf
+from rbody.engine.multibody import Multibody
+from rbody.mjcf import from_mjcf, to_mjcf
 from rbody import scenes
 
 __all__ = [
     "Inertia", "RigidMotion", "point_velocity", "Particles", "reduced_mass", "two_body",
     "Body", "Contact", "Joint", "Layout", "Scene", "Shape", "Trajectory",
     "SimulationError", "MethodNotApplicable", "METHODS", "METHOD_ORDER", "simulate", "scenes",
-    "to_mjcf",
+    "to_mjcf", "from_mjcf", "Multibody",
 ]

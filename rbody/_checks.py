@@ -23,8 +23,14 @@ def finite_array(value: Any, name: str, *, shape: tuple | None = None, ndim: int
         raise ValueError(f"{name} has shape {array.shape}: expected {tuple(shape)}")
     if ndim is not None and array.ndim != ndim:
         raise ValueError(f"{name} has {array.ndim} dimensions: expected {ndim}")
-    if not np.all(np.isfinite(array)):
-        raise ValueError(f"{name}={describe_values(array)}: every value must be finite (no NaN or inf)")
+    finite = np.isfinite(array)
+    if not np.all(finite):
+        if array.size <= 6:
+            raise ValueError(f"{name}={describe_values(array)}: every value must be finite (no NaN or inf)")
+        bad = np.argwhere(~finite)
+        raise ValueError(f"{name} (shape {array.shape}): {len(bad)} of {array.size} values are not finite, the first "
+                         f"at index {tuple(int(i) for i in bad[0])} ({array[tuple(bad[0])]!r}); every value must be "
+                         "finite (no NaN or inf)")
     return array
 
 

@@ -21,6 +21,9 @@ from rbody._checks import finite_array, nonnegative, positive
 
 AxisLike = Union[str, Iterable[float], np.ndarray]
 
+# Largest |tensor entry| [kg m^2] accepted: sums of a few moments (eigenvalues, the parallel-axis
+# theorem, the triangle inequality) must stay finite in float64 (max 1.8e308).
+LARGEST_MOMENT = 1e300
 # Relative tolerance of the symmetry and triangle-inequality checks on construction.
 STRUCTURE_RTOL = 1e-12
 
@@ -33,10 +36,16 @@ def unit_axis(axis: AxisLike, name: str = "axis") -> np.ndarray:
             raise ValueError(f"{name}={axis!r}: expected 'x', 'y', 'z' or a 3-vector")
         return np.array(table[axis])
     vector = finite_array(axis, name, shape=(3,))
-    norm = np.linalg.norm(vector)
-    if norm == 0.0:
+    # Scaled by the largest component before squaring: |v|^2 of [1e300, 1e300, 0] overflows, of
+    # [1e-200, 0, 0] underflows to 0, and neither changes the direction.
+    largest = float(np.max(np.abs(vector)))
+    if largest == 0.0:
         raise ValueError(f"{name}={vector.tolist()}: a direction must be non-zero")
-    return vector / norm
+    norm = np.linalg.norm(vector)
+    if np.isfinite(norm) and norm > 0:
+        return vector / norm
+    scaled = vector / largest
+    return scaled / np.linalg.norm(scaled)
 
 
 def _symmetric_tensor(moment_along: float, moment_across: float, axis: AxisLike) -> np.ndarray:
@@ -86,6 +95,11 @@ class Inertia:
         com = finite_array(self.com, "com", shape=(3,))
         tensor = finite_array(self.tensor, "tensor", shape=(3, 3))
         scale = max(float(np.max(np.abs(tensor))), np.finfo(float).tiny)
+        if scale > LARGEST_MOMENT:
+            raise ValueError(
+                f"tensor={tensor.tolist()}: its largest entry {scale:.3g} kg m^2 is beyond {LARGEST_MOMENT:g}, "
+                "where sums of moments (the principal moments, the parallel-axis theorem) overflow float64; "
+                "give the body in larger units of length or mass")
         asymmetry = float(np.max(np.abs(tensor - tensor.T)))
         if asymmetry > STRUCTURE_RTOL * scale:
             raise ValueError(
@@ -123,9 +137,24 @@ class Inertia:
         if np.any(masses <= 0):
             raise ValueError(f"masses={masses.tolist()}: every particle mass must be > 0 [kg]")
         total = masses.sum()
-        com = masses @ positions / total
-        y = positions - com
-        tensor = np.eye(3) * np.sum(masses * np.sum(y * y, axis=1)) - (masses[:, None] * y).T @ y
+        # The centre of mass as the first particle plus the mean offset from it: the offsets are of the
+        # size of the body, not of its distance from the origin (at x = 1e16 a mean of the positions
+        # themselves loses the metres that set the moments).
+        offsets = positions - positions[0]
+        com_offset = masses @ offsets / total
+        com = positions[0] + com_offset
+        y = offsets - com_offset
+        # Moments scaled by the largest offset before squaring (no overflow), then scaled back.
+        size = float(np.max(np.abs(y)))
+        if size == 0.0:
+            return cls(total, com, np.zeros((3, 3)))
+        u = y / size
+        tensor = (np.eye(3) * np.sum(masses * np.sum(u * u, axis=1)) - (masses[:, None] * u).T @ u) * size
+        with np.errstate(over="raise"):
+            try:
+                tensor = tensor * size
+            except FloatingPointError:
+                raise ValueError(f"positions span {size:.3g} m: the moments m |x|^2 overflow float64") from None
         return cls(total, com, tensor)
 
     @classmethod

@@ -58,7 +58,13 @@ def inertia_from_mesh(mesh: Any, *, density: float | None = None, mass: float | 
     Zero-area faces with three distinct vertices contribute nothing and are kept. A mesh of several
     closed parts may contain cavities (inward-facing inner surfaces); an inside-out part or parts
     that overlap are errors, found from the winding number of the other parts (only parts whose
-    bounding boxes overlap are compared).
+    bounding boxes overlap are compared; parts are faces joined across edges that two faces share,
+    so a body touching another at a corner is still a part of its own). A surface that intersects
+    itself (a fold, or parts that cross) is an error, found by an exact test of every pair of faces
+    whose bounding boxes overlap (an edge of one passing strictly through the other; coplanar
+    overlaps are not seen). A mesh with more than MAX_FACE_PAIRS such pairs (about 5e6: a
+    cylinder of ~700 sections, whose cap triangles all meet at the centre) is refused rather than
+    left unchecked; a shell (shell=True) is not checked.
     """
     if (density is None) == (mass is None):
         raise ValueError(
@@ -155,6 +161,7 @@ def _solid_moments(vertices: np.ndarray, faces: np.ndarray) -> tuple[float, np.n
         raise ValueError(f"mesh is inverted: faces point inwards (signed volume {volume:.6g} m^3); "
                          "use mesh.invert() to turn them outwards")
     _check_parts(vertices, faces, six_volumes)
+    _check_self_intersection(vertices, faces)
     first = six_volumes @ (a + b + c) / 24.0                  # V_t s / 4
     second = _second_moment(six_volumes / 120.0, a, b, c)      # V_t / 20
     return volume, first, second
@@ -209,16 +216,9 @@ def _check_parts(vertices: np.ndarray, faces: np.ndarray, six_volumes: np.ndarra
     (V_k > 0) must lie outside all other material (w = 0); a cavity (V_k < 0) must lie inside
     material (w = 1). An isolated part must therefore face outwards.
     """
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
-
-    n = len(vertices)
-    edges = faces[:, [0, 1, 1, 2]].reshape(-1, 2)
-    graph = coo_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
-    n_parts, vertex_label = connected_components(graph, directed=False)
+    n_parts, label = _parts(faces, len(vertices))
     if n_parts == 1:
         return
-    label = vertex_label[faces[:, 0]]
     volumes = np.bincount(label, weights=six_volumes, minlength=n_parts) / 6.0
     spans = np.bincount(label, weights=np.abs(six_volumes), minlength=n_parts) / 6.0
     corner = vertices[faces]                                        # (F, 3 corners, 3)
@@ -255,6 +255,155 @@ def _check_parts(vertices: np.ndarray, faces: np.ndarray, six_volumes: np.ndarra
                 f"mesh part {k} of {n_parts} ({len(faces_of[k])} faces, signed volume "
                 f"{volumes[k]:.6g} m^3) {role} but the winding number of the other parts there is "
                 f"{winding:.3g}, not {expected:g}: {fix}")
+
+
+def _parts(faces: np.ndarray, n_vertices: int) -> tuple[int, np.ndarray]:
+    """(number of parts, (F,) part of each face): faces joined across the edges they share two by two
+    (one face running the edge each way), not across a vertex or an edge where more faces meet, so that
+    a body touching another at one corner or along one edge is still a part of its own."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    n_faces = len(faces)
+    undirected = np.sort(faces[:, [0, 1, 1, 2, 2, 0]].reshape(-1, 2), axis=1)
+    key = undirected[:, 0] * n_vertices + undirected[:, 1]
+    owner = np.repeat(np.arange(n_faces), 3)
+    order = np.argsort(key, kind="stable")
+    key, owner = key[order], owner[order]
+    _, start, count = np.unique(key, return_index=True, return_counts=True)
+    manifold = start[count == 2]                   # edges met by exactly two faces
+    graph = coo_matrix((np.ones(len(manifold)), (owner[manifold], owner[manifold + 1])), shape=(n_faces, n_faces))
+    return connected_components(graph, directed=False)
+
+
+# Self-intersection test: meshes up to this many candidate pairs of faces (bounding boxes that overlap)
+# are checked exactly; a larger one is refused (rbody cannot then say that its surface does not cross itself).
+MAX_FACE_PAIRS = 5_000_000  # ~2 s of numpy (a 512-section cylinder: 1.5 s; an 81920-face icosphere: 2.6 s)
+_ORIENT_RTOL = 1e-12  # an orientation below this fraction of |edge|^3 is a touch, not a crossing
+
+
+def _check_self_intersection(vertices: np.ndarray, faces: np.ndarray) -> None:
+    """Raise ValueError when two faces of the surface cross (a surface that folds through itself, or parts that
+    overlap): their volumes would be counted twice or with the wrong sign. Two faces cross when an edge of one
+    passes through the inside of the other, both strictly (a touch along a face, an edge or at a point is not
+    a crossing); edges at a vertex the faces share are not tested (they meet there), and faces sharing an
+    edge, or of zero area, are skipped. Coplanar faces that overlap are not found."""
+    corner = vertices[faces]                                            # (F, 3, 3)
+    areas = np.linalg.norm(np.cross(corner[:, 1] - corner[:, 0], corner[:, 2] - corner[:, 0]), axis=1)
+    keep = np.flatnonzero(areas > 1e-14 * max(float(areas.max()), np.finfo(float).tiny))
+    first, second = _candidate_pairs(corner[keep])
+    first, second = keep[first], keep[second]
+    # Faces that cross each have corners strictly on both sides of the other's plane: most pairs (neighbours
+    # on a convex patch, coplanar fans) fail this cheap test and are not tested edge by edge.
+    normal = np.cross(corner[:, 1] - corner[:, 0], corner[:, 2] - corner[:, 0])
+    normal /= np.maximum(np.linalg.norm(normal, axis=1, keepdims=True), np.finfo(float).tiny)
+    size = np.max(corner.max(axis=1) - corner.min(axis=1), axis=1)
+    straddle = _straddles(corner[second], normal[first], corner[first, 0], size[first] + size[second])
+    straddle &= _straddles(corner[first], normal[second], corner[second, 0], size[first] + size[second])
+    first, second = first[straddle], second[straddle]
+    for lo in range(0, len(first), 1_000_000):
+        i, j = first[lo:lo + 1_000_000], second[lo:lo + 1_000_000]
+        crossing = _faces_cross(corner[i], corner[j], faces[i], faces[j])
+        if np.any(crossing):
+            k = int(np.argmax(crossing))
+            raise ValueError(
+                f"mesh surface intersects itself: faces {int(i[k])} and {int(j[k])} cross (at least "
+                f"{int(crossing.sum())} pairs of faces do), so parts of the solid overlap or the surface folds "
+                "through itself and some volume would count twice or with the wrong sign; join overlapping parts "
+                "with a boolean union (trimesh's mesh.union) or repair the surface")
+
+
+def _candidate_pairs(corner: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Pairs i < j of faces (F, 3, 3) whose bounding boxes overlap, in numpy: each face is entered in the cells
+    of a uniform grid (cell size the median extent of a face) that its box covers, and faces sharing a cell are
+    paired. ValueError beyond MAX_FACE_PAIRS pairs (the exact test would take minutes)."""
+    low, high = corner.min(axis=1), corner.max(axis=1)
+    pad = 1e-9 * float(np.max(high.max(axis=0) - low.min(axis=0)))
+    low, high = low - pad, high + pad
+    # Cell size: the median width of a face (sqrt(2 area)), so that long slivers (a cylinder's caps and sides)
+    # fall in many small cells rather than all faces in a few large ones; doubled while the entries are too many.
+    width = np.sqrt(np.linalg.norm(np.cross(corner[:, 1] - corner[:, 0], corner[:, 2] - corner[:, 0]), axis=1))
+    cell = max(float(np.median(width)), 1e-9 * float(np.max(high - low)), np.finfo(float).tiny)
+    origin = low.min(axis=0)
+    while True:
+        first_cell = np.floor((low - origin) / cell).astype(np.int64)
+        last_cell = np.floor((high - origin) / cell).astype(np.int64)
+        span = last_cell - first_cell + 1                               # (F, 3) cells along each axis
+        per_face = np.prod(span.astype(np.float64), axis=1)
+        if per_face.sum() <= 8 * len(corner) + 1_000_000:
+            break
+        cell *= 2.0
+    per_face = per_face.astype(np.int64)
+    face = np.repeat(np.arange(len(corner)), per_face)
+    local = np.arange(len(face)) - np.repeat(np.cumsum(per_face) - per_face, per_face)
+    sy, sz = span[face, 1], span[face, 2]
+    offset = np.stack([local // (sy * sz), (local // sz) % sy, local % sz], axis=1)
+    index = first_cell[face] + offset
+    size = last_cell.max(axis=0) + 1
+    key = (index[:, 0] * size[1] + index[:, 1]) * size[2] + index[:, 2]
+    order = np.argsort(key, kind="stable")
+    key, face, index = key[order], face[order], index[order]
+    start = np.flatnonzero(np.r_[True, key[1:] != key[:-1]])
+    count = np.diff(np.r_[start, len(key)])
+    total = float(np.sum(count * (count - 1) / 2))
+    if total > MAX_FACE_PAIRS:
+        _refuse_pairs(len(corner), total)
+    position = np.arange(len(face))
+    later = np.repeat(start + count, count) - position - 1              # entries after each one in its cell
+    first = np.repeat(position, later)
+    second = first + 1 + (np.arange(int(later.sum())) - np.repeat(np.cumsum(later) - later, later))
+    i, j = face[first], face[second]
+    # A pair is kept in one cell only, the one holding the lowest corner of the overlap of its boxes.
+    home = np.floor((np.maximum(low[i], low[j]) - origin) / cell).astype(np.int64)
+    keep = np.all(home == index[first], axis=1) & np.all((low[i] <= high[j]) & (low[j] <= high[i]), axis=1)
+    i, j = i[keep], j[keep]
+    return np.minimum(i, j), np.maximum(i, j)
+
+
+def _straddles(tri: np.ndarray, normal: np.ndarray, point: np.ndarray, size: np.ndarray) -> np.ndarray:
+    """(N,) triangle tri (N, 3, 3) has corners strictly on both sides of the plane (normal, point) (N, 3)."""
+    distance = np.einsum("nki,ni->nk", tri - point[:, None, :], normal)
+    tolerance = (_ORIENT_RTOL * size)[:, None]
+    return np.any(distance > tolerance, axis=1) & np.any(distance < -tolerance, axis=1)
+
+
+def _refuse_pairs(n_faces: int, pairs: float) -> None:
+    raise ValueError(
+        f"mesh has {n_faces} faces with about {pairs:.3g} pairs of faces close enough to cross, beyond "
+        f"{MAX_FACE_PAIRS:.0e}: rbody cannot check in reasonable time that the surface does not intersect itself; "
+        "simplify the mesh (mesh.simplify_quadric_decimation) or give it in parts")
+
+
+def _orient(a: np.ndarray, b: np.ndarray, c: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """(N,) sign (-1, 0, 1) of the volume (b - a) . ((c - a) x (d - a)); 0 within _ORIENT_RTOL of the size."""
+    u, v, w = b - a, c - a, d - a
+    volume = np.einsum("ni,ni->n", u, np.cross(v, w))
+    size = np.linalg.norm(u, axis=1) * np.linalg.norm(v, axis=1) * np.linalg.norm(w, axis=1)
+    return np.where(np.abs(volume) > _ORIENT_RTOL * size, np.sign(volume), 0.0)
+
+
+def _edge_crosses(p: np.ndarray, q: np.ndarray, tri: np.ndarray) -> np.ndarray:
+    """(N,) segment p q (N, 3) passes strictly through the inside of triangle tri (N, 3, 3)."""
+    a, b, c = tri[:, 0], tri[:, 1], tri[:, 2]
+    sides = _orient(a, b, c, p) * _orient(a, b, c, q)
+    s1, s2, s3 = _orient(p, q, a, b), _orient(p, q, b, c), _orient(p, q, c, a)
+    return (sides < 0) & (s1 != 0) & (s1 == s2) & (s2 == s3)
+
+
+def _faces_cross(tri_i: np.ndarray, tri_j: np.ndarray, face_i: np.ndarray, face_j: np.ndarray) -> np.ndarray:
+    """(N,) triangles tri_i and tri_j (N, 3, 3) cross, edges from a vertex they share not tested (see above)."""
+    in_j = np.any(face_i[:, :, None] == face_j[:, None, :], axis=2)     # (N, 3): vertex of i also in j
+    in_i = np.any(face_j[:, :, None] == face_i[:, None, :], axis=2)
+    shared = in_j.sum(axis=1)
+    crossing = np.zeros(len(tri_i), dtype=bool)
+    for (tri_a, tri_b, free) in ((tri_i, tri_j, ~in_j), (tri_j, tri_i, ~in_i)):
+        for k in range(3):
+            m = (k + 1) % 3
+            usable = free[:, k] & free[:, m] & (shared < 2)
+            if np.any(usable):
+                idx = np.flatnonzero(usable)
+                crossing[idx] |= _edge_crosses(tri_a[idx, k], tri_a[idx, m], tri_b[idx])
+    return crossing
 
 
 def _winding_number(points: np.ndarray, triangles: np.ndarray) -> np.ndarray:

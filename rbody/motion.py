@@ -75,10 +75,19 @@ class RigidMotion:
 def quat_normalize(q: np.ndarray) -> np.ndarray:
     """(..., 4) unit quaternion; raises ValueError for a zero or non-finite quaternion."""
     q = _vectors(q, "quaternion", 4)
+    # Scaled by the largest component before squaring: no overflow (1e200) or underflow (1e-200).
+    largest = np.max(np.abs(q), axis=-1, keepdims=True)
+    zero = largest == 0
+    if np.any(zero):
+        rows = np.argwhere(zero[..., 0])
+        where = f"row {tuple(int(i) for i in rows[0])}" if q.ndim > 1 else "it"
+        raise ValueError(f"quaternion of shape {q.shape}: {len(rows)} of {q.size // 4} are zero (first: {where}); "
+                         "a rotation needs a non-zero quaternion (w, x, y, z)")
     norm = np.linalg.norm(q, axis=-1, keepdims=True)
-    if np.any(norm == 0) or not np.all(np.isfinite(norm)):
-        raise ValueError(f"quaternion {q.tolist()}: must be finite and non-zero")
-    return q / norm
+    if np.all(np.isfinite(norm)) and np.all(norm > 0):
+        return q / norm
+    scaled = q / largest  # |q|^2 overflowed or underflowed: the same direction from the scaled quaternion
+    return scaled / np.linalg.norm(scaled, axis=-1, keepdims=True)
 
 
 def quat_multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:

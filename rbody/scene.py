@@ -18,6 +18,7 @@ may be arrays: they broadcast to ``batch_shape`` and one ``simulate`` call runs 
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any, ClassVar, Iterable, Mapping
@@ -58,7 +59,7 @@ class Shape:
         quat = finite_array(self.quat, "quat", shape=(4,))
         if np.linalg.norm(quat) == 0:
             raise ValueError(f"shape {self.name!r}: quat={quat.tolist()} must be non-zero")
-        object.__setattr__(self, "quat", tuple((quat / np.linalg.norm(quat)).tolist()))
+        object.__setattr__(self, "quat", tuple((quat if already_unit(quat) else quat / np.linalg.norm(quat)).tolist()))
 
 
 @dataclass(frozen=True)
@@ -76,6 +77,22 @@ class Body:
     parent: str = WORLD
     pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
     quat: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+
+
+def already_unit(vector: np.ndarray) -> bool:
+    """True when |vector| is 1 to 2 eps, its squared norm summed exactly (math.fsum): such a vector is kept
+    as given, since dividing it by a norm whose last bit depends on the CPU's SIMD kernels would change it,
+    and every model exported from it, from one machine to another."""
+    return abs(math.sqrt(math.fsum(float(v) * float(v) for v in vector)) - 1.0) <= 2 * np.finfo(float).eps
+
+
+def _direction(axis) -> np.ndarray:
+    """(3,) unit joint axis: unit_axis, except that an axis already unit is kept as given (already_unit)."""
+    if not isinstance(axis, str):
+        vector = finite_array(axis, "axis", shape=(3,))
+        if already_unit(vector):
+            return vector
+    return unit_axis(axis, "axis")
 
 
 JOINT_KINDS = ("hinge", "slide", "ball", "free")
@@ -119,7 +136,7 @@ class Joint:
     def __post_init__(self) -> None:
         if self.kind not in JOINT_KINDS:
             raise ValueError(f"joint {self.name!r}: kind={self.kind!r}, expected one of {JOINT_KINDS}")
-        object.__setattr__(self, "axis", tuple(unit_axis(self.axis, "axis").tolist()))
+        object.__setattr__(self, "axis", tuple(_direction(self.axis).tolist()))
         for name in ("damping", "stiffness", "armature"):
             value = finite_array(getattr(self, name), f"joint {self.name!r}: {name}", shape=())
             object.__setattr__(self, name, float(nonnegative(value, f"joint {self.name!r}: {name}")))

@@ -15,6 +15,8 @@ from typing import Any, Callable, Iterator, Mapping
 
 import numpy as np
 
+from rbody._files import atomic_path
+
 
 class Observables(Mapping):
     """name -> (T, ...) array; a value given as a zero-argument callable is evaluated on first access, its
@@ -105,7 +107,8 @@ class Trajectory:
         arrays.update({f"data/{k}": np.asarray(self[k]) for k in self.data})
         arrays.update({f"events/{k}": np.asarray(v) for k, v in self.events.items()})
         arrays["meta"] = np.array(json.dumps(self.meta, default=str))
-        np.savez(path, **arrays)
+        with atomic_path(path) as temporary:  # its name ends in .npz, so savez adds nothing
+            np.savez(temporary, **arrays)
         return path
 
     @classmethod

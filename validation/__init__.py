@@ -5,6 +5,10 @@ from __future__ import annotations
 from rbody.scene import Scene
 from rbody.trajectory import Trajectory
 from validation.backends import BACKENDS, get, supports
+# The tolerance table (the submodule validation.compare) is loaded first, so that the package's name `compare`
+# is the function below from here on: import the table's names with `from validation.compare import ...`.
+from validation import compare as _tolerance_table  # noqa: F401
+from validation.comparison import Comparison, Divergence, check_baseline, compare, save_baseline
 
 
 def run(scene: Scene, backend: str, *, dt: float, t_end: float | None = None, **settings) -> Trajectory:
@@ -19,4 +23,4 @@ def run(scene: Scene, backend: str, *, dt: float, t_end: float | None = None, **
     return module.run(scene, dt, t_end, **settings)
 
 
-__all__ = ["BACKENDS", "run", "supports"]
+__all__ = ["BACKENDS", "Comparison", "Divergence", "check_baseline", "compare", "run", "save_baseline", "supports"]

@@ -1,8 +1,9 @@
-"""python -m validation [run] | export | bench | hard — see `python -m validation --help`."""
+"""python -m validation [run] | export | bench | hard | compare MODEL — see `python -m validation --help`."""
 
 from __future__ import annotations
 
 import argparse
+import errno
 import sys
 import time
 from pathlib import Path
@@ -13,7 +14,11 @@ MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="python -m validation",
-        description="Run rbody's scenes in rbody, MuJoCo and pymunk and compare each with the exact solution.")
+        description="Run rbody's scenes in rbody, MuJoCo and pymunk and compare each with the exact solution.",
+        epilog="Exit status: 0 all measures within their baselines; 1 a regression (a measure worse than its "
+               "baseline); 2 a problem with the inputs, found before the run where it can be (a bad argument, "
+               "--out not writable, a broken baseline file) or after it (a measure with no baseline: run "
+               "--update-baselines).")
     commands = parser.add_subparsers(dest="command")
     run = commands.add_parser("run", help="every scene in every backend (the default command)")
     for p in (parser, run):
@@ -30,10 +35,23 @@ def _parser() -> argparse.ArgumentParser:
                        help="only this scene, or 'batch' or 'growth' (repeatable; default: all)")
     bench.add_argument("--quick", action="store_true", help="short sweeps, under 2 minutes (the test suite's)")
     bench.add_argument("--out", type=Path, default=Path("report/bench"), help="folder (default: report/bench/)")
+    bench.add_argument("--repeat", type=int, default=1, metavar="N",
+                       help="run every sweep N times; the summary gives each ratio with its range (default: 1)")
     hard = commands.add_parser("hard", help="numerical stability on hard cases (validation/hard/): DIR/hard.md")
     hard.add_argument("--quick", action="store_true", help="short runs, under 2 minutes")
     hard.add_argument("--out", type=Path, default=Path("report"), help="report folder (default: report/)")
     hard.add_argument("--case", action="append", type=int, metavar="N", help="only case N of 1..9 (repeatable)")
+    compare = commands.add_parser(
+        "compare", help="one model in every engine that can express it: where they diverge (validation/comparison.py)")
+    compare.add_argument("model", help="an MJCF file, or 'module:name' / 'file.py:name' naming an rbody Scene")
+    compare.add_argument("--t-end", type=float, metavar="S", help="duration [s] (default: the model's)")
+    compare.add_argument("--dt", type=float, metavar="S", help="time step [s] (default: the model's timestep, else 1e-3)")
+    compare.add_argument("--method", metavar="M", help="rbody's method (default: rk4 where it applies, MuJoCo's scheme)")
+    compare.add_argument("--engines", default=",".join(("rbody", "mujoco", "pymunk")),
+                         help="comma-separated engines (default: rbody,mujoco,pymunk)")
+    compare.add_argument("--out", type=Path, default=Path("report/compare"), help="folder (default: report/compare/)")
+    compare.add_argument("--baseline", type=Path, metavar="DIR", help="check the divergences against this folder")
+    compare.add_argument("--update-baseline", action="store_true", help="record this run's divergences in --baseline")
     for p in (parser, run, bench, hard):
         _cluster_options(p)
     return parser
@@ -48,8 +66,34 @@ def _cluster_options(parser: argparse.ArgumentParser) -> None:
                        help="run on the Dask cluster whose scheduler is at ADDRESS (e.g. tcp://host:8786)")
 
 
+# Exit status (documented in --help and the README)
+OK, REGRESSION, INPUT_PROBLEM = 0, 1, 2
+
+
 def main(argv: list[str] | None = None) -> int:
+    """The command line; returns the exit status (OK, REGRESSION, INPUT_PROBLEM)."""
+    from rbody._files import UnwritableFolder, check_writable_folder
+    from validation.baselines import BaselineError
+
     args = _parser().parse_args(argv)
+    try:
+        check_writable_folder(args.out)  # before any work: a run of minutes must not end in a traceback
+        return _command(args)
+    except (BaselineError, UnwritableFolder) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return INPUT_PROBLEM
+    except OSError as error:
+        if error.errno not in _WRITE_ERRORS:
+            raise
+        print(f"error: cannot write the results: {error}", file=sys.stderr)
+        return INPUT_PROBLEM
+
+
+# A folder made read-only during the run, a full disk or quota, a read-only file system.
+_WRITE_ERRORS = (errno.EACCES, errno.EPERM, errno.ENOSPC, errno.EDQUOT, errno.EROFS)
+
+
+def _command(args) -> int:
     if args.command == "export":
         from validation.export import export_models
         for path in export_models(args.out):
@@ -58,6 +102,9 @@ def main(argv: list[str] | None = None) -> int:
     if args.command == "bench":
         from validation.bench.run import main as bench_main
         return bench_main(args)
+    if args.command == "compare":
+        from validation.comparison import main as compare_main
+        return compare_main(args)
     from validation.cluster import connect
     if args.command == "hard":
         from validation.hard.suite import CASES, run_hard
@@ -70,9 +117,11 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def run_all(out: Path, *, quick: bool, update: bool, backends: tuple[str, ...] | None, client=None) -> int:
-    """Run every case, print the table, write the report; exit 1 on a regression against baselines.
+    """Run every case, print the table, write the report; exit 1 on a regression against baselines, 2 on a
+    measure without a baseline (BaselineError, before any run, for a broken baseline file).
     Each (case, backend) is one task (validation.cluster.run_tasks): here in order, or on the cluster of
     `client` (a dask.distributed.Client); the rows and report are the same either way."""
+    from rbody._files import replaced_folder
     from validation import baselines, report
     from validation.backends import BACKENDS
     from validation.cases import default_cases
@@ -80,6 +129,9 @@ def run_all(out: Path, *, quick: bool, update: bool, backends: tuple[str, ...] |
     from validation.evaluate import evaluate
     from validation.figures import make_figures
 
+    directory = baselines.mode_dir(quick)
+    if not update:  # read and checked before the run; --update-baselines rewrites them without reading them
+        baselines.check(directory, backends or BACKENDS)
     started = time.perf_counter()
     cases = default_cases(quick)
     chosen = backends or BACKENDS
@@ -92,21 +144,23 @@ def run_all(out: Path, *, quick: bool, update: bool, backends: tuple[str, ...] |
             case_rows, case_runs = next(results)
             rows += case_rows
             runs[case.name][1].update(case_runs)
-    out.mkdir(parents=True, exist_ok=True)  # only now: a failed run writes nothing
     print(report.table(rows))
-    directory = baselines.mode_dir(quick)
-    found = baselines.regressions(rows, directory)
+    found, missing = [], []
     if update:
         for path in baselines.save(rows, directory):
             print(f"baseline written: {path}", file=sys.stderr)
-        found = []
-    figures = make_figures(runs, out)
+    else:
+        found, missing = baselines.compare(rows, directory)
     header = _header(quick, time.perf_counter() - started)
-    path = report.write(out, rows, figures, header, found)
-    print(f"\nreport: {path}", file=sys.stderr)
+    with replaced_folder(out) as staging:  # the report and its figures: all old or all new
+        figures = make_figures(runs, staging)
+        report.write(staging, rows, figures, header, found + missing)
+    print(f"\nreport: {out / 'report.md'}", file=sys.stderr)
     for message in found:
         print(f"REGRESSION {message}", file=sys.stderr)
-    return 1 if found else 0
+    for message in missing:
+        print(f"MISSING {message}", file=sys.stderr)
+    return REGRESSION if found else INPUT_PROBLEM if missing else OK
 
 
 def _header(quick: bool, seconds: float) -> str:

@@ -16,7 +16,8 @@ import numpy as np
 
 import rbody
 from rbody.trajectory import Trajectory
-from validation import compare
+from validation.compare import (energy_error, final_relative_error, max_abs_error, max_slip, pi_digits_right,
+                                tolerance)
 from validation.backends import BACKENDS, get
 
 
@@ -25,7 +26,7 @@ class Case:
     """One scene of the main command.
 
     name:      row label (also the baseline key)
-    family:    key into compare.TOLERANCES
+    family:    key into validation.compare.TOLERANCES
     scene:     the scene to run (unbatched)
     dt:        backend -> time step [s]
     settings:  backend -> keyword settings for its run()
@@ -79,17 +80,17 @@ def _resample(reference: Trajectory, t: np.ndarray) -> dict[str, np.ndarray]:
 def _measure(metric: str, case: Case, trajectory: Trajectory, truth: Mapping[str, np.ndarray]) -> float:
     main = case.scene.main_observable
     if metric == "max_abs_error":
-        return compare.max_abs_error(trajectory, truth, main)
+        return max_abs_error(trajectory, truth, main)
     if metric == "final_relative_error":
-        return compare.final_relative_error(trajectory, truth, main)
+        return final_relative_error(trajectory, truth, main)
     if metric == "energy_error":
-        return compare.energy_error(trajectory, truth)
+        return energy_error(trajectory, truth)
     if metric == "max_slip":
-        return compare.max_slip(trajectory)
+        return max_slip(trajectory)
     if metric == "count_error":
         return float(int(trajectory["collisions"][-1]) - int(case.scene.expected_collisions))
     if metric == "pi_digits":
-        return float(compare.pi_digits_right(int(trajectory["collisions"][-1]), case.scene.digits))
+        return float(pi_digits_right(int(trajectory["collisions"][-1]), case.scene.digits))
     if metric == "arrival_error":
         return float(np.max(np.abs(trajectory["arrival_time"] - truth["arrival_time"])
                             / truth["arrival_time"]))
@@ -122,7 +123,7 @@ def evaluate(case: Case, backends: tuple[str, ...] = BACKENDS) -> tuple[list[Row
         truth = _truth(case, trajectory) if needs_truth else {}
         for metric in case.metrics:
             value = _measure(metric, case, trajectory, truth)
-            bound = compare.tolerance(case.family, backend, metric)
+            bound = tolerance(case.family, backend, metric)
             if metric == "pi_digits":
                 verdict = "ok" if value == case.scene.digits + 1 else "FINDING"
             elif bound is None:

@@ -5,6 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import rbody
+from rbody._files import write_atomic
 from validation.cases import default_cases
 
 
@@ -26,6 +27,6 @@ def export_models(out: Path) -> list[Path]:
     paths = []
     for name, text in models().items():
         path = out / f"{name}.xml"
-        path.write_text(text)
+        write_atomic(path, text)
         paths.append(path)
     return paths

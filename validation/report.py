@@ -11,6 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from rbody._files import atomic_path, write_atomic  # noqa: E402
 from rbody.trajectory import Trajectory  # noqa: E402
 
 COLOURS = {"exact": "black", "rbody": "tab:blue", "mujoco": "tab:orange", "pymunk": "tab:green"}
@@ -53,7 +54,8 @@ def notes(rows: Iterable) -> str:
 def _save(figure, out: Path, name: str) -> str:
     path = out / name
     figure.tight_layout()
-    figure.savefig(path, dpi=110)
+    with atomic_path(path) as temporary:
+        figure.savefig(temporary, dpi=110, format=path.suffix.lstrip(".") or "png")
     plt.close(figure)
     return name
 
@@ -171,5 +173,5 @@ def write(out: Path, rows: list, figures: list[tuple[str, str]], header: str, re
     parts += ["## Regressions against baselines", ""]
     parts += [f"- {message}" for message in regressions] or ["none"]
     path = out / "report.md"
-    path.write_text("\n".join(parts) + "\n")
+    write_atomic(path, "\n".join(parts) + "\n")
     return path

@@ -365,7 +365,7 @@ def inverse_one(p, q, v, qacc, gravity_on, out):
     """RNEA: out (nv,) = M qacc + bias (gravity included when gravity_on), passive forces not included."""
     _xpos, _xquat, _xmat, S, bias, vel, h, Ibar = _frames(p, q, v)
     nb = int(p[H_BODIES])
-    bo = int(p[H_BODY])
+    bo, do = int(p[H_BODY]), int(p[H_DOF])
     acc = np.empty((nb, 6))
     force = np.empty((nb, 6))
     tmp = np.empty(6)
@@ -388,7 +388,7 @@ def inverse_one(p, q, v, qacc, gravity_on, out):
         b = bo + i * BODY_SIZE
         d0, nd = int(p[b + B_DOF0]), int(p[b + B_NDOF])
         for d in range(d0, d0 + nd):
-            out[d] = dot6(S[d], force[i])
+            out[d] = dot6(S[d], force[i]) + p[do + d * DOF_SIZE + D_ARMATURE] * qacc[d]  # armature: M's diagonal
         parent = int(p[b + B_PARENT])
         if parent >= 0:
             for a in range(6):

@@ -175,7 +175,9 @@ class LineCollisions(Scene):
         """Impact counts of the compiled run up to t_end [s] (default: the scene's t_end): total,
         ball (ball-ball), wall, turn (ball-ball impacts up to the first reversal of the watched ball,
         -1 if none), t_last (time of the last impact [s]), done (no further impact is possible)."""
-        if t_end is None and self._final is not None:
+        if t_end is None:
+            if self._final is None:  # the run to the scene's t_end, made once (a pi scene's t_end is exact)
+                object.__setattr__(self, "_final", self._run(t_stop=self.t_end))
             run = self._final
         else:
             run = self._run(t_stop=self.t_end if t_end is None else float(finite_array(t_end, "t_end")))
@@ -199,12 +201,16 @@ class LineCollisions(Scene):
         t = sample_times(t_end, sample_dt)
         sample_dt = float(sample_dt)
         final = self._final
+        per_event = 8 + 4 + 8 * self.n
+        estimate = self.expected_events(t[-1])
         if final is not None and final.status == DONE and t[-1] >= final.t_last:
             count = final.events
+        elif record_events is False or (record_events is None and estimate * per_event > MAX_EVENT_BYTES):
+            count = None  # not recorded: no counting run is needed
         else:
             count = self._run(t_stop=t[-1]).events
-        per_event = 8 + 4 + 8 * self.n
-        record = bool(record_events) if record_events is not None else count * per_event <= MAX_EVENT_BYTES
+        record = bool(record_events) if record_events is not None else (
+            count is not None and count * per_event <= MAX_EVENT_BYTES)
         run = self._run(t_stop=t[-1], sample_t=t, record=record, expected_events=count)
         samples = run.samples
         data = {"positions": self.line.positions(samples["gaps"], samples["x0"]),
@@ -227,6 +233,11 @@ class LineCollisions(Scene):
                 "turn": run.turn, "events_recorded": record, "t_last_event": run.t_last,
                 "done": run.status == DONE}
         return Trajectory(t, data, events, meta)
+
+    def expected_events(self, t_end: float) -> int:
+        """Impacts up to t_end [s] known before any run, to size the work (0: not known; a line of balls
+        in general has to be run to be counted, within max_events)."""
+        return 0
 
     def _named(self, data: dict, events: dict) -> tuple[dict, dict]:
         """The scene's observables from the sampled run (subclasses add their own names)."""
@@ -380,6 +391,8 @@ class PiCollisions(LineCollisions):
             object.__setattr__(self, name, value)
         # Room for the exact count (about pi 10^N impacts), a guard, not a limit.
         object.__setattr__(self, "max_events", 2 * 4 * 10**digits * (4 if self.convention == "chapter" else 1) + 100)
+        if self.t_end is None:  # 1.1 x the last impact, from the closed form: no run of pi 10^N impacts here
+            object.__setattr__(self, "t_end", 1.1 * self.last_impact_time)
         super().__post_init__()
 
     def _check_more(self) -> None:
@@ -459,6 +472,39 @@ class PiCollisions(LineCollisions):
         theta = 2 * np.arctan(np.sqrt(x))
         u0 = self.velocities[self.heavy]
         return u0 * np.cos(n_arr * theta), u0 / np.sqrt(x) * np.sin(n_arr * theta)
+
+    def expected_events(self, t_end: float) -> int:
+        """The exact count of every impact (at most; fewer when t_end is before the last one)."""
+        return self.exact_counts["total"]
+
+    @cached_property
+    def last_impact_time(self) -> float:
+        """Time of the last impact [s], exact (mpmath), from the unfolded billiard (see exact()): the K-th
+        impact, K = exact_counts["total"], is where the straight line P(t) = P0 + W t reaches the polar
+        angle K alpha: (P0 + W t) x d = 0 with d = (cos K alpha, sin K alpha), t = (d x P0) / (W x d)."""
+        import mpmath
+
+        with mpmath.workdps(self.digits + 30):
+            sm, sM, alpha, a0, b0, va0, ub0 = self._wedge()
+            k = self.exact_counts["total"]
+            d1, d2 = mpmath.cos(k * alpha), mpmath.sin(k * alpha)
+            p1, p2 = sM * b0, sm * a0
+            w1, w2 = sM * ub0, sm * va0
+            return float((d1 * p2 - d2 * p1) / (w1 * d2 - w2 * d1))
+
+    def _wedge(self):
+        """sqrt(m), sqrt(M), alpha = atan(sqrt(m/M)), and the light (a) and heavy (b) balls' distances from first
+        contact and velocities a0, b0, va0, ub0, in the frame with the wall on the left (mpmath)."""
+        import mpmath
+
+        sign = 1.0 if self.convention == "galperin" else -1.0   # mirror the chapter's frame
+        w, r = self.walls[0], self.radius
+        h, l = self.heavy, self.light
+        mp = mpmath.mpf
+        sm, sM = mpmath.sqrt(mp(self.masses[l])), mpmath.sqrt(mp(self.masses[h]))
+        a0 = mp(sign * (self.positions[l] - w) - r)
+        b0 = mp(sign * (self.positions[h] - w) - 3 * r)
+        return sm, sM, mpmath.atan(sm / sM), a0, b0, mp(sign * self.velocities[l]), mp(sign * self.velocities[h])
 
     # ----- observables --------------------------------------------------------------------------------
 

@@ -105,27 +105,32 @@ class Pendulum(Scene):
     def modulus(self) -> np.ndarray | float:
         """k^2 = sin^2(theta0/2) + omega0^2 / (4 w0^2) [-]: < 1 swinging, > 1 whirling."""
         theta0, omega0 = self._state0()
-        return self.unflatten(np.sin(theta0 / 2) ** 2 + omega0**2 / (4 * self._w0_squared()))
+        with np.errstate(divide="ignore", invalid="ignore"):  # no gravity: inf (a turn), nan at rest
+            return self.unflatten(np.sin(theta0 / 2) ** 2 + omega0**2 / (4 * self._w0_squared()))
 
     def _one_minus_modulus(self) -> np.ndarray:
         """1 - k^2 formed without cancellation near the top."""
         theta0, omega0 = self._state0()
-        return np.cos(theta0 / 2) ** 2 - omega0**2 / (4 * self._w0_squared())
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.cos(theta0 / 2) ** 2 - omega0**2 / (4 * self._w0_squared())
 
     @property
     def period(self) -> np.ndarray | float:
         """Exact period [s]: 4 K(k^2)/w0 when swinging (2 pi/w0 at rest at the bottom),
         2 K(1/k^2)/(k w0) per turn when whirling, inf on the separatrix."""
         w0 = np.sqrt(self._w0_squared())
-        m = np.broadcast_to(np.asarray(self.modulus, dtype=float), self.batch_shape).reshape(-1)
-        complement = self._one_minus_modulus()
+        theta0, omega0 = self._state0()
         with np.errstate(divide="ignore", invalid="ignore"):
+            m = np.broadcast_to(np.asarray(self.modulus, dtype=float), self.batch_shape).reshape(-1)
+            complement = self._one_minus_modulus()
             swinging = 4 * ellipkm1(np.maximum(complement, 0.0)) / w0
             k = np.sqrt(np.maximum(m, 1.0))
             # 1 - 1/k^2 = -(1 - k^2)/k^2, without cancellation near the separatrix
             whirling = 2 * ellipkm1(np.maximum(-complement, 0.0) / np.maximum(m, 1.0)) / (k * w0)
+            # No gravity (w0 = 0): a uniform turn, 2 pi / |omega0| per turn (inf at rest).
+            uniform = 2 * np.pi / np.abs(omega0)
         period = np.where(complement > 0, swinging, np.where(complement < 0, whirling, np.inf))
-        return self.unflatten(period)
+        return self.unflatten(np.where(w0 == 0, uniform, period))
 
     def energy_of(self, theta: np.ndarray, omega: np.ndarray) -> np.ndarray:
         """E = 1/2 I omega^2 - M g d cos(theta) [J]; theta, omega (..., B)."""
@@ -138,12 +143,17 @@ class Pendulum(Scene):
         t = finite_array(t, "t").reshape(-1)[:, None]  # (T, 1) against (B,)
         theta0, omega0 = self._state0()
         w0 = np.sqrt(self._w0_squared())
-        m = np.sin(theta0 / 2) ** 2 + omega0**2 / (4 * w0**2)
-        complement = self._one_minus_modulus()  # 1 - m, accurate near the top
+        with np.errstate(divide="ignore", invalid="ignore"):  # w0 = 0 (no gravity): _uniform below
+            m = np.sin(theta0 / 2) ** 2 + omega0**2 / (4 * w0**2)
+            complement = self._one_minus_modulus()  # 1 - m, accurate near the top
         theta = np.empty((t.shape[0], theta0.size))
         omega = np.empty_like(theta)
         for b in range(theta0.size):
-            if complement[b] > 0:
+            if w0[b] == 0:
+                motion = _uniform     # no gravity: no torque
+            elif m[b] < HARMONIC_MODULUS:
+                motion = _harmonic    # k^2 -> 0: sn(u)/k is 0/0 at rest at the bottom
+            elif complement[b] > 0:
                 motion = _swinging
             elif complement[b] < 0:
                 motion = _whirling
@@ -193,6 +203,26 @@ def _energy(moment: np.ndarray, mgd: np.ndarray, theta: np.ndarray, omega: np.nd
         block = slice(lo, lo + rows)
         energy[block] = 0.5 * moment * omega[block] ** 2 - mgd * np.cos(theta[block])
     return energy
+
+
+def _uniform(t: np.ndarray, theta0: float, omega0: float, w0: float, m: float, m1: float):
+    """The limit of no torque, w0 = 0 (gravity 0): theta = theta0 + omega0 t, a uniform turn."""
+    return theta0 + omega0 * t, np.full_like(t, omega0, dtype=np.float64)
+
+
+# Below this k^2 the swing is harmonic to round-off: the relative error of sin(theta) ~ theta is
+# ~ theta^2/6 ~ (2/3) k^2, and k^2 itself underflows (theta0 = 1e-200 gives k^2 = 0).
+HARMONIC_MODULUS = 1e-20
+
+
+def _harmonic(t: np.ndarray, theta0: float, omega0: float, w0: float, m: float, m1: float):
+    """The limit k^2 -> 0 (at rest at the bottom, or amplitude below 1e-10 rad): theta = 2 pi n +
+    delta0 cos(w0 t) + (omega0 / w0) sin(w0 t), delta0 = theta0 - 2 pi n; at rest theta stays theta0."""
+    turns = 2 * np.pi * np.round(theta0 / (2 * np.pi))
+    delta0 = theta0 - turns
+    phase = w0 * t
+    return (turns + delta0 * np.cos(phase) + omega0 / w0 * np.sin(phase),
+            -delta0 * w0 * np.sin(phase) + omega0 * np.cos(phase))
 
 
 def _swinging(t: np.ndarray, theta0: float, omega0: float, w0: float, m: float, m1: float):

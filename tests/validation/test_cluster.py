@@ -155,17 +155,21 @@ def test_a_failed_hard_run_writes_nothing_to_its_report_folder(tmp_path, monkeyp
         raise RuntimeError("a case that fails after drawing")
 
     monkeypatch.setitem(suite._CASES, 9, breaks)
+    report = tmp_path / "report"
+    report.mkdir()
+    (report / "hard.md").write_text("the last complete run")
     with pytest.raises(RuntimeError, match="fails after drawing") as caught:
-        main(["hard", "--quick", "--case", "5", "--case", "9", "--out", str(tmp_path / "report")])
+        main(["hard", "--quick", "--case", "5", "--case", "9", "--out", str(report)])
     assert any("in task case 9 of hard" in note for note in caught.value.__notes__)
-    assert not (tmp_path / "report").exists()
+    assert sorted(p.name for p in report.iterdir()) == ["hard.md"]  # no figure of case 5, none half done
+    assert (report / "hard.md").read_text() == "the last complete run"
 
 
 def _bench_points(path) -> list[dict]:
-    """bench.csv's points without the timing columns (cost, steps per second, repeats)."""
+    """bench.csv's points without the timing columns (costs, steps per second, repeats)."""
     from validation.bench.csvfile import read_csv
 
-    timing = ("seconds_per_sim_second", "steps_per_second", "repeats")
+    timing = ("seconds_per_sim_second", "stepping_seconds_per_sim_second", "steps_per_second", "repeats")
     return [{k: "nan" if v != v else v for k, v in row.items() if k not in timing} for row in read_csv(path)]
 
 

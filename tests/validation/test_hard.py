@@ -10,7 +10,7 @@ import time
 import numpy as np
 import pytest
 
-from validation.hard.kit import energy_bounded, envelope, mean_period, rbody_verdict, upward_crossings
+from validation.hard.kit import coarsest_step, energy_bounded, envelope, mean_period, rbody_verdict, upward_crossings
 from validation.hard.rows import OUTCOMES, CaseResult, HardRow
 from validation.hard.suite import case_function, table, write_markdown
 
@@ -160,3 +160,53 @@ def test_quick_suite_under_two_minutes(tmp_path):
     for line in failures:
         variant = line.split("|")[1].strip()
         assert any(reason in note for note in notes for reason in PENDING if variant in note), line
+
+
+# ----- the search for the coarsest step that passes ---------------------------------------------------------
+
+def _threshold_run(threshold: float, seconds_per_step: float, t_end: float, calls: list):
+    """A fake engine that passes at dt <= threshold and takes seconds_per_step per step."""
+    def passes(dt: float) -> tuple[bool, float]:
+        calls.append(dt)
+        return dt <= threshold, math.ceil(t_end / dt) * seconds_per_step
+    return passes
+
+
+def test_coarsest_step_brackets_the_threshold_by_bisection():
+    calls: list = []
+    best, trials = coarsest_step(_threshold_run(3e-4, 1e-6, 100.0, calls), 1e-2, 100.0, 60.0, 1e-6,
+                                 resolution=1.5)
+    assert [t[0] for t in trials] == calls and calls[:3] == [1e-2, 1e-3, 1e-4]  # down by 10 to the first pass
+    assert 3e-4 / 1.5 <= best <= 3e-4  # within the resolution below the threshold, and passing
+    failing = min(dt for dt, passed, _s in trials if not passed)
+    assert failing > 3e-4 and failing / best <= 1.5
+    assert all(passed == (dt <= 3e-4) for dt, passed, _s in trials)
+
+
+def test_coarsest_step_stops_at_the_budget():
+    """1e-6 s per step over 100 s: a 60 s budget allows dt >= 100 * 1e-6 / 60 = 1.67e-6 s; a threshold of 1e-6 is
+    beyond it: one run at the budget's step, then none."""
+    calls: list = []
+    best, trials = coarsest_step(_threshold_run(1e-6, 1e-6, 100.0, calls), 1e-2, 100.0, 60.0, 1e-6)
+    assert best is None
+    assert calls[-1] == pytest.approx(100.0 * 1e-6 / 60.0, rel=1e-6) and len(calls) == len(set(calls))
+    assert max(s for _dt, _p, s in trials) <= 60.0 * 1.01
+
+
+def test_coarsest_step_runs_at_the_budget_once_on_a_machine_getting_faster():
+    """Each run 10 % cheaper per step than the last: the budget's step shrinks after every run, but once the
+    run at the budget's step has failed the search ends (no creeping series of slightly finer runs)."""
+    calls: list = []
+
+    def passes(dt: float) -> tuple[bool, float]:
+        calls.append(dt)
+        return False, math.ceil(100.0 / dt) * 1e-6 * 0.9 ** len(calls)
+
+    best, trials = coarsest_step(passes, 1e-2, 100.0, 60.0, 1e-6)
+    assert best is None and len(trials) == 5  # 1e-2, 1e-3, 1e-4, 1e-5, then the budget's step
+    assert calls[-1] > 1e-6 and calls[-1] < 1e-5
+
+
+def test_coarsest_step_refuses_bad_arguments():
+    with pytest.raises(ValueError, match="budget"):
+        coarsest_step(lambda dt: (True, 0.0), 1e-2, 1.0, 0.0, 1e-6)

@@ -24,9 +24,20 @@ def get(name: str) -> ModuleType:
 
 
 def supports(scene, name: str) -> tuple[bool, str]:
-    """(True, "") when backend `name` can run `scene`, else (False, the reason it gives)."""
+    """(True, "") when backend `name` can run `scene` at its default settings, else (False, the reason it
+    gives): what the simulator cannot model (check), and, where a backend has a `preflight(scene)`, what
+    it would refuse when building the model (MuJoCo: a body its compiler rejects). Raises ValueError for
+    an unknown backend or a `scene` that is not an rbody Scene."""
+    from rbody.scene import Scene
+
+    module = get(name)
+    if not isinstance(scene, Scene):
+        raise ValueError(f"scene={scene!r}: expected an rbody.Scene (see rbody.scenes)")
     try:
-        get(name).check(scene)
-    except NotImplementedError as reason:
+        module.check(scene)
+        preflight = getattr(module, "preflight", None)
+        if preflight is not None:
+            preflight(scene)
+    except (NotImplementedError, ValueError) as reason:  # ValueError: a layout the backend cannot build
         return False, str(reason)
     return True, ""

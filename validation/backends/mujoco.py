@@ -4,13 +4,20 @@ The pipeline:
 
     xml      = rbody.to_mjcf(scene, dt=dt, ...)       # joints, explicit inertials, contact pairs, keyframe
     model    = mujoco.MjModel.from_xml_string(xml)
-    states   = rollout(model, data, state0, nstep)    # the stepping, in C: the only thing timed
+    states   = rollout(model, data, state0, nstep)    # the stepping, in C: meta["step_seconds"]
     sensors  = rollout(model + sensors, ...)          # the same run again, with MuJoCo's own sensors:
                                                       # com, quat, com velocity, world omega, contacts
     data     = scene.observe(t, bodies, joints)       # the same observables as every backend
 
 The second rollout must reproduce the first bit for bit (sensors do not act on the physics); it is
-checked. Rollout's sensordata row j belongs to the state before step j.
+checked. Rollout's sensordata row j belongs to the state before step j. meta["run_seconds"] is the
+work that produces the observables: the rollout with sensors (the same steps, recording what is
+observed), the contact onsets and scene.observe; the benchmark charges MuJoCo that, as it charges
+rbody its whole simulate call.
+
+A model without contact pairs is compiled with contacts and, when it has no equality or limit either,
+the constraint solver disabled (MuJoCo's <flag contact="disable" constraint="disable"/>): nothing
+changes in the motion, the pipeline skips collision detection and the solver.
 
 Conventions at this edge: MuJoCo's free-joint qvel holds the angular velocity in the BODY frame (the
 keyframe written by to_mjcf converts the scene's world omega); hinge and slide qpos are measured from
@@ -66,6 +73,14 @@ def check(scene: Scene) -> None:
     _drive_plan(scene, layout)
 
 
+def preflight(scene: Scene) -> None:
+    """Build the scene's model as run() would at its default settings (MJCF export and MuJoCo's compiler),
+    without stepping: raises ValueError for what they refuse (a body with a principal moment MuJoCo
+    rejects, ...). validation.backends.supports calls it."""
+    check(scene)
+    build(scene, min(1e-3, scene.t_end))
+
+
 def _drive_plan(scene: Scene, layout) -> dict | None:
     """What must be set before every step for a scene MuJoCo's model alone does not hold, or None.
 
@@ -86,9 +101,21 @@ def _drive_plan(scene: Scene, layout) -> dict | None:
 
 
 def build(scene: Scene, dt: float, **settings) -> tuple[mujoco.MjModel, str]:
-    """The compiled MjModel of `scene` at step dt [s], and its MJCF text (settings as rbody.to_mjcf)."""
+    """The compiled MjModel of `scene` at step dt [s], and its MJCF text (settings as rbody.to_mjcf);
+    contacts and constraints disabled where the model has none (disable_unused)."""
     xml = to_mjcf(scene, dt=dt, **settings)
-    return mujoco.MjModel.from_xml_string(xml), xml
+    return disable_unused(mujoco.MjModel.from_xml_string(xml)), xml
+
+
+def disable_unused(model: mujoco.MjModel) -> mujoco.MjModel:
+    """The model with collision detection disabled when it has no contact pair (to_mjcf excludes every
+    other contact), and the constraint solver too when it also has no equality, joint limit or tendon
+    limit: MJCF's <flag contact="disable" constraint="disable"/>, the same motion at less cost."""
+    if model.npair == 0:
+        model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
+        if model.neq == 0 and not np.any(model.jnt_limited) and not np.any(model.tendon_limited):
+            model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
+    return model
 
 
 def run(scene: Scene, dt: float, t_end: float | None = None, *, integrator: str | None = None,
@@ -101,7 +128,8 @@ def run(scene: Scene, dt: float, t_end: float | None = None, *, integrator: str 
     else RK4); solref, solimp, condim, cone, impratio, noslip_iterations, min_inertia: as rbody.to_mjcf.
     save_every: keep every n-th step. Returns a Trajectory with the scene's observables (plus
     ``collisions`` and ``ball_collisions`` for scenes with impacts); meta holds the backend, the
-    effective settings, the MuJoCo version and ``step_seconds``, the wall time of the stepping alone.
+    effective settings, the MuJoCo version, ``step_seconds``, the wall time of the stepping alone, and
+    ``run_seconds``, that of the stepping with the recording of the observables (module docstring).
     Raises NotImplementedError for what MuJoCo cannot run, ValueError for bad arguments,
     SimulationError when MuJoCo reports an unstable state (it would reset the state and go on).
     """
@@ -112,7 +140,7 @@ def run(scene: Scene, dt: float, t_end: float | None = None, *, integrator: str 
                 "impratio": impratio, "noslip_iterations": noslip_iterations, "min_inertia": min_inertia}
     model, xml = build(scene, dt, **{k: v for k, v in settings.items() if v is not None})
     layout = scene.layout
-    observer = mujoco.MjModel.from_xml_string(_with_sensors(xml, layout))
+    observer = disable_unused(mujoco.MjModel.from_xml_string(_with_sensors(xml, layout)))
     nsteps = max(1, math.ceil(t_end / dt * (1 - 1e-12)))
     nsteps = -(-nsteps // save_every) * save_every
     run_ = _Run(model, observer, layout, save_every)
@@ -122,6 +150,7 @@ def run(scene: Scene, dt: float, t_end: float | None = None, *, integrator: str 
     else:
         run_.drive(scene, plan, nsteps)
 
+    extraction = time.perf_counter()
     t = np.arange(run_.states.shape[0]) * (dt * save_every)
     nq, nv = model.nq, model.nv
     qpos, qvel = run_.states[:, 1:1 + nq], run_.states[:, 1 + nq:1 + nq + nv]  # (time, qpos, qvel, ...)
@@ -132,19 +161,24 @@ def run(scene: Scene, dt: float, t_end: float | None = None, *, integrator: str 
                                        velocity=values[:, 7:10].copy(), omega=values[:, 10:13].copy())
     joints = {}
     for joint in layout.joints:
+        j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, joint.name)
+        qa, da = model.jnt_qposadr[j], model.jnt_dofadr[j]
         if joint.kind in ("hinge", "slide"):
-            j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, joint.name)
-            joints[joint.name] = (qpos[:, model.jnt_qposadr[j]].copy(), qvel[:, model.jnt_dofadr[j]].copy())
+            joints[joint.name] = (qpos[:, qa].copy(), qvel[:, da].copy())
+        else:  # ball (T, 4), (T, 3); free (T, 7), (T, 6): MuJoCo's qpos and qvel (body-frame angular velocity)
+            nq_j, nv_j = (4, 3) if joint.kind == "ball" else (7, 6)
+            joints[joint.name] = (qpos[:, qa:qa + nq_j].copy(), qvel[:, da:da + nv_j].copy())
     observables = dict(scene.observe(t, bodies, joints))
     if has_impacts(layout):
         observables["collisions"] = run_.collisions
         observables["ball_collisions"] = run_.ball_collisions
     step_seconds = run_.seconds
+    run_seconds = run_.observed_seconds + (time.perf_counter() - extraction)
 
     meta = {"scene": scene.name, "description": scene.describe(), "backend": name, "dt": dt, "t_end": t_end,
             "nsteps": nsteps, "save_every": save_every, "integrator": _integrator_name(model),
             "settings": _effective_settings(model), "mujoco_version": mujoco.__version__,
-            "step_seconds": step_seconds,
+            "step_seconds": step_seconds, "run_seconds": run_seconds,
             "stepping": ("mujoco.rollout" if plan is None else
                          f"mj_step loop, setting {', '.join(plan['hooks'])} from the scene before every step "
                          "(timed with that Python work and MuJoCo's sensors)")}
@@ -190,7 +224,8 @@ class _Run:
         self.ball = np.array([moving[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, c.shape_a)]
                               and moving[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, c.shape_b)]
                               for c in layout.contacts], dtype=bool)
-        self.seconds = 0.0
+        self.seconds = 0.0           # the stepping alone
+        self.observed_seconds = 0.0  # the stepping with sensors and the contact onsets: what gives the observables
 
     def step(self, nsteps: int) -> None:
         model, nstate = self.model, mujoco.mj_stateSize(self.model, _FULL)
@@ -209,11 +244,14 @@ class _Run:
             self.seconds += time.perf_counter() - start
             out = out[0]
             _check_stable(model, self.data, out, done)
+            start = time.perf_counter()
             replay, sensed = mj_rollout.rollout(self.observer, self.odata, state[None], nstep=n,
                                                 initial_warmstart=warmstart)
+            self.observed_seconds += time.perf_counter() - start
             if not np.array_equal(replay[0], out):
                 raise SimulationError("MuJoCo gave different states for the same model with sensors added: the "
                                       "observed run is not the timed one")
+            start = time.perf_counter()
             sensed = sensed[0]                       # sensors of states done .. done + n - 1
             keep = np.arange(0, n, self.save_every)  # chunk starts on a multiple of save_every
             states += [state[None], out[keep[1:] - 1]]  # state done + j is out[j - 1]
@@ -224,6 +262,8 @@ class _Run:
             touching = found[-1] if found.shape[0] else touching
             state = out[-1].copy()
             done += n
+            self.observed_seconds += time.perf_counter() - start
+        start = time.perf_counter()
         # the final state and its sensors
         mujoco.mj_setState(self.observer, self.odata, state, _FULL)
         mujoco.mj_forward(self.observer, self.odata)
@@ -237,6 +277,7 @@ class _Run:
         balls = np.cumsum(onset[:, self.ball].sum(axis=1))
         self.collisions = every[::self.save_every]
         self.ball_collisions = balls[::self.save_every]
+        self.observed_seconds += time.perf_counter() - start
 
     def drive(self, scene: Scene, plan: dict, nsteps: int) -> None:
         """A plain mj_step loop on the observer model for scenes with a varying mass or applied forces.
@@ -294,6 +335,7 @@ class _Run:
                         f"with dt={dt} and integrator {_integrator_name(model)}; try a smaller dt or another "
                         "integrator")
             self.seconds = time.perf_counter() - start
+            self.observed_seconds = self.seconds  # the loop ran the model with sensors
             mujoco.mj_getState(model, data, states[-1], _FULL)
             mujoco.mj_forward(model, data)
         finally:
@@ -322,6 +364,7 @@ def _check_stable(model: mujoco.MjModel, data: mujoco.MjData, out: np.ndarray, d
             f"dt={dt} and integrator {_integrator_name(model)}; try a smaller dt or another integrator")
 
 
+_DISABLE_BITS = (mujoco.mjtDisableBit.mjDSBL_CONTACT, mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
 _MJCF_INTEGRATOR = {"EULER": "Euler", "RK4": "RK4", "IMPLICIT": "implicit", "IMPLICITFAST": "implicitfast"}
 
 
@@ -342,5 +385,7 @@ def _effective_settings(model: mujoco.MjModel) -> dict:
     return {"integrator": _integrator_name(model), "timestep": float(model.opt.timestep),
             "cone": mujoco.mjtCone(model.opt.cone).name.removeprefix("mjCONE_"),
             "impratio": float(model.opt.impratio), "noslip_iterations": int(model.opt.noslip_iterations),
+            "disabled": [bit.name.removeprefix("mjDSBL_").lower() for bit in _DISABLE_BITS
+                         if model.opt.disableflags & int(bit)],
             "solver": mujoco.mjtSolver(model.opt.solver).name.removeprefix("mjSOL_"),
             "iterations": int(model.opt.iterations), "tolerance": float(model.opt.tolerance), "pairs": pairs}

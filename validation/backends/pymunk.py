@@ -18,6 +18,17 @@ Joints, modelled with what each needs and nothing more:
   the slides span the plane (a rolling body's x, z, phi); one slide: a GrooveJoint along the axis to
   the static body, pivoting at the hinge's anchor if a hinge follows the slide. Without a hinge the
   moment is infinite: the slides do not turn the body.
+- any planar tree (hinge axes along y, slide axes in the x-z plane), each body held to its parent by
+  its joints in order: one slide to a moving body is a GrooveJoint fixed in the parent (then a hinge
+  pivots at its anchor); a hinge then a slide (a telescoping arm) is a GrooveJoint fixed in the body,
+  along the turned slide, through the pivot on the parent; two slides (and a hinge after them) leave the
+  body free relative to its parent. A body without a hinge whose parent turns turns with it: a GearJoint
+  of ratio 1 keeps their angles together. Joint coordinates are read back from the body's motion
+  relative to its parent's (_observe_states). A body without a joint on a moving parent (MJCF's parts) is
+  welded to it: one pymunk body carries both, with their summed mass, their centre of mass and the moment
+  about it by the parallel-axis theorem (_merge_welded), and each is read back from that body's motion.
+  Hinge stiffness and damping are a DampedRotarySpring. Refused, with the reason: two hinges on one body, a
+  hinge before one of two slides, ball and free joints, slide springs, armature.
 - balls on a horizontal line: free bodies and no gravity, when every moving body slides on one
   horizontal line and every contact acts along it (circles centred on the line, walls facing along
   it). Gravity is then balanced by the line's reaction and does no work, and nothing pushes a ball
@@ -60,7 +71,7 @@ import pymunk
 from rbody._checks import nonnegative, run_times, whole_number
 from rbody.errors import SimulationError
 from rbody.motion import quat_from_axis_angle, quat_from_matrix, quat_multiply, quat_to_matrix
-from rbody.scene import WORLD, Body, BodyStates, Joint, Layout, Scene, Shape
+from rbody.scene import WORLD, Body, BodyStates, Joint, Layout, Scene, Shape, TreeScene
 from rbody.trajectory import Trajectory
 
 name = "pymunk"
@@ -136,6 +147,14 @@ class _BodyPlan:
     com: np.ndarray = field(default_factory=lambda: np.zeros(2))  # initial centre of mass, world (x, z)
     velocity: np.ndarray = field(default_factory=lambda: np.zeros(2))  # of the centre of mass
 
+    # The pymunk body that carries this one: itself, or for a body welded to a moving one (no joint) the
+    # nearest ancestor with joints; that body then holds the sum of their masses (see _merge_welded).
+    carrier: str = ""
+    frame0: np.ndarray = field(default_factory=lambda: np.zeros(3))  # carrier's origin0 (zeros for static)
+    total_mass: float = 0.0                # carrier: mass of it and the bodies welded to it [kg]
+    total_cog: np.ndarray = field(default_factory=lambda: np.zeros(2))  # their centre of mass, pymunk local
+    total_moment: float = math.inf         # their moment about world y through total_cog [kg m^2]
+
     @property
     def name(self) -> str:
         return self.body.name
@@ -180,7 +199,7 @@ def _check_scene(scene) -> None:
         raise NotImplementedError(
             f"scene {scene.name!r} is a batch of shape {scene.batch_shape}: pymunk runs one scene at a time; "
             "use scene.item(i)")
-    if not scene.planar:
+    if not scene.planar and not isinstance(scene, TreeScene):  # a user's tree: its joints decide (_joint_plan)
         raise NotImplementedError(
             f"scene {scene.name!r} is not planar: pymunk is 2-D and cannot express 3-D rotation or motion "
             "out of its plane")
@@ -228,6 +247,15 @@ def _joint_plan(joint: Joint, rot0: np.ndarray, origin0: np.ndarray) -> _JointPl
     direction = rot0 @ np.array(joint.axis)
     if joint.kind == "free":
         raise NotImplementedError(f"joint {joint.name!r} is free: pymunk is 2-D and cannot express 3-D rotation")
+    if joint.kind not in ("hinge", "slide"):
+        raise NotImplementedError(f"joint {joint.name!r} is a {joint.kind} joint: pymunk's plane has hinges about "
+                                  "its normal and slides along it only")
+    if joint.armature:
+        raise NotImplementedError(f"joint {joint.name!r} has armature {joint.armature:g}: pymunk has no inertia "
+                                  "added to a joint's coordinate")
+    if joint.kind == "slide" and (joint.stiffness or joint.damping):
+        raise NotImplementedError(f"slide {joint.name!r} has stiffness {joint.stiffness:g} and damping "
+                                  f"{joint.damping:g}: pymunk's springs act between points, not along a slide")
     if joint.kind == "hinge":
         if abs(abs(direction[1]) - 1.0) > AXIS_TOL:
             raise NotImplementedError(
@@ -243,30 +271,45 @@ def _joint_plan(joint: Joint, rot0: np.ndarray, origin0: np.ndarray) -> _JointPl
 
 
 def _classify(plan: _BodyPlan) -> str:
+    """How pymunk holds the body to its parent (the world or a moving body), from its joints in order:
+    pivot (one hinge), groove (one slide, then at most one hinge), rail (a hinge, then a slide along a
+    direction that turns with it), free (two slides spanning the plane, at most one hinge: every planar
+    motion relative to the parent)."""
     hinges = [j for j in plan.joints if j.joint.kind == "hinge"]
     slides = [j for j in plan.joints if j.joint.kind == "slide"]
     if not plan.joints:
-        if plan.parent != WORLD:
-            raise NotImplementedError(f"body {plan.name!r} is welded to body {plan.parent!r}: this backend does "
-                                      "not merge welded bodies")
-        return "static"
+        return "static" if plan.parent == WORLD else "welded"
     if len(hinges) > 1:
         raise NotImplementedError(f"body {plan.name!r} has {len(hinges)} hinges to its parent: pymunk turns a body "
                                   "about one axis; give each hinge its own body")
     if not slides:
         return "pivot"
-    if plan.parent != WORLD:
-        raise NotImplementedError(f"body {plan.name!r} slides on body {plan.parent!r}: this backend models "
-                                  "slides to the world only")
-    if np.linalg.matrix_rank(np.array([j.axis for j in slides]), tol=1e-9) < len(slides):
-        raise NotImplementedError(f"body {plan.name!r} has parallel slides {[j.joint.name for j in slides]}")
+    if len(slides) > 2:
+        raise NotImplementedError(f"body {plan.name!r} has {len(slides)} slides: a planar body moves along two "
+                                  "directions at most")
     if len(slides) == 2:
+        if hinges and plan.joints.index(hinges[0]) < max(plan.joints.index(j) for j in slides):
+            raise NotImplementedError(f"body {plan.name!r}: hinge {hinges[0].joint.name!r} comes before a slide "
+                                      "of its two and turns its axis; give the hinge after the slides")
+        if np.linalg.matrix_rank(np.array([j.axis for j in slides]), tol=1e-9) < len(slides):
+            raise NotImplementedError(f"body {plan.name!r} has parallel slides {[j.joint.name for j in slides]}")
         return "free"
     if hinges and plan.joints.index(hinges[0]) < plan.joints.index(slides[0]):
-        raise NotImplementedError(f"body {plan.name!r}: hinge {hinges[0].joint.name!r} comes before slide "
-                                  f"{slides[0].joint.name!r} and turns its axis; this backend models a slide "
-                                  "along a fixed direction")
+        return "rail"  # the slide's direction turns with the hinge: a groove on the body through the pivot
     return "groove"
+
+
+def _turns(plan: _BodyPlan, parent: _BodyPlan | None) -> bool:
+    """The body can turn in the plane: it has a hinge, or it hangs from a body that turns (and then turns
+    with it: a body on slides alone keeps its orientation relative to its parent)."""
+    return (any(j.joint.kind == "hinge" for j in plan.joints)
+            or (parent is not None and parent.kind != "static" and math.isfinite(parent.moment)))
+
+
+def _locked(p: _BodyPlan, parent: _BodyPlan | None) -> bool:
+    """True when the body has no hinge but its parent turns: a GearJoint keeps their angles together."""
+    return (not any(j.joint.kind == "hinge" for j in p.joints) and parent is not None
+            and parent.kind != "static" and math.isfinite(parent.moment))
 
 
 def _initial_state(plan: _BodyPlan, parent: _BodyPlan | None) -> None:
@@ -277,7 +320,8 @@ def _initial_state(plan: _BodyPlan, parent: _BodyPlan | None) -> None:
     omega = 0.0 if parent is None else parent.omega
     hinge_rates, slide_velocity = [], np.zeros(2)
     for jp in plan.joints:
-        q, rate = float(jp.joint.qpos0), float(np.asarray(jp.joint.qvel0, dtype=float))
+        # the displacement from the reference pose is q - ref (MJCF's ref: the coordinate of the reference pose)
+        q, rate = float(jp.joint.qpos0) - jp.joint.ref, float(np.asarray(jp.joint.qvel0, dtype=float))
         if jp.joint.kind == "hinge":
             alpha = jp.sign * q
             hinge_rates.append((jp.sign * rate, _apply(phi, tau, jp.anchor)))
@@ -385,6 +429,7 @@ def _plan(scene: Scene) -> _Plan:
 
     bodies: dict[str, _BodyPlan] = {}
     shapes: list[_ShapePlan] = []
+    in_contact = {n for c in layout.contacts for n in (c.shape_a, c.shape_b)}
     for body in _order(layout):
         parent = bodies.get(body.parent)
         rot_p = np.eye(3) if parent is None else parent.rot0
@@ -393,9 +438,14 @@ def _plan(scene: Scene) -> _Plan:
         plan = _BodyPlan(body, rot0, origin_p + rot_p @ np.array(body.pos))
         plan.joints = [_joint_plan(joint, rot0, plan.origin0) for joint in joints_of[body.name]]
         plan.kind = _classify(plan)
-        plan.cog = _xz(rot0 @ body.inertia.com)
+        if plan.kind == "welded" and parent.kind == "static":
+            plan.kind = "static"  # welded to a body welded to the world
+        carrier = plan if plan.kind != "welded" else bodies[parent.carrier]
+        plan.carrier = carrier.name
+        plan.frame0 = np.zeros(3) if plan.kind == "static" else carrier.origin0
+        plan.cog = _xz(plan.origin0 + rot0 @ body.inertia.com - plan.frame0)  # in the pymunk body's coordinates
         plan.com_y = float((plan.origin0 + rot0 @ body.inertia.com)[1])
-        if any(j.joint.kind == "hinge" for j in plan.joints):  # else the body does not turn: moment inf
+        if _turns(plan, parent):  # else the body does not turn: moment inf
             plan.moment = body.inertia.moment(rot0.T @ Y_AXIS)
             if not plan.moment > 0:
                 raise NotImplementedError(f"body {body.name!r} turns about world y but has no moment about it")
@@ -403,9 +453,16 @@ def _plan(scene: Scene) -> _Plan:
         bodies[body.name] = plan
         moving = plan.kind != "static"
         for shape in body.shapes:
-            side = _side_view(shape, rot0, np.zeros(3) if moving else plan.origin0, body.name, moving)
+            try:
+                side = _side_view(shape, rot0, plan.origin0 - plan.frame0, carrier.name if moving else body.name,
+                                  moving)
+            except NotImplementedError:
+                if shape.name in in_contact:
+                    raise
+                continue  # a shape that touches nothing does not act: no side view needed
             side.world_z = float((plan.origin0 + rot0 @ np.array(shape.pos))[2] + plan.tau[1])
             shapes.append(side)
+    _merge_welded(bodies)
     shapes += [_side_view(s, np.eye(3), np.zeros(3), WORLD, False) for s in layout.fixed]
     if len({s.name for s in shapes}) != len(shapes):
         raise ValueError("layout has two shapes of the same name: contacts name shapes, so names must be unique")
@@ -415,20 +472,36 @@ def _plan(scene: Scene) -> _Plan:
             if n not in names:
                 raise ValueError(f"a contact names shape {n!r}, which the layout does not have")
 
-    in_contact = {n for c in layout.contacts for n in (c.shape_a, c.shape_b)}
     sizes = [s.size for s in shapes if s.name in in_contact and s.size > 0] or [s.size for s in shapes if s.size > 0]
     scale = max(sizes + [float(np.linalg.norm(p.origin0)) for p in bodies.values()] + [float(np.finfo(float).tiny)])
     plan = _Plan(layout, list(bodies.values()), shapes, False, scale, min(sizes, default=scale), scene=scene)
 
     moving = [p for p in plan.bodies if p.kind != "static"]
-    on_line = bool(moving) and all(p.kind == "groove" and len(p.joints) == 1 and p.joints[0].axis[1] == 0.0
-                                   for p in moving)
+    on_line = bool(moving) and all(p.kind == "groove" and p.parent == WORLD and len(p.joints) == 1
+                                   and p.joints[0].axis[1] == 0.0 for p in moving)
     if on_line and _aligned_with_line(plan):
         plan.line_mode = True
         for p in moving:
             p.kind = "line"
     plan.hooks = _drive_plan(scene, plan)
     return plan
+
+
+def _merge_welded(bodies: dict[str, _BodyPlan]) -> None:
+    """Each moving body with the bodies welded to it as one pymunk body: the mass summed, the centre of mass
+    the mass-weighted mean, the moment about world y through it by the parallel-axis theorem,
+    sum (I_k + m_k |c_k - c|^2) (infinite when the carrier does not turn)."""
+    for carrier in bodies.values():
+        if carrier.kind in ("static", "welded"):
+            continue
+        parts = [p for p in bodies.values() if p.carrier == carrier.name]
+        masses = np.array([p.body.inertia.mass for p in parts])
+        carrier.total_mass = float(masses.sum())
+        cogs = np.stack([p.cog for p in parts])
+        carrier.total_cog = masses @ cogs / carrier.total_mass if carrier.total_mass > 0 else carrier.cog
+        if math.isfinite(carrier.moment):
+            carrier.total_moment = float(sum(p.moment + m * np.sum((c - carrier.total_cog) ** 2)
+                                             for p, m, c in zip(parts, masses, cogs)))
 
 
 def _reach(plan: _Plan, gravity: float, t_end: float) -> float:
@@ -492,7 +565,8 @@ def run(scene: Scene, dt: float, t_end: float | None = None, *, iterations: int 
     Returns a Trajectory with the scene's observables (scene.observe) and, for scenes with elastic
     contacts, `collisions` (T,) contact onsets so far over all pairs and `ball_collisions` (T,) over
     pairs of two moving bodies. meta: scene, backend, dt, settings, pymunk version, model (how each
-    body is held), line_mode, step_seconds (time spent in space.step only) [s].
+    body is held), line_mode, step_seconds (time spent in space.step only) [s], run_seconds (the step loop
+    with the reading of every saved body state and their translation into the observables) [s].
     Raises ValueError for bad arguments, NotImplementedError when pymunk cannot model the scene,
     SimulationError when the state becomes non-finite.
     """
@@ -527,6 +601,7 @@ def run(scene: Scene, dt: float, t_end: float | None = None, *, iterations: int 
             angular[k, i] = b.angular_velocity
         collisions[k], ball_collisions[k] = counter.total, counter.between_bodies
 
+    started = time.perf_counter()
     record(0)
     step, seconds = space.step, 0.0
     if plan.hooks:
@@ -555,9 +630,11 @@ def run(scene: Scene, dt: float, t_end: float | None = None, *, iterations: int 
     data = dict(scene.observe(t, bodies, joints))
     if counter.elastic:
         data["collisions"], data["ball_collisions"] = collisions, ball_collisions
+    run_seconds = time.perf_counter() - started
     meta = {"scene": scene.name, "backend": name, "dt": dt, "pymunk": pymunk.version,
             "settings": {"iterations": int(iterations), "collision_slop": slop, "save_every": int(save_every)},
-            "model": {p.name: p.kind for p in plan.bodies}, "line_mode": plan.line_mode, "step_seconds": seconds}
+            "model": {p.name: p.kind for p in plan.bodies}, "line_mode": plan.line_mode, "step_seconds": seconds,
+            "run_seconds": run_seconds}
     if plan.hooks:
         meta["stepping"] = (f"space.step loop, setting {', '.join(plan.hooks)} from the scene before every step "
                             "(timed with that Python work): explicit Euler in the applied forces")
@@ -637,11 +714,15 @@ def _build(plan: _Plan, gravity: float, iterations: int, slop: float, reach: flo
         if p.kind == "static":
             handles[p.name] = space.static_body
             continue
-        body = pymunk.Body(p.body.inertia.mass, p.moment)
-        body.center_of_gravity = tuple(p.cog)
+        if p.kind == "welded":
+            handles[p.name] = handles[p.carrier]
+            continue
+        body = pymunk.Body(p.total_mass, p.total_moment)
+        body.center_of_gravity = tuple(p.total_cog)
         body.angle = -p.phi  # before the position: pymunk turns a body about its centre of mass
         body.position = tuple(_apply(p.phi, p.tau, _xz(p.origin0)))
-        body.velocity = tuple(p.velocity)
+        # pymunk's velocity is that of its centre of mass, the welded bodies' included
+        body.velocity = tuple(p.velocity + _cross_y(p.omega, _rot(p.phi) @ (p.total_cog - p.cog)))
         body.angular_velocity = -p.omega
         space.add(body)
         handles[p.name] = body
@@ -671,21 +752,59 @@ def _make_shape(s: _ShapePlan, body: pymunk.Body, smallest: float, slop: float, 
 
 
 def _constrain(space: pymunk.Space, p: _BodyPlan, handles: dict, plan: _Plan, reach: float) -> None:
+    """The joints of body p to its parent (the static body for the world), placed in the initial state:
+    pivot a PivotJoint at the hinge's anchor; groove a GrooveJoint along the slide, fixed in the parent,
+    through the hinge's anchor (or the centre of mass); rail a GrooveJoint along the slide fixed in the
+    body, through the hinge's anchor on the parent; free nothing. A body without a hinge on a parent that
+    turns also gets a GearJoint (ratio 1) that keeps their angles together."""
+    if p.kind in ("static", "welded"):
+        return  # the world holds it, or it is part of its carrier's pymunk body
     body, parent = handles[p.name], handles[p.parent]
+    parent_plan = next((q for q in plan.bodies if q.name == p.parent), None)
+    motion = (0.0, np.zeros(2)) if parent_plan is None else (parent_plan.phi, parent_plan.tau)
     if p.kind == "pivot":
         hinge = p.joints[0]
-        parent_plan = next((q for q in plan.bodies if q.name == p.parent), None)
-        motion = (0.0, np.zeros(2)) if parent_plan is None else (parent_plan.phi, parent_plan.tau)
         joint = pymunk.PivotJoint(parent, body, tuple(_apply(*motion, hinge.anchor)))  # anchor at t = 0
         joint.collide_bodies = False
         space.add(joint)
-    elif p.kind == "groove":
+    elif p.kind == "groove" and p.parent == WORLD:
         slide = next(j for j in p.joints if j.joint.kind == "slide")
         hinge = next((j for j in p.joints if j.joint.kind == "hinge"), None)
         local = p.cog if hinge is None else hinge.anchor - _xz(p.origin0)  # the pivot, pymunk local
         point = np.asarray(body.local_to_world(tuple(local)))
         space.add(pymunk.GrooveJoint(space.static_body, body, tuple(point - reach * slide.axis),
                                      tuple(point + reach * slide.axis), tuple(local)))
+    elif p.kind == "groove":  # on a moving parent: the groove is fixed in the parent, along its turned axis
+        slide = next(j for j in p.joints if j.joint.kind == "slide")
+        hinge = next((j for j in p.joints if j.joint.kind == "hinge"), None)
+        local = p.cog if hinge is None else hinge.anchor - _xz(p.origin0)
+        point = np.asarray(body.local_to_world(tuple(local)))
+        axis = _rot(motion[0]) @ slide.axis  # the slide's direction at t = 0, world (x, z)
+        ends = [tuple(parent.world_to_local(tuple(point + sign * reach * axis))) for sign in (-1, 1)]
+        joint = pymunk.GrooveJoint(parent, body, ends[0], ends[1], tuple(local))
+        joint.collide_bodies = False
+        space.add(joint)
+    elif p.kind == "rail":  # hinge, then slide: the body's line through the pivot turns with it
+        hinge = next(j for j in p.joints if j.joint.kind == "hinge")
+        slide = next(j for j in p.joints if j.joint.kind == "slide")
+        pivot = _apply(*motion, hinge.anchor)                 # on the parent, world at t = 0
+        axis = _rot(p.phi) @ slide.axis                        # the body's slide direction at t = 0
+        ends = [tuple(body.world_to_local(tuple(pivot + sign * reach * axis))) for sign in (-1, 1)]
+        joint = pymunk.GrooveJoint(body, parent, ends[0], ends[1], tuple(parent.world_to_local(tuple(pivot))))
+        joint.collide_bodies = False
+        space.add(joint)
+    hinge = next((j for j in p.joints if j.joint.kind == "hinge"), None)
+    if hinge is not None and (hinge.joint.stiffness or hinge.joint.damping):
+        # torque -k (q - springref) - c q' on the body, its opposite on the parent. Chipmunk's spring angle is
+        # a.angle - b.angle (parent minus body) = sign (q - ref) (body.angle = -phi), so it rests at
+        # sign (springref - ref).
+        rest = hinge.sign * (hinge.joint.springref - hinge.joint.ref)
+        spring = pymunk.DampedRotarySpring(parent, body, rest, hinge.joint.stiffness, hinge.joint.damping)
+        space.add(spring)
+    if _locked(p, parent_plan):
+        gear = pymunk.GearJoint(parent, body, body.angle - parent.angle, 1.0)
+        gear.collide_bodies = False
+        space.add(gear)
 
 
 def _contacts(space: pymunk.Space, plan: _Plan, made: dict) -> _Counter:
@@ -736,6 +855,11 @@ def _observe_states(plan: _Plan, position, angle, velocity, angular):
     phi, omega = -angle, -angular                               # (T, nb): rotation about world +y
     cog = np.stack([p.cog for p in plan.bodies])                 # (nb, 2)
     com = position + np.einsum("tbij,bj->tbi", _rot(phi), cog)  # pymunk local -> world (x, z)
+    # pymunk's velocity is its body's centre of mass's (the welded bodies' included): each body's own com moves
+    # with v + omega y x (com - c), c that centre of mass
+    by_name = {p.name: p for p in plan.bodies}
+    total = np.stack([by_name[p.carrier].total_cog if p.kind != "static" else p.cog for p in plan.bodies])
+    velocity = velocity + _cross_y(omega, com - position - np.einsum("tbij,bj->tbi", _rot(phi), total))
     index = {p.name: i for i, p in enumerate(plan.bodies)}
     zeros = np.zeros(position.shape[0])
     bodies, joints = {}, {}
@@ -749,9 +873,27 @@ def _observe_states(plan: _Plan, position, angle, velocity, angular):
             hinge, j = p.joints[0], index.get(p.parent)
             relative = phi[:, i] - (0.0 if j is None else phi[:, j])
             rate = omega[:, i] - (0.0 if j is None else omega[:, j])
-            joints[hinge.joint.name] = (hinge.sign * relative, hinge.sign * rate)
-        elif p.kind != "static":
+            joints[hinge.joint.name] = (hinge.sign * relative + hinge.joint.ref, hinge.sign * rate)
+        elif p.kind in ("static", "welded"):
+            continue  # no joint of its own
+        elif p.parent not in index:
             joints.update(_slide_coordinates(p, phi[:, i], omega[:, i], position[:, i], com[:, i], velocity[:, i]))
+        else:
+            # Relative to the parent's motion r -> R(phi_j) r + tau_j: the joints move the body as if the parent
+            # stood in its reference pose. Position x -> R(-phi_j)(x - tau_j); velocity: that of the parent's
+            # point at x taken away, turned back, v_rel = R(-phi_j)(v - v_j - omega_j y x (x - com_j)).
+            j = index[p.parent]
+            back = _rot(-phi[:, j])
+            # position j is the origin of the parent's pymunk body (its carrier's, when it is welded)
+            tau_j = position[:, j] - np.einsum("tij,j->ti", _rot(phi[:, j]), _xz(plan.bodies[j].frame0))
+
+            def relative(x):
+                return np.einsum("tij,tj->ti", back, x - tau_j)
+
+            carried = velocity[:, j] + _cross_y(omega[:, j], com[:, i] - com[:, j])
+            joints.update(_slide_coordinates(p, phi[:, i] - phi[:, j], omega[:, i] - omega[:, j],
+                                             relative(position[:, i]), relative(com[:, i]),
+                                             np.einsum("tij,tj->ti", back, velocity[:, i] - carried)))
     return bodies, joints
 
 
@@ -767,7 +909,7 @@ def _slide_coordinates(p: _BodyPlan, phi, omega, origin, com, velocity) -> dict:
             hinges.append((jp, _apply(psi, tau0, jp.anchor), len(axes)))
             tau0 = _apply(psi, tau0, jp.anchor) - np.einsum("tij,j->ti", _rot(psi + phi), jp.anchor)
             psi = psi + phi
-            out[jp.joint.name] = (jp.sign * phi, jp.sign * omega)
+            out[jp.joint.name] = (jp.sign * phi + jp.joint.ref, jp.sign * omega)
         else:
             axes.append((jp, np.einsum("tij,j->ti", _rot(psi), jp.axis)))
     W = np.stack([w for _jp, w in axes], axis=-1)  # (T, 2, k)
@@ -779,7 +921,7 @@ def _slide_coordinates(p: _BodyPlan, phi, omega, origin, com, velocity) -> dict:
         rhs = rhs - _cross_y(omega, com - anchor)
     rate = _solve(W, rhs)
     for m, (jp, _w) in enumerate(axes):
-        out[jp.joint.name] = (d[:, m], rate[:, m])
+        out[jp.joint.name] = (d[:, m] + jp.joint.ref, rate[:, m])
     return out
 
 

@@ -33,6 +33,8 @@ from pathlib import Path
 import numpy as np
 from numba import njit, prange
 
+from rbody._files import atomic_path
+
 DT = 1e-3
 SAMPLES = 100
 SIZES = {False: (1, 64, 1024, 16384, 10**6), True: (1, 64, 1024)}
@@ -355,7 +357,8 @@ def _plot(rows: list[dict], out: Path) -> str:
     left.legend(fontsize=8)
     right.legend(fontsize=8)
     figure.tight_layout()
-    figure.savefig(out / "batch.png", dpi=100)
+    with atomic_path(out / "batch.png") as temporary:
+        figure.savefig(temporary, dpi=100, format="png")
     plt.close(figure)
     return "batch.png"
 

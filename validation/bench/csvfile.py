@@ -7,6 +7,8 @@ import math
 from pathlib import Path
 from typing import Iterable, Mapping
 
+from rbody._files import atomic_open
+
 
 # ----- the CSV ------------------------------------------------------------------------------------------
 
@@ -32,7 +34,7 @@ def _load() -> str:
 
 
 def write_csv(path: Path, rows: Iterable[Mapping], columns: tuple[str, ...], header: list[str]) -> Path:
-    with open(path, "w", newline="") as f:
+    with atomic_open(path, "w", newline="") as f:  # a temporary name, renamed into place
         for line in header:
             f.write(f"# {line}\n")
         writer = csv.DictWriter(f, fieldnames=columns)

@@ -6,9 +6,14 @@ Each is fitted as cost ~ x^p on log-log axes (least squares on the logs), p give
   of impacts floor(pi 10^N): the time of building the scene (which runs the events once to find when
   the last impact happens, t_end) and of simulate (the sampled run), fitted from N = 4 on (below, the
   fixed cost of a call dominates).
-- chain: n = 2..32 unit rods at theta0 from 0.3 to 0.1 rad, dt = 1e-3 for 5 s: rbody rk4 and gauss6,
-  MuJoCo RK4, pymunk; cost per simulated second against n. rbody solves the n x n mass matrix by
-  Cholesky at each evaluation (n^3 / 3 flops); MuJoCo's tree factorisation is cheaper for long chains.
+- chain: n = 2..32 unit rods at theta0 from 0.3 to 0.1 rad, dt = 1e-3 for 5 s: rbody rk4 and gauss6 on
+  the chain's own kernel (the n x n mass matrix solved by Cholesky at each evaluation, n^3 / 3 flops),
+  rbody rk4 on the general engine (Scene.from_layout of the same chain: the articulated-body algorithm,
+  linear in n), MuJoCo RK4 (contacts and constraints disabled), pymunk; cost per simulated second
+  against n, each the work that gives the observables (meta["run_seconds"]). Pinocchio, where it is
+  installed (the optional extra `bench`): its forward dynamics pin.aba on the model it reads from rbody's
+  MJCF, timed per call from Python and counted 4 times per step (an RK4 step's evaluations; the
+  integration itself is not counted), after a check that its accelerations are rbody's (CHAIN_AGREEMENT).
 - batch: seconds per step of a batch of rods against its size (from validation.bench.batch), from
   64 rods on (one rod leaves a core idle).
 """
@@ -22,12 +27,18 @@ from pathlib import Path
 
 import numpy as np
 
+from rbody._files import atomic_path
+
 PI_DIGITS = {False: tuple(range(9)), True: tuple(range(6))}
 PI_GOALS = {7: 1.0, 8: 10.0}  # digits -> seconds
 PI_FIT_FROM = 4
 CHAIN_LINKS = {False: (2, 4, 8, 16, 32), True: (2, 4, 8)}
 CHAIN_T_END = {False: 5.0, True: 0.2}  # [s]: long enough that the fixed cost of a call does not dominate
 CHAIN_DT = 1e-3
+# Pinocchio's and rbody's forward dynamics at a random state must agree to this (relative to max |qdd|)
+# before Pinocchio's time is reported: the same model, read from rbody's MJCF.
+CHAIN_AGREEMENT = 1e-10
+ABA_PER_RK4_STEP = 4
 BATCH_FIT_FROM = 64
 COLUMNS = ("kind", "backend", "method", "x", "work", "seconds", "seconds_construct", "seconds_per_sim_second",
            "repeats", "failure")
@@ -68,13 +79,18 @@ def chain_growth(quick: bool) -> list[dict]:
     from rbody import scenes
     from rbody.errors import SimulationError
 
+    from rbody.scene import Scene
+
     runs = (("rbody", "rk4", {"method": "rk4"}), ("rbody", "gauss6", {"method": "gauss6"}),
+            ("rbody", "rk4 general engine", {"method": "rk4"}),
             ("mujoco", "RK4", {"integrator": "RK4"}), ("pymunk", "chipmunk", {}))
     t_end = CHAIN_T_END[quick]
     rows = []
     for links in CHAIN_LINKS[quick]:
-        scene = scenes.pendulum_chain(links, theta0=np.linspace(0.3, 0.1, links), t_end=t_end)
+        chain = scenes.pendulum_chain(links, theta0=np.linspace(0.3, 0.1, links), t_end=t_end)
+        general = Scene.from_layout(chain.layout, t_end=t_end, name=f"chain_{links}")
         for backend, method, settings in runs:
+            scene = general if method.endswith("general engine") else chain
             save_every = max(1, round(t_end / CHAIN_DT / 100))
             row = {"kind": "chain", "backend": backend, "method": method, "x": links, "work": links,
                    "seconds": math.nan, "seconds_construct": math.nan, "seconds_per_sim_second": math.nan,
@@ -85,13 +101,57 @@ def chain_growth(quick: bool) -> list[dict]:
                 started = time.perf_counter()
                 while len(seconds) < 5 and (not seconds or time.perf_counter() - started < 2.0):
                     run = validation.run(scene, backend, dt=CHAIN_DT, save_every=save_every, **settings)
-                    seconds.append(float(run.meta["step_seconds"]))
+                    seconds.append(float(run.meta["run_seconds"]))
                 row.update(seconds=min(seconds), seconds_per_sim_second=min(seconds) / float(run.t[-1]),
                            repeats=len(seconds))
             except (SimulationError, ValueError, NotImplementedError) as error:
                 row["failure"] = f"{type(error).__name__}: {str(error).splitlines()[0][:150]}"
             rows.append(row)
+        rows.append(pinocchio_chain_row(chain, links))
     return rows
+
+
+def pinocchio_chain_row(chain, links: int) -> dict:
+    """Pinocchio's forward dynamics on the chain (module docstring): a row with its cost per simulated
+    second at CHAIN_DT, or the reason it is missing (not installed, or not the same model)."""
+    import os
+    import tempfile
+
+    from rbody.engine.multibody import Multibody
+    from rbody.mjcf import to_mjcf
+
+    row = {"kind": "chain", "backend": "pinocchio", "method": f"aba x {ABA_PER_RK4_STEP} per step", "x": links,
+           "work": links, "seconds": math.nan, "seconds_construct": math.nan, "seconds_per_sim_second": math.nan,
+           "repeats": 0, "failure": ""}
+    try:
+        import pinocchio
+    except ImportError:
+        row["failure"] = "not installed (pip install 'rbody[bench]')"
+        return row
+    folder = tempfile.mkdtemp()
+    path = os.path.join(folder, "chain.xml")
+    try:
+        with open(path, "w") as f:
+            f.write(to_mjcf(chain, dt=CHAIN_DT))
+        model = pinocchio.buildModelFromMJCF(path)
+    finally:
+        if os.path.exists(path):
+            os.remove(path)
+        os.rmdir(folder)
+    data = model.createData()
+    rng = np.random.default_rng(links)
+    q, v, tau = rng.normal(size=model.nq), rng.normal(size=model.nv), np.zeros(model.nv)
+    theirs = np.asarray(pinocchio.aba(model, data, q, v, tau))
+    ours = Multibody(chain.layout, gravity=chain.gravity).forward_dynamics(q, v)
+    gap = float(np.max(np.abs(theirs - ours)) / np.max(np.abs(ours)))
+    if not gap <= CHAIN_AGREEMENT:
+        row["failure"] = f"not the same model: accelerations differ by {gap:.2g} of max |qdd| from rbody's"
+        return row
+    calls = 2000
+    seconds, repeats, _ = _best(lambda: [pinocchio.aba(model, data, q, v, tau) for _ in range(calls)])
+    per_call = seconds / calls
+    row.update(seconds=per_call, seconds_per_sim_second=ABA_PER_RK4_STEP * per_call / CHAIN_DT, repeats=repeats)
+    return row
 
 
 def batch_growth(batch: dict | None) -> list[dict]:
@@ -183,7 +243,8 @@ def _plot(rows: list[dict], fitted: list[dict], out: Path) -> str:
         axis.set(xlabel=xlabel, ylabel=ylabel, title=f"cost growth: {kind}")
         axis.legend(fontsize=7)
     figure.tight_layout()
-    figure.savefig(out / "growth.png", dpi=100)
+    with atomic_path(out / "growth.png") as temporary:
+        figure.savefig(temporary, dpi=100, format="png")
     plt.close(figure)
     return "growth.png"
 
@@ -203,7 +264,8 @@ def _markdown(rows: list[dict], fitted: list[dict], figure: str) -> list[str]:
     if chain:
         links = sorted({r["x"] for r in chain})
         methods = sorted({(r["backend"], r["method"]) for r in chain})
-        lines += ["", "Chain, seconds per simulated second at dt = 1e-3:", "",
+        lines += ["", "Chain, seconds per simulated second at dt = 1e-3 (pinocchio: 4 forward-dynamics calls per "
+                  "step from Python, the integration not counted):", "",
                   "| links | " + " | ".join(f"{b} {m}" for b, m in methods) + " |", "|---|" + "---|" * len(methods)]
         for n in links:
             cells = []

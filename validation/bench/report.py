@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Iterable, Sequence
 
@@ -12,12 +13,17 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
+from rbody._files import atomic_path, write_atomic  # noqa: E402
+from validation.bench.scenes import REDUCED_LABEL  # noqa: E402
+
 LEVELS = (1e-3, 1e-6, 1e-9, 1e-12)
 GOAL_RATIO = 10.0  # rbody at least this many times cheaper than the best other simulator
 FLOOR, CEILING = 1e-17, 1e2  # error axis: zero error is drawn at FLOOR, larger or NaN errors at CEILING
 COLOURMAPS = {"rbody": "Blues", "mujoco": "Oranges", "pymunk": "Greens"}
 MARKERS = "osD^v<>ph*"
-NAMES = {"rbody": "rbody", "mujoco": "MuJoCo", "pymunk": "pymunk"}
+NAMES = {"rbody": "rbody", "mujoco": "MuJoCo", "pymunk": "pymunk",
+         "mujoco reduced": "MuJoCo on rbody's reduction"}
+
 
 
 def _series_of(points: Iterable) -> dict[tuple[str, str, str], list]:
@@ -87,49 +93,147 @@ def plot_scene(points: Sequence, bench, out: Path) -> str:
     figure.legend(loc="lower center", ncol=4, fontsize=7, frameon=False)
     figure.tight_layout(rect=(0, 0.17, 1, 1))
     name = f"wp_{bench.name}.png"
-    figure.savefig(out / name, dpi=100)
+    with atomic_path(out / name) as temporary:
+        figure.savefig(temporary, dpi=100, format="png")
     plt.close(figure)
     return name
 
 
 # ----- the summary -----------------------------------------------------------------------------------
 
-def cheapest(points: Iterable, scene: str, backend: str, level: float):
-    """The cheapest valid point of `backend` on `scene` with error <= level, or None."""
-    good = [p for p in points if p.scene == scene and p.backend == backend and not p.failure
-            and p.error <= level and not math.isnan(p.seconds_per_sim_second)]
-    return min(good, key=lambda p: p.seconds_per_sim_second) if good else None
+@dataclass(frozen=True)
+class Reading:
+    """A cost read off one series' work-precision curve at an error level: the series (backend, method,
+    settings), the time step [s] and cost [s per simulated second] there (interpolated: between two
+    neighbouring points, in log-log, else a measured point's)."""
+
+    backend: str
+    method: str
+    settings: str
+    dt: float
+    seconds_per_sim_second: float
+    interpolated: bool = False
 
 
-def _cell(point) -> str:
-    if point is None:
+def column(point) -> str:
+    """The table column of a point: its backend, or "mujoco reduced" for MuJoCo on rbody's reduction."""
+    if point.backend == "mujoco" and point.settings.startswith(REDUCED_LABEL):
+        return "mujoco reduced"
+    return point.backend
+
+
+def _log(value: float) -> float:
+    return math.log(max(value, FLOOR))
+
+
+def curve_cost(series: Sequence, level: float) -> Reading | None:
+    """The least cost at which one series (the points of one backend, method and setting in one run) reaches
+    error <= level on its work-precision curve: its valid points (no failure) in dt order, each pair of
+    neighbours joined by a straight line in log error - log cost (and log dt); a point at or below the level
+    counts as it is, a pair that crosses the level gives the cost where its line does. No extrapolation
+    beyond the measured points; a failed point breaks the curve."""
+    rows = sorted((p for p in series if not math.isnan(p.dt)), key=lambda p: -p.dt)
+    valid = [not p.failure and np.isfinite(p.error) and np.isfinite(p.seconds_per_sim_second) for p in rows]
+    best: Reading | None = None
+
+    def offer(reading: Reading) -> None:
+        nonlocal best
+        if best is None or reading.seconds_per_sim_second < best.seconds_per_sim_second:
+            best = reading
+
+    for i, p in enumerate(rows):
+        if valid[i] and p.error <= level:
+            offer(Reading(p.backend, p.method, p.settings, p.dt, p.seconds_per_sim_second))
+        if i + 1 < len(rows) and valid[i] and valid[i + 1]:
+            q = rows[i + 1]
+            lo, hi = sorted((p.error, q.error))
+            if lo <= level < hi:  # the line between the two crosses the level
+                s = (_log(level) - _log(p.error)) / (_log(q.error) - _log(p.error))
+                cost = math.exp(_log(p.seconds_per_sim_second)
+                                + s * (_log(q.seconds_per_sim_second) - _log(p.seconds_per_sim_second)))
+                dt = math.exp(math.log(p.dt) + s * (math.log(q.dt) - math.log(p.dt)))
+                offer(Reading(p.backend, p.method, p.settings, dt, cost, interpolated=True))
+    return best
+
+
+def cheapest(points: Iterable, scene: str, key: str, level: float, run: int | None = None) -> Reading | None:
+    """The least cost of column `key` (a backend, or "mujoco reduced") on `scene` at error <= level, over all
+    its series, read off each series' curve (curve_cost); run: only the points of that run."""
+    series: dict[tuple, list] = {}
+    for p in points:
+        if p.scene == scene and column(p) == key and (run is None or p.run == run):
+            series.setdefault((p.method, p.settings), []).append(p)
+    readings = [r for rows in series.values() if (r := curve_cost(rows, level)) is not None]
+    return min(readings, key=lambda r: r.seconds_per_sim_second) if readings else None
+
+
+def _cell(reading: Reading | None, spread: tuple[float, float] | None = None) -> str:
+    if reading is None:
         return "never"
-    setting = "" if point.settings in ("default",) or point.settings.startswith("exact") else f", {point.settings}"
-    return f"{point.seconds_per_sim_second:.2g} ({point.method}{setting}, dt={point.dt:.3g})"
+    setting = ("" if reading.settings in ("default",) or reading.settings.startswith("exact")
+               else f", {reading.settings.removeprefix(REDUCED_LABEL)}")
+    cost = f"{reading.seconds_per_sim_second:.2g}"
+    if spread is not None and spread[1] > spread[0]:
+        cost += f" [{spread[0]:.2g}..{spread[1]:.2g}]"
+    where = f"dt~{reading.dt:.3g}" if reading.interpolated else f"dt={reading.dt:.3g}"
+    return f"{cost} ({reading.method}{setting}, {where})"
+
+
+def _ratio_text(ratios: list[float]) -> str:
+    """The median ratio over the runs and its range: '21.3x (19.8-22.0)'."""
+    finite = sorted(r for r in ratios if np.isfinite(r))
+    median = float(np.median(finite))
+    text = f"{median:.3g}x"
+    if len(finite) > 1:
+        text += f" ({finite[0]:.3g}..{finite[-1]:.3g})"
+    return text + ("" if median >= GOAL_RATIO else " (goal 10x missed)")
 
 
 def level_table(points: Sequence, scene: str, backends: Sequence[str]) -> tuple[str, list[dict]]:
-    """Markdown table of the cheapest cost per level and backend, and rbody's standing at each level."""
+    """Markdown table of each column's cost per level (the median over the runs, read off the curves) and
+    rbody's standing: the best other column's cost over rbody's, per run, its median and range.
+
+    backends: the columns, "rbody" first (a backend, or "mujoco reduced")."""
+    runs = sorted({int(p.run) for p in points if p.scene == scene}) or [1]
     others = [b for b in backends if b != "rbody"]
-    lines = ["| error <= | " + " | ".join(NAMES.get(b, b) for b in backends) + " | best other / rbody |",
-             "|---|" + "---|" * (len(backends) + 1)]
+    lines = ["| error <= | " + " | ".join(NAMES.get(b, b) for b in backends)
+             + " | best other / rbody: median (range over runs) |", "|---|" + "---|" * (len(backends) + 1)]
     standing = []
     for level in LEVELS:
-        best = {b: cheapest(points, scene, b, level) for b in backends}
-        rival = min((best[b] for b in others if best[b] is not None), key=lambda p: p.seconds_per_sim_second,
+        per_run = {r: {b: cheapest(points, scene, b, level, r) for b in backends} for r in runs}
+        cells, medians, partial = [], {}, []
+        for b in backends:
+            costs = [per_run[r][b].seconds_per_sim_second for r in runs if per_run[r][b] is not None]
+            if len(costs) < len(runs):  # reached in some runs only: shown as not reached
+                cells.append("never" if not costs else f"{_cell(per_run[runs[0]][b])} (in {len(costs)} of {len(runs)} runs)")
+                medians[b] = None
+                partial += [b] if costs else []
+                continue
+            median = float(np.median(costs))
+            middle = min((per_run[r][b] for r in runs), key=lambda x: abs(x.seconds_per_sim_second - median))
+            medians[b] = Reading(middle.backend, middle.method, middle.settings, middle.dt, median, middle.interpolated)
+            cells.append(_cell(medians[b], (min(costs), max(costs))))
+        own = medians.get("rbody")
+        rival = min((medians[b] for b in others if medians[b] is not None), key=lambda x: x.seconds_per_sim_second,
                     default=None)
-        own = best.get("rbody")
+        ratios = []
         if own is not None and rival is not None:
-            ratio = rival.seconds_per_sim_second / own.seconds_per_sim_second
-            verdict = f"{ratio:.3g}x" + ("" if ratio >= GOAL_RATIO else " (goal 10x missed)")
+            for r in runs:
+                mine = per_run[r]["rbody"]
+                theirs = [per_run[r][b] for b in others if per_run[r][b] is not None]
+                ratios.append(min(x.seconds_per_sim_second for x in theirs) / mine.seconds_per_sim_second)
+            ratio, verdict = float(np.median(ratios)), _ratio_text(ratios)
+        elif own is not None and [b for b in partial if b != "rbody"]:
+            ratio, verdict = math.nan, "others reach it in some runs only"
         elif own is not None:
             ratio, verdict = math.inf, "only rbody reaches it"
         elif rival is not None:
             ratio, verdict = 0.0, "rbody never reaches it"
         else:
             ratio, verdict = math.nan, "none reaches it"
-        standing.append({"scene": scene, "level": level, "ratio": ratio, "rbody": own, "rival": rival})
-        lines.append(f"| {level:.0e} | " + " | ".join(_cell(best[b]) for b in backends) + f" | {verdict} |")
+        standing.append({"scene": scene, "level": level, "ratio": ratio, "ratios": ratios, "rbody": own,
+                         "rival": rival})
+        lines.append(f"| {level:.0e} | " + " | ".join(cells) + f" | {verdict} |")
     return "\n".join(lines), standing
 
 
@@ -150,25 +254,61 @@ def _failures(points: Sequence, scene: str) -> list[str]:
     return lines
 
 
+def peer_settings(bench) -> str:
+    """One line per scene: the settings each backend was swept with (every series is in the table)."""
+    by_backend: dict[str, list[str]] = {}
+    for series in bench.series:
+        key = "mujoco reduced" if series.settings.startswith(REDUCED_LABEL) else series.backend
+        label = series.settings.removeprefix(REDUCED_LABEL)
+        methods = by_backend.setdefault(key, [])
+        entry = f"{series.method} [{label}]"
+        if entry not in methods:
+            methods.append(entry)
+    parts = [f"{NAMES.get(k, k)}: {', '.join(v)}" for k, v in by_backend.items() if k != "rbody"]
+    return "Series swept: " + "; ".join(parts) + "." if parts else ""
+
+
 def write_summary(out: Path, points: Sequence, benches: Sequence, figures: Sequence[str], batch, growth,
                   header: Sequence[str], *, quick: bool, seconds: float) -> Path:
     """summary.md: per scene the cheapest cost at each error level, the goals, batch and growth results."""
     parts = ["# Speed against error: rbody, MuJoCo and pymunk", ""]
     parts += [f"- {line}" for line in header]
-    parts += [f"- wall time of this benchmark: {seconds:.0f} s", "",
-              "Cost is seconds of stepping per simulated second (lower is better): after one warm-up run per "
-              "series, the minimum over up to 5 timed runs (bench.csv's `repeats` says how many). A cell gives "
-              "the cheapest point of that backend, over all its methods and settings, whose error is at or "
-              "below the level; `never` means no point of the sweep got there. The last column is the cost "
-              "of the best of MuJoCo and pymunk divided by rbody's (how many times cheaper rbody is).", ""]
+    runs = sorted({int(p.run) for p in points}) or [1]
+    parts += [f"- wall time of this benchmark: {seconds:.0f} s; runs of every sweep: {len(runs)}", "",
+              "**The same work on every side.** Cost is wall seconds per simulated second (lower is better) of "
+              "the work that turns an initial state into the scene's observables at the saved times: for rbody "
+              "the whole `rbody.simulate` call (model, stability check, stepping, every observable); for MuJoCo "
+              "the `mujoco.rollout` of the model with the sensors that record the observed quantities, the "
+              "contact onsets and the translation into the observables (`run_seconds`); for pymunk the "
+              "`space.step` loop with the reading of every saved body state and the same translation. Model "
+              "compilation is charged to no one. (The other way, timing stepping alone everywhere, would need "
+              "rbody to defer its observables; its call would then still hold the model and the stability "
+              "check.) bench.csv also gives the stepping alone (`stepping_seconds_per_sim_second`).", "",
+              "**Read off the curves.** Each point is the minimum over up to 5 timed runs after one warm-up run "
+              "per series. A cell gives the least cost at which a column reaches the level: over all its methods "
+              "and settings, on each series' work-precision curve, between two neighbouring valid points by "
+              "straight-line interpolation in log error - log cost (`dt~`), or at a measured point (`dt=`); never "
+              "by extrapolation. `never`: no series got there. "
+              + (f"**Over {len(runs)} runs.** Every sweep was run {len(runs)} times; a cell is the median "
+                 "cost over the runs [min..max], and the last column the ratio of the best other column's cost to "
+                 "rbody's, computed in each run: its median (min..max over the runs)." if len(runs) > 1 else
+                 "**One run**: the ratios carry the noise of one run on this machine (use --repeat 3)."),
+              "",
+              "**Each peer at its best.** MuJoCo: its four integrators; models without contact pairs run with "
+              "contacts and the constraint solver disabled (`<flag contact=\"disable\" constraint=\"disable\"/>`); "
+              "where rbody integrates a reduced model (rolling), MuJoCo also runs the same reduction in its own "
+              "column (slide + armature I/R^2; slide + hinge + joint equality), beside its contact model with "
+              "the best contact settings found and with noslip iterations. pymunk: its defaults and more solver "
+              "work, per scene below. The last column takes the cheapest of all other columns.", ""]
     standings = []
     for bench, figure in zip(benches, figures):
-        backends = ["rbody", "mujoco", "pymunk"]
+        reduced = any(column(p) == "mujoco reduced" for p in points if p.scene == bench.name)
+        backends = ["rbody", "mujoco"] + (["mujoco reduced"] if reduced else []) + ["pymunk"]
         table, standing = level_table(points, bench.name, backends)
         standings += standing
         parts += [f"## {bench.name}", "", f"{bench.scene.describe()}. Error: max abs error of `{bench.measure}` "
                   f"[{bench.unit}] against {'the reference run' if bench.reference else 'the exact solution'}."
-                  + (f" {bench.note}." if bench.note else ""), "", table, ""]
+                  + (f" {bench.note}." if bench.note else ""), "", peer_settings(bench), "", table, ""]
         failures = _failures(points, bench.name)
         if failures:
             parts += ["Failures (crosses in the figure):", ""] + failures + [""]
@@ -179,8 +319,15 @@ def write_summary(out: Path, points: Sequence, benches: Sequence, figures: Seque
         parts += growth["markdown"] + [""]
     parts += goals(standings, batch, growth, {b.name: b.scene.t_end for b in benches})
     path = out / "summary.md"
-    path.write_text("\n".join(parts) + "\n")
+    write_atomic(path, "\n".join(parts) + "\n")
     return path
+
+
+def _label(reading: Reading) -> str:
+    """'MuJoCo RK4', or 'MuJoCo on rbody's reduction (slide + armature I/R^2) RK4'."""
+    if reading.settings.startswith(REDUCED_LABEL):
+        return f"{NAMES['mujoco reduced']} ({reading.settings.removeprefix(REDUCED_LABEL)}) {reading.method}"
+    return f"{NAMES.get(reading.backend, reading.backend)} {reading.method}"
 
 
 def goals(standings: Sequence[dict], batch, growth, t_end: dict[str, float] | None = None) -> list[str]:
@@ -197,7 +344,7 @@ def goals(standings: Sequence[dict], batch, growth, t_end: dict[str, float] | No
     for s in missed:
         own, rival = s["rbody"], s["rival"]
         if own is None:
-            lines.append(f"  - {s['scene']} at {s['level']:.0e}: rbody never reaches it; {NAMES[rival.backend]} "
+            lines.append(f"  - {s['scene']} at {s['level']:.0e}: rbody never reaches it; {_label(rival)} "
                          f"does at {rival.seconds_per_sim_second:.2g} s/s.")
             continue
         why = ""
@@ -217,7 +364,7 @@ def goals(standings: Sequence[dict], batch, growth, t_end: dict[str, float] | No
             why += "."
         lines.append(f"  - {s['scene']} at {s['level']:.0e}: {s['ratio']:.3g}x (short by a factor "
                      f"{GOAL_RATIO / s['ratio']:.2g}): rbody {own.method} dt={own.dt:.3g} at "
-                     f"{own.seconds_per_sim_second:.2g} s/s against {NAMES[rival.backend]} {rival.method} "
+                     f"{own.seconds_per_sim_second:.2g} s/s against {_label(rival)} "
                      f"dt={rival.dt:.3g} at {rival.seconds_per_sim_second:.2g} s/s.{why}")
     only = sorted({(s["scene"], s["level"]) for s in standings if s["ratio"] == math.inf})
     lines.append("- levels only rbody reaches: "

@@ -13,20 +13,25 @@ within a bounded cost per run; they are the only tuning in the benchmark, and th
 
 MuJoCo settings: the backend's defaults (rbody.mjcf.to_mjcf: for impacts an undamped contact spring
 K = (1/dt)^2 with solimp (0.99, 0.99, 0.001); for resting and rolling contact a critically damped
-one of time constant 2 dt, elliptic cone, impratio 100) and the best found (measured with this code,
-mujoco 4.0, by the sweeps that chose them):
+one of time constant 2 dt, elliptic cone, impratio 100; contacts and the constraint solver disabled on
+models without contact pairs, validation.backends.mujoco.disable_unused) and the best found (measured
+with this code, mujoco 4.0, by the sweeps that chose them):
 - rolling: cone "pyramidal" and solimp (0.9999, 0.9999, 0.001) (MuJoCo's largest impedance): the
   slip of a soft contact scales with 1 - d, so the distance error at RK4 falls 100 to 1000 times
-  (dt = 1e-3: 2.9e-10 m against 5.8e-7 m); noslip_iterations and a larger impratio change nothing
-  measurable, 0.99999 is clamped to 0.9999.
+  (dt = 1e-3: 2.9e-10 m against 5.8e-7 m); the same with noslip_iterations = 20 as a third series
+  (RK4: 6.0e-11 m at dt = 1e-3, 5.4e-13 m at 1e-4, falling as dt^2; without it 2.9e-10 and 3.4e-11 m);
+  0.99999 is clamped to 0.9999.
+  Beside the contact model, MuJoCo on rbody's own reduction (validation.bench.reduced): one slide
+  with armature I/R^2 at each integrator, and a slide and a hinge tied by a joint equality (Euler, RK4).
 - impacts: a stiffer spring K = 2/dt^2 (solref (-2/dt^2, 0)): the contact lasts fewer steps and the
   positions come out closer (line of three balls, dt = 1e-3: 9.7e-3 m against 1.5e-2 m; the pi scene
   counts right from dt = 3e-4 instead of 1e-4); K = 3/dt^2 and beyond blow up (omega dt > ~2) without
   MuJoCo noticing, a larger impedance (0.9999) miscounts more.
-pymunk settings: its defaults (iterations 10, collision_slop 1e-6 of the smallest contact shape) were
-the best found on every scene; the second series, iterations 100 (and collision_slop 0 for impacts),
-shows that more solver work buys nothing measurable here (on rolling, slop 0 makes the disc slip at
-coarse dt).
+pymunk settings, per scene: its defaults (iterations 10, collision_slop 1e-6 of the smallest contact
+shape; impacts: each shape's elasticity sqrt(e) so that the pair's product is e, exactly elastic) and,
+as a second series, iterations 100 (pendulums, rolling, chain) or iterations 100 with collision_slop 0
+(impacts): the defaults were the best found on every scene, more solver work buys nothing measurable
+(on rolling, slop 0 makes the disc slip at coarse dt).
 """
 
 from __future__ import annotations
@@ -52,6 +57,8 @@ class Series:
     settings: a label of the settings ("default" or what differs from it)
     kwargs:   dt -> keyword settings for validation.run (MuJoCo's impact stiffness depends on dt)
     dts:      the time steps [s], coarse to fine (event-driven rbody: the sampling intervals)
+    runner:   run(scene, dt, t_end, save_every=..., **kwargs) -> Trajectory in place of the backend's own
+              (MuJoCo on rbody's reduction: validation.bench.reduced.run); None: the backend's
     """
 
     backend: str
@@ -59,6 +66,7 @@ class Series:
     settings: str
     kwargs: Callable[[float], dict]
     dts: tuple[float, ...]
+    runner: Callable | None = None
 
 
 @dataclass(frozen=True)
@@ -112,16 +120,15 @@ def _rbody(scene: Scene, ranges: dict[str, tuple[float, float]], n: int, sample:
     return series
 
 
-def _mujoco(coarse: float, fine: float, n: int, sample: float, best: tuple[str, Callable] | None = None,
+def _mujoco(coarse: float, fine: float, n: int, sample: float, *best: tuple[str, Callable],
             quick: bool = False) -> list[Series]:
-    """Every integrator at the backend's default contact settings and, unless quick, at the best found."""
+    """Every integrator at the backend's default contact settings and, unless quick, at each of the best
+    found."""
     dts = sweep(coarse, fine, n, sample)
-    best = None if quick else best
     series = []
     for integrator in MUJOCO_INTEGRATORS:
         series.append(Series("mujoco", integrator, "default", _fixed(integrator=integrator), dts))
-        if best is not None:
-            label, settings = best
+        for label, settings in (() if quick else best):
             series.append(Series("mujoco", integrator, label,
                                  lambda dt, i=integrator, s=settings: dict(s(dt), integrator=i), dts))
     return series
@@ -139,6 +146,24 @@ def _pymunk(coarse: float, fine: float, n: int, sample: float, impacts: bool = F
 
 ROLLING_BEST = ("cone=pyramidal, solimp=(0.9999, 0.9999, 0.001)",
                 lambda dt: dict(cone="pyramidal", solimp=(0.9999, 0.9999, 0.001)))
+ROLLING_NOSLIP = ("cone=pyramidal, solimp=(0.9999, 0.9999, 0.001), noslip_iterations=20",
+                  lambda dt: dict(cone="pyramidal", solimp=(0.9999, 0.9999, 0.001), noslip_iterations=20))
+# MuJoCo on rbody's reduction of rolling (validation.bench.reduced): variant -> integrators swept.
+REDUCED_INTEGRATORS = {"slide": MUJOCO_INTEGRATORS, "slide+hinge": ("Euler", "RK4")}
+REDUCED_LABEL = "reduced: "  # settings labels of MuJoCo series on rbody's reduction start with this
+
+
+def _mujoco_reduced(coarse: float, fine: float, n: int, sample: float, quick: bool = False) -> list[Series]:
+    """MuJoCo on the reduction rbody runs: one slide with armature I/R^2, and a slide and a hinge tied by a
+    joint equality (quick: the slide at RK4 only)."""
+    from validation.bench import reduced
+
+    dts = sweep(coarse, fine, n, sample)
+    variants = {"slide": ("RK4",)} if quick else REDUCED_INTEGRATORS
+    labels = {"slide": "slide + armature I/R^2", "slide+hinge": "slide + hinge + joint equality x = R phi"}
+    return [Series("mujoco", integrator, REDUCED_LABEL + labels[variant],
+                   lambda dt, v=variant, i=integrator: dict(variant=v, integrator=i), dts, runner=reduced.run)
+            for variant, integrators in variants.items() for integrator in integrators]
 IMPACT_BEST = ("solref=(-2/dt^2, 0): stiffer spring", lambda dt: dict(solref=(-2.0 / dt**2, 0.0)))
 
 
@@ -176,7 +201,8 @@ def bench_scenes(quick: bool = False) -> list[BenchScene]:
     for name, scene in (("rolling_disc", rolling), ("rolling_race", race)):
         sample = scene.t_end / SAMPLES
         series = (_rbody(scene, exact_ranges, n, sample)
-                  + _mujoco(1e-2, 1e-4 if quick else 1e-5, n, sample, ROLLING_BEST, quick)
+                  + _mujoco(1e-2, 1e-4 if quick else 1e-5, n, sample, ROLLING_BEST, ROLLING_NOSLIP, quick=quick)
+                  + _mujoco_reduced(1e-1, 1e-4 if quick else 1e-5, n, sample, quick)
                   + _pymunk(1e-2, 1e-4 if quick else 1e-5, n, sample, quick=quick))
         out.append(BenchScene(name, scene, "distance", "m", tuple(series), rolling=True))
 
@@ -191,7 +217,7 @@ def bench_scenes(quick: bool = False) -> list[BenchScene]:
         sample = scene.t_end / SAMPLES
         events = {"events": (scene.t_end / 20, scene.t_end / (200 if quick else 2000))}
         series = (_rbody(scene, events, n, sample)
-                  + _mujoco(3e-3, 3e-4 if quick else 1e-4, n, sample, IMPACT_BEST, quick)
+                  + _mujoco(3e-3, 3e-4 if quick else 1e-4, n, sample, IMPACT_BEST, quick=quick)
                   + _pymunk(3e-3, 1e-4 if quick else 3e-5, n, sample, impacts=True, quick=quick))
         out.append(BenchScene(name, scene, "positions", "m", tuple(series), counted=True,
                               note=f"Exact count {int(scene.exact([scene.t_end])['collisions'][-1])} impacts; a run "
@@ -220,4 +246,16 @@ def bench_scenes(quick: bool = False) -> list[BenchScene]:
     out.append(BenchScene("pendulum_chain", chain, "theta", "rad", tuple(series), reference=True,
                           note="Truth: rbody's reference run (scipy DOP853, rtol 1e-13); the finest gauss6, rk4 and "
                                "MuJoCo RK4 runs agree with it to about 6e-14 rad, the floor of this measure"))
+
+    # --- the same chain on the general engine: any Layout tree, by the articulated-body algorithm ----------
+    general = Scene.from_layout(chain.layout, t_end=t_end, name="chain_general")
+    series = (_rbody(general, chain_ranges, n, sample)
+              + _mujoco(1e-2, 1e-4 if quick else 3e-5, n, sample, quick=quick))
+    if quick:  # the smoke test: rk4 and gauss6 against MuJoCo's RK4
+        series = tuple(s for s in series if s.method in ("rk4", "gauss6", "RK4"))
+    out.append(BenchScene("chain_general", general, "qpos", "rad", tuple(series), reference=True,
+                          note="The three-link chain above as a user's model: Scene.from_layout(chain.layout), run by "
+                               "rbody's general engine (articulated-body algorithm) instead of the chain's own kernel; "
+                               "truth: its reference run (DOP853, rtol 1e-13); MuJoCo with contacts and constraints "
+                               "disabled"))
     return out

@@ -26,7 +26,7 @@ FLOOR = 1e-17  # below round-off: drawn at the floor of the log axis
 
 
 def figure_pi_time(points: Mapping[str, Sequence[tuple[float, int, int]]], out: Path) -> str:
-    """Leading digits of pi right against the wall time of the run, one marker per run.
+    """Leading digits of pi right against the time of the run, one marker per run.
 
     points: backend -> [(seconds, digits right, digits asked for N)]."""
     figure, axis = plt.subplots(figsize=(7, 4.2))
@@ -38,7 +38,8 @@ def figure_pi_time(points: Mapping[str, Sequence[tuple[float, int, int]]], out: 
         axis.semilogx(seconds, right, "o", color=COLOURS.get(backend, "black"), label=backend, alpha=0.8)
         if backend == "rbody":
             axis.semilogx(seconds, right, "-", color=COLOURS["rbody"], lw=0.8)
-    axis.set(xlabel="wall time of the run [s]", ylabel="leading digits of pi right",
+    axis.set(xlabel="time of the run [s] (rbody: the whole run; MuJoCo, pymunk: their stepping)",
+             ylabel="leading digits of pi right",
              title="pi collisions: digits right against time")
     axis.grid(True, which="both", alpha=0.3)
     axis.legend()

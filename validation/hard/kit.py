@@ -1,9 +1,11 @@
 """What every time-stepped hard case measures: a backend's run timed by its own stepping, rbody's verdict
-against its stability estimate, drift envelopes, zero crossings and periods, bounded energy."""
+against its stability estimate, drift envelopes, zero crossings and periods, bounded energy, and the
+coarsest step that passes (a search by bisection under a budget of stepping time)."""
 
 from __future__ import annotations
 
 import math
+from typing import Callable
 
 import numpy as np
 
@@ -99,3 +101,48 @@ def energy_bounded(energy: np.ndarray, steps: int) -> bool:
     quarter = max(2, energy.size // 4)
     allowance = 8 * EPS * math.sqrt(max(steps, 1)) * abs(energy[0])
     return float(np.max(error)) <= 2.0 * float(np.max(error[:quarter])) + allowance
+
+
+def coarsest_step(passes: Callable[[float], tuple[bool, float]], coarse: float, t_end: float, budget: float,
+                  cost_per_step: float, *, factor: float = 10.0, resolution: float = 2.0
+                  ) -> tuple[float | None, list[tuple[float, bool, float]]]:
+    """The coarsest time step at which `passes` holds, found by the same rule for every engine: from `coarse`
+    [s] down by `factor` until a run passes, the finest step tried being the one whose run is predicted to
+    take `budget` seconds of stepping; then bisection in log dt between the last failing and the first passing
+    step until they are within `resolution` of each other.
+
+    passes(dt) -> (passed, seconds of stepping); a run of t_end [s] takes ceil(t_end / dt) steps, predicted at
+    cost_per_step [s] (then measured, from runs of at least 10^4 steps). Returns (the coarsest passing dt or
+    None when none passed within the budget, every trial as (dt, passed, seconds) in the order run)."""
+    if not (coarse > 0 and t_end > 0 and budget > 0 and cost_per_step > 0 and factor > 1 and resolution > 1):
+        raise ValueError(f"coarse={coarse!r}, t_end={t_end!r}, budget={budget!r}, cost_per_step={cost_per_step!r}, "
+                         f"factor={factor!r}, resolution={resolution!r}: expected positive values, factor and "
+                         "resolution > 1")
+    trials: list[tuple[float, bool, float]] = []
+    cost = cost_per_step
+
+    def trial(dt: float) -> bool:
+        nonlocal cost
+        passed, seconds = passes(dt)
+        steps = math.ceil(t_end / dt * (1 - 1e-12))
+        if steps >= 10_000 and seconds > 0:
+            cost = seconds / steps
+        trials.append((dt, passed, seconds))
+        return passed
+
+    dt, failing, at_budget = coarse, None, False
+    while not trial(dt):
+        failing = dt
+        finest = t_end * cost / budget  # the step whose run takes the budget
+        if at_budget or finest >= dt * (1 - 1e-9):  # the run at the budget failed too, or no finer step fits
+            return None, trials
+        at_budget = dt / factor <= finest
+        dt = max(dt / factor, finest)
+    passing = dt
+    while failing is not None and failing / passing > resolution:
+        middle = math.sqrt(failing * passing)
+        if trial(middle):
+            passing = middle
+        else:
+            failing = middle
+    return passing, trials

@@ -3,13 +3,13 @@ the case table, the command, and the tables and report hard.md."""
 
 from __future__ import annotations
 
-import os
 import sys
 import tempfile
 import time
 from pathlib import Path
 from typing import Callable
 
+from rbody._files import replaced_folder, write_atomic
 from validation.hard import chains, contact, motion, shapes, steps
 from validation.hard.rows import CaseResult, HardRow, timed
 
@@ -33,8 +33,8 @@ def run_cases(out: Path, *, quick: bool, cases: tuple[int, ...] = CASES, client=
     """Run the chosen cases (numbers 1..9), then write their figures into out; progress on stderr.
 
     Each case is one task (validation.cluster.run_tasks): here in order (client None) or on the Dask cluster
-    of `client`. A case draws its figures in a folder of its own; they reach `out` only once every case has
-    run, so a failed run writes nothing there."""
+    of `client`. A case draws its figures in a folder of its own (a worker need not share a file system with
+    the report); they are written into `out` once every case has run."""
     from validation.cluster import run_tasks
 
     for number in cases:
@@ -45,7 +45,7 @@ def run_cases(out: Path, *, quick: bool, cases: tuple[int, ...] = CASES, client=
     results = []
     for result, files in done:
         for name, data in files.items():
-            _write_atomic(out / name, data)
+            write_atomic(out / name, data)
         print(f"[hard {result.number}] {result.title}: {len(result.rows)} rows, {result.seconds:.1f} s",
               file=sys.stderr, flush=True)
         results.append(result)
@@ -54,7 +54,7 @@ def run_cases(out: Path, *, quick: bool, cases: tuple[int, ...] = CASES, client=
 
 def case_task(number: int, quick: bool) -> tuple[CaseResult, dict[str, bytes]]:
     """Hard case `number` run in a temporary folder: its result and the files it drew there (name -> bytes).
-    One task of run_cases, here or on a Dask worker (which need not share a file system with the report)."""
+    One task of run_cases, here or on a Dask worker."""
     with tempfile.TemporaryDirectory(prefix=f"rbody-hard-{number}-") as folder:
         result, seconds = timed(case_function(number), quick, Path(folder))
         result.seconds = seconds
@@ -62,22 +62,16 @@ def case_task(number: int, quick: bool) -> tuple[CaseResult, dict[str, bytes]]:
     return result, files
 
 
-def _write_atomic(path: Path, data: bytes) -> None:
-    """Write to a temporary name in the same folder, then rename into place."""
-    partial = path.with_name(f".{path.name}.partial")
-    partial.write_bytes(data)
-    os.replace(partial, path)
-
-
 def run_hard(out: Path, *, quick: bool, cases: tuple[int, ...] = CASES, client=None) -> int:
     """Run the suite, print every case's table, write out/hard.md. Exit status 1 when rbody failed a
     requirement (a FAIL row), else 0. client: a dask.distributed.Client to run the cases on, or None."""
     started = time.perf_counter()
-    results = run_cases(out, quick=quick, cases=cases, client=client)
-    for result in results:
-        print(f"\n== {result.number}. {result.title} ==")
-        print(table(result.rows))
-    path = write_markdown(out, results, quick=quick, seconds=time.perf_counter() - started)
+    with replaced_folder(out) as staging:  # hard.md and its figures all new, or all as they were
+        results = run_cases(staging, quick=quick, cases=cases, client=client)
+        for result in results:
+            print(f"\n== {result.number}. {result.title} ==")
+            print(table(result.rows))
+        path = out / write_markdown(staging, results, quick=quick, seconds=time.perf_counter() - started).name
     print(f"\nreport: {path}", file=sys.stderr)
     failed = [(r.number, row) for r in results for row in r.rows if row.verdict == "FAIL"]
     for number, row in failed:
@@ -142,7 +136,8 @@ def write_markdown(out: Path, results: list[CaseResult], *, quick: bool, seconds
              f"- machine: {describe_machine()}",
              "- versions: " + ", ".join(f"{k} {v}" for k, v in versions().items()),
              "- times are wall times of each run on a machine shared with other work; they include rbody's "
-             "model building and MuJoCo's and pymunk's Python loops", ""]
+             "model building and MuJoCo's and pymunk's Python loops, except in case 1, where MuJoCo's and "
+             "pymunk's are their stepping alone (the measure of the search's budget)", ""]
     summary = [(r.number, r.title, sum(row.verdict == "pass" for row in r.rows),
                 sum(row.verdict == "FAIL" for row in r.rows), r.seconds) for r in results]
     parts += ["| case | title | rbody pass | rbody FAIL | time [s] |", "|---|---|---|---|---|"]
@@ -158,7 +153,7 @@ def write_markdown(out: Path, results: list[CaseResult], *, quick: bool, seconds
         if notes:
             parts += ["<details><summary>notes</summary>", ""] + notes + ["", "</details>", ""]
     path = out / "hard.md"
-    path.write_text("\n".join(parts) + "\n")
+    write_atomic(path, "\n".join(parts) + "\n")
     return path
 
 

@@ -59,6 +59,7 @@ Contacts (defaults; every one can be overridden):
 from __future__ import annotations
 
 import math
+import os
 import textwrap
 from dataclasses import dataclass
 from typing import Iterable, Sequence
@@ -69,11 +70,12 @@ import numpy as np
 from rbody._checks import finite_array, in_interval, one_of, positive
 from rbody.inertia import Inertia
 from rbody.motion import quat_from_matrix, quat_normalize, quat_to_matrix
-from rbody.scene import WORLD, Body, Contact, Joint, Layout, Scene, Shape
+from rbody.scene import WORLD, Body, Contact, Joint, Layout, Scene, Shape, already_unit
 
 DEFAULT_TIMESTEP = 0.002            # MuJoCo's own default step [s], used when dt is not given
 MUJOCO_MIN_MOMENT = 1e-14           # MuJoCo refuses a fullinertia whose smallest eigenvalue is below (mjEPS)
 MUJOCO_MIN_MASS = 1e-15             # ... and a moving body lighter than mjMINVAL [kg]
+MUJOCO_MAX_MOMENT = 1e300           # moments beyond this overflow when summed (compiler, A + B >= C)
 ZERO_MOMENT_RTOL = 1e-12            # a principal moment below this fraction of the largest is zero (round-off)
 TRIANGLE_RTOL = 1e-12               # A + B - C within this fraction of C is "on the boundary" (round-off)
 CONTACT_SOLIMP = (0.99, 0.99, 0.001)  # impedance d = 0.99 at any depth: the contact follows its reference spring
@@ -156,6 +158,9 @@ def exported_inertia(body: Body, *, min_inertia: float | None = None) -> Exporte
     notes = []
     if min_inertia is not None:
         floor = positive(min_inertia, "min_inertia")
+        if floor > MUJOCO_MAX_MOMENT:
+            raise ValueError(f"min_inertia={min_inertia!r} kg m^2: beyond {MUJOCO_MAX_MOMENT:g}, where sums of moments "
+                             "(MuJoCo's compiler, the triangle inequality) overflow float64; use larger units")
         if floor < MUJOCO_MIN_MOMENT:
             raise ValueError(f"min_inertia={min_inertia!r} kg m^2: MuJoCo needs every principal moment "
                              f">= {MUJOCO_MIN_MOMENT} kg m^2, so the floor must be at least that")
@@ -310,13 +315,13 @@ def initial_state(layout: Layout) -> tuple[np.ndarray, np.ndarray]:
     for joint in joint_order(layout):
         if joint.kind == "free":
             body = bodies[joint.body]
-            quat = quat_normalize(np.asarray(body.quat, dtype=float))
+            quat = _unit_quat(body.quat)
             velocity = _free_velocity(joint)
             qpos.extend(list(body.pos) + quat.tolist())
             qvel.extend(velocity[0].tolist() + (quat_to_matrix(quat).T @ velocity[1]).tolist())
         elif joint.kind == "ball":  # quaternion (0.0: identity); body-frame angular velocity (0.0: at rest)
             quat = np.atleast_1d(np.asarray(joint.qpos0, dtype=float))
-            quat = np.array([1.0, 0.0, 0.0, 0.0]) if quat.size == 1 and quat[0] == 0 else quat_normalize(quat)
+            quat = np.array([1.0, 0.0, 0.0, 0.0]) if quat.size == 1 and quat[0] == 0 else _unit_quat(quat)
             omega = np.atleast_1d(np.asarray(joint.qvel0, dtype=float))
             omega = np.zeros(3) if omega.size == 1 and omega[0] == 0 else finite_array(
                 omega, f"joint {joint.name!r}: qvel0", shape=(3,))
@@ -326,6 +331,12 @@ def initial_state(layout: Layout) -> tuple[np.ndarray, np.ndarray]:
             qpos.append(float(joint.qpos0))
             qvel.append(float(finite_array(joint.qvel0, f"joint {joint.name!r}: qvel0", shape=())))
     return np.array(qpos, dtype=float), np.array(qvel, dtype=float)
+
+
+def _unit_quat(quat) -> np.ndarray:
+    """(4,) the quaternion, normalised only when it is not already unit to 2 eps (rbody.scene.already_unit)."""
+    quat = np.asarray(quat, dtype=float)
+    return quat if already_unit(quat) else quat_normalize(quat)
 
 
 def _free_velocity(joint: Joint) -> np.ndarray:
@@ -501,7 +512,13 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
     if scene.batch_shape:
         raise ValueError(f"scene {scene.name!r} is a batch of shape {scene.batch_shape}: an MJCF model holds one "
                          "scene; use scene.item(i)")
-    dt = DEFAULT_TIMESTEP if dt is None else positive(dt, "dt")
+    if dt is None:  # a scene read from MJCF keeps its model's step and integrator
+        dt = getattr(scene, "timestep", None) or DEFAULT_TIMESTEP
+        integrator = integrator or getattr(scene, "integrator", None)
+    dt = positive(dt, "dt")
+    if not 1e-150 < dt < 1e150:  # K = (1/dt)^2 and (pi / (30 dt))^2 must be finite and > 0
+        raise ValueError(f"dt={dt!r} s: outside 1e-150..1e150, where the contact stiffness (1/dt)^2 would "
+                         "overflow or vanish")
     if integrator is not None:
         one_of(integrator, "integrator", INTEGRATORS)
     if cone is not None:
@@ -543,7 +560,9 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
         f"{sum(len(b.shapes) for b in order)} body geoms; {len(pairs)} contact pairs.",
         "Only what the scene uses: every geom has contype=conaffinity=0, so nothing collides except the",
         "<pair>s below. Mass properties are explicit (inertiafromgeom=false): rbody's mass, centre of mass",
-        "and tensor about it, body frame; joints have no friction or limits, and damping, stiffness, springref,",
+        "and tensor about it, body frame; joints have no damping, armature, friction, springs or limits."
+        if not any(getattr(j, key, 0.0) for j in layout.joints for key in _JOINT_ATTRIBUTES) else
+        "and tensor about it, body frame; joints have no friction or limits, and damping, stiffness, springref, "
         "armature and ref only where the scene gives them.",
         (f"gravity {gravity!r} m/s^2 along -z" if gravity == scene.gravity else
          f"gravity 0 (the scene applies no uniform gravity, though it states g = {scene.gravity!r} m/s^2)")
@@ -572,7 +591,8 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
     if meshes:
         out.append("  <asset>")
         for shape in meshes:
-            out.append(f"    <mesh {_attrs(name=shape.name, file=str(shape.mesh), inertia='exact')}/>")
+            # an absolute path: the model compiles from any folder (the mesh file stays where it is)
+            out.append(f"    <mesh {_attrs(name=shape.name, file=os.path.abspath(shape.mesh), inertia='exact')}/>")
         out.append("  </asset>")
     out.append("  <worldbody>")
     for shape in layout.fixed:
@@ -582,7 +602,7 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
         children.setdefault(body.parent, []).append(body)
 
     def write(body: Body, indent: str) -> None:
-        quat = quat_normalize(np.asarray(body.quat, dtype=float))
+        quat = _unit_quat(body.quat)
         out.append(f"{indent}<body {_attrs(name=body.name, pos=_vec(body.pos), quat=_vec(quat))}>")
         for joint in layout.joints:
             if joint.body == body.name:

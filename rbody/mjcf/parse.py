@@ -1,0 +1,1366 @@
+"""MJCF -> rbody: ``from_mjcf(source)`` reads a MuJoCo model into a Scene that rbody runs natively.
+
+``layout_from_mjcf(source)`` does the reading and returns an MJCFModel (the Layout, gravity, time step,
+integrator, initial state in MuJoCo's qpos/qvel layout, keyframes, declared joint limits, notes);
+``from_mjcf`` hands it to ``Scene.from_layout`` (the general engine). `source` is a path or an XML string.
+Every error is an MJCFError (a ValueError) naming the file, the line and the element, raised before any run.
+
+Supported (read as MuJoCo's compiler reads them; the compiled masses, centres of mass and inertia tensors
+equal MuJoCo's body_mass, body_ipos and body_inertia/body_iquat to round-off):
+
+- ``<include file>`` (relative to the including file), ``<default>`` classes (nested, inherited), ``class``
+  and ``childclass``;
+- ``<compiler>``: angle (degree, MJCF's default, or radian), eulerseq, inertiafromgeom (true, false,
+  auto), inertiagrouprange, autolimits, meshdir, assetdir, strippath; balanceinertia only where no body
+  needs it;
+- frames: pos and every orientation (quat, axisangle, euler, xyaxes, zaxis; at most one per element),
+  geom ``fromto``;
+- ``<inertial>``: pos, orientation, mass, diaginertia or fullinertia;
+- mass and inertia from geoms: sphere, capsule, cylinder, box, ellipsoid, mesh; mass or density;
+  shellinertia; several geoms summed about the body's centre of mass, as MuJoCo does;
+- ``<mesh file>`` assets (STL, OBJ, any format trimesh reads) with scale, refpos, refquat and inertia
+  legacy (MuJoCo's default), exact, convex or shell; vertices are rounded to float32 as MuJoCo does;
+  meshdir/assetdir relative to the model file's folder (the working folder for an XML string); the Shape
+  holds the mesh file's absolute path (a scale applies to the mass properties only, noted);
+- principal axes as MuJoCo's compiler finds them (its Jacobi solver, geoms.mujoco_principal): for a body
+  of several geoms, a fullinertia or a mesh, MuJoCo's compiled tensor can differ from the exact one by
+  more than round-off (a small rotation left undone); rbody takes MuJoCo's, noting any difference
+  beyond 1e-12, so that both engines run the same bodies;
+- joints hinge, slide, ball, free and ``<freejoint>``, with pos, axis, ref, damping, stiffness,
+  springref, armature, range and limited;
+- ``<option>``: timestep, gravity (along -z: rbody's scenes have gravity -g z), integrator; flags
+  contact, constraint, equality, limit, frictionloss, gravity (disable: g = 0), spring and damper
+  (disable: the joints' stiffness or damping become 0);
+- ``<keyframe>``: qpos and qvel of a key chosen by name or index (``keyframe=``);
+- one rbody Body per MJCF body, with its name (an unnamed body is called ``body<id>``, id as MuJoCo's;
+  unnamed joints ``<body>_joint<i>``, geoms ``<body>_geom<i>``), except that a body with neither mass
+  nor joints (a pure frame) is folded into its parent, its children and shapes moved there (noted).
+
+Ignored, and named in ``MJCFModel.notes`` (``scene.import_notes``): light, camera, site, material,
+texture, skin, skybox, visual, statistic, size, custom, geoms' appearance (rgba, material, group),
+sensors, contact parameters of geoms that cannot collide, solver settings (only constraints use them),
+motor actuators and general actuators without bias (their controls are zero, so they apply no force),
+tendons without stiffness, damping, friction or limits.
+
+Refused (MJCFError, naming the element, its file and line): contacts that can happen (two geoms on
+different bodies, not welded together nor parent and child, whose contype/conaffinity match, or an
+explicit <pair>, while the contact flag is on: set contype="0" conaffinity="0" on the geoms, or
+<flag contact="disable"/>); equality constraints; tendons with stiffness, damping, friction or limits;
+actuators that push with a zero control (position, velocity, damper, ... or damping/armature on the
+actuator); fluid forces (option density or viscosity, geom fluidshape); joint frictionloss and
+springdamper; body gravcomp; heightfields, flexes, composites, plugins, <frame>, <replicate>,
+<attach>; gravity not along -z; stiffness on a ball joint; boundmass, boundinertia, settotalmass, fusestatic, alignfree; a body
+with a joint but no mass; an orientation given twice; unknown elements or attributes; geoms of one body
+that overlap, which MuJoCo would count twice (``overlapping_geoms="sum"`` sums them as MuJoCo does).
+
+Joint limits: a limited joint's range (less its margin) is kept (``MJCFModel.limits``, ``MJCFScene.limits``:
+joint name -> (lo, hi) [rad | m]; ball: (0, largest rotation angle)). A limit declared but never reached
+changes nothing; rbody does not model the limit's force, so a native run whose saved states leave a range
+raises SimulationError with the joint and the time (checked on the saved states: with save_every > 1 a
+brief excursion between two saved states can pass unseen).
+
+Initial state: the model's reference (qpos0: hinge and slide at ref, balls at identity, free bodies at
+their pos/quat; at rest), a keyframe's (``keyframe=``), or the qpos0/qvel0 arguments, in MuJoCo's layout
+(free joints: world velocity of the body origin, then body-frame angular velocity). Quaternions are made
+unit (noted), as MuJoCo uses them.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import xml.parsers.expat
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Mapping
+
+import numpy as np
+
+from rbody.inertia import Inertia
+from rbody.mjcf.geoms import (MESH_INERTIA_MODES, MJ_EPS, GeomMass, MeshMass, mesh_mass, mujoco_principal,
+                              primitive_moments, primitive_volume, principal_tensor, quat_matrix, quat_product,
+                              sum_geoms)
+from rbody.errors import SimulationError
+from rbody.scene import WORLD, Body, Joint, Layout, NativeModel, Shape, TreeScene
+
+DEFAULT_T_END = 1.0        # [s] duration of a scene read from MJCF when t_end is not given
+OVERLAP_CHOICES = ("refuse", "sum")
+INTEGRATORS = {"Euler": "Euler", "RK4": "RK4", "implicit": "implicit", "implicitfast": "implicitfast"}
+ORIENTATIONS = ("quat", "axisangle", "xyaxes", "zaxis", "euler")
+PRINCIPAL_NOTE_RTOL = 1e-12  # a tensor MuJoCo's eigen-solver moves by more than this (relative) is noted
+
+
+class MJCFError(ValueError):
+    """An MJCF document rbody cannot read, or that would change the dynamics in a way rbody does not model."""
+
+
+# ----- the document as elements with their file and line ------------------------------------------------
+
+@dataclass
+class Element:
+    tag: str
+    attrib: dict
+    file: str
+    line: int
+    children: list = field(default_factory=list)
+
+    def where(self) -> str:
+        name = self.attrib.get("name")
+        label = f"<{self.tag} name={name!r}>" if name else f"<{self.tag}>"
+        return f"{self.file}, line {self.line}, {label}"
+
+    def error(self, message: str) -> MJCFError:
+        return MJCFError(f"{self.where()}: {message}")
+
+
+def _parse_text(text: str, file: str) -> Element:
+    """Elements of one XML document, each with its line (expat); comments and text are dropped."""
+    root: list[Element] = []
+    stack: list[Element] = []
+    parser = xml.parsers.expat.ParserCreate()
+
+    def start(tag, attrib):
+        element = Element(tag, dict(attrib), file, parser.CurrentLineNumber)
+        (stack[-1].children if stack else root).append(element)
+        stack.append(element)
+
+    def end(tag):
+        stack.pop()
+
+    parser.StartElementHandler = start
+    parser.EndElementHandler = end
+    try:
+        parser.Parse(text, True)
+    except xml.parsers.expat.ExpatError as error:
+        raise MJCFError(f"{file}, line {error.lineno}, column {error.offset}: malformed XML "
+                        f"({xml.parsers.expat.ErrorString(error.code)})") from None
+    return root[0]
+
+
+def _read(source: Any) -> tuple[Element, Path | None]:
+    """The root element of `source` (a path or an XML string) and the file's folder (None for a string)."""
+    if isinstance(source, (str, os.PathLike)) and not (isinstance(source, str) and source.lstrip().startswith("<")):
+        path = Path(source)
+        if not path.is_file():
+            raise MJCFError(f"source={os.fspath(source)!r}: no such file (give a path to an MJCF file or the XML text)")
+        return _parse_text(path.read_text(), str(path)), path.resolve().parent
+    if not isinstance(source, str):
+        raise MJCFError(f"source={source!r}: expected a path or an MJCF XML string")
+    return _parse_text(source, "<string>"), None
+
+
+def _expand_includes(element: Element, folder: Path, active: tuple[str, ...]) -> None:
+    """Replace every <include file> below `element` by the children of the included <mujoco>."""
+    expanded = []
+    for child in element.children:
+        if child.tag != "include":
+            _expand_includes(child, folder, active)
+            expanded.append(child)
+            continue
+        unknown = set(child.attrib) - {"file"}
+        if unknown or "file" not in child.attrib:
+            raise child.error("an include needs exactly one attribute, file")
+        path = (folder / child.attrib["file"]).resolve()
+        if not path.is_file():
+            raise child.error(f"included file {str(path)!r} does not exist")
+        if str(path) in active:
+            raise child.error(f"includes {str(path)!r}, which includes this file again (a cycle)")
+        included = _parse_text(path.read_text(), str(path))
+        if included.tag != "mujoco":
+            raise included.error("an included file must have <mujoco> as its root element")
+        _expand_includes(included, path.parent, active + (str(path),))
+        expanded.extend(included.children)
+    element.children = expanded
+
+
+# ----- numbers ------------------------------------------------------------------------------------------
+
+def _numbers(element: Element, key: str, attrib: dict, count: int | tuple | None = None) -> np.ndarray:
+    text = attrib[key]
+    try:
+        values = np.array([float(token) for token in text.split()], dtype=float)
+    except ValueError:
+        raise element.error(f"{key}={text!r}: expected numbers") from None
+    counts = (count,) if isinstance(count, int) else count
+    if counts is not None and len(values) not in counts:
+        raise element.error(f"{key}={text!r}: expected {' or '.join(map(str, counts))} numbers, got {len(values)}")
+    if not np.all(np.isfinite(values)):
+        raise element.error(f"{key}={text!r}: numbers must be finite")
+    return values
+
+
+def _number(element: Element, key: str, attrib: dict, default: float) -> float:
+    if key not in attrib:
+        return default
+    return float(_numbers(element, key, attrib, 1)[0])
+
+
+def _choice(element: Element, key: str, attrib: dict, choices: tuple, default: str) -> str:
+    value = attrib.get(key, default)
+    if value not in choices:
+        raise element.error(f"{key}={value!r}: expected one of {choices}")
+    return value
+
+
+def _bool(element: Element, key: str, attrib: dict, default: bool) -> bool:
+    return _choice(element, key, attrib, ("true", "false"), "true" if default else "false") == "true"
+
+
+# ----- quaternions, as MuJoCo's compiler forms them -------------------------------------------------------
+
+def _normalize(vector: np.ndarray) -> tuple[np.ndarray, float]:
+    """MuJoCo's mjuu_normvec: no division when the norm is within 1e-14 of 1; norm 0 below 1e-14."""
+    squared = float(sum(v * v for v in vector))
+    if squared < MJ_EPS:
+        return vector, 0.0
+    norm = math.sqrt(squared)
+    return (vector / norm if abs(norm - 1) > MJ_EPS else vector), norm
+
+
+def _quat_multiply(p, q) -> np.ndarray:
+    w1, x1, y1, z1 = p
+    w2, x2, y2, z2 = q
+    return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
+
+
+def _z_to_quat(vector: np.ndarray) -> np.ndarray:
+    """The rotation taking z to `vector` (MuJoCo's mjuu_z2quat)."""
+    axis, s = _normalize(np.cross([0.0, 0.0, 1.0], vector))
+    if s < 1e-10:
+        axis = np.array([1.0, 0.0, 0.0])
+    angle = math.atan2(s, vector[2])
+    return np.concatenate([[math.cos(angle / 2)], axis * math.sin(angle / 2)])
+
+
+def _frame_to_quat(x, y, z) -> np.ndarray:
+    """Quaternion of the rotation whose columns are x, y, z (MuJoCo's mjuu_frame2quat)."""
+    m = (x, y, z)  # m[c][r]
+    if m[0][0] + m[1][1] + m[2][2] > 0:
+        w = 0.5 * math.sqrt(1 + m[0][0] + m[1][1] + m[2][2])
+        q = [w, 0.25 * (m[1][2] - m[2][1]) / w, 0.25 * (m[2][0] - m[0][2]) / w, 0.25 * (m[0][1] - m[1][0]) / w]
+    elif m[0][0] > m[1][1] and m[0][0] > m[2][2]:
+        a = 0.5 * math.sqrt(1 + m[0][0] - m[1][1] - m[2][2])
+        q = [0.25 * (m[1][2] - m[2][1]) / a, a, 0.25 * (m[1][0] + m[0][1]) / a, 0.25 * (m[2][0] + m[0][2]) / a]
+    elif m[1][1] > m[2][2]:
+        b = 0.5 * math.sqrt(1 - m[0][0] + m[1][1] - m[2][2])
+        q = [0.25 * (m[2][0] - m[0][2]) / b, 0.25 * (m[1][0] + m[0][1]) / b, b, 0.25 * (m[2][1] + m[1][2]) / b]
+    else:
+        c = 0.5 * math.sqrt(1 - m[0][0] - m[1][1] + m[2][2])
+        q = [0.25 * (m[0][1] - m[1][0]) / c, 0.25 * (m[2][0] + m[0][2]) / c, 0.25 * (m[2][1] + m[1][2]) / c, c]
+    return _normalize(np.array(q))[0]
+
+
+# ----- the reader --------------------------------------------------------------------------------------
+
+_VISUAL_ELEMENTS = ("light", "camera", "site")
+_REFUSED_IN_BODY = {
+    "frame": "<frame> is not supported: write its transform into the bodies and geoms it holds",
+    "replicate": "<replicate> is not supported: write the copies out",
+    "attach": "<attach> (model composition) is not supported",
+    "composite": "composites are not supported (they make many bodies, joints and constraints)",
+    "flexcomp": "flexes are not supported (deformable bodies)",
+    "plugin": "plugins are not supported (their physics is unknown to rbody)",
+}
+_BODY_ATTRS = {"name", "childclass", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler", "mocap", "gravcomp",
+               "sleep", "simple", "user"}
+_INERTIAL_ATTRS = {"pos", "quat", "mass", "diaginertia", "axisangle", "xyaxes", "zaxis", "euler", "fullinertia"}
+_JOINT_ATTRS = {"name", "class", "type", "group", "pos", "axis", "springdamper", "limited", "actuatorfrclimited",
+                "solreflimit", "solimplimit", "solreffriction", "solimpfriction", "stiffness", "range",
+                "actuatorfrcrange", "actuatorgravcomp", "margin", "ref", "springref", "armature", "damping",
+                "frictionloss", "user"}
+_GEOM_ATTRS = {"name", "class", "type", "contype", "conaffinity", "condim", "group", "priority", "size", "material",
+               "friction", "mass", "density", "shellinertia", "solmix", "solref", "solimp", "margin", "gap",
+               "surfacevel", "adhesion", "fromto", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler", "hfield",
+               "mesh", "fitscale", "rgba", "fluidshape", "fluidcoef", "user"}
+_MESH_ATTRS = {"name", "class", "content_type", "file", "vertex", "normal", "texcoord", "face", "refpos", "refquat",
+               "scale", "smoothnormal", "maxhullvert", "inertia", "builtin", "params", "material"}
+_COMPILER_ATTRS = {"autolimits", "boundmass", "boundinertia", "settotalmass", "balanceinertia", "strippath",
+                   "coordinate", "angle", "fitaabb", "eulerseq", "meshdir", "texturedir", "discardvisual",
+                   "usethread", "fusestatic", "inertiafromgeom", "inertiagrouprange", "saveinertial", "assetdir",
+                   "alignfree", "conflict"}
+_OPTION_ATTRS = {"timestep", "impratio", "tolerance", "ls_tolerance", "noslip_tolerance", "ccd_tolerance",
+                 "sleep_tolerance", "gravity", "wind", "magnetic", "density", "viscosity", "o_margin", "o_solref",
+                 "o_solimp", "o_friction", "integrator", "cone", "jacobian", "solver", "iterations",
+                 "ls_iterations", "noslip_iterations", "ccd_iterations", "sdf_iterations", "sdf_initpoints",
+                 "actuatorgroupdisable"}
+_FLAG_ATTRS = {"constraint", "equality", "frictionloss", "limit", "contact", "spring", "damper", "gravity",
+               "clampctrl", "warmstart", "filterparent", "actuation", "refsafe", "sensor", "midphase", "eulerdamp",
+               "autoreset", "nativeccd", "island", "multiccd", "override", "energy", "fwdinv", "invdiscrete",
+               "sleep", "diagexact"}
+_ACTUATORS = ("general", "motor", "position", "velocity", "intvelocity", "orientation", "pid", "damper", "cylinder",
+              "muscle", "adhesion", "dcmotor")
+_DEFAULT_CHILDREN = {"mesh", "material", "joint", "geom", "site", "camera", "light", "pair", "equality", "tendon",
+                     *_ACTUATORS}
+_GEOM_KINDS = ("plane", "hfield", "sphere", "capsule", "ellipsoid", "cylinder", "box", "mesh", "sdf")
+_SIZES = {"sphere": 1, "capsule": 2, "cylinder": 2, "ellipsoid": 3, "box": 3, "plane": 3}
+
+
+@dataclass
+class _Geom:
+    element: Element
+    attrib: dict
+    name: str
+    kind: str
+    size: np.ndarray
+    pos: np.ndarray
+    quat: np.ndarray
+    contype: int
+    conaffinity: int
+    group: int
+    mesh: str | None = None
+    mass: GeomMass | None = None
+
+
+@dataclass
+class _Body:
+    element: Element
+    name: str
+    index: int                    # MuJoCo's body id (world = 0)
+    parent: "_Body | None"
+    pos: np.ndarray
+    quat: np.ndarray
+    joints: list = field(default_factory=list)      # (element, attrib)
+    geoms: list = field(default_factory=list)       # _Geom
+    inertial: Element | None = None
+    mass: float = 0.0
+    com: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    tensor: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+    weld: int = 0
+
+    @property
+    def dofs(self) -> int:
+        return sum({"free": 6, "ball": 3}.get(kind, 1) for kind in self.joint_kinds)
+
+    @property
+    def joint_kinds(self) -> list[str]:
+        return [attrib.get("type", "hinge") if element.tag == "joint" else "free" for element, attrib in self.joints]
+
+
+@dataclass(frozen=True)
+class MJCFModel:
+    """What layout_from_mjcf read: everything Scene.from_layout needs, and what was left out.
+
+    layout:     the bodies, joints and fixed shapes (no contacts: contacts are refused)
+    name:       the model's name (<mujoco model>)
+    gravity:    magnitude g along -z [m/s^2]
+    timestep:   option timestep [s] (MuJoCo's default 0.002 when not given); integrator: MuJoCo's name
+    qpos0, qvel0: (nq,), (nv,) the initial state in MuJoCo's layout (the keyframe's, or the arguments')
+    keyframes:  name (or "key<i>" when unnamed) -> (qpos (nq,), qvel (nv,)), in document order
+    limits:     joint name -> (lo, hi) declared range [rad | m] (ball: (0, largest angle) [rad])
+    notes:      what was ignored, one line each
+    source:     the file read, or "<string>"
+    """
+
+    layout: Layout
+    name: str
+    gravity: float
+    timestep: float
+    integrator: str
+    qpos0: np.ndarray
+    qvel0: np.ndarray
+    keyframes: dict
+    limits: dict
+    notes: tuple
+    source: str
+
+
+class _Reader:
+    def __init__(self, root: Element, folder: Path | None, overlapping_geoms: str):
+        self.root = root
+        self.folder = folder
+        self.overlapping_geoms = overlapping_geoms
+        self.notes: list[str] = []
+        self.noted: set[str] = set()
+        self.classes: dict[str, dict[str, dict]] = {}
+        self.class_parent: dict[str, str | None] = {}
+        self.meshes: dict[str, tuple[Element, dict]] = {}
+        self.mesh_cache: dict[str, MeshMass] = {}
+        self.bodies: list[_Body] = []
+        self.world: _Body | None = None
+        self.excluded: set[frozenset] = set()
+
+    # ----- helpers -----
+
+    def note(self, key: str, text: str) -> None:
+        if key not in self.noted:
+            self.noted.add(key)
+            self.notes.append(text)
+
+    def check_attrs(self, element: Element, known: set) -> None:
+        unknown = sorted(set(element.attrib) - known)
+        if unknown:
+            raise element.error(f"unknown attribute {unknown[0]!r} (MJCF's <{element.tag}> has {sorted(known)})")
+
+    def attrs(self, element: Element, tag: str, childclass: str | None) -> dict:
+        """The element's attributes over its class's defaults (class, else the body's childclass, else main)."""
+        name = element.attrib.get("class", childclass or "main")
+        if name not in self.classes:
+            raise element.error(f"class={name!r} is not a <default> class of the model")
+        merged = dict(self.classes[name].get(tag, {}))
+        own = {k: v for k, v in element.attrib.items() if k != "class"}
+        if any(key in own for key in ORIENTATIONS):  # the element's own orientation replaces the default's
+            merged = {k: v for k, v in merged.items() if k not in ORIENTATIONS}
+        merged.update(own)
+        return merged
+
+    def orientation(self, element: Element, attrib: dict) -> np.ndarray:
+        """(4,) unit quaternion from quat, axisangle, xyaxes, zaxis or euler (MuJoCo's ResolveOrientation)."""
+        given = [key for key in ORIENTATIONS if key in attrib]
+        if len(given) > 1:
+            raise element.error(f"orientation given twice ({' and '.join(given)}): give one of {ORIENTATIONS}")
+        if not given:
+            return np.array([1.0, 0.0, 0.0, 0.0])
+        key = given[0]
+        if key == "quat":
+            quat, norm = _normalize(_numbers(element, key, attrib, 4))
+            if norm == 0:
+                raise element.error(f"quat={attrib[key]!r}: a quaternion must be non-zero")
+            return quat
+        if key == "axisangle":
+            values = _numbers(element, key, attrib, 4)
+            angle = values[3] / 180.0 * math.pi if self.degree else values[3]
+            axis, norm = _normalize(values[:3])
+            if norm < MJ_EPS:
+                raise element.error(f"axisangle={attrib[key]!r}: the axis is too small")
+            return np.concatenate([[math.cos(angle / 2)], math.sin(angle / 2) * axis])
+        if key == "xyaxes":
+            values = _numbers(element, key, attrib, 6)
+            x, nx = _normalize(values[:3])
+            if nx < MJ_EPS:
+                raise element.error(f"xyaxes={attrib[key]!r}: the x axis is too small")
+            y = values[3:] - x * float(x @ values[3:])
+            y, ny = _normalize(y)
+            z, nz = _normalize(np.cross(x, y))
+            if ny < MJ_EPS or nz < MJ_EPS:
+                raise element.error(f"xyaxes={attrib[key]!r}: the y axis is parallel to the x axis or too small")
+            return _frame_to_quat(x, y, z)
+        if key == "zaxis":
+            z, norm = _normalize(_numbers(element, key, attrib, 3))
+            if norm < MJ_EPS:
+                raise element.error(f"zaxis={attrib[key]!r}: the axis is too small")
+            return _z_to_quat(z)
+        angles = _numbers(element, key, attrib, 3)
+        if self.degree:
+            angles = angles / 180.0 * math.pi
+        quat = np.array([1.0, 0.0, 0.0, 0.0])
+        for angle, axis in zip(angles, self.eulerseq):
+            turn = np.array([math.cos(angle / 2), 0.0, 0.0, 0.0])
+            turn[1 + "xyz".index(axis.lower())] = math.sin(angle / 2)
+            quat = _quat_multiply(quat, turn) if axis.islower() else _quat_multiply(turn, quat)
+        return _normalize(quat)[0]
+
+    # ----- sections -----
+
+    def read(self) -> None:
+        root = self.root
+        if root.tag != "mujoco":
+            raise root.error("the root element of an MJCF document must be <mujoco>")
+        self.check_attrs(root, {"model"})
+        self.name = root.attrib.get("model", "model") or "model"
+        sections: dict[str, list[Element]] = {}
+        for child in root.children:
+            sections.setdefault(child.tag, []).append(child)
+        known = {"compiler", "option", "size", "statistic", "visual", "default", "custom", "asset", "worldbody",
+                 "contact", "equality", "tendon", "actuator", "sensor", "keyframe", "extension", "deformable"}
+        for child in root.children:
+            if child.tag not in known:
+                raise child.error(f"unknown element <{child.tag}> (MJCF's sections are {sorted(known)})")
+        for tag in ("extension", "deformable"):
+            for child in sections.get(tag, []):
+                raise child.error(f"<{tag}> is not supported (plugins and deformable bodies change the dynamics "
+                                  "in ways rbody does not model)")
+        self.read_compiler(sections.get("compiler", []))
+        self.read_option(sections.get("option", []))
+        for tag in ("size", "statistic", "visual", "custom"):
+            if tag in sections:
+                self.note(tag, f"<{tag}> ignored (no effect on the dynamics rbody runs)")
+        self.classes = {"main": {}}
+        for element in sections.get("default", []):
+            self.read_default(element, None, top=True)
+        for element in sections.get("asset", []):
+            self.read_assets(element)
+        world = Element("worldbody", {}, self.root.file, self.root.line)
+        for element in sections.get("worldbody", []):
+            self.check_attrs(element, set())
+            world.children.extend(element.children)
+        self.world = _Body(world, WORLD, 0, None, np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0]))
+        self.read_body_contents(self.world, None)
+        for element in sections.get("contact", []):
+            self.read_contact(element)
+        for element in sections.get("equality", []):
+            self.read_equality(element)
+        for element in sections.get("tendon", []):
+            self.read_tendons(element)
+        for element in sections.get("actuator", []):
+            self.read_actuators(element)
+        if "sensor" in sections:
+            self.note("sensor", "<sensor> ignored (sensors only measure)")
+        self.key_elements = [key for element in sections.get("keyframe", []) for key in element.children]
+        for element in sections.get("keyframe", []):
+            self.check_attrs(element, set())
+            for key in element.children:
+                if key.tag != "key":
+                    raise key.error("unknown element in <keyframe> (expected <key>)")
+                self.check_attrs(key, {"name", "time", "qpos", "qvel", "act", "mpos", "mquat", "ctrl"})
+
+    def read_compiler(self, elements: list[Element]) -> None:
+        attrib: dict = {}
+        for element in elements:
+            self.check_attrs(element, _COMPILER_ATTRS)
+            attrib.update(element.attrib)
+            for child in element.children:
+                if child.tag != "lengthrange":
+                    raise child.error("unknown element in <compiler>")
+        where = elements[-1] if elements else self.root
+        self.degree = _choice(where, "angle", attrib, ("degree", "radian"), "degree") == "degree"
+        self.eulerseq = attrib.get("eulerseq", "xyz")
+        if len(self.eulerseq) != 3 or any(c not in "xyzXYZ" for c in self.eulerseq):
+            raise where.error(f"eulerseq={self.eulerseq!r}: expected three of x, y, z, X, Y, Z")
+        self.inertiafromgeom = _choice(where, "inertiafromgeom", attrib, ("true", "false", "auto"), "auto")
+        self.group_range = (0, 5)
+        if "inertiagrouprange" in attrib:
+            low, high = _numbers(where, "inertiagrouprange", attrib, 2)
+            self.group_range = (int(low), int(high))
+        self.autolimits = _bool(where, "autolimits", attrib, True)
+        self.balanceinertia = _bool(where, "balanceinertia", attrib, False)
+        self.strippath = _bool(where, "strippath", attrib, False)
+        base = self.folder if self.folder is not None else Path.cwd()
+        assetdir = attrib.get("assetdir", "")
+        self.meshdir = base / attrib.get("meshdir", assetdir)
+        for key, default in (("boundmass", 0.0), ("boundinertia", 0.0)):
+            if _number(where, key, attrib, default) != default:
+                raise where.error(f"{key} is not supported: it changes bodies' masses; give the masses explicitly")
+        if _number(where, "settotalmass", attrib, -1.0) > 0:
+            raise where.error("settotalmass is not supported: it rescales every mass; give the masses explicitly")
+        if _bool(where, "fusestatic", attrib, False):
+            raise where.error("fusestatic is not supported: rbody keeps one body per MJCF body")
+        if _bool(where, "alignfree", attrib, False):
+            raise where.error("alignfree is not supported: it moves free bodies' frames to their inertial frames")
+        if attrib.get("coordinate", "local") != "local":
+            raise where.error("coordinate must be 'local'")
+
+    def read_option(self, elements: list[Element]) -> None:
+        attrib: dict = {}
+        flags: dict = {}
+        for element in elements:
+            self.check_attrs(element, _OPTION_ATTRS)
+            attrib.update(element.attrib)
+            for child in element.children:
+                if child.tag != "flag":
+                    raise child.error("unknown element in <option> (expected <flag>)")
+                self.check_attrs(child, _FLAG_ATTRS)
+                for key, value in child.attrib.items():
+                    if value not in ("enable", "disable"):
+                        raise child.error(f"{key}={value!r}: expected 'enable' or 'disable'")
+                flags.update(child.attrib)
+        where = elements[-1] if elements else self.root
+        self.option_element = where
+        self.timestep = _number(where, "timestep", attrib, 0.002)
+        if not self.timestep > 0:
+            raise where.error(f"timestep={self.timestep!r}: must be > 0 [s]")
+        self.integrator = _choice(where, "integrator", attrib, tuple(INTEGRATORS), "Euler")
+        gravity = _numbers(where, "gravity", attrib, 3) if "gravity" in attrib else np.array([0.0, 0.0, -9.81])
+        for key in ("density", "viscosity"):
+            if _number(where, key, attrib, 0.0) != 0:
+                raise where.error(f"{key}={attrib[key]!r}: fluid forces are not supported (set {key}=\"0\")")
+        ignored = sorted(set(attrib) - {"timestep", "integrator", "gravity", "density", "viscosity"})
+        if ignored:
+            self.note("option", f"<option> {', '.join(ignored)} ignored (constraint-solver and sensor settings; "
+                                "the model has no active constraint)")
+        self.flags = {key: value == "enable" for key, value in flags.items()}
+
+        def on(name: str, default: bool = True) -> bool:
+            return self.flags.get(name, default)
+
+        self.constraints_on = on("constraint")
+        self.contacts_on = self.constraints_on and on("contact")
+        self.equality_on = self.constraints_on and on("equality")
+        self.limits_on = self.constraints_on and on("limit")
+        self.frictionloss_on = self.constraints_on and on("frictionloss")
+        self.spring_on, self.damper_on = on("spring"), on("damper")
+        self.filterparent = on("filterparent")
+        if not on("gravity"):
+            gravity = np.zeros(3)
+        if gravity[0] != 0 or gravity[1] != 0 or gravity[2] > 0:
+            raise where.error(f"gravity={' '.join(map(repr, gravity.tolist()))}: rbody's scenes have gravity along "
+                              "-z (0 0 -g); rotate the model so that gravity points down z")
+        self.gravity = float(-gravity[2]) + 0.0
+
+    def read_default(self, element: Element, parent: str | None, top: bool = False) -> None:
+        self.check_attrs(element, {"class"})
+        name = element.attrib.get("class", "main" if top else None)
+        if name is None:
+            raise element.error("a nested <default> needs a class name")
+        if name in self.classes and not (top and name == "main"):
+            raise element.error(f"class {name!r} is defined twice")
+        values = {tag: dict(attrs) for tag, attrs in self.classes.get(parent, {}).items()} if parent else {}
+        if top and name == "main":
+            values = self.classes.get("main", {})
+        for child in element.children:
+            if child.tag == "default":
+                continue
+            if child.tag not in _DEFAULT_CHILDREN:
+                raise child.error(f"unknown element <{child.tag}> in <default>")
+            known = {"joint": _JOINT_ATTRS, "geom": _GEOM_ATTRS, "mesh": _MESH_ATTRS}.get(child.tag)
+            if known is not None:
+                self.check_attrs(child, known - {"name", "class"})
+            values.setdefault(child.tag, {}).update(child.attrib)
+        self.classes[name] = values
+        for child in element.children:
+            if child.tag == "default":
+                self.read_default(child, name)
+
+    def read_assets(self, element: Element) -> None:
+        self.check_attrs(element, set())
+        for child in element.children:
+            if child.tag == "mesh":
+                self.check_attrs(child, _MESH_ATTRS)
+                attrib = self.attrs(child, "mesh", None)
+                name = attrib.get("name")
+                if name is None:
+                    if "file" not in attrib:
+                        raise child.error("a mesh needs a name or a file")
+                    name = Path(attrib["file"]).stem  # MuJoCo names an unnamed mesh after its file
+                if name in self.meshes:
+                    raise child.error(f"two meshes are called {name!r}")
+                self.meshes[name] = (child, attrib)
+            elif child.tag in ("texture", "material", "skin"):
+                self.note(child.tag, f"<{child.tag}> assets ignored (appearance only)")
+            elif child.tag == "hfield":
+                self.note("hfield", "<hfield> assets ignored (a geom that uses one is refused)")
+            elif child.tag == "model":
+                raise child.error("<model> assets (model composition) are not supported")
+            else:
+                raise child.error(f"unknown element <{child.tag}> in <asset>")
+
+    # ----- bodies -----
+
+    def read_body_contents(self, body: _Body, childclass: str | None) -> None:
+        for child in body.element.children:
+            tag = child.tag
+            if tag == "body":
+                self.read_body(child, body, childclass)
+            elif tag == "geom":
+                self.read_geom(child, body, childclass)
+            elif tag in ("joint", "freejoint"):
+                if body.index == 0:
+                    raise child.error("the world body cannot have joints")
+                self.read_joint(child, body, childclass)
+            elif tag == "inertial":
+                if body.index == 0:
+                    raise child.error("the world body has no inertial")
+                if body.inertial is not None:
+                    raise child.error("a body has at most one <inertial>")
+                self.check_attrs(child, _INERTIAL_ATTRS)
+                body.inertial = child
+            elif tag in _VISUAL_ELEMENTS:
+                self.note(tag, f"<{tag}> elements ignored (they do not change the dynamics)")
+            elif tag in _REFUSED_IN_BODY:
+                raise child.error(_REFUSED_IN_BODY[tag])
+            else:
+                raise child.error(f"unknown element <{tag}> in a body")
+
+    def read_body(self, element: Element, parent: _Body, childclass: str | None) -> None:
+        self.check_attrs(element, _BODY_ATTRS)
+        attrib = element.attrib
+        if "childclass" in attrib:
+            childclass = attrib["childclass"]
+            if childclass not in self.classes:
+                raise element.error(f"childclass={childclass!r} is not a <default> class of the model")
+        if _number(element, "gravcomp", attrib, 0.0) != 0:
+            raise element.error("gravcomp is not supported: it cancels gravity on the body")
+        if _bool(element, "mocap", attrib, False):
+            self.note("mocap", "mocap bodies are held fixed (nothing moves them in a run)")
+        pos = _numbers(element, "pos", attrib, 3) if "pos" in attrib else np.zeros(3)
+        body = _Body(element, attrib.get("name", ""), len(self.bodies) + 1, parent, pos,
+                     self.orientation(element, attrib))
+        self.bodies.append(body)
+        self.read_body_contents(body, childclass)
+
+    def read_joint(self, element: Element, body: _Body, childclass: str | None) -> None:
+        if element.tag == "freejoint":
+            self.check_attrs(element, {"name", "group", "align"})
+            if element.attrib.get("align", "auto") == "true":
+                raise element.error("align=\"true\" is not supported: it moves the body frame to its inertial frame")
+            body.joints.append((element, dict(element.attrib)))
+            return
+        self.check_attrs(element, _JOINT_ATTRS)
+        attrib = self.attrs(element, "joint", childclass)
+        kind = _choice(element, "type", attrib, ("hinge", "slide", "ball", "free"), "hinge")
+        attrib["type"] = kind
+        if "springdamper" in attrib and np.any(_numbers(element, "springdamper", attrib, 2) != 0):
+            raise element.error("springdamper is not supported: give stiffness and damping")
+        if self.frictionloss_on and _number(element, "frictionloss", attrib, 0.0) != 0:
+            raise element.error("frictionloss (dry joint friction) is not supported")
+        body.joints.append((element, attrib))
+
+    def read_geom(self, element: Element, body: _Body, childclass: str | None) -> None:
+        self.check_attrs(element, _GEOM_ATTRS)
+        attrib = self.attrs(element, "geom", childclass)
+        kind = _choice(element, "type", attrib, _GEOM_KINDS, "sphere")
+        if kind in ("hfield", "sdf"):
+            raise element.error(f"{kind} geoms are not supported")
+        if attrib.get("fluidshape", "none") != "none":
+            raise element.error("fluidshape: fluid forces are not supported (remove it or set it to \"none\")")
+        if "mesh" in attrib and kind != "mesh":
+            raise element.error(f"a {kind} fitted to a mesh is not supported: use type=\"mesh\" or give its size")
+        if any(key in attrib for key in ("rgba", "material")):
+            self.note("appearance", "geoms' appearance (rgba, material) ignored")
+        name = attrib.get("name", "")
+        fromto = _numbers(element, "fromto", attrib, 6) if "fromto" in attrib else None
+        if kind == "mesh":
+            size = np.zeros(3)
+        else:
+            size = _numbers(element, "size", attrib, (1, 2, 3)) if "size" in attrib else np.zeros(0)
+            needed = _SIZES[kind] - (2 if fromto is not None and kind in ("ellipsoid", "box") else
+                                     1 if fromto is not None else 0)
+            if kind == "plane":
+                needed = 0
+            if len(size) < needed:
+                raise element.error(f"a {kind} needs {needed} sizes, got size={attrib.get('size', '')!r}")
+            size = np.concatenate([size, np.zeros(3 - len(size))])
+        pos = _numbers(element, "pos", attrib, 3) if "pos" in attrib else np.zeros(3)
+        if fromto is not None:
+            if kind not in ("capsule", "cylinder", "ellipsoid", "box"):
+                raise element.error("fromto needs a capsule, cylinder, ellipsoid or box")
+            if np.any(pos != 0):
+                raise element.error("both pos and fromto are given: give one")
+            if any(key in attrib for key in ORIENTATIONS):
+                raise element.error("orientation given twice (fromto and an orientation): give one")
+            vector = fromto[:3] - fromto[3:]
+            vector, length = _normalize(vector)
+            size[1] = length / 2
+            if size[1] < MJ_EPS:
+                raise element.error("fromto's two points are too close")
+            if kind in ("ellipsoid", "box"):
+                size[2], size[1] = size[1], size[0]
+            pos = (fromto[:3] + fromto[3:]) / 2
+            quat = _z_to_quat(vector)
+        else:
+            quat = self.orientation(element, attrib)
+        if kind != "plane" and kind != "mesh" and np.any(size[:_SIZES[kind]] <= 0):
+            raise element.error(f"size={attrib.get('size', '')!r}: a {kind} needs sizes > 0")
+        if kind == "plane" and body.index != 0:
+            self.plane_bodies = getattr(self, "plane_bodies", []) + [(element, body)]
+        geom = _Geom(element, attrib, name, kind, size, pos, quat, int(_number(element, "contype", attrib, 1)),
+                     int(_number(element, "conaffinity", attrib, 1)), int(_number(element, "group", attrib, 0)),
+                     mesh=attrib.get("mesh"))
+        if kind == "mesh" and geom.mesh is None:
+            raise element.error("a mesh geom needs mesh=\"name of a <mesh> asset\"")
+        if kind == "mesh" and geom.mesh not in self.meshes:
+            raise element.error(f"mesh={geom.mesh!r} is not a <mesh> asset of the model")
+        body.geoms.append(geom)
+
+    # ----- other sections -----
+
+    def read_contact(self, element: Element) -> None:
+        self.check_attrs(element, set())
+        for child in element.children:
+            if child.tag == "pair":
+                if self.contacts_on:
+                    raise child.error("explicit contact pairs are not supported (rbody runs contact-free models): "
+                                      "remove the <pair> or disable contacts with <flag contact=\"disable\"/>")
+            elif child.tag == "exclude":
+                self.check_attrs(child, {"name", "body1", "body2"})
+                self.excluded.add(frozenset((child.attrib.get("body1"), child.attrib.get("body2"))))
+            else:
+                raise child.error(f"unknown element <{child.tag}> in <contact>")
+
+    def read_equality(self, element: Element) -> None:
+        self.check_attrs(element, set())
+        for child in element.children:
+            if self.equality_on and child.attrib.get("active", "true") == "true":
+                raise child.error("equality constraints are not supported (rbody models trees of joints only)")
+            self.note("equality", "equality constraints ignored (disabled)")
+
+    def read_tendons(self, element: Element) -> None:
+        self.check_attrs(element, set())
+        for child in element.children:
+            if child.tag not in ("spatial", "fixed"):
+                raise child.error(f"unknown element <{child.tag}> in <tendon>")
+            attrib = self.attrs(child, "tendon", None)
+            active = []
+            for key in ("stiffness", "damping", "frictionloss"):
+                if _number(child, key, attrib, 0.0) != 0 and (key != "frictionloss" or self.frictionloss_on):
+                    active.append(key)
+            limited = attrib.get("limited", "auto")
+            if self.limits_on and (limited == "true" or (limited == "auto" and self.autolimits and "range" in attrib)):
+                active.append("range (a limit)")
+            if active:
+                raise child.error(f"tendons with {', '.join(active)} are not supported (they apply forces)")
+            self.note("tendon", "tendons ignored (none has stiffness, damping, friction or limits)")
+
+    def read_actuators(self, element: Element) -> None:
+        self.check_attrs(element, set())
+        for child in element.children:
+            if child.tag not in _ACTUATORS and child.tag != "plugin":
+                raise child.error(f"unknown element <{child.tag}> in <actuator>")
+            attrib = self.attrs(child, child.tag, None)
+            passive = [key for key in ("damping", "armature") if key in attrib and
+                       np.any(_numbers(child, key, attrib) != 0)]
+            pushes = child.tag not in ("motor", "general") or (
+                child.tag == "general" and attrib.get("biastype", "none") != "none")
+            if pushes or passive:
+                what = f"its {' and '.join(passive)}" if passive else "its bias (a force with zero control)"
+                raise child.error(f"a <{child.tag}> actuator applies a force through {what}, even with zero "
+                                  "control: not supported (only motor and unbiased general actuators are ignored)")
+            self.note("actuator", "actuators ignored: their controls are zero, so they apply no force")
+
+    # ----- mass properties -----
+
+    def mesh_of(self, geom: _Geom) -> MeshMass:
+        name = geom.mesh
+        if name in self.mesh_cache:
+            return self.mesh_cache[name]
+        element, attrib = self.meshes[name]
+        if "file" not in attrib:
+            raise element.error("meshes given by vertices in the XML are not supported: save them in a file")
+        if "builtin" in attrib:
+            raise element.error("builtin meshes are not supported")
+        file = attrib["file"]
+        if self.strippath:
+            file = os.path.basename(file)
+        path = (self.meshdir / file).resolve()
+        if not path.is_file():
+            raise element.error(f"mesh file {str(path)!r} does not exist")
+        mode = _choice(element, "inertia", attrib, MESH_INERTIA_MODES, "legacy")
+        import trimesh
+
+        try:
+            loaded = trimesh.load(str(path), force="mesh", process=False)
+        except Exception as error:  # trimesh raises many types for unreadable files
+            raise element.error(f"mesh file {str(path)!r} could not be read ({error})") from None
+        scale = _numbers(element, "scale", attrib, 3) if "scale" in attrib else np.ones(3)
+        refpos = _numbers(element, "refpos", attrib, 3) if "refpos" in attrib else np.zeros(3)
+        refquat = _numbers(element, "refquat", attrib, 4) if "refquat" in attrib else np.array([1.0, 0, 0, 0])
+        if np.any(scale != 1):
+            self.note(f"scale {name}", f"mesh {name!r}: scale {scale.tolist()} applies to its mass properties; the "
+                                       "rbody Shape keeps the unscaled file (drawing only)")
+        try:
+            result = mesh_mass(np.asarray(loaded.vertices), np.asarray(loaded.faces), mode=mode, scale=scale,
+                               refpos=refpos, refquat=refquat)
+        except ValueError as error:
+            raise element.error(f"mesh {name!r} ({str(path)!r}): {error}") from None
+        self.mesh_cache[name] = result
+        self.mesh_paths = getattr(self, "mesh_paths", {})
+        self.mesh_paths[name] = str(path)
+        return result
+
+    def geom_mass(self, geom: _Geom) -> GeomMass | None:
+        """The geom's mass properties as MuJoCo's compiler forms them; None when it has no mass."""
+        element, attrib = geom.element, geom.attrib
+        if geom.kind == "plane":
+            return None
+        shell = _bool(element, "shellinertia", attrib, False)
+        rotation = quat_matrix(geom.quat)
+        if geom.kind == "mesh":
+            if shell:
+                raise element.error("shellinertia on a mesh geom: MuJoCo wants inertia=\"shell\" on the mesh asset")
+            mesh = self.mesh_of(geom)
+            volume = mesh.volume
+        else:
+            volume = primitive_volume(geom.kind, geom.size, shell)
+        if "mass" in attrib:
+            given = _number(element, "mass", attrib, 0.0)
+            if given < 0:
+                raise element.error(f"mass={given!r}: must be >= 0 [kg]")
+            mass = given if (given != 0 and volume > MJ_EPS) else 0.0
+        else:
+            density = _number(element, "density", attrib, 1000.0)
+            if density < 0:
+                raise element.error(f"density={density!r}: must be >= 0")
+            mass = density * volume
+        if mass <= MJ_EPS:
+            return None
+        if geom.kind == "mesh":
+            # MuJoCo moves the mesh to its centre of mass and principal axes, and the geom frame with it
+            pos = geom.pos + rotation @ mesh.com
+            tensor = principal_tensor(mesh.moments(mass), quat_product(geom.quat, mesh.principal()[1]))
+            exact = rotation @ (mesh.tensor * (mass / volume)) @ rotation.T
+            self.compare_exact(geom.element, f"mesh geom {geom.name!r}", tensor, exact)
+        else:
+            pos = geom.pos
+            tensor = principal_tensor(primitive_moments(geom.kind, geom.size, mass, shell), geom.quat)
+        return GeomMass(geom.name, mass, pos, tensor)
+
+    def compare_exact(self, element: Element, what: str, mujoco: np.ndarray, exact: np.ndarray) -> None:
+        """Note where MuJoCo's principal-axis solver (mujoco_principal) moved a tensor beyond round-off."""
+        scale = float(np.max(np.abs(exact)))
+        difference = float(np.max(np.abs(mujoco - exact)))
+        if difference > PRINCIPAL_NOTE_RTOL * scale:
+            self.note(f"eig {what}", f"{what} (line {element.line}): MuJoCo's principal-axis solver leaves its "
+                                     f"inertia tensor {difference / scale:.2g} (relative) from the exact one; rbody "
+                                     "uses MuJoCo's, so that both engines run the same body")
+
+    def inertial_mass(self, body: _Body) -> tuple[float, np.ndarray, np.ndarray]:
+        element = body.inertial
+        attrib = element.attrib
+        if "mass" not in attrib:
+            raise element.error("<inertial> needs mass")
+        mass = _number(element, "mass", attrib, 0.0)
+        pos = _numbers(element, "pos", attrib, 3) if "pos" in attrib else None
+        if pos is None:
+            raise element.error("<inertial> needs pos")
+        if "fullinertia" in attrib:
+            if "diaginertia" in attrib:
+                raise element.error("both diaginertia and fullinertia are given: give one")
+            if any(key in attrib for key in ORIENTATIONS):
+                raise element.error("fullinertia with an orientation: the full tensor is already in the body axes")
+            xx, yy, zz, xy, xz, yz = _numbers(element, "fullinertia", attrib, 6)
+            exact = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+            tensor = principal_tensor(*mujoco_principal(exact))
+            self.compare_exact(element, f"body {body.name!r} fullinertia", tensor, exact)
+        elif "diaginertia" in attrib:
+            rotation = quat_matrix(self.orientation(element, attrib))
+            tensor = rotation @ np.diag(_numbers(element, "diaginertia", attrib, 3)) @ rotation.T
+        else:
+            raise element.error("<inertial> needs diaginertia or fullinertia")
+        if mass < 0:
+            raise element.error(f"mass={mass!r}: must be >= 0 [kg]")
+        return mass, pos, 0.5 * (tensor + tensor.T)
+
+    def body_mass(self, body: _Body) -> None:
+        from_geoms = self.inertiafromgeom == "true" or (self.inertiafromgeom == "auto" and body.inertial is None)
+        if from_geoms:
+            low, high = self.group_range
+            parts = []
+            for geom in body.geoms:
+                geom.mass = self.geom_mass(geom) if low <= geom.group <= high else None
+                if geom.mass is not None:
+                    parts.append(geom)
+            if parts:
+                body.mass, body.com, body.tensor = sum_geoms([g.mass for g in parts])
+                if len(parts) > 1:
+                    exact = body.tensor
+                    body.tensor = principal_tensor(*mujoco_principal(exact))
+                    self.compare_exact(body.element, f"body {body.name!r}", body.tensor, exact)
+                    self.check_overlaps(body, parts)
+        elif body.inertial is not None:
+            body.mass, body.com, body.tensor = self.inertial_mass(body)
+
+    def check_overlaps(self, body: _Body, parts: list[_Geom]) -> None:
+        from rbody.mjcf.overlap import overlapping
+
+        if self.overlapping_geoms == "sum":
+            return
+        for i, first in enumerate(parts):
+            for second in parts[i + 1:]:
+                verdict = overlapping(self.solid(first), self.solid(second))
+                if verdict:
+                    label = lambda g: g.name or f"geom at line {g.element.line}"  # noqa: E731
+                    raise body.element.error(
+                        f"geoms {label(first)!r} and {label(second)!r} {verdict}: their masses would be counted twice "
+                        "where they overlap (MuJoCo sums geom masses). Make the parts meet without overlapping, give "
+                        "the body an <inertial>, or pass overlapping_geoms=\"sum\" to sum them as MuJoCo does")
+
+    def solid(self, geom: _Geom):
+        from rbody.mjcf.overlap import Solid
+
+        rotation = quat_matrix(geom.quat)
+        if geom.kind == "mesh":
+            mesh = self.mesh_of(geom)
+            return Solid("mesh", geom.size, geom.pos, rotation, vertices=mesh.vertices @ rotation.T + geom.pos,
+                         faces=mesh.faces)
+        return Solid(geom.kind, geom.size, geom.pos, rotation)
+
+    # ----- assembly -----
+
+    def name_everything(self) -> None:
+        taken = {b.element.attrib["name"] for b in self.bodies if b.element.attrib.get("name")}
+        for body in self.bodies:
+            if not body.name:
+                name = f"body{body.index}"
+                while name in taken:
+                    name += "_"
+                body.name = name
+                taken.add(name)
+        seen: dict[str, Element] = {}
+        for body in self.bodies:
+            if body.name in seen or body.name == WORLD:
+                raise body.element.error(f"two bodies are called {body.name!r}" if body.name != WORLD else
+                                         "a body cannot be called 'world' (the world body's name)")
+            seen[body.name] = body.element
+        joint_names = {a.get("name") for b in self.bodies for _e, a in b.joints if a.get("name")}
+        geom_names = {g.name for b in [self.world, *self.bodies] for g in b.geoms if g.name}
+        for body in [self.world, *self.bodies]:
+            for k, (_element, attrib) in enumerate(body.joints):
+                if not attrib.get("name"):
+                    name = f"{body.name}_joint{k}"
+                    while name in joint_names:
+                        name += "_"
+                    attrib["name"] = name
+                    joint_names.add(name)
+            for k, geom in enumerate(body.geoms):
+                if not geom.name:
+                    name = f"{body.name}_geom{k}"
+                    while name in geom_names:
+                        name += "_"
+                    geom.name = name
+                    geom_names.add(name)
+        for kind, names in (("joint", [a["name"] for b in self.bodies for _e, a in b.joints]),
+                            ("geom", [g.name for b in [self.world, *self.bodies] for g in b.geoms])):
+            duplicates = sorted({n for n in names if names.count(n) > 1})
+            if duplicates:
+                raise MJCFError(f"{self.root.file}: two {kind}s are called {duplicates[0]!r}")
+
+    def welds(self) -> None:
+        """MuJoCo's weldid: a body with joints roots its own weld; a body without joints joins its parent's."""
+        self.world.weld = 0
+        for body in self.bodies:
+            body.weld = body.index if body.joints else body.parent.weld
+        for element, body in getattr(self, "plane_bodies", []):
+            if body.weld != 0:
+                raise element.error("a plane can only be on the world or a body without joints (MuJoCo's rule)")
+
+    def check_contacts(self) -> None:
+        """Refuse any geom pair MuJoCo's broad phase would keep (engine_collision_driver.c filterBodyPair)."""
+        if not self.contacts_on:
+            return
+        everyone = [self.world, *self.bodies]
+        by_index = {b.index: b for b in everyone}
+        dofs = {b.index: b.dofs for b in everyone}
+        candidates = []
+        for i, b1 in enumerate(everyone):
+            for b2 in everyone[i + 1:]:
+                w1, w2 = b1.weld, b2.weld
+                if w1 == w2 or (dofs[w1] == 0 and dofs[w2] == 0):
+                    continue
+                p1 = by_index[w1].parent.weld if w1 else 0
+                p2 = by_index[w2].parent.weld if w2 else 0
+                if self.filterparent and w1 != 0 and w2 != 0 and (w1 == p2 or w2 == p1):
+                    continue
+                if frozenset((b1.name if b1.index else WORLD, b2.name)) in self.excluded:
+                    continue
+                for g1 in b1.geoms:
+                    for g2 in b2.geoms:
+                        if (g1.contype & g2.conaffinity) or (g2.contype & g1.conaffinity):
+                            candidates.append((g1, g2))
+        if candidates:
+            g1, g2 = candidates[0]
+            more = f" (and {len(candidates) - 1} more pairs)" if len(candidates) > 1 else ""
+            raise g1.element.error(
+                f"geoms {g1.name!r} and {g2.name!r} (line {g2.element.line}) can collide{more}, and rbody runs "
+                "contact-free models only. Set contype=\"0\" conaffinity=\"0\" on the geoms that must not collide, "
+                "or disable contacts with <option><flag contact=\"disable\"/></option>")
+
+    def passive(self, element: Element, attrib: dict) -> dict:
+        """damping, stiffness, armature of a joint, >= 0; stiffness and damping 0 where the flags disable them."""
+        values = {key: _number(element, key, attrib, 0.0) for key in ("damping", "stiffness", "armature")}
+        for key, value in values.items():
+            if value < 0:
+                raise element.error(f"{key}={value!r}: must be >= 0")
+        if not self.spring_on and values["stiffness"]:
+            self.note("spring", "joint stiffness ignored (<flag spring=\"disable\"/>)")
+            values["stiffness"] = 0.0
+        if not self.damper_on and values["damping"]:
+            self.note("damper", "joint damping ignored (<flag damper=\"disable\"/>)")
+            values["damping"] = 0.0
+        return values
+
+    def joints_of(self, body: _Body) -> list[tuple[Joint, np.ndarray, int, tuple | None]]:
+        """(rbody Joint at the reference state, qpos0 (MuJoCo), nv, limit) for each joint of `body`."""
+        out = []
+        for element, attrib in body.joints:
+            kind = attrib.get("type", "free") if element.tag == "joint" else "free"
+            name = attrib["name"]
+            angular = self.degree and kind == "hinge"
+
+            def angle(key: str, default: float = 0.0) -> float:
+                value = _number(element, key, attrib, default)
+                return value / 180.0 * math.pi if angular else value
+
+            if kind == "free":
+                values = self.passive(element, attrib)
+                values.pop("stiffness")  # MuJoCo gives a free joint no spring
+                joint = Joint(name, "free", body.name, **values)
+                qpos = np.concatenate([body.pos, body.quat])
+                nv = 6
+            else:
+                pos = _numbers(element, "pos", attrib, 3) if "pos" in attrib else np.zeros(3)
+                axis = _numbers(element, "axis", attrib, 3) if "axis" in attrib else np.array([0.0, 0.0, 1.0])
+                axis, norm = _normalize(axis)
+                if kind in ("hinge", "slide") and norm < MJ_EPS:
+                    raise element.error(f"axis={attrib.get('axis')!r}: a joint axis must be non-zero")
+                values = self.passive(element, attrib)
+                ref = angle("ref") if kind in ("hinge", "slide") else 0.0
+                springref = angle("springref") if kind in ("hinge", "slide") else 0.0
+                if kind == "ball":
+                    if values["stiffness"]:
+                        raise element.error("stiffness on a ball joint (MuJoCo's quaternion spring) is not supported")
+                    qpos = np.array([1.0, 0.0, 0.0, 0.0])
+                    joint = Joint(name, "ball", body.name, anchor=tuple(pos.tolist()), qpos0=(1.0, 0.0, 0.0, 0.0),
+                                  qvel0=(0.0, 0.0, 0.0), **values)
+                    nv = 3
+                else:
+                    qpos = np.array([ref])
+                    joint = Joint(name, kind, body.name, axis=tuple(axis.tolist()), anchor=tuple(pos.tolist()),
+                                  qpos0=ref, ref=ref, springref=springref, **values)
+                    nv = 1
+            limit = None
+            if kind != "free" and self.limits_on:
+                limited = _choice(element, "limited", attrib, ("true", "false", "auto"), "auto")
+                if limited == "true" or (limited == "auto" and self.autolimits and "range" in attrib):
+                    if "range" not in attrib:
+                        raise element.error("limited=\"true\" needs a range")
+                    low, high = _numbers(element, "range", attrib, 2)
+                    if angular or (kind == "ball" and self.degree):
+                        low, high = low / 180.0 * math.pi, high / 180.0 * math.pi
+                    if kind == "ball":
+                        low = 0.0
+                    if not low < high:
+                        raise element.error(f"range={attrib['range']!r}: needs lo < hi")
+                    margin = _number(element, "margin", attrib, 0.0)
+                    limit = (float(low + margin), float(high - margin)) if kind != "ball" else (0.0, float(high - margin))
+            out.append((joint, qpos, nv, limit))
+        return out
+
+    def build(self, qpos0, qvel0, keyframe) -> MJCFModel:
+        self.name_everything()
+        self.welds()
+        for body in self.bodies:
+            self.body_mass(body)
+        for body in self.bodies:
+            kinds = body.joint_kinds
+            if "free" in kinds and (len(kinds) > 1 or body.parent.index != 0):
+                raise body.element.error("a free joint must be the only joint of a child of the world")
+            if body.dofs > 6:
+                raise body.element.error(f"{body.dofs} degrees of freedom: MuJoCo allows at most 6 per body")
+            if body.joints and body.mass <= MJ_EPS:
+                raise body.element.error(
+                    "the body has a joint but no mass: give it an <inertial> or geoms with mass (a massless body "
+                    "on a joint has no defined motion of its own)")
+        self.check_contacts()
+
+        joints, qpos_parts, nv, limits = [], [], 0, {}
+        for body in self.bodies:
+            for joint, qpos, dofs, limit in self.joints_of(body):
+                joints.append(joint)
+                qpos_parts.append(qpos)
+                nv += dofs
+                if limit is not None:
+                    limits[joint.name] = limit
+        model_qpos0 = np.concatenate(qpos_parts) if qpos_parts else np.zeros(0)
+        keyframes = self.read_keyframes(model_qpos0, nv)
+        state_qpos, state_qvel = model_qpos0, np.zeros(nv)
+        if keyframe is not None:
+            names = list(keyframes)
+            if isinstance(keyframe, (int, np.integer)) and not isinstance(keyframe, bool):
+                if not 0 <= keyframe < len(names):
+                    raise MJCFError(f"keyframe={keyframe!r}: the model has {len(names)} keyframes")
+                state_qpos, state_qvel = keyframes[names[int(keyframe)]]
+            elif isinstance(keyframe, str) and keyframe in keyframes:
+                state_qpos, state_qvel = keyframes[keyframe]
+            else:
+                raise MJCFError(f"keyframe={keyframe!r}: expected an index or one of the key names {names}")
+        if qpos0 is not None:
+            state_qpos = _state_vector(qpos0, "qpos0", len(model_qpos0))
+        if qvel0 is not None:
+            state_qvel = _state_vector(qvel0, "qvel0", nv)
+        state_qpos = self.unit_quaternions(joints, state_qpos)
+        joints = self.joints_at(joints, state_qpos, state_qvel)
+        layout = self.layout(joints)
+        return MJCFModel(layout=layout, name=self.name, gravity=self.gravity, timestep=self.timestep,
+                         integrator=self.integrator, qpos0=state_qpos.copy(), qvel0=state_qvel.copy(),
+                         keyframes=keyframes, limits=limits, notes=tuple(self.notes), source=self.root.file)
+
+    def read_keyframes(self, qpos0: np.ndarray, nv: int) -> dict:
+        keys = {}
+        for i, key in enumerate(self.key_elements):
+            attrib = key.attrib
+            qpos = _numbers(key, "qpos", attrib, len(qpos0)) if "qpos" in attrib else qpos0.copy()
+            qvel = _numbers(key, "qvel", attrib, nv) if "qvel" in attrib else np.zeros(nv)
+            if "ctrl" in attrib and np.any(_numbers(key, "ctrl", attrib) != 0):
+                self.note("ctrl", "keyframe controls ignored (actuators are ignored)")
+            name = attrib.get("name") or f"key{i}"
+            if name in keys:
+                raise key.error(f"two keyframes are called {name!r}")
+            keys[name] = (qpos, qvel)
+        return keys
+
+    def unit_quaternions(self, joints: list[Joint], qpos: np.ndarray) -> np.ndarray:
+        """qpos with every ball and free quaternion made unit, as MuJoCo does before using it (noted)."""
+        qpos, p = qpos.copy(), 0
+        for joint in joints:
+            start, width = {"free": (3, 7), "ball": (0, 4)}.get(joint.kind, (0, 1))
+            if joint.kind in ("free", "ball"):
+                quat = qpos[p + start:p + start + 4]
+                norm = math.sqrt(float(quat @ quat))
+                if norm == 0:
+                    raise MJCFError(f"{self.root.file}: the initial quaternion of joint {joint.name!r} is zero")
+                if abs(norm - 1) > 1e-12:
+                    qpos[p + start:p + start + 4] = quat / norm
+                    self.note(f"unit {joint.name}", f"joint {joint.name!r}: the initial quaternion (length {norm:.6g}) "
+                                                    "made unit, as MuJoCo uses it")
+            p += width
+        return qpos
+
+    def joints_at(self, joints: list[Joint], qpos: np.ndarray, qvel: np.ndarray) -> list[Joint]:
+        """The joints with their initial state set from MuJoCo's qpos and qvel."""
+        import dataclasses
+
+        out, p, v = [], 0, 0
+        bodies = {b.name: b for b in self.bodies}
+        for joint in joints:
+            if joint.kind == "free":
+                quat = qpos[p + 3:p + 7]
+                rotation = quat_matrix(quat / np.linalg.norm(quat))
+                velocity = (tuple(qvel[v:v + 3].tolist()), tuple((rotation @ qvel[v + 3:v + 6]).tolist()))
+                if not (np.array_equal(qpos[p:p + 3], bodies[joint.body].pos)
+                        and np.array_equal(quat, bodies[joint.body].quat)):
+                    self.note(f"free {joint.name}", f"free joint {joint.name!r} starts from the chosen state's "
+                              "pose (qpos0), not the body's pos/quat")
+                out.append(dataclasses.replace(joint, qvel0=velocity))
+                p, v = p + 7, v + 6
+            elif joint.kind == "ball":
+                out.append(dataclasses.replace(joint, qpos0=tuple(qpos[p:p + 4].tolist()),
+                                               qvel0=tuple(qvel[v:v + 3].tolist())))
+                p, v = p + 4, v + 3
+            else:
+                out.append(dataclasses.replace(joint, qpos0=float(qpos[p]), qvel0=float(qvel[v])))
+                p, v = p + 1, v + 1
+        return out
+
+    def layout(self, joints: list[Joint]) -> Layout:
+        """Bodies in MuJoCo's order; a body with neither mass nor joints is folded into its parent."""
+        kept: dict[int, tuple[str, np.ndarray, np.ndarray]] = {0: (WORLD, np.zeros(3), np.array([1.0, 0, 0, 0]))}
+        # kept[index] = (rbody body that carries it, pos, quat of its frame in that body's frame)
+        shapes: dict[str, list[Shape]] = {WORLD: []}
+        bodies: list[Body] = []
+        for geom in self.world.geoms:
+            shapes[WORLD].extend(self.shapes_of(geom, np.zeros(3), np.array([1.0, 0, 0, 0])))
+        for body in self.bodies:
+            carrier, ppos, pquat = kept[body.parent.index]
+            pos = ppos + quat_matrix(pquat) @ body.pos
+            quat = _quat_multiply(pquat, body.quat)
+            if body.mass <= MJ_EPS and not body.joints:
+                kept[body.index] = (carrier, pos, quat)
+                self.note(f"fold {body.name}", f"body {body.name!r} has neither mass nor joints: folded into "
+                                               f"{carrier!r}")
+                for geom in body.geoms:
+                    shapes[carrier].extend(self.shapes_of(geom, pos, quat))
+                continue
+            if carrier != body.parent.name and body.parent.index != 0:
+                pass  # the parent was folded: the frame is composed above
+            if body.mass <= MJ_EPS:
+                raise body.element.error("the body has a joint but no mass")
+            try:
+                inertia = Inertia(body.mass, body.com, body.tensor)
+            except ValueError as error:
+                raise body.element.error(f"mass properties refused: {error}") from None
+            kept[body.index] = (body.name, np.zeros(3), np.array([1.0, 0, 0, 0]))
+            shapes[body.name] = []
+            for geom in body.geoms:
+                shapes[body.name].extend(self.shapes_of(geom, np.zeros(3), np.array([1.0, 0, 0, 0])))
+            bodies.append(Body(body.name, inertia, parent=carrier, pos=tuple(pos.tolist()),
+                               quat=tuple(quat.tolist())))
+        import dataclasses
+
+        bodies = [dataclasses.replace(b, shapes=tuple(shapes[b.name])) for b in bodies]
+        return Layout(bodies=tuple(bodies), joints=tuple(joints), fixed=tuple(shapes[WORLD]))
+
+    def shapes_of(self, geom: _Geom, pos: np.ndarray, quat: np.ndarray) -> list[Shape]:
+        """The rbody Shape of a geom, in the frame (pos, quat) of the body that carries it."""
+        gpos = pos + quat_matrix(quat) @ geom.pos
+        gquat = _quat_multiply(quat, geom.quat)
+        common = dict(pos=tuple(gpos.tolist()), quat=tuple(gquat.tolist()))
+        if geom.kind == "ellipsoid":
+            self.note("ellipsoid", "ellipsoid geoms are not drawn (rbody Shapes have no ellipsoid); their mass counts")
+            return []
+        if geom.kind == "mesh":
+            self.mesh_of(geom)
+            return [Shape(geom.name, "mesh", (), mesh=self.mesh_paths[geom.mesh], **common)]
+        count = {"sphere": 1, "capsule": 2, "cylinder": 2, "box": 3, "plane": 3}[geom.kind]
+        size = tuple(float(s) for s in geom.size[:count])
+        if geom.kind == "plane":
+            size = size[:2]
+        return [Shape(geom.name, geom.kind, size, **common)]
+
+
+def _state_vector(value, name: str, size: int) -> np.ndarray:
+    try:
+        array = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise MJCFError(f"{name}={value!r}: expected {size} numbers (MuJoCo's layout)") from None
+    if array.shape != (size,) or not np.all(np.isfinite(array)):
+        raise MJCFError(f"{name} has shape {array.shape}: expected ({size},) finite numbers in MuJoCo's layout")
+    return array.copy()
+
+
+# ----- public -------------------------------------------------------------------------------------------
+
+def layout_from_mjcf(source, *, qpos0=None, qvel0=None, keyframe: int | str | None = None,
+                     overlapping_geoms: str = "refuse") -> MJCFModel:
+    """Read an MJCF model (a path or an XML string) into an MJCFModel (see the module docstring).
+
+    qpos0 (nq,), qvel0 (nv,): the initial state in MuJoCo's layout (default the keyframe's, else the
+    model's reference state at rest); keyframe: a <key>'s index or name.
+    overlapping_geoms: "refuse" (MJCFError when two geoms of one body overlap) or "sum" (MuJoCo's sum).
+    """
+    if overlapping_geoms not in OVERLAP_CHOICES:
+        raise MJCFError(f"overlapping_geoms={overlapping_geoms!r}: expected one of {OVERLAP_CHOICES}")
+    root, folder = _read(source)
+    _expand_includes(root, folder if folder is not None else Path.cwd(), (root.file,))
+    reader = _Reader(root, folder, overlapping_geoms)
+    reader.read()
+    return reader.build(qpos0, qvel0, keyframe)
+
+
+def from_mjcf(source, *, t_end: float | None = None, qpos0=None, qvel0=None, keyframe: int | str | None = None,
+              overlapping_geoms: str = "refuse") -> "MJCFScene":
+    """The Scene of an MJCF model (a path or an XML string), run natively by rbody's general engine.
+
+    t_end: duration [s] (default DEFAULT_T_END = 1 s); qpos0, qvel0, keyframe, overlapping_geoms: as
+    layout_from_mjcf. The scene is a TreeScene (Scene.from_layout) that also carries import_notes (what
+    was ignored), timestep and integrator (the model's option) and the declared joint limits.
+    """
+    model = layout_from_mjcf(source, qpos0=qpos0, qvel0=qvel0, keyframe=keyframe,
+                             overlapping_geoms=overlapping_geoms)
+    return MJCFScene(name=model.name, t_end=DEFAULT_T_END if t_end is None else t_end, gravity=model.gravity,
+                     tree=model.layout, qpos0=model.qpos0, qvel0=model.qvel0, import_notes=model.notes,
+                     timestep=model.timestep, integrator=model.integrator, limits=dict(model.limits))
+
+
+@dataclass(frozen=True, kw_only=True, eq=False)
+class MJCFScene(TreeScene):
+    """Scene.from_layout's TreeScene of a model read from MJCF, with its declared joint limits.
+
+    limits: joint name -> (lo, hi) [rad | m] (ball joints: (0, largest rotation angle) [rad]). rbody does
+    not model a limit's constraint force, so a native run whose coordinates leave a range raises
+    SimulationError naming the joint and the first time it happened (checked on the run's saved states).
+    A limit declared but never reached changes nothing.
+    """
+
+    limits: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+
+    def native(self) -> NativeModel:
+        model = super().native()
+        if not self.limits:
+            return model
+        arrays = self.multibody.arrays
+        checks = []
+        for name, (low, high) in self.limits.items():
+            j = arrays.joint_names.index(name)
+            checks.append((name, arrays.joint_kinds[j], int(arrays.qposadr[j]), low, high))
+        observe = model.observe
+
+        def observe_within_limits(t: np.ndarray, y: np.ndarray) -> dict:
+            data = observe(t, y)
+            qpos = np.asarray(data["qpos"])          # (T, B, nq)
+            for name, kind, address, low, high in checks:
+                if kind == "ball":
+                    quat = qpos[..., address:address + 4]
+                    value = 2 * np.arctan2(np.linalg.norm(quat[..., 1:], axis=-1), np.abs(quat[..., 0]))
+                else:
+                    value = qpos[..., address]
+                outside = (value < low) | (value > high)
+                if np.any(outside):
+                    step = int(np.argmax(np.any(outside.reshape(len(t), -1), axis=1)))
+                    raise SimulationError(
+                        f"scene {self.name!r}: joint {name!r} left its range [{low:.6g}, {high:.6g}] at t={t[step]:.6g} s "
+                        f"(value {float(np.ravel(value[step])[np.argmax(np.ravel(outside[step]))]):.6g}); rbody does not "
+                        "model joint limits: remove the range, or shorten the run (t_end)")
+            return data
+
+        return dataclasses.replace(model, observe=observe_within_limits)

@@ -1,0 +1,172 @@
+"""The README's tables from a benchmark run and a hard-case run, and their copy into docs/.
+
+    python -m validation.bench.tables --bench report/bench [--bench DIR2 ...] [--hard report/hard]
+                                      [--readme README.md] [--docs docs]
+
+- the ratio table (how many times cheaper rbody is than the best other column, per scene and level:
+  the median over the runs and its range, as summary.md) replaces the README's lines between
+  <!-- bench-ratios:start --> and <!-- bench-ratios:end -->; several --bench folders are merged as
+  successive runs (their `run` numbers renumbered);
+- the goals of summary.md's "## Goals" section (of the first --bench folder) replace the lines between
+  <!-- bench-goals:start --> and <!-- bench-goals:end -->;
+- the digits of pi each engine counts exactly (hard case 1's finding "Digits right ...") replace the
+  lines between <!-- hard-pi:start --> and <!-- hard-pi:end -->;
+- with --docs, the run's files (bench.csv, batch.csv, growth.csv, summary.md, the figures; hard.md and
+  its figures) are copied into docs/bench/ and docs/hard/, and the two work-precision figures the README
+  shows into docs/figures/.
+Every file is written to a temporary name in its folder and renamed into place.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import math
+import os
+import re
+import shutil
+import sys
+from pathlib import Path
+
+from validation.bench.report import GOAL_RATIO, LEVELS, column, level_table
+from validation.bench.sweep import Point, read_points
+
+README_FIGURES = ("wp_swinging_rod.png", "wp_rolling_race.png")
+
+
+def merged_points(folders: list[Path]) -> list[Point]:
+    """The points of every folder's bench.csv, the runs of the second folder numbered after the first's."""
+    points: list[Point] = []
+    offset = 0
+    for folder in folders:
+        path = Path(folder) / "bench.csv"
+        if not path.is_file():
+            raise ValueError(f"--bench {folder}: no bench.csv there (run `python -m validation bench --out {folder}`)")
+        mine = read_points(path)
+        points += [dataclasses.replace(p, run=p.run + offset) for p in mine]
+        offset = max((p.run for p in points), default=offset)
+    return points
+
+
+def ratio_table(points: list[Point]) -> str:
+    """Markdown: per scene (in the order of the CSV) and level, rbody's standing as summary.md gives it."""
+    scenes = list(dict.fromkeys(p.scene for p in points))
+    runs = sorted({p.run for p in points})
+    lines = [f"| scene | error <= {LEVELS[0]:.0e} | " + " | ".join(f"{level:.0e}" for level in LEVELS[1:]) + " |",
+             "|---|" + "---|" * len(LEVELS)]
+    for scene in scenes:
+        mine = [p for p in points if p.scene == scene]
+        columns = ["rbody"] + [c for c in ("mujoco", "mujoco reduced", "pymunk")
+                               if any(column(p) == c and not math.isnan(p.dt) for p in mine)]
+        _table, standing = level_table(mine, scene, columns)
+        cells = []
+        for s in standing:
+            if s["ratio"] == math.inf:
+                cells.append("only rbody")
+            elif s["ratio"] == 0.0:
+                cells.append("rbody never")
+            elif not s["ratios"]:
+                cells.append("none" if s["rival"] is None and s["rbody"] is None else "in some runs only")
+            else:
+                finite = sorted(s["ratios"])
+                text = f"{s['ratio']:.3g}x" + (f" ({finite[0]:.3g}..{finite[-1]:.3g})" if len(finite) > 1 else "")
+                cells.append(f"**{text}**" if s["ratio"] < GOAL_RATIO else text)
+        lines.append(f"| {scene} | " + " | ".join(cells) + " |")
+    note = (f"Median over {len(runs)} runs (min..max over the runs); " if len(runs) > 1 else "One run; ")
+    note += ("bold: under the 10x goal; \"only rbody\": no other column reaches the level anywhere in its sweep "
+             "(MuJoCo and pymunk at every setting swept, MuJoCo also on rbody's reduction where there is one).")
+    return "\n".join(lines + ["", note])
+
+
+def goals_lines(summary_md: Path) -> str:
+    """The list under summary.md's '## Goals' heading."""
+    text = Path(summary_md).read_text()
+    if "\n## Goals\n" not in text:
+        raise ValueError(f"{summary_md}: no '## Goals' section")
+    goals = text.split("\n## Goals\n", 1)[1].split("\n## ", 1)[0]
+    return goals.strip()
+
+
+def pi_digits_line(hard_md: Path) -> str:
+    """Hard case 1's finding 'Digits right (largest N with the exact count): ...' and each peer's coarsest
+    exact step, from hard.md."""
+    text = Path(hard_md).read_text()
+    found = re.search(r"^- (Digits right \(largest N with the exact count\):[^\n]*)$", text, re.M)
+    if found is None:
+        raise ValueError(f"{hard_md}: no 'Digits right' finding of hard case 1 (run `python -m validation hard`)")
+    steps = re.findall(r"^- ((?:mujoco|pymunk), digits \d+: coarsest exact step [^\n]*)$", text, re.M)
+    return "\n".join([found.group(1)] + [f"- {line}" for line in steps])
+
+
+def replace_block(text: str, name: str, body: str) -> str:
+    """text with the lines between <!-- name:start --> and <!-- name:end --> replaced by body."""
+    start, end = f"<!-- {name}:start -->", f"<!-- {name}:end -->"
+    if text.count(start) != 1 or text.count(end) != 1 or text.index(start) > text.index(end):
+        raise ValueError(f"README: expected one {start} ... {end} block")
+    head, rest = text.split(start)
+    _old, tail = rest.split(end)
+    return f"{head}{start}\n{body}\n{end}{tail}"
+
+
+def _write(path: Path, text: str) -> None:
+    temporary = path.with_name(f".{path.name}.tmp")
+    temporary.write_text(text)
+    os.replace(temporary, path)
+
+
+def _copy(source: Path, target: Path) -> None:
+    temporary = target.with_name(f".{target.name}.tmp")
+    shutil.copyfile(source, temporary)
+    os.replace(temporary, target)
+
+
+def _copy_run(folder: Path, into: Path, patterns: tuple[str, ...]) -> list[Path]:
+    into.mkdir(parents=True, exist_ok=True)
+    copied = []
+    for pattern in patterns:
+        for source in sorted(folder.glob(pattern)):
+            _copy(source, into / source.name)
+            copied.append(into / source.name)
+    return copied
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m validation.bench.tables", description=__doc__.split("\n\n")[0])
+    parser.add_argument("--bench", type=Path, action="append", required=True, metavar="DIR",
+                        help="a benchmark output folder (repeatable: merged as successive runs)")
+    parser.add_argument("--hard", type=Path, metavar="DIR", help="the hard-case output folder (holds hard.md)")
+    parser.add_argument("--readme", type=Path, default=Path("README.md"))
+    parser.add_argument("--docs", type=Path, help="copy the runs into DOCS/bench, DOCS/hard, DOCS/figures")
+    args = parser.parse_args(argv)
+    points = merged_points(args.bench)
+    readme = args.readme.read_text()
+    readme = replace_block(readme, "bench-ratios", ratio_table(points))
+    readme = replace_block(readme, "bench-goals", goals_lines(args.bench[0] / "summary.md"))
+    if args.hard is not None:
+        readme = replace_block(readme, "hard-pi", pi_digits_line(args.hard / "hard.md"))
+    _write(args.readme, readme)
+    print(f"{args.readme}: tables rewritten", file=sys.stderr)
+    if args.docs is not None:
+        if len(args.bench) == 1:
+            copied = _copy_run(args.bench[0], args.docs / "bench", ("*.csv", "*.png", "summary.md"))
+            for name in README_FIGURES:
+                if (args.bench[0] / name).is_file():
+                    _copy(args.bench[0] / name, args.docs / "figures" / name)
+        else:  # several runs: the merged CSV (summary.md of each run stays in its folder)
+            from validation.bench.csvfile import write_csv
+            from validation.bench.sweep import COLUMNS
+
+            (args.docs / "bench").mkdir(parents=True, exist_ok=True)
+            target = args.docs / "bench" / "bench.csv"
+            write_csv(target.with_name(".bench.csv.tmp"), (dataclasses.asdict(p) for p in points), COLUMNS,
+                      [f"merged from {', '.join(map(str, args.bench))}"])
+            os.replace(target.with_name(".bench.csv.tmp"), target)
+            copied = [target]
+        if args.hard is not None:
+            copied += _copy_run(args.hard, args.docs / "hard", ("hard.md", "hard_*.png"))
+        print(f"{len(copied)} files copied into {args.docs}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

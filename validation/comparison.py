@@ -1,0 +1,663 @@
+"""Cross-simulator comparison of one model: run it in rbody, MuJoCo and pymunk, see where they disagree.
+
+    comparison = compare(scene_or_path, engines=("rbody", "mujoco"), dt=1e-3, t_end=2.0, method="rk4")
+    print(comparison.table())            # one row per observable and engine pair: max divergence, when
+    comparison.assert_agree({"qpos": 1e-9, "energy": 1e-8})   # a test helper: AssertionError on a breach
+    comparison.save_figure("divergence.png")
+    found = check_baseline(comparison, "tests/baselines")       # [] or one message per regression
+
+The model is an rbody Scene (one of rbody.scenes, a Scene.from_layout, or a user's subclass), a path to an
+MJCF file (read by rbody.from_mjcf), or "module:name" / "file.py:name" naming a Scene or a function
+returning one. Every engine that can express the model runs it at the same dt over the same duration;
+an engine that cannot is listed as refused with its reason (validation.backends.supports), an engine
+whose run fails (a blow-up) as failed with its error: nothing is dropped.
+
+The divergence of an observable between two engines at time t is the Euclidean norm of the difference
+of their values over the observable's components, in its own unit (rad, m, J, ...); for an orientation
+(an observable ending in ".quat") it is the angle of the rotation between the two [rad], which does not
+see a quaternion's sign. Where the scene has a closed form (rbody's own scenes, scene.exact), each engine
+is also compared with it, as the pair (engine, "exact").
+
+Defaults, chosen to compare like with like: dt is the scene's own timestep when it has one (an MJCF
+<option timestep>), else 1 ms; rbody's method is "rk4" wherever it applies, the scheme MuJoCo's RK4 uses on
+contact-free models, so that rbody and MuJoCo differ by their models, not by their integrators. MuJoCo and
+pymunk run at their backends' documented defaults (validation/backends).
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import json
+import math
+import os
+import tempfile
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, Iterable, Mapping, Sequence
+
+import numpy as np
+
+import rbody
+from rbody._checks import run_times
+from rbody.scene import Scene
+from rbody.trajectory import Trajectory
+from validation import baselines
+from validation.backends import BACKENDS, get, supports
+
+EXACT = "exact"
+DEFAULT_DT = 1e-3
+MJCF_SUFFIXES = (".xml", ".mjcf")
+
+
+# ----- what a comparison holds ----------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class EngineRun:
+    """One engine's run: status "ran", "refused" (cannot express the model) or "failed" (raised).
+
+    trajectory: the run (None unless it ran); seconds: wall time of the stepping [s]; note: the reason
+    for a refusal or the error of a failure."""
+
+    engine: str
+    status: str
+    trajectory: Trajectory | None = None
+    seconds: float = 0.0
+    note: str = ""
+
+
+@dataclass(frozen=True)
+class Divergence:
+    """The largest divergence of one observable between two engines (or an engine and the exact solution).
+
+    observable: its name; engines: (a, b); largest: max over the run of |a(t) - b(t)| [unit of the
+    observable; rad for an orientation], inf when one side became non-finite; time: when it happens [s]."""
+
+    observable: str
+    engines: tuple[str, str]
+    largest: float
+    time: float
+
+    @property
+    def pair(self) -> str:
+        """"rbody-mujoco": the label of the engine pair (also its baseline file name)."""
+        return "-".join(self.engines)
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """The result of compare(): the runs, the table of divergences and the divergence against time.
+
+    scene:  the model that was run; dt, t_end [s]; method: rbody's method
+    runs:   engine -> EngineRun, in the order asked for
+    rows:   one Divergence per (observable, engine pair), observables in the scene's order
+    t:      (T,) the common times [s] of the curves
+    curves: (observable, pair) -> (T,) divergence against time
+    """
+
+    scene: Scene
+    dt: float
+    t_end: float
+    method: str | None
+    runs: Mapping[str, EngineRun]
+    rows: tuple[Divergence, ...]
+    t: np.ndarray
+    curves: Mapping[tuple[str, str], np.ndarray] = field(repr=False)
+    source: str | None = None
+
+    @property
+    def trajectories(self) -> dict[str, Trajectory]:
+        """engine -> Trajectory of every engine that ran."""
+        return {e: r.trajectory for e, r in self.runs.items() if r.status == "ran"}
+
+    @property
+    def observables(self) -> tuple[str, ...]:
+        return tuple(dict.fromkeys(r.observable for r in self.rows))
+
+    def row(self, observable: str, a: str, b: str) -> Divergence:
+        """The row of `observable` between engines a and b (in either order)."""
+        for r in self.rows:
+            if r.observable == observable and set(r.engines) == {a, b}:
+                return r
+        raise KeyError(f"no row for {observable!r} between {a!r} and {b!r}; rows: "
+                       f"{sorted({(r.observable, r.pair) for r in self.rows})}")
+
+    # ----- the test helper ------------------------------------------------------------------------
+
+    def assert_agree(self, tolerances: float | Mapping[str, float], *, between: Iterable[str] | None = None) -> None:
+        """Raise AssertionError listing every breach: an observable whose divergence between two engines
+        (or from the exact solution) exceeds its tolerance, and every engine whose run failed.
+
+        tolerances: one bound for every observable, or observable -> bound (in the observable's unit;
+        "*" sets the bound of the observables not named; observables not named and no "*": not checked).
+        between:    only the pairs of these engines ("exact" for the closed form), e.g. ("rbody", "mujoco")
+                    for a tight bound where both run the same scheme; default every pair
+        Raises ValueError for a tolerance that is negative or not a number, or that names an observable
+        the comparison does not have, or an engine in `between` it did not try (a typo would otherwise check
+        nothing)."""
+        bounds = _tolerances(tolerances, self.observables)
+        chosen = set(self.runs) | {EXACT}
+        if between is not None:
+            chosen = {between} if isinstance(between, str) else set(between)
+            unknown = chosen - set(self.runs) - {EXACT}
+            if unknown:
+                raise ValueError(f"between={sorted(unknown)}: not engines of this comparison ({list(self.runs)})")
+        breaches = [f"engine {e} failed: {r.note}" for e, r in self.runs.items()
+                    if r.status == "failed" and e in chosen]
+        checked = 0
+        for r in self.rows:
+            bound = bounds.get(r.observable, bounds.get("*"))
+            if bound is None or not set(r.engines) <= chosen:
+                continue
+            checked += 1
+            if not r.largest <= bound:
+                breaches.append(f"{r.observable} {r.pair}: {r.largest:.3g} > {bound:.3g} at t = {r.time:.6g} s")
+        if not checked and not breaches:
+            ran = ", ".join(self.trajectories) or "none"
+            raise AssertionError(f"nothing was compared: engines that ran: {ran}; refused: "
+                                 + "; ".join(f"{e} ({r.note})" for e, r in self.runs.items() if r.status == "refused"))
+        if breaches:
+            raise AssertionError(f"{self.scene.name}: {len(breaches)} breach(es) of the tolerances\n  "
+                                 + "\n  ".join(breaches))
+
+    # ----- text --------------------------------------------------------------------------------------
+
+    def table(self, *, markdown: bool = False) -> str:
+        """One line per observable and engine pair: the largest divergence and when it happens."""
+        header = ("observable", "engines", "max divergence", "at t [s]")
+        lines = [(r.observable, r.pair, f"{r.largest:.3g}", f"{r.time:.4g}") for r in self.rows]
+        return _format(header, lines, markdown)
+
+    def runs_table(self, *, markdown: bool = False) -> str:
+        """One line per engine: status, stepping time, settings or reason."""
+        header = ("engine", "status", "time [s]", "note")
+        lines = [(e, r.status, f"{r.seconds:.3g}" if r.status == "ran" else "-", r.note or _settings(r))
+                 for e, r in self.runs.items()]
+        return _format(header, lines, markdown)
+
+    def to_markdown(self, figure: str | None = None, regressions: Sequence[str] | None = None) -> str:
+        """A Markdown report: the model and settings, the runs, the divergence table, the figure (a file
+        name relative to the report) and, when given, the regressions against a baseline."""
+        from validation.baselines import versions
+        from validation.machine import describe_machine
+
+        parts = [f"# Cross-simulator comparison: {self.scene.name}", "",
+                 f"- model: {self.scene.describe()}" + (f", from {self.source}" if self.source else ""),
+                 f"- dt = {self.dt:g} s, t_end = {self.t_end:g} s, rbody method: {self.method or 'default'}",
+                 f"- machine: {describe_machine()}",
+                 "- versions: " + ", ".join(f"{k} {v}" for k, v in versions().items()), "",
+                 "## Runs", "", self.runs_table(markdown=True), "",
+                 "## Largest divergence of each observable", "",
+                 "The divergence is the norm of the difference over the observable's components, in its "
+                 "unit; for an orientation (`.quat`), the angle between the two rotations [rad]. The pair "
+                 "`engine-exact` compares an engine with the scene's closed form.", "",
+                 self.table(markdown=True) if self.rows else "(nothing to compare: fewer than two runs)", ""]
+        notes = getattr(self.scene, "import_notes", ())
+        if notes:
+            parts += ["## Import notes", ""] + [f"- {n}" for n in notes] + [""]
+        if figure:
+            parts += ["## Divergence against time", "", f"![Divergence against time]({figure})", ""]
+        if regressions is not None:
+            parts += ["## Regressions against the baseline", ""] + ([f"- {m}" for m in regressions] or ["none"])
+            parts.append("")
+        return "\n".join(parts)
+
+    # ----- figures -----------------------------------------------------------------------------------
+
+    def figure(self):
+        """A matplotlib Figure: the divergence of each observable against time, one panel per observable
+        (per kind of body observable when there are many: the largest over the bodies), log scale."""
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        groups = _groups(self.observables)
+        rows = max(1, math.ceil(len(groups) / 2))
+        columns = 1 if len(groups) <= 1 else 2
+        fig, axes = plt.subplots(rows, columns, figsize=(6 * columns, 2.6 * rows + 0.6), squeeze=False)
+        pairs = list(dict.fromkeys(r.pair for r in self.rows))
+        floor = 1e-17  # exact agreement (0) drawn here, below double round-off of unit-sized values
+        for axis, (title, members) in zip(axes.ravel(), groups.items()):
+            for k, pair in enumerate(pairs):
+                series = [self.curves[(m, pair)] for m in members if (m, pair) in self.curves]
+                if series:
+                    worst = np.max(np.stack(series), axis=0)
+                    axis.semilogy(self.t, np.maximum(worst, floor), ("-", "--", ":", "-.")[k % 4], lw=1.1, color=f"C{k}",
+                                  label=pair)
+            axis.set(title=title, xlabel="t [s]", ylabel="divergence")
+            axis.grid(True, which="major", alpha=0.3)
+        for axis in axes.ravel()[len(groups):]:
+            axis.set_visible(False)
+        if pairs:
+            axes.ravel()[0].legend(fontsize=8)
+        fig.suptitle(f"{self.scene.name}: divergence between engines (dt = {self.dt:g} s)")
+        fig.tight_layout()
+        return fig
+
+    def save_figure(self, path: str | Path) -> Path:
+        """Write figure() as PNG to `path` (to a temporary name in the same folder, then renamed)."""
+        import matplotlib.pyplot as plt
+
+        path = Path(path)
+        fig = self.figure()
+        try:
+            _write_atomic(path, lambda f: fig.savefig(f, format="png", dpi=110))
+        finally:
+            plt.close(fig)
+        return path
+
+
+# ----- compare ------------------------------------------------------------------------------------------
+
+def compare(model: Scene | str | Path, engines: Iterable[str] | None = None, *, dt: float | None = None,
+            t_end: float | None = None, method: str | None = None,
+            progress: Callable[[str], None] | None = None) -> Comparison:
+    """Run `model` in each engine and measure where they disagree.
+
+    model:    an rbody Scene (unbatched), a path to an MJCF file, or "module:name" / "file.py:name"
+    engines:  names among validation.BACKENDS (default: all); engines that cannot express the model are
+              listed as refused, with the reason
+    dt:       time step [s] of every engine (default: the scene's timestep, else 1e-3)
+    t_end:    duration [s] (default: the scene's)
+    method:   rbody's method (default "rk4" where it applies, else rbody's default)
+    progress: called with one line per engine as it finishes (the command prints it to stderr)
+    Raises ValueError for bad input (a missing file, an unknown engine, dt <= 0, a batched scene, a method
+    that does not apply), before any run.
+    """
+    engines = _engine_names(engines)
+    scene = load_model(model, t_end=t_end) if not isinstance(model, Scene) else model
+    if scene.batch_shape:
+        raise ValueError(f"scene {scene.name!r} is a batch of shape {scene.batch_shape}: compare runs one model "
+                         "in several engines; pick one with scene.item(i)")
+    dt = _default_dt(scene) if dt is None else dt
+    dt, t_end = run_times(scene.t_end, dt, t_end)  # ValueError for dt <= 0, dt > t_end, t_end <= 0
+    method = _method(scene, method)
+
+    runs: dict[str, EngineRun] = {}
+    for k, engine in enumerate(engines, 1):
+        ok, reason = supports(scene, engine)
+        if not ok:
+            runs[engine] = EngineRun(engine, "refused", note=reason)
+        else:
+            runs[engine] = _run(scene, engine, dt, t_end, method)
+        if progress is not None:
+            r = runs[engine]
+            what = f"{r.seconds:.3g} s" if r.status == "ran" else f"{r.status}: {r.note}"
+            progress(f"[{k}/{len(engines)}] {engine}: {what}")
+    t, rows, curves = _divergences(scene, {e: r.trajectory for e, r in runs.items() if r.status == "ran"})
+    source = None if isinstance(model, Scene) else str(model)
+    return Comparison(scene, dt, t_end, method, runs, tuple(rows), t, curves, source)
+
+
+def _settings_of(scene: Scene, engine: str, method: str | None) -> dict:
+    """rbody: the method; MuJoCo: the model's own integrator where it records one (an MJCF <option>), as the
+    user runs it, else the backend's default (RK4 without impacts); pymunk: its defaults."""
+    if engine == "rbody":
+        return {"method": method}
+    if engine == "mujoco" and getattr(scene, "integrator", None):
+        return {"integrator": scene.integrator}
+    return {}
+
+
+def _run(scene: Scene, engine: str, dt: float, t_end: float, method: str | None) -> EngineRun:
+    start = time.perf_counter()
+    try:
+        trajectory = get(engine).run(scene, dt, t_end, **_settings_of(scene, engine, method))
+        _within_limits(scene, trajectory, engine)
+    except Exception as error:  # a blow-up or a simulator's error is a result to report, not to hide
+        return EngineRun(engine, "failed", seconds=time.perf_counter() - start, note=f"{type(error).__name__}: {error}")
+    seconds = float(trajectory.meta.get("step_seconds", time.perf_counter() - start))
+    return EngineRun(engine, "ran", trajectory, seconds)
+
+
+def _within_limits(scene: Scene, trajectory: Trajectory, engine: str) -> None:
+    """Raise SimulationError when a hinge or slide of the model leaves its declared range (an MJCF joint limit,
+    scene.limits): no engine here models limits, so such a run is not the model's motion."""
+    limits = getattr(scene, "limits", None)
+    if not limits or "qpos" not in trajectory:
+        return
+    arrays = scene.multibody.arrays
+    qpos = np.asarray(trajectory["qpos"])
+    for name, (low, high) in limits.items():
+        j = list(arrays.joint_names).index(name)
+        if arrays.joint_kinds[j] not in ("hinge", "slide"):
+            continue
+        value = qpos[:, int(arrays.qposadr[j])]
+        outside = (value < low) | (value > high)
+        if np.any(outside):
+            k = int(np.argmax(outside))
+            raise rbody.SimulationError(
+                f"{engine}: joint {name!r} left its range [{low:.6g}, {high:.6g}] at t={trajectory.t[k]:.6g} s (value "
+                f"{value[k]:.6g}); no engine here models joint limits")
+
+
+def _engine_names(engines: Iterable[str] | None) -> tuple[str, ...]:
+    if engines is None:
+        return BACKENDS
+    names = tuple(engines.split(",")) if isinstance(engines, str) else tuple(engines)
+    names = tuple(n.strip() for n in names)
+    for n in names:
+        if n not in BACKENDS:
+            raise ValueError(f"engine {n!r}: expected one of {', '.join(map(repr, BACKENDS))}")
+    if not names or len(set(names)) != len(names):
+        raise ValueError(f"engines={list(names)}: expected one or more distinct engines of {list(BACKENDS)}")
+    return names
+
+
+def _default_dt(scene: Scene) -> float:
+    timestep = getattr(scene, "timestep", None)
+    return float(timestep) if timestep else DEFAULT_DT
+
+
+def _method(scene: Scene, method: str | None) -> str | None:
+    """rbody's method, checked before any run: "rk4" by default where it applies (MuJoCo's scheme)."""
+    if scene.event_driven:
+        if method not in (None, "events"):
+            raise ValueError(f"method={method!r}: scene {scene.name!r} is event-driven (impacts found exactly); "
+                             "leave the method out")
+        return None
+    if method is None:
+        return "rk4" if "rk4" in scene.methods else None
+    if method not in rbody.METHODS:
+        raise ValueError(f"method={method!r}: expected one of {', '.join(map(repr, rbody.METHODS))}")
+    if scene.methods and method not in scene.methods:
+        raise ValueError(f"method={method!r} cannot run scene {scene.name!r}: {scene.why_not(method)}; methods "
+                         f"that apply: {', '.join(scene.methods)}")
+    return method
+
+
+# ----- the model ----------------------------------------------------------------------------------------
+
+def load_model(source: str | Path, *, t_end: float | None = None) -> Scene:
+    """The Scene named by `source`: an MJCF file (rbody.from_mjcf, given t_end when set), or "module:name" / "file.py:name"
+    where name is a Scene or a function of no arguments returning one. Raises ValueError naming what is
+    wrong (no such file, not an MJCF file, no such name, not a Scene) before any run."""
+    if isinstance(source, Scene):
+        return source
+    if not isinstance(source, (str, Path)):
+        raise ValueError(f"model={source!r}: expected a Scene, a path to an MJCF file or 'module:name'")
+    text = str(source)
+    path = Path(text)
+    if path.suffix.lower() in MJCF_SUFFIXES or (path.exists() and path.suffix.lower() != ".py"):
+        if not path.is_file():
+            raise ValueError(f"model {text!r}: no such file")
+        from_mjcf = getattr(rbody, "from_mjcf", None)
+        if from_mjcf is None:
+            raise ValueError(f"model {text!r}: this rbody cannot read MJCF (rbody.from_mjcf is missing); pass a "
+                             "Scene instead")
+        return from_mjcf(path, **({} if t_end is None else {"t_end": t_end}))
+    if ":" not in text:
+        raise ValueError(f"model {text!r}: expected an MJCF file ({'/'.join(MJCF_SUFFIXES)}) or 'module:name' / "
+                         "'file.py:name' naming a Scene")
+    where, attribute = text.rsplit(":", 1)
+    if where.endswith(".py"):
+        if not Path(where).is_file():
+            raise ValueError(f"model {text!r}: no such file {where!r}")
+        spec = importlib.util.spec_from_file_location(Path(where).stem, where)
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+    else:
+        try:
+            module = importlib.import_module(where)
+        except ImportError as error:
+            raise ValueError(f"model {text!r}: cannot import module {where!r} ({error})") from None
+    if not hasattr(module, attribute):
+        raise ValueError(f"model {text!r}: {where!r} has no {attribute!r}")
+    value = getattr(module, attribute)
+    if callable(value) and not isinstance(value, Scene):
+        try:
+            value = value()
+        except TypeError as error:
+            raise ValueError(f"model {text!r}: {attribute}() must build the Scene without arguments ({error})") from None
+    if not isinstance(value, Scene):
+        raise ValueError(f"model {text!r}: {attribute!r} is a {type(value).__name__}, expected an rbody Scene")
+    return value
+
+
+# ----- the divergences ---------------------------------------------------------------------------------
+
+def divergence(name: str, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """(T,) divergence of observable `name` between values a and b (T, ...): the norm of a - b over the
+    components; for an orientation (name ending ".quat", (T, 4) unit quaternions) the rotation angle
+    between them, 4 asin(min(|a - b|, |a + b|) / 2) [rad] (accurate for small angles, blind to the sign)."""
+    a, b = np.asarray(a, float).reshape(len(a), -1), np.asarray(b, float).reshape(len(b), -1)
+    if name.endswith(".quat") and a.shape[1] == 4:
+        a = a / np.linalg.norm(a, axis=1, keepdims=True)
+        b = b / np.linalg.norm(b, axis=1, keepdims=True)
+        chord = np.minimum(np.linalg.norm(a - b, axis=1), np.linalg.norm(a + b, axis=1))
+        return 4 * np.arcsin(np.minimum(chord / 2, 1.0))
+    return np.linalg.norm(a - b, axis=1)
+
+
+def _common_times(trajectories: Mapping[str, Trajectory]) -> tuple[np.ndarray, bool]:
+    """The times every run is compared at: the runs' own when they agree, else the coarsest run's within
+    the span all runs cover (the others interpolated linearly)."""
+    grids = [tr.t for tr in trajectories.values()]
+    first = grids[0]
+    if all(g.shape == first.shape and np.allclose(g, first, rtol=1e-12, atol=0) for g in grids):
+        return first, False
+    end = min(g[-1] for g in grids)
+    coarsest = min(grids, key=len)
+    return coarsest[coarsest <= end * (1 + 1e-12)], True
+
+
+def _at(values: np.ndarray, t_run: np.ndarray, t: np.ndarray, interpolate: bool) -> np.ndarray:
+    values = np.asarray(values, dtype=float)
+    if not interpolate:
+        return values
+    flat = values.reshape(len(t_run), -1)
+    columns = [np.interp(t, t_run, flat[:, k]) for k in range(flat.shape[1])]
+    return np.stack(columns, axis=-1).reshape((len(t),) + values.shape[1:])
+
+
+def _divergences(scene: Scene, trajectories: Mapping[str, Trajectory]):
+    if not trajectories:
+        return np.zeros(0), [], {}
+    t, interpolate = _common_times(trajectories)
+    values = {e: {n: _at(tr[n], tr.t, t, interpolate) for n in tr.observables} for e, tr in trajectories.items()}
+    try:
+        values[EXACT] = {n: np.asarray(v, dtype=float) for n, v in scene.exact(t).items()}
+    except NotImplementedError:
+        pass
+    engines = list(values)
+    pairs = [(a, b) for i, a in enumerate(engines) for b in engines[i + 1:]]
+    pairs.sort(key=lambda pair: EXACT in pair)  # engine against engine first, then each against the closed form
+    order = list(dict.fromkeys(list(scene.observables) + [n for v in values.values() for n in v]))
+    rows, curves = [], {}
+    for name in order:
+        for a, b in pairs:
+            if name not in values[a] or name not in values[b]:
+                continue
+            x, y = values[a][name], values[b][name]
+            if x.shape != y.shape:
+                continue
+            d = divergence(name, x, y)
+            bad = ~np.isfinite(d)
+            k = int(np.argmax(bad)) if bad.any() else int(np.argmax(d))
+            largest = math.inf if bad.any() else float(d[k])
+            row = Divergence(name, (a, b), largest, float(t[k]))
+            rows.append(row)
+            curves[(name, row.pair)] = d
+    return t, rows, curves
+
+
+# ----- baselines -----------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class _BaselineRow:
+    """A Divergence as validation.baselines stores it: case = the model, backend = the engine pair,
+    metric = the observable."""
+
+    case: str
+    backend: str
+    metric: str
+    value: float
+
+
+def _baseline_rows(comparison: Comparison) -> list[_BaselineRow]:
+    return [_BaselineRow(comparison.scene.name, r.pair, r.observable, r.largest) for r in comparison.rows
+            if math.isfinite(r.largest)]
+
+
+def save_baseline(comparison: Comparison, path: str | Path) -> list[Path]:
+    """Record the comparison's largest divergences in folder `path` (created if needed): one JSON file per
+    engine pair, as validation.baselines writes them. Returns the files written."""
+    directory = _folder(path)
+    return baselines.save(_baseline_rows(comparison), directory)
+
+
+def check_baseline(comparison: Comparison, path: str | Path) -> list[str]:
+    """Messages for every divergence worse than recorded in folder `path` (validation.baselines' margin: a
+    factor 2 plus 1e-13), and for every recorded (observable, pair) of this model between engines the
+    comparison ran or tried that it no longer measures (an engine that failed or now refuses). [] when everything is within its baseline.
+    Raises ValueError when `path` is not a folder holding baselines of this model."""
+    directory = _folder(path)
+    if not directory.is_dir():
+        raise ValueError(f"baseline {str(path)!r}: no such folder (record one with save_baseline or "
+                         "--update-baseline)")
+    recorded = _recorded(directory, comparison.scene.name)
+    if not recorded:
+        raise ValueError(f"baseline {str(path)!r} holds no divergences of model {comparison.scene.name!r}")
+    found = list(baselines.regressions(_baseline_rows(comparison), directory))
+    measured = {(r.pair, r.observable) for r in comparison.rows if math.isfinite(r.largest)}
+    asked = set(comparison.runs) | {EXACT}
+    for pair, observable in sorted(recorded):
+        # a pair of engines asked for (refused, failed, or an observable gone) must still be measured
+        if set(pair.split("-")) <= asked and (pair, observable) not in measured:
+            found.append(f"{pair} {comparison.scene.name}/{observable}: recorded in the baseline, not measured now")
+    return found
+
+
+def _folder(path: str | Path) -> Path:
+    if not isinstance(path, (str, Path)) or str(path) == "":
+        raise ValueError(f"path={path!r}: expected a folder (str or Path)")
+    return Path(path)
+
+
+def _recorded(directory: Path, case: str) -> set[tuple[str, str]]:
+    """(pair, observable) of every divergence of model `case` recorded in `directory`."""
+    out = set()
+    for file in sorted(directory.glob("*.json")):
+        try:
+            metrics = json.loads(file.read_text())["metrics"]
+        except (ValueError, KeyError, TypeError):
+            raise ValueError(f"baseline file {str(file)!r} is not a baseline (expected JSON with 'metrics')") from None
+        prefix = f"{case}/"
+        out.update((file.stem, key[len(prefix):]) for key in metrics if key.startswith(prefix))
+    return out
+
+
+# ----- helpers --------------------------------------------------------------------------------------------
+
+def _tolerances(tolerances: float | Mapping[str, float], observables: Sequence[str]) -> dict[str, float]:
+    def bound(value, name: str) -> float:
+        if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+            raise ValueError(f"tolerance of {name}={value!r}: expected a number >= 0")
+        value = float(value)
+        if not value >= 0:
+            raise ValueError(f"tolerance of {name}={value!r}: expected a number >= 0")
+        return value
+
+    if not isinstance(tolerances, Mapping):
+        return {"*": bound(tolerances, "every observable")}
+    unknown = [k for k in tolerances if k != "*" and k not in observables]
+    if unknown:
+        raise ValueError(f"tolerances name {unknown}, which the comparison does not measure; its observables: "
+                         f"{list(observables)}")
+    return {k: bound(v, k) for k, v in tolerances.items()}
+
+
+def _groups(observables: Sequence[str]) -> dict[str, list[str]]:
+    """Panels of the figure: one per observable, or, beyond eight, one per kind (the part after the last
+    dot: every body's com in one panel, as its worst over the bodies)."""
+    if len(observables) <= 8:
+        return {n: [n] for n in observables}
+    groups: dict[str, list[str]] = {}
+    for n in observables:
+        kind = n.rsplit(".", 1)[-1]
+        groups.setdefault(kind if "." in n else n, []).append(n)
+    return {(f"{k} (worst body)" if len(v) > 1 else k): v for k, v in groups.items()}
+
+
+def _settings(run: EngineRun) -> str:
+    if run.trajectory is None:
+        return ""
+    meta = run.trajectory.meta
+    shown = {k: meta[k] for k in ("method", "integrator", "settings") if k in meta}
+    return "; ".join(f"{k} {v}" for k, v in shown.items())
+
+
+def _format(header: Sequence[str], lines: list[Sequence[str]], markdown: bool) -> str:
+    if markdown:
+        out = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+        return "\n".join(out + ["| " + " | ".join(str(c).replace("|", "/") for c in line) + " |" for line in lines])
+    widths = [max([len(h)] + [len(str(line[k])) for line in lines]) for k, h in enumerate(header)]
+    fmt = "  ".join(f"{{:<{w}}}" for w in widths)
+    return "\n".join([fmt.format(*header), fmt.format(*("-" * w for w in widths))]
+                     + [fmt.format(*map(str, line)) for line in lines])
+
+
+def _write_atomic(path: Path, write: Callable) -> None:
+    """write(file) into a temporary file in path's folder, then os.replace it onto path."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", dir=path.parent)
+    try:
+        with os.fdopen(handle, "wb") as file:
+            write(file)
+        os.replace(temporary, path)
+    except BaseException:
+        if os.path.exists(temporary):
+            os.unlink(temporary)
+        raise
+
+
+def write_report(comparison: Comparison, out: str | Path, regressions: Sequence[str] | None = None) -> Path:
+    """out/<model>.md with the tables, and its figure out/<model>_divergence.png; both written to a
+    temporary name and renamed into place. Returns the report's path."""
+    out = Path(out)
+    stem = "".join(c if c.isalnum() or c in "-_." else "_" for c in comparison.scene.name)
+    figure = None
+    if comparison.rows:
+        figure = comparison.save_figure(out / f"{stem}_divergence.png").name
+    text = comparison.to_markdown(figure, regressions)
+    path = out / f"{stem}.md"
+    _write_atomic(path, lambda f: f.write(text.encode()))
+    return path
+
+
+# ----- the command ----------------------------------------------------------------------------------------
+
+def main(args) -> int:
+    """python -m validation compare MODEL ...: 0 agreed with the baseline (or none given), 1 a regression
+    against the baseline, 2 bad input (a message on stderr, no traceback)."""
+    import sys
+
+    def say(line: str) -> None:
+        print(line, file=sys.stderr, flush=True)
+
+    try:
+        if args.update_baseline and args.baseline is None:
+            raise ValueError("--update-baseline needs --baseline DIR: the folder to record the divergences in")
+        engines = _engine_names(args.engines)
+        if args.baseline is not None and not args.update_baseline and not Path(args.baseline).is_dir():
+            raise ValueError(f"--baseline {str(args.baseline)!r}: no such folder (record one with --update-baseline)")
+        scene = load_model(args.model, t_end=args.t_end)
+        say(f"comparing {scene.describe()} in {', '.join(engines)}")
+        comparison = compare(scene, engines, dt=args.dt, t_end=args.t_end, method=args.method, progress=say)
+        found = None
+        if args.baseline is not None and not args.update_baseline:
+            found = check_baseline(comparison, args.baseline)
+    except ValueError as error:
+        say(f"error: {error}")
+        return 2
+    print(comparison.table())
+    if args.update_baseline:
+        for path in save_baseline(comparison, args.baseline):
+            say(f"baseline written: {path}")
+    path = write_report(comparison, args.out, found)
+    say(f"report: {path}")
+    for message in found or ():
+        say(f"REGRESSION {message}")
+    return 1 if found else 0
