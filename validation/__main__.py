@@ -52,7 +52,7 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument("--out", type=Path, default=Path("report/compare"), help="folder (default: report/compare/)")
     compare.add_argument("--baseline", type=Path, metavar="DIR", help="check the divergences against this folder")
     compare.add_argument("--update-baseline", action="store_true", help="record this run's divergences in --baseline")
-    for p in (parser, run, bench, hard):
+    for p in (parser, run, bench, hard, compare):
         _cluster_options(p)
     return parser
 

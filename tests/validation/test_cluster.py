@@ -5,6 +5,7 @@ from __future__ import annotations
 import os
 import re
 import time
+from pathlib import Path
 
 import pytest
 
@@ -180,3 +181,17 @@ def test_bench_on_a_cluster_gives_the_serial_points(client, tmp_path, monkeypatc
     serial = _bench_points(tmp_path / "serial" / "bench.csv")
     assert len(serial) > 20 and not any(row["failure"].startswith("not run") for row in serial)
     assert _bench_points(tmp_path / "cluster" / "bench.csv") == serial
+
+
+def test_compare_on_a_cluster_gives_the_serial_divergences(client):
+    """The compare command's engine runs as tasks: an MJCF tree (rbody, MuJoCo and pymunk all run it) and a
+    scene of rbody's own with a closed form; the divergences are the serial ones, row for row."""
+    from rbody.scenes import swinging_rod
+    from validation.comparison import compare
+
+    model = Path(__file__).resolve().parents[2] / "models" / "double_pendulum.xml"
+    for source in (model, swinging_rod(1.0, theta0=1.0, t_end=1.0)):
+        serial = compare(source, t_end=0.5)
+        on_cluster = compare(source, t_end=0.5, client=client)
+        assert [r.status for r in on_cluster.runs.values()] == [r.status for r in serial.runs.values()]
+        assert len(serial.rows) >= 3 and on_cluster.rows == serial.rows
