@@ -52,7 +52,18 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument("--out", type=Path, default=Path("report/compare"), help="folder (default: report/compare/)")
     compare.add_argument("--baseline", type=Path, metavar="DIR", help="check the divergences against this folder")
     compare.add_argument("--update-baseline", action="store_true", help="record this run's divergences in --baseline")
+    for p in (parser, run, bench, hard, compare):
+        _cluster_options(p)
     return parser
+
+
+def _cluster_options(parser: argparse.ArgumentParser) -> None:
+    """--workers N | --scheduler ADDRESS: the independent runs as tasks on a Dask cluster (validation/cluster.py)."""
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("--workers", type=int, metavar="N",
+                       help="run on a local Dask cluster of N worker processes, one thread each")
+    group.add_argument("--scheduler", metavar="ADDRESS",
+                       help="run on the Dask cluster whose scheduler is at ADDRESS (e.g. tcp://host:8786)")
 
 
 # Exit status (documented in --help and the README)
@@ -119,20 +130,27 @@ def _command(args) -> int:
     if args.command == "compare":
         from validation.comparison import main as compare_main
         return compare_main(args)
+    from validation.cluster import connect
     if args.command == "hard":
         from validation.hard.suite import CASES, run_hard
-        return run_hard(args.out, quick=args.quick, cases=tuple(args.case) if args.case else CASES)
-    return run_all(args.out, quick=args.quick, update=args.update_baselines,
-                   backends=tuple(args.backend) if args.backend else None)
+        with connect(args.scheduler, args.workers) as client:
+            return run_hard(args.out, quick=args.quick, cases=tuple(args.case) if args.case else CASES,
+                            client=client)
+    with connect(args.scheduler, args.workers) as client:
+        return run_all(args.out, quick=args.quick, update=args.update_baselines,
+                       backends=tuple(args.backend) if args.backend else None, client=client)
 
 
-def run_all(out: Path, *, quick: bool, update: bool, backends: tuple[str, ...] | None) -> int:
+def run_all(out: Path, *, quick: bool, update: bool, backends: tuple[str, ...] | None, client=None) -> int:
     """Run every case, print the table, write the report; exit 1 on a regression against baselines, 2 on a
-    measure without a baseline (BaselineError, before any run, for a broken baseline file)."""
+    measure without a baseline (BaselineError, before any run, for a broken baseline file).
+    Each (case, backend) is one task (validation.cluster.run_tasks): here in order, or on the cluster of
+    `client` (a dask.distributed.Client); the rows and report are the same either way."""
     from rbody._files import replaced_folder
     from validation import baselines, report
     from validation.backends import BACKENDS
     from validation.cases import default_cases
+    from validation.cluster import run_tasks
     from validation.evaluate import evaluate
     from validation.figures import make_figures
 
@@ -141,14 +159,16 @@ def run_all(out: Path, *, quick: bool, update: bool, backends: tuple[str, ...] |
         baselines.check(directory, backends or BACKENDS)
     started = time.perf_counter()
     cases = default_cases(quick)
+    chosen = backends or BACKENDS
+    tasks = [(f"{case.name} {backend}", evaluate, (case, (backend,))) for case in cases for backend in chosen]
+    results = iter(run_tasks(client, tasks, what="validation"))
     rows, runs = [], {}
-    for k, case in enumerate(cases, 1):
-        print(f"[{k}/{len(cases)}] {case.name} ...", end="", file=sys.stderr, flush=True)
-        case_rows, case_runs = evaluate(case, backends or BACKENDS)
-        rows += case_rows
-        runs[case.name] = (case, case_runs)
-        print(" " + ", ".join(f"{b} {r.seconds:.2f} s" if r.verdict != "refused" else f"{b} refused"
-                              for b, r in _first_rows(case_rows)), file=sys.stderr)
+    for case in cases:
+        runs[case.name] = (case, {})
+        for _ in chosen:  # one backend's rows and run, in the order of `chosen`
+            case_rows, case_runs = next(results)
+            rows += case_rows
+            runs[case.name][1].update(case_runs)
     print(report.table(rows))
     found, missing = [], []
     if update:
@@ -166,13 +186,6 @@ def run_all(out: Path, *, quick: bool, update: bool, backends: tuple[str, ...] |
     for message in missing:
         print(f"MISSING {message}", file=sys.stderr)
     return REGRESSION if found else INPUT_PROBLEM if missing else OK
-
-
-def _first_rows(rows):
-    seen = {}
-    for row in rows:
-        seen.setdefault(row.backend, row)
-    return seen.items()
 
 
 def _header(quick: bool, seconds: float) -> str:

@@ -26,13 +26,14 @@ pymunk run at their backends' documented defaults (validation/backends).
 
 from __future__ import annotations
 
+import dataclasses
 import importlib
 import importlib.util
 import math
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Iterable, Mapping, Sequence
+from typing import Any, Callable, Iterable, Mapping, Sequence
 
 import numpy as np
 
@@ -253,7 +254,7 @@ class Comparison:
 
 def compare(model: Scene | str | Path, engines: Iterable[str] | None = None, *, dt: float | None = None,
             t_end: float | None = None, method: str | None = None,
-            progress: Callable[[str], None] | None = None) -> Comparison:
+            progress: Callable[[str], None] | None = None, client: Any = None) -> Comparison:
     """Run `model` in each engine and measure where they disagree.
 
     model:    an rbody Scene (unbatched), a path to an MJCF file, or "module:name" / "file.py:name"
@@ -263,6 +264,8 @@ def compare(model: Scene | str | Path, engines: Iterable[str] | None = None, *, 
     t_end:    duration [s] (default: the scene's)
     method:   rbody's method (default "rk4" where it applies, else rbody's default)
     progress: called with one line per engine as it finishes (the command prints it to stderr)
+    client:   a dask.distributed.Client: each engine's run is one task on its cluster (validation.cluster),
+              the comparison the same as here
     Raises ValueError for bad input (a missing file, an unknown engine, dt <= 0, a batched scene, a method
     that does not apply), before any run.
     """
@@ -276,11 +279,13 @@ def compare(model: Scene | str | Path, engines: Iterable[str] | None = None, *, 
     method = _method(scene, method)
 
     runs: dict[str, EngineRun] = {}
+    if client is not None:
+        runs = _runs_on_cluster(client, scene, engines, dt, t_end, method)
     for k, engine in enumerate(engines, 1):
         ok, reason = supports(scene, engine)
         if not ok:
             runs[engine] = EngineRun(engine, "refused", note=reason)
-        else:
+        elif engine not in runs:
             runs[engine] = _run(scene, engine, dt, t_end, method)
         if progress is not None:
             r = runs[engine]
@@ -310,6 +315,30 @@ def _run(scene: Scene, engine: str, dt: float, t_end: float, method: str | None)
         return EngineRun(engine, "failed", seconds=time.perf_counter() - start, note=f"{type(error).__name__}: {error}")
     seconds = float(trajectory.meta.get("step_seconds", time.perf_counter() - start))
     return EngineRun(engine, "ran", trajectory, seconds)
+
+
+def _runs_on_cluster(client: Any, scene: Scene, engines: Sequence[str], dt: float, t_end: float,
+                     method: str | None) -> dict[str, EngineRun]:
+    """The runs of the engines that support `scene`, each one task on the cluster of `client`."""
+    from rbody.engine.distributed import portable
+    from validation.cluster import run_tasks
+
+    able = [engine for engine in engines if supports(scene, engine)[0]]
+    shipped = portable(scene)  # without its cached model (compiled functions), which each worker builds
+    done = run_tasks(client, [(engine, _run_task, (shipped, engine, dt, t_end, method)) for engine in able],
+                     what="compare")
+    return dict(zip(able, done))
+
+
+def _run_task(scene: Scene, engine: str, dt: float, t_end: float, method: str | None) -> EngineRun:
+    """_run with every lazy observable computed, as a task on a worker sends its run back."""
+    run = _run(scene, engine, dt, t_end, method)
+    if run.trajectory is None:
+        return run
+    trajectory = run.trajectory
+    computed = Trajectory(trajectory.t, {name: trajectory[name] for name in trajectory.observables},
+                          trajectory.events, trajectory.meta)
+    return dataclasses.replace(run, trajectory=computed)
 
 
 def _within_limits(scene: Scene, trajectory: Trajectory, engine: str) -> None:
@@ -649,7 +678,11 @@ def main(args) -> int:
             raise ValueError(f"baseline {str(args.baseline)!r} holds no divergences of model {scene.name!r} "
                              "(record them with --update-baseline)")
         say(f"comparing {scene.describe()} in {', '.join(engines)}")
-        comparison = compare(scene, engines, dt=args.dt, t_end=args.t_end, method=args.method, progress=say)
+        from validation.cluster import connect
+
+        with connect(getattr(args, "scheduler", None), getattr(args, "workers", None)) as client:
+            comparison = compare(scene, engines, dt=args.dt, t_end=args.t_end, method=args.method, progress=say,
+                                 client=client)
         found, missing = None, []
         if args.baseline is not None and not args.update_baseline:
             found, missing = baseline_findings(comparison, args.baseline)

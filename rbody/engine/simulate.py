@@ -15,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+from typing import Any
 
 import numpy as np
 
@@ -29,7 +30,8 @@ EVENT_METHOD = "events"
 
 
 def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float | None = None,
-             save_every: int = 1, allow_large: bool = False) -> Trajectory:
+             save_every: int = 1, allow_large: bool = False, client: Any = None,
+             chunk: int | None = None) -> Trajectory:
     """Run `scene` natively.
 
     dt:         time step [s] (event-driven scenes: the sampling interval of the trajectory only)
@@ -42,17 +44,25 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
     allow_large: run even when the work estimated before the run (estimate_work: steps, saved
                 samples, memory, impacts) is beyond its limits; without it such a run is refused
                 with a ValueError giving the estimate
+    client:     a dask.distributed.Client: the batch's rows run as tasks on its cluster, `chunk` rows each
+                (default: about 4 tasks per worker thread, at least a few thousand rows; see
+                rbody.engine.distributed); the result equals the serial run's bit for bit. Event-driven
+                scenes run here. None (default): everything runs here and Dask is not imported.
     Returns a Trajectory whose observables have shape (T, *scene.batch_shape, ...).
-    Raises ValueError for bad arguments or a run too large to start (above), MethodNotApplicable when the method cannot run the scene,
-    SimulationError, before any step, when dt is beyond the method's estimated stability limit on the
-    scene (rbody.stability) and, after, when a step gives a non-finite state (never a trajectory
-    holding NaN, except where an observable means "not yet": a race's arrival time).
+    Raises ValueError for bad arguments, a run too large to start (above), a closed client or a chunk
+    without a client; MethodNotApplicable when the method cannot run the scene; SimulationError, before
+    any step, when dt is beyond the method's estimated stability limit on the scene (rbody.stability)
+    and, after, when a step gives a non-finite state (never a trajectory holding NaN, except where an
+    observable means "not yet": a race's arrival time), or when a task lost its worker more often than
+    Dask retries it.
     """
     if not isinstance(scene, Scene):
         raise ValueError(f"scene={scene!r}: expected an rbody.Scene (see rbody.scenes)")
     dt, t_end = run_times(scene.t_end, dt, t_end)
     whole_number(save_every, "save_every")
     method = _choose_method(scene, method)
+    if chunk is not None and client is None:
+        raise ValueError(f"chunk={chunk!r}: rows per task of a Dask client; give client= too, or leave chunk out")
     refuse_large(estimate_work(scene, dt, t_end, save_every), allow_large)
 
     if scene.event_driven:
@@ -68,7 +78,10 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
             f"{model.break_time:.3g} s, integrated with no step inside it; use dt <= {model.break_time / 10:.3g} s "
             "(ten steps or more before the jump)")
     out = np.empty((nsteps // save_every + 1,) + model.y0.shape)
-    if model.break_time is not None and 0 < model.break_time < nsteps * dt:
+    if client is not None:  # the batch's rows as tasks on a Dask cluster, each as below
+        from rbody.engine.distributed import integrate_on_cluster
+        failed = integrate_on_cluster(client, scene, model, method, dt, nsteps, save_every, out, chunk)
+    elif model.break_time is not None and 0 < model.break_time < nsteps * dt:
         failed = _integrate_across_break(model, method, dt, nsteps, save_every, out)
     else:
         failed = _integrate(model, method, dt, nsteps, save_every, out)

@@ -13,7 +13,8 @@ from rbody._files import replaced_folder
 from validation.bench import batch, growth, report
 from validation.bench.csvfile import header_lines, write_csv
 from validation.bench.scenes import bench_scenes
-from validation.bench.sweep import COLUMNS, Point, run_scene
+from validation.bench.sweep import COLUMNS, Point, refusals, run_scene, series_task
+from validation.cluster import run_tasks
 
 EXTRA_WORK = ("batch", "growth")
 # --quick without --scene: the scenes that exercise every kind of truth and failure (the compound pendulum
@@ -23,12 +24,16 @@ QUICK_DEFAULT = ("swinging_rod", "rolling_disc", "line_collisions", "pi_collisio
 
 
 def run_bench(out: Path, *, names: Iterable[str] | None = None, quick: bool = False, repeat: int = 1,
-              log=sys.stderr) -> Path:
+              log=sys.stderr, client=None) -> Path:
     """Run the benchmark into folder `out` and return the path of summary.md.
 
     names: scene names of bench_scenes() and/or "batch", "growth" (default: all of them; quick: QUICK_DEFAULT).
     repeat: how many times every sweep is run (the `run` column of bench.csv); the summary gives each
     ratio's median and its range over the runs. Batch and growth are measured once.
+    client: a dask.distributed.Client, or None: each series (backend x method x setting, its sweep of dt) of
+    each run is then one timed task on its cluster, one at a time per worker (validation.cluster); the batch
+    and growth measurements, which use every core, run here afterwards, with the cluster idle. bench.csv
+    holds the same points either way (timings aside).
     """
     if isinstance(repeat, bool) or not isinstance(repeat, int) or repeat < 1:
         raise ValueError(f"repeat={repeat!r}: expected a whole number >= 1")
@@ -42,12 +47,16 @@ def run_bench(out: Path, *, names: Iterable[str] | None = None, quick: bool = Fa
     header = header_lines(quick)
     points: list[Point] = []
     with replaced_folder(out) as staging:  # the CSVs, figures and summary all new, or all as they were
-        for run in range(1, repeat + 1):
-            for bench in benches:
-                if bench.name in names:
-                    print(f"[bench] run {run} of {repeat}: {bench.name} ({bench.scene.describe()})", file=log,
-                          flush=True)
-                    points += run_scene(bench, quick=quick, log=log, run=run)
+        if client is None:
+            for run in range(1, repeat + 1):
+                for bench in benches:
+                    if bench.name in names:
+                        print(f"[bench] run {run} of {repeat}: {bench.name} ({bench.scene.describe()})", file=log,
+                              flush=True)
+                        points += run_scene(bench, quick=quick, log=log, run=run)
+        else:
+            points = _sweeps_on_cluster(client, [b for b in benches if b.name in names], quick=quick, repeat=repeat,
+                                        log=log)
         csv_name = write_csv(staging / "bench.csv", (asdict(p) for p in points), COLUMNS, header).name
         figures = [report.plot_scene(points, b, staging) for b in benches if b.name in names]
         batch_result = batch.run_batch(staging, quick=quick, header=header, log=log) if "batch" in names else None
@@ -61,8 +70,27 @@ def run_bench(out: Path, *, names: Iterable[str] | None = None, quick: bool = Fa
     return path
 
 
+def _sweeps_on_cluster(client, benches: list, *, quick: bool, repeat: int, log) -> list[Point]:
+    """The points of run_scene for every run and bench scene, in the same order, each series a timed task."""
+    tasks = [(f"run {run}: {bench.name} {series.backend} {series.method} [{series.settings}]", series_task,
+              (quick, bench.name, index, run))
+             for run in range(1, repeat + 1) for bench in benches for index, series in enumerate(bench.series)]
+    results = iter(run_tasks(client, tasks, what="bench", timed=True, log=log))
+    points: list[Point] = []
+    for run in range(1, repeat + 1):
+        for bench in benches:
+            points += refusals(bench, run=run)
+            for _ in bench.series:
+                points += next(results)
+    return points
+
+
 def main(args) -> int:
-    """Entry of `python -m validation bench` (args: scene, quick, out, repeat)."""
-    path = run_bench(args.out, names=args.scene, quick=args.quick, repeat=getattr(args, "repeat", 1))
+    """Entry of `python -m validation bench` (args: scene, quick, out, repeat, workers, scheduler)."""
+    from validation.cluster import connect
+
+    with connect(getattr(args, "scheduler", None), getattr(args, "workers", None)) as client:
+        path = run_bench(args.out, names=args.scene, quick=args.quick, repeat=getattr(args, "repeat", 1),
+                         client=client)
     print(path.read_text())
     return 0

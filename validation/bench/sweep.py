@@ -3,6 +3,7 @@ measured): one point, one series of dt, one scene."""
 
 from __future__ import annotations
 
+import functools
 import math
 import time
 from dataclasses import dataclass
@@ -15,7 +16,7 @@ from rbody.errors import SimulationError
 from rbody.trajectory import Trajectory
 from validation.compare import energy_error, max_abs_error, max_slip
 from validation.backends import BACKENDS, get, supports
-from validation.bench.scenes import SAMPLES, BenchScene, Series
+from validation.bench.scenes import SAMPLES, BenchScene, Series, bench_scenes
 
 LEVELS = (1e-3, 1e-6, 1e-9, 1e-12)
 COLUMNS = ("run", "scene", "backend", "method", "settings", "dt", "error", "energy_drift", "seconds_per_sim_second",
@@ -171,12 +172,7 @@ def run_series(bench: BenchScene, series: Series, truth: Truth, *, quick: bool, 
 def run_scene(bench: BenchScene, *, quick: bool, log=None, run: int = 1) -> list[Point]:
     """Every series of a scene, and one row per backend that refuses it (with its reason); run: the number
     of this run of the benchmark (1, 2, ...), written in every row."""
-    points: list[Point] = []
-    for backend in BACKENDS:
-        ok, reason = supports(bench.scene, backend)
-        if not ok:
-            points.append(Point(bench.name, backend, "-", "-", math.nan, run=run,
-                                failure=f"refused: {_first_line(Exception(reason))}"))
+    points = refusals(bench, run=run)
     truth = Truth(bench)
     for series in bench.series:
         start = time.perf_counter()
@@ -185,6 +181,31 @@ def run_scene(bench: BenchScene, *, quick: bool, log=None, run: int = 1) -> list
             print(f"  {bench.name}: {series.backend} {series.method} [{series.settings}] "
                   f"{time.perf_counter() - start:.1f} s", file=log, flush=True)
     return points
+
+
+def refusals(bench: BenchScene, *, run: int = 1) -> list[Point]:
+    """One row per backend that cannot run the scene, with its reason."""
+    points: list[Point] = []
+    for backend in BACKENDS:
+        ok, reason = supports(bench.scene, backend)
+        if not ok:
+            points.append(Point(bench.name, backend, "-", "-", math.nan, run=run,
+                                failure=f"refused: {_first_line(Exception(reason))}"))
+    return points
+
+
+def series_task(quick: bool, scene_name: str, index: int, run: int = 1) -> list[Point]:
+    """Series `index` of the bench scene `scene_name`, with its own truth: one task of a run on a Dask cluster
+    (validation.cluster). The scenes are built here from their names (bench_scenes), so a task carries a few
+    values, not the scenes and their settings' functions; the points are those run_scene gives."""
+    bench = _benches(quick)[scene_name]
+    return run_series(bench, bench.series[index], Truth(bench), quick=quick, run=run)
+
+
+@functools.lru_cache(maxsize=2)
+def _benches(quick: bool) -> dict[str, BenchScene]:
+    """The bench scenes by name, built once per process (per worker)."""
+    return {bench.name: bench for bench in bench_scenes(quick)}
 
 
 def read_points(path) -> list[Point]:

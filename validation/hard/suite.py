@@ -4,6 +4,7 @@ the case table, the command, and the tables and report hard.md."""
 from __future__ import annotations
 
 import sys
+import tempfile
 import time
 from pathlib import Path
 from typing import Callable
@@ -28,26 +29,45 @@ def case_function(number: int) -> Callable[[bool, Path], CaseResult]:
     return _CASES[number]
 
 
-def run_cases(out: Path, *, quick: bool, cases: tuple[int, ...] = CASES) -> list[CaseResult]:
-    """Run the chosen cases (numbers 1..9), writing their figures into out; progress on stderr."""
-    functions = {number: case_function(number) for number in cases}
+def run_cases(out: Path, *, quick: bool, cases: tuple[int, ...] = CASES, client=None) -> list[CaseResult]:
+    """Run the chosen cases (numbers 1..9), then write their figures into out; progress on stderr.
+
+    Each case is one task (validation.cluster.run_tasks): here in order (client None) or on the Dask cluster
+    of `client`. A case draws its figures in a folder of its own (a worker need not share a file system with
+    the report); they are written into `out` once every case has run."""
+    from validation.cluster import run_tasks
+
+    for number in cases:
+        case_function(number)  # an unknown case number: refused before any work
+    tasks = [(f"case {number}", case_task, (number, quick)) for number in cases]
+    done = run_tasks(client, tasks, what="hard")
     out.mkdir(parents=True, exist_ok=True)
     results = []
-    for number in cases:
-        print(f"[hard {number}] ...", end="", file=sys.stderr, flush=True)
-        result, seconds = timed(functions[number], quick, out)
-        result.seconds = seconds
-        print(f" {result.title}: {len(result.rows)} rows, {seconds:.1f} s", file=sys.stderr, flush=True)
+    for result, files in done:
+        for name, data in files.items():
+            write_atomic(out / name, data)
+        print(f"[hard {result.number}] {result.title}: {len(result.rows)} rows, {result.seconds:.1f} s",
+              file=sys.stderr, flush=True)
         results.append(result)
     return results
 
 
-def run_hard(out: Path, *, quick: bool, cases: tuple[int, ...] = CASES) -> int:
+def case_task(number: int, quick: bool) -> tuple[CaseResult, dict[str, bytes]]:
+    """Hard case `number` run in a temporary folder: its result and the files it drew there (name -> bytes).
+    One task of run_cases, here or on a Dask worker."""
+    with tempfile.TemporaryDirectory(prefix=f"rbody-hard-{number}-") as folder:
+        result, seconds = timed(case_function(number), quick, Path(folder))
+        result.seconds = seconds
+        files = {path.name: path.read_bytes() for path in sorted(Path(folder).iterdir()) if path.is_file()}
+    return result, files
+
+
+def run_hard(out: Path, *, quick: bool, cases: tuple[int, ...] = CASES, client=None) -> int:
     """Run the suite, print every case's table, write out/hard.md. Exit status 1 when rbody failed a
-    requirement (a FAIL row), else 0."""
+    requirement (a FAIL row), else 0. client: a dask.distributed.Client to run the cases on, or None."""
     started = time.perf_counter()
     with replaced_folder(out) as staging:  # hard.md and its figures all new, or all as they were
-        results = run_cases(staging, quick=quick, cases=cases)
+        results = run_cases(staging, quick=quick, cases=cases, client=client)
         for result in results:
             print(f"\n== {result.number}. {result.title} ==")
             print(table(result.rows))

@@ -1,0 +1,138 @@
+"""The commands' independent runs as tasks: here, one after another, or on a Dask cluster.
+
+    with connect(scheduler=None, workers=None) as client:   # both None: no cluster, Dask not imported
+        results = run_tasks(client, tasks, what="bench", timed=True)
+
+A task is (name, function, args): function(*args), a module-level function (workers import it by name)
+with arguments that pickle. run_tasks returns the results in the order of `tasks`, whatever order they
+finish in, so that the tables, CSVs and reports built from them equal the serial run's (timings aside).
+Progress on stderr: tasks done of all.
+
+--workers N: a local cluster of N worker processes, one thread each. --scheduler ADDRESS: the workers of
+an existing cluster (`dask scheduler`, `dask worker ADDRESS`), which need rbody and validation installed.
+
+Timed tasks (the benchmark's sweeps, timed=True) each hold the worker resource "timing", of which a worker
+has one: a worker runs one timed task at a time whatever its thread count, so that no timing shares its
+worker with another run. The local cluster's workers have it; an existing cluster's workers are started
+with `dask worker ADDRESS --nthreads 1 --resources timing=1`, else the timed command refuses to start.
+
+A worker that dies mid-task: Dask runs the task again on another worker (up to the scheduler's
+`distributed.scheduler.allowed-failures`, 3 by default); beyond that, or on any task's error, the command
+stops with an error naming the task, before anything is written to its report folder.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import sys
+import time
+import uuid
+from typing import Any, Callable, Iterator, Sequence
+
+TIMING = "timing"  # the worker resource a timed task holds (one per worker)
+CONNECT_TIMEOUT = "10s"
+
+Task = tuple[str, Callable[..., Any], tuple]
+
+
+@contextlib.contextmanager
+def connect(scheduler: str | None = None, workers: int | None = None) -> Iterator[Any]:
+    """A dask.distributed.Client of a local cluster of `workers` processes (one thread and one "timing"
+    resource each), or of the scheduler at address `scheduler`; None when both are None. Closed on exit.
+    Raises ValueError when both are given, for workers < 1, and naming the address when no scheduler
+    answers there."""
+    if scheduler is not None and workers is not None:
+        raise ValueError(f"--scheduler {scheduler} and --workers {workers}: give one of them")
+    if scheduler is None and workers is None:
+        yield None
+        return
+    from distributed import Client, LocalCluster
+
+    if workers is not None:
+        if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
+            raise ValueError(f"--workers {workers!r}: expected a whole number of worker processes >= 1")
+        with LocalCluster(n_workers=workers, processes=True, threads_per_worker=1, resources={TIMING: 1},
+                          dashboard_address=":0") as cluster, Client(cluster) as client:
+            yield client
+        return
+    try:
+        client = Client(scheduler, timeout=CONNECT_TIMEOUT)
+    except (OSError, TimeoutError, ValueError) as error:
+        raise ValueError(f"--scheduler {scheduler}: no Dask scheduler answered there within {CONNECT_TIMEOUT} "
+                         f"({type(error).__name__}: {error}); start one with `dask scheduler` and workers with "
+                         f"`dask worker {scheduler}`") from None
+    with client:
+        yield client
+
+
+def run_tasks(client: Any, tasks: Sequence[Task], *, what: str, timed: bool = False, log=None) -> list:
+    """The result of each task, in the order of `tasks`: run here in that order (client None), or on the
+    cluster of `client` (timed: one at a time per worker, module docstring). A task's error is raised with a
+    note naming the task; a task that lost more workers than Dask retries it on is a RuntimeError naming it.
+    Progress goes to `log` (default sys.stderr)."""
+    log = log or sys.stderr
+    if client is None:
+        results = []
+        for k, (name, function, args) in enumerate(tasks, 1):
+            start = time.perf_counter()
+            try:
+                results.append(function(*args))
+            except Exception as error:
+                error.add_note(f"in task {name} of {what}")
+                raise
+            print(f"[{what} {k}/{len(tasks)}] {name} {time.perf_counter() - start:.1f} s", file=log, flush=True)
+        return results
+    return _run_on_cluster(client, tasks, what=what, timed=timed, log=log)
+
+
+def _run_on_cluster(client: Any, tasks: Sequence[Task], *, what: str, timed: bool, log) -> list:
+    from distributed import as_completed
+    from distributed.scheduler import KilledWorker
+
+    address = client.scheduler.address
+    if timed:
+        _check_timing_resource(client, address)
+    token = uuid.uuid4().hex[:8]
+    futures, names = [], {}
+    try:
+        for index, (name, function, args) in enumerate(tasks):
+            future = client.submit(function, *args, key=f"{what}-{index}-{_key_safe(name)}-{token}", pure=False,
+                                   resources={TIMING: 1} if timed else None)
+            futures.append(future)
+            names[future.key] = name
+        results: dict[str, Any] = {}
+        started = time.perf_counter()
+        for done, future in enumerate(as_completed(futures), 1):
+            name = names[future.key]
+            try:
+                results[future.key] = future.result()
+            except KilledWorker as error:
+                raise RuntimeError(
+                    f"task {name} of {what} lost the worker that ran it {error.allowed_failures + 1} times: Dask ran "
+                    f"it again after each worker death, up to distributed.scheduler.allowed-failures = "
+                    f"{error.allowed_failures} (scheduler {address}, last worker {error.last_worker.address})"
+                ) from None
+            except Exception as error:
+                error.add_note(f"in task {name} of {what}, on the Dask cluster at {address}")
+                raise
+            print(f"[{what} {done}/{len(tasks)} tasks done, {time.perf_counter() - started:.0f} s] {name}",
+                  file=log, flush=True)
+            future.release()
+        return [results[future.key] for future in futures]
+    finally:
+        for future in futures:
+            future.cancel()
+
+
+def _check_timing_resource(client: Any, address: str) -> None:
+    """Refuse a timed run on a cluster none of whose workers has the "timing" resource (its tasks would wait
+    forever)."""
+    workers = client.scheduler_info(n_workers=-1)["workers"]
+    if not any(info.get("resources", {}).get(TIMING) for info in workers.values()):
+        raise ValueError(f"the Dask cluster at {address} has {len(workers)} workers and none with the resource "
+                         f"'{TIMING}': timed runs need it, one per worker, so that each timing has its worker to "
+                         f"itself; start workers with `dask worker {address} --nthreads 1 --resources {TIMING}=1`")
+
+
+def _key_safe(name: str) -> str:
+    return "".join(c if c.isalnum() or c in "_.:" else "_" for c in name)
