@@ -24,6 +24,9 @@ AxisLike = Union[str, Iterable[float], np.ndarray]
 # Largest |tensor entry| [kg m^2] accepted: sums of a few moments (eigenvalues, the parallel-axis
 # theorem, the triangle inequality) must stay finite in float64 (max 1.8e308).
 LARGEST_MOMENT = 1e300
+# Below this a mass or moment is carried by float64 with less than its 53 bits, or its round-off is (the
+# smallest normal number / eps): subnormal arithmetic would silently change the tensor.
+SMALLEST_CARRIED = float(np.finfo(float).tiny / np.finfo(float).eps)
 # Relative tolerance of the symmetry and triangle-inequality checks on construction.
 STRUCTURE_RTOL = 1e-12
 
@@ -104,6 +107,11 @@ class Inertia:
         mass = positive(finite_array(self.mass, "mass", shape=()), "mass")
         com = finite_array(self.com, "com", shape=(3,))
         tensor = finite_array(self.tensor, "tensor", shape=(3, 3))
+        if mass < SMALLEST_CARRIED or 0 < np.max(np.abs(tensor)) < SMALLEST_CARRIED:
+            raise ValueError(
+                f"mass={float(mass):.3g} kg, largest |tensor| entry {float(np.max(np.abs(tensor))):.3g} kg m^2: "
+                f"below {SMALLEST_CARRIED:.3g}, float64 carries them (or their round-off) as subnormal numbers "
+                "with fewer digits; give the body in smaller units of length or mass")
         scale = max(float(np.max(np.abs(tensor))), np.finfo(float).tiny)
         if scale > LARGEST_MOMENT:
             raise ValueError(

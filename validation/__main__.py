@@ -14,13 +14,16 @@ MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="python -m validation",
+        usage="%(prog)s [run | export | bench | hard | compare MODEL] [options]",
         description="Run rbody's scenes in rbody, MuJoCo and pymunk and compare each with the exact solution.",
         epilog="Exit status: 0 all measures within their baselines; 1 a regression (a measure worse than its "
                "baseline); 2 a problem with the inputs, found before the run where it can be (a bad argument, "
                "--out not writable, a broken baseline file) or after it (a measure with no baseline: run "
                "--update-baselines).")
     commands = parser.add_subparsers(dest="command")
-    run = commands.add_parser("run", help="every scene in every backend (the default command)")
+    run = commands.add_parser(
+        "run", prog="python -m validation run", usage="%(prog)s [options]",
+        help="every scene in every backend (the default command)")
     for p in (parser, run):
         p.add_argument("--out", type=Path, default=Path("report"), help="report folder (default: report/)")
         p.add_argument("--quick", action="store_true", help="short runs (a smoke test)")
@@ -28,21 +31,28 @@ def _parser() -> argparse.ArgumentParser:
                        help="rewrite validation/baselines/ from this run")
         p.add_argument("--backend", action="append", choices=("rbody", "mujoco", "pymunk"),
                        help="only these backends (repeatable)")
-    export = commands.add_parser("export", help="write the MJCF of every scene into models/")
+    export = commands.add_parser(
+        "export", prog="python -m validation export", usage="%(prog)s [options]",
+        help="write the MJCF of every scene into models/")
     export.add_argument("--out", type=Path, default=MODELS_DIR, help="folder (default: models/)")
-    bench = commands.add_parser("bench", help="speed against error: work-precision sweeps (validation/bench/)")
+    bench = commands.add_parser(
+        "bench", prog="python -m validation bench", usage="%(prog)s [options]",
+        help="speed against error: work-precision sweeps (validation/bench/)")
     bench.add_argument("--scene", action="append", metavar="NAME",
                        help="only this scene, or 'batch' or 'growth' (repeatable; default: all)")
     bench.add_argument("--quick", action="store_true", help="short sweeps, under 2 minutes (the test suite's)")
     bench.add_argument("--out", type=Path, default=Path("report/bench"), help="folder (default: report/bench/)")
     bench.add_argument("--repeat", type=int, default=1, metavar="N",
                        help="run every sweep N times; the summary gives each ratio with its range (default: 1)")
-    hard = commands.add_parser("hard", help="numerical stability on hard cases (validation/hard/): DIR/hard.md")
+    hard = commands.add_parser(
+        "hard", prog="python -m validation hard", usage="%(prog)s [options]",
+        help="numerical stability on hard cases (validation/hard/): DIR/hard.md")
     hard.add_argument("--quick", action="store_true", help="short runs, under 2 minutes")
     hard.add_argument("--out", type=Path, default=Path("report"), help="report folder (default: report/)")
     hard.add_argument("--case", action="append", type=int, metavar="N", help="only case N of 1..9 (repeatable)")
     compare = commands.add_parser(
-        "compare", help="one model in every engine that can express it: where they diverge (validation/comparison.py)")
+        "compare", prog="python -m validation compare", usage="%(prog)s MODEL [options]",
+        help="one model in every engine that can express it: where they diverge (validation/comparison.py)")
     compare.add_argument("model", help="an MJCF file, or 'module:name' / 'file.py:name' naming an rbody Scene")
     compare.add_argument("--t-end", type=float, metavar="S", help="duration [s] (default: the model's)")
     compare.add_argument("--dt", type=float, metavar="S", help="time step [s] (default: the model's timestep, else 1e-3)")
