@@ -184,6 +184,11 @@ def case_pi(quick: bool, out: Path) -> CaseResult:
 
 FRICTION_FACTORS = (1.0 - 1e-6, 1.0, 1.0 + 1e-6)
 ROLL_DT = 1e-3
+# MuJoCo's runs: the backend's default rolling contact, and its best found for rolling (the benchmark's
+# validation.bench.scenes.ROLLING_NOSLIP: pyramidal cone, MuJoCo's largest impedance, noslip iterations).
+ROLL_MUJOCO = (("elliptic cone, impratio 100", {}),
+               ("pyramidal, solimp 0.9999, noslip 20",
+                {"cone": "pyramidal", "solimp": (0.9999, 0.9999, 0.001), "noslip_iterations": 20}))
 
 
 def _rolling_errors(trajectory, exact) -> tuple[float, float]:
@@ -210,11 +215,13 @@ def case_friction_limit(quick: bool, out: Path) -> CaseResult:
             variant = f"{body}, mu_min x {factor:.7g}"
             should_roll = factor >= 1.0
             exact = None
-            for backend in ("rbody", "mujoco", "pymunk"):
-                settings = {"method": "verlet"} if backend == "rbody" else {}
+            runs = ([("rbody", "verlet", {"method": "verlet"})]
+                    + [("mujoco", label, settings) for label, settings in ROLL_MUJOCO] + [("pymunk", "default", {})])
+            for backend, setting, settings in runs:
                 trajectory, error, seconds = attempt(validation.run, scene, backend, dt=ROLL_DT, **settings)
                 if error is not None:
-                    result.rows.append(HardRow(variant, backend, f"dt={ROLL_DT:g}", error_outcome(error), None,
+                    result.rows.append(HardRow(variant, backend, f"{setting} dt={ROLL_DT:g}", error_outcome(error),
+                                               None,
                                                "slip error [m/s]", seconds, "FAIL" if backend == "rbody" else "",
                                                short(error)))
                     continue
@@ -231,8 +238,7 @@ def case_friction_limit(quick: bool, out: Path) -> CaseResult:
                         f"classified {'rolls' if scene.rolls else 'slides'} (expected "
                         f"{'rolls' if should_roll else 'slides'}); exact final slip {final_slip:.3g} m/s"))
                     continue
-                setting = "elliptic cone, impratio 100" if backend == "mujoco" else "default"
-                slip_errors.setdefault(backend, []).append(slip)
+                slip_errors.setdefault(f"{backend} [{setting}]", []).append(slip)
                 if factor < 1.0:
                     sliding_slip.append(abs(final_slip))
                 result.rows.append(HardRow(variant, backend, f"{setting} dt={ROLL_DT:g}", "error", slip,
