@@ -5,9 +5,6 @@ from __future__ import annotations
 from rbody.scene import Scene
 from rbody.trajectory import Trajectory
 from validation.backends import BACKENDS, get, supports
-# The tolerance table (the submodule validation.compare) is loaded first, so that the package's name `compare`
-# is the function below from here on: import the table's names with `from validation.compare import ...`.
-from validation import compare as _tolerance_table  # noqa: F401
 from validation.comparison import Comparison, Divergence, check_baseline, compare, save_baseline
 
 

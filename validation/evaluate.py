@@ -16,7 +16,7 @@ import numpy as np
 
 import rbody
 from rbody.trajectory import Trajectory
-from validation.compare import (energy_error, final_relative_error, max_abs_error, max_slip, pi_digits_right,
+from validation.tolerances import (energy_error, final_relative_error, max_abs_error, max_slip, pi_digits_right,
                                 tolerance)
 from validation.backends import BACKENDS, get
 
@@ -26,7 +26,7 @@ class Case:
     """One scene of the main command.
 
     name:      row label (also the baseline key)
-    family:    key into validation.compare.TOLERANCES
+    family:    key into validation.tolerances.TOLERANCES
     scene:     the scene to run (unbatched)
     dt:        backend -> time step [s]
     settings:  backend -> keyword settings for its run()

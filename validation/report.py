@@ -95,7 +95,7 @@ def figure_pendulum(runs: Mapping[str, Trajectory], exact_of, out: Path, name: s
 
 def figure_pi(counts: Mapping[str, Mapping[int, int]], out: Path) -> str:
     """Digits of pi each backend gets right, against the number of digits asked for."""
-    from validation.compare import pi_digits_right
+    from validation.tolerances import pi_digits_right
 
     figure, axis = plt.subplots(figsize=(6, 4))
     for backend, by_digits in counts.items():
@@ -164,7 +164,7 @@ def figure_orbit(runs: Mapping[str, Trajectory], exact_of, out: Path) -> str:
 def write(out: Path, rows: list, figures: list[tuple[str, str]], header: str, regressions: list[str]) -> Path:
     """report.md with the header, the table, the notes, the figures and the regressions."""
     parts = [header, "## Results", "", table(rows, markdown=True), "",
-             "A verdict `ok` means the value is within the tolerance of validation/compare.py (its reason "
+             "A verdict `ok` means the value is within the tolerance of validation/tolerances.py (its reason "
              "is in the notes); `FINDING` means it is outside: a disagreement with the closed form, "
              "measured and reported, not hidden; `refused` means the simulator cannot express the scene; "
              "`-` means the value is reported without a bound.", "", "## Notes", "", notes(rows), ""]

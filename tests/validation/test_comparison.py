@@ -282,12 +282,9 @@ def test_report_files_are_renamed_into_place(tmp_path, rod_comparison):
     assert not [p for p in os.listdir(tmp_path) if p.startswith(".")]
 
 
-def test_the_name_compare_stays_the_function_beside_the_tolerance_table():
-    """validation/compare.py (the tolerance table) and validation.compare (the function) share a name: the
-    package loads the table first, so importing it again leaves the function in place."""
+def test_the_name_compare_is_the_function_and_the_tolerance_table_has_its_own_module():
     import validation
-    import validation.compare  # noqa: F401 - the table, already loaded
-    from validation.compare import TOLERANCES, tolerance
+    from validation.tolerances import TOLERANCES, tolerance
 
     assert callable(validation.compare) and validation.compare is compare
     assert TOLERANCES and tolerance("pendulum", "rbody", "max_abs_error").value == 1e-9

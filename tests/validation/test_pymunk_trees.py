@@ -167,7 +167,7 @@ def test_telescope_converges_at_first_order():
 def test_three_link_chain_energy_and_native():
     """A planar 3-link chain: rbody's rk4 keeps E to 1e-8; pymunk's PivotJoints lose it in proportion to
     dt (DESIGN.md); the angles differ from rbody's by what that loss does to the phase (0.05 rad, the chain
-    tolerance of validation/compare.py). Uses Scene.from_layout (the general engine) when it exists."""
+    tolerance of validation/tolerances.py). Uses Scene.from_layout (the general engine) when it exists."""
     chain = pendulum_chain(3, theta0=[0.6, 0.3, -0.2], t_end=2.0)
     scene = chain
     if hasattr(Scene, "from_layout"):

@@ -14,7 +14,7 @@ import numpy as np
 import rbody
 from rbody.errors import SimulationError
 from rbody.trajectory import Trajectory
-from validation.compare import energy_error, max_abs_error, max_slip
+from validation.tolerances import energy_error, max_abs_error, max_slip
 from validation.backends import BACKENDS, get, supports
 from validation.bench.scenes import SAMPLES, BenchScene, Series, bench_scenes
 

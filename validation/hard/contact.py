@@ -10,7 +10,7 @@ import numpy as np
 import rbody
 import validation
 from rbody.scenes import pi_collisions, rolling
-from validation.compare import pi_digits_right
+from validation.tolerances import pi_digits_right
 from validation.hard.kit import coarsest_step, run_backend
 from validation.hard.rows import CaseResult, HardRow, attempt, error_outcome, short
 
