@@ -543,8 +543,10 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
         f"{sum(len(b.shapes) for b in order)} body geoms; {len(pairs)} contact pairs.",
         "Only what the scene uses: every geom has contype=conaffinity=0, so nothing collides except the",
         "<pair>s below. Mass properties are explicit (inertiafromgeom=false): rbody's mass, centre of mass",
-        "and tensor about it, body frame; joints have no friction or limits, and damping, stiffness, springref,",
-        "armature and ref only where the scene gives them.",
+        "and tensor about it, body frame; " + ("joints have no damping, armature, friction, springs or limits." if not
+                                               any(getattr(j, a, 0.0) for j in layout.joints for a in _JOINT_ATTRIBUTES)
+                                               else "joints have no friction or limits; damping, stiffness, "
+                                               "springref, armature and ref where the scene gives them."),
         (f"gravity {gravity!r} m/s^2 along -z" if gravity == scene.gravity else
          f"gravity 0 (the scene applies no uniform gravity, though it states g = {scene.gravity!r} m/s^2)")
         + f"; timestep {dt!r} s; integrator {integrator}.",
