@@ -69,13 +69,14 @@ def kernel_call(method: str, model, nsteps: int, save_every: int):
         weights = np.ones(1) if method == "verlet" else integrators.YOSHIDA6
         return lambda: integrators._composed_verlet_loop(accel, weights, y0, params, DT, nsteps, save_every, out, size)
     rhs = integrators.pointer_function(model.rhs)
+    finish, finishing = integrators.finish_pointer(model.finish)  # the rod has none: the loops skip the call
     if method == "rk4":
-        return lambda: integrators._rk4_loop(rhs, y0, params, DT, nsteps, save_every, out, size)
+        return lambda: integrators._rk4_loop(rhs, finish, finishing, y0, params, DT, nsteps, save_every, out, size)
     if method == "gauss6":
         a, b = integrators.GAUSS6_A, integrators.GAUSS6_B
         second, later = integrators.gauss_starting_guess(a)
-        return lambda: integrators._gauss_loop(rhs, a, b, second, later, y0, params, DT, nsteps, save_every, out,
-                                               size)
+        return lambda: integrators._gauss_loop(rhs, finish, finishing, a, b, second, later, y0, params, DT, nsteps,
+                                               save_every, out, size)
     raise ValueError(method)
 
 

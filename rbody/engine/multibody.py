@@ -35,6 +35,11 @@ A ball joint's degrees of freedom are rotations about the body's final axes (MuJ
 subsequent rotations"), so a ball joint must be the last joint of its body; a free joint is the only
 joint of a child of the world.
 
+Cost: one evaluation allocates one workspace (the views of _views) and the algorithms are inlined into the
+functions that call them (numba inline="always"), which removes the reference counting of array arguments
+at every call; the price is a longer first compilation (cached on disk after it). numba's cache does not
+follow imports: after editing spatial.py, delete rbody/engine/__pycache__/multibody*.nb[ci].
+
 Precision: spatial quantities about the world origin lose digits in proportion to a body's distance
 from it (|x| / size of the tree); MuJoCo works about each tree's centre of mass instead. Within a
 tree of metre scale near the origin the two agree to ~1e-13.
