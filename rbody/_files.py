@@ -15,6 +15,7 @@ the old file as it was.
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
 import shutil
 import tempfile
@@ -25,7 +26,9 @@ from typing import IO, Iterator
 def _temporary_name(path: Path) -> Path:
     """A fresh name beside `path` (same folder, hence the same file system), keeping its suffix so that
     writers that pick a format from it (savefig, np.savez) write the same format."""
-    handle, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=f".tmp{path.suffix}", dir=path.parent)
+    # The name shortened to 40 characters: a temporary name must not pass the file system's limit (255)
+    # where the file's own name does not.
+    handle, name = tempfile.mkstemp(prefix=f".{path.name[:40]}.", suffix=f".tmp{path.suffix[:16]}", dir=path.parent)
     os.close(handle)
     return Path(name)
 
@@ -92,7 +95,7 @@ def replaced_folder(folder: str | os.PathLike, *, keep_others: bool = True) -> I
         yield folder
         return
     folder.parent.mkdir(parents=True, exist_ok=True)
-    staging = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", suffix=".new", dir=folder.parent))
+    staging = Path(tempfile.mkdtemp(prefix=f".{folder.name[:40]}.", suffix=".new", dir=folder.parent))
     try:
         yield staging
     except BaseException:
@@ -100,7 +103,7 @@ def replaced_folder(folder: str | os.PathLike, *, keep_others: bool = True) -> I
         raise
     os.chmod(staging, 0o777 & ~_umask())
     if folder.exists():
-        old = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", suffix=".old", dir=folder.parent))
+        old = Path(tempfile.mkdtemp(prefix=f".{folder.name[:40]}.", suffix=".old", dir=folder.parent))
         os.replace(folder, old / folder.name)  # aside, on the same file system
         try:
             os.replace(staging, folder)
@@ -128,14 +131,19 @@ def check_writable_folder(folder: str | os.PathLike) -> Path:
     reason otherwise. Commands call this before any work."""
     folder = Path(folder)
     existing = folder
-    while not existing.exists() and existing != existing.parent:
-        existing = existing.parent
     try:
+        while not os.path.lexists(existing) and existing != existing.parent:  # lexists: False, not an error,
+            existing = existing.parent                                        # for a name too long
         if not existing.is_dir():
             raise NotADirectoryError(f"{str(existing)!r} is not a folder")
         handle, name = tempfile.mkstemp(prefix=".write-check.", dir=existing)
         os.close(handle)
         os.unlink(name)
+        longest = os.pathconf(existing, "PC_NAME_MAX")
+        for part in folder.relative_to(existing).parts if existing != folder else ():
+            if len(os.fsencode(part)) > longest:
+                raise OSError(errno.ENAMETOOLONG, f"the name {part[:20]!r}... has {len(os.fsencode(part))} bytes, "
+                                                  f"beyond the file system's {longest}")
     except OSError as error:
         raise UnwritableFolder(f"cannot write into {str(folder)!r}: {error.strerror or error}") from None
     return folder

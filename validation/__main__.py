@@ -102,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 # A folder made read-only during the run, a full disk or quota, a read-only file system.
-_WRITE_ERRORS = (errno.EACCES, errno.EPERM, errno.ENOSPC, errno.EDQUOT, errno.EROFS)
+_WRITE_ERRORS = (errno.EACCES, errno.EPERM, errno.ENOSPC, errno.EDQUOT, errno.EROFS, errno.ENAMETOOLONG)
 
 
 class InputProblem(ValueError):

@@ -56,3 +56,10 @@ def test_unknown_bench_scene_and_hard_case_are_input_problems(stubbed, capsys):
     assert "--scene nope: expected one of" in capsys.readouterr().err
     assert cli.main(["hard", "--case", "99"]) == cli.INPUT_PROBLEM
     assert "--case 99: expected case numbers 1..9" in capsys.readouterr().err
+
+
+def test_out_with_a_name_too_long_is_refused_before_any_work(stubbed, capsys, monkeypatch):
+    monkeypatch.setattr(cases, "default_cases", lambda quick=False: pytest.fail("ran before checking --out"))
+    assert cli.main(["--out", "x" * 300]) == cli.INPUT_PROBLEM
+    err = capsys.readouterr().err
+    assert "beyond the file system's" in err and len(err.splitlines()) == 1
