@@ -14,6 +14,8 @@ MODELS_DIR = Path(__file__).resolve().parent.parent / "models"
 def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="python -m validation",
+        # one line: the main command's options, with the cluster's, would fill four (the error then a fifth)
+        usage="%(prog)s [run] [options] | {export,bench,hard,compare} ... (--help lists the options)",
         description="Run rbody's scenes in rbody, MuJoCo and pymunk and compare each with the exact solution.",
         epilog="Exit status: 0 all measures within their baselines; 1 a regression (a measure worse than its "
                "baseline); 2 a problem with the inputs, found before the run where it can be (a bad argument, "
