@@ -51,11 +51,14 @@ def notes(rows: Iterable) -> str:
 
 # ----- figures -----------------------------------------------------------------------------------
 
-def _save(figure, out: Path, name: str) -> str:
+def save_figure(figure, out: Path, name: str, *, dpi: int = 110, tight: bool = True) -> str:
+    """Write `figure` as out/name (through a temporary name, then renamed) and close it; returns name.
+    tight: lay it out with tight_layout first (False where the caller has laid it out itself)."""
     path = out / name
-    figure.tight_layout()
+    if tight:
+        figure.tight_layout()
     with atomic_path(path) as temporary:
-        figure.savefig(temporary, dpi=110, format=path.suffix.lstrip(".") or "png")
+        figure.savefig(temporary, dpi=dpi, format=path.suffix.lstrip(".") or "png")
     plt.close(figure)
     return name
 
@@ -73,7 +76,7 @@ def figure_race(runs: Mapping[str, Trajectory], exact: Mapping[str, np.ndarray],
     axis.plot([], [], color="black", lw=1, label="exact")
     axis.set(xlabel="t [s]", ylabel="distance down the slope [m]", title="The rolling race")
     axis.legend()
-    return _save(figure, out, "rolling_race.png")
+    return save_figure(figure, out, "rolling_race.png")
 
 
 def figure_pendulum(runs: Mapping[str, Trajectory], exact_of, out: Path, name: str, title: str) -> str:
@@ -90,7 +93,7 @@ def figure_pendulum(runs: Mapping[str, Trajectory], exact_of, out: Path, name: s
     top.set(ylabel="theta [rad]", title=title)
     bottom.set(xlabel="t [s]", ylabel="|E - E*| / |E*|")
     top.legend(loc="upper right")
-    return _save(figure, out, name)
+    return save_figure(figure, out, name)
 
 
 def figure_pi(counts: Mapping[str, Mapping[int, int]], out: Path) -> str:
@@ -107,7 +110,7 @@ def figure_pi(counts: Mapping[str, Mapping[int, int]], out: Path) -> str:
     axis.set(xlabel="digits asked for N (mass ratio 100^N)", ylabel="leading digits of pi right",
              title="Collision counts: digits of pi")
     axis.legend()
-    return _save(figure, out, "pi_digits.png")
+    return save_figure(figure, out, "pi_digits.png")
 
 
 def figure_rotation(runs: Mapping[str, Trajectory], out: Path) -> str:
@@ -122,7 +125,7 @@ def figure_rotation(runs: Mapping[str, Trajectory], out: Path) -> str:
     top.set(ylabel="|E/E0 - 1|", title="Free rotation: invariants")
     bottom.set(xlabel="t [s]", ylabel="||L|/|L0| - 1|")
     top.legend()
-    return _save(figure, out, "free_rotation.png")
+    return save_figure(figure, out, "free_rotation.png")
 
 
 def figure_series(runs: Mapping[str, Trajectory], exact_of, name: str, columns: Mapping[str, str], ylabel: str,
@@ -142,7 +145,7 @@ def figure_series(runs: Mapping[str, Trajectory], exact_of, name: str, columns: 
         axis.annotate(label, (t[-1], pick(exact)[-1]), fontsize=8)
     axis.set(xlabel="t [s]", ylabel=ylabel, title=title)
     axis.legend()
-    return _save(figure, out, file)
+    return save_figure(figure, out, file)
 
 
 def figure_orbit(runs: Mapping[str, Trajectory], exact_of, out: Path) -> str:
@@ -158,7 +161,7 @@ def figure_orbit(runs: Mapping[str, Trajectory], exact_of, out: Path) -> str:
     axis.set(xlabel="x [m]", ylabel="z [m]", title="The two-body problem: orbits about the centre of mass",
              aspect="equal")
     axis.legend()
-    return _save(figure, out, "two_body.png")
+    return save_figure(figure, out, "two_body.png")
 
 
 def write(out: Path, rows: list, figures: list[tuple[str, str]], header: str, regressions: list[str]) -> Path:

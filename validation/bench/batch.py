@@ -33,7 +33,6 @@ from pathlib import Path
 import numpy as np
 from numba import njit, prange
 
-from rbody._files import atomic_path
 
 DT = 1e-3
 SAMPLES = 100
@@ -343,6 +342,8 @@ def _plot(rows: list[dict], out: Path) -> str:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from validation.report import save_figure  # here, not at import: the batch workers stay without matplotlib
+
     figure, (left, right) = plt.subplots(1, 2, figsize=(12, 4.6))
     for mode in MODES[False]:
         mine = [r for r in rows if r["mode"] == mode and not r["failure"]]
@@ -356,11 +357,7 @@ def _plot(rows: list[dict], out: Path) -> str:
               title=f"Peak memory ({SAMPLES + 1} samples)")
     left.legend(fontsize=8)
     right.legend(fontsize=8)
-    figure.tight_layout()
-    with atomic_path(out / "batch.png") as temporary:
-        figure.savefig(temporary, dpi=100, format="png")
-    plt.close(figure)
-    return "batch.png"
+    return save_figure(figure, out, "batch.png", dpi=100)
 
 
 def _markdown(rows: list[dict], single: dict, check: float, figure: str) -> list[str]:

@@ -27,7 +27,6 @@ from pathlib import Path
 
 import numpy as np
 
-from rbody._files import atomic_path
 
 PI_DIGITS = {False: tuple(range(9)), True: tuple(range(6))}
 PI_GOALS = {7: 1.0, 8: 10.0}  # digits -> seconds
@@ -224,6 +223,8 @@ def _plot(rows: list[dict], fitted: list[dict], out: Path) -> str:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    from validation.report import save_figure  # here, not at import: the batch workers stay without matplotlib
+
     p = {(f["kind"], f["method"]): f["p"] for f in fitted}
     figure, axes = plt.subplots(1, 3, figsize=(15, 4.6))
     panels = (("pi", "impacts floor(pi 10^N)", "seconds per run"),
@@ -242,11 +243,7 @@ def _plot(rows: list[dict], fitted: list[dict], out: Path) -> str:
                 axis.loglog(x, [r["seconds_construct"] for r in mine], "s--", label="building the scene (one run)")
         axis.set(xlabel=xlabel, ylabel=ylabel, title=f"cost growth: {kind}")
         axis.legend(fontsize=7)
-    figure.tight_layout()
-    with atomic_path(out / "growth.png") as temporary:
-        figure.savefig(temporary, dpi=100, format="png")
-    plt.close(figure)
-    return "growth.png"
+    return save_figure(figure, out, "growth.png", dpi=100)
 
 
 def _markdown(rows: list[dict], fitted: list[dict], figure: str) -> list[str]:

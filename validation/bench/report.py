@@ -13,8 +13,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from rbody._files import atomic_path, write_atomic  # noqa: E402
+from rbody._files import write_atomic  # noqa: E402
 from validation.bench.scenes import REDUCED_LABEL  # noqa: E402
+from validation.report import save_figure  # noqa: E402
 
 LEVELS = (1e-3, 1e-6, 1e-9, 1e-12)
 GOAL_RATIO = 10.0  # rbody at least this many times cheaper than the best other simulator
@@ -99,11 +100,7 @@ def plot_scene(points: Sequence, bench, out: Path) -> str:
     axes[0].plot([], [], "x", color="black", label="failure (unstable, miscount, slip)")
     figure.legend(loc="lower center", ncol=4, fontsize=7, frameon=False)
     figure.tight_layout(rect=(0, 0.17, 1, 1))
-    name = f"wp_{bench.name}.png"
-    with atomic_path(out / name) as temporary:
-        figure.savefig(temporary, dpi=100, format="png")
-    plt.close(figure)
-    return name
+    return save_figure(figure, out, f"wp_{bench.name}.png", dpi=100, tight=False)
 
 
 # ----- the summary -----------------------------------------------------------------------------------

@@ -7,7 +7,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from validation.report import COLOURS, _save, plt
+from validation.report import COLOURS, plt, save_figure
 
 METHOD_COLOURS = {"euler": "tab:red", "symplectic_euler": "tab:pink", "verlet": "tab:blue", "rk4": "tab:orange",
                   "yoshida6": "tab:green", "gauss6": "tab:purple", "splitting": "tab:cyan", "reference": "black",
@@ -43,7 +43,7 @@ def figure_pi_time(points: Mapping[str, Sequence[tuple[float, int, int]]], out: 
              title="pi collisions: digits right against time")
     axis.grid(True, which="both", alpha=0.3)
     axis.legend()
-    return _save(figure, out, "hard_pi_digits_time.png")
+    return save_figure(figure, out, "hard_pi_digits_time.png")
 
 
 def figure_drift(curves: Mapping[str, tuple[np.ndarray, np.ndarray]], out: Path, name: str, title: str,
@@ -58,7 +58,7 @@ def figure_drift(curves: Mapping[str, tuple[np.ndarray, np.ndarray]], out: Path,
     axis.set(xlabel=xlabel, ylabel=ylabel, title=title)
     axis.grid(True, which="both", alpha=0.3)
     axis.legend(fontsize=8, ncol=2)
-    return _save(figure, out, name)
+    return save_figure(figure, out, name)
 
 
 def figure_panels(panels: Sequence[tuple[str, Mapping[str, tuple[np.ndarray, np.ndarray]]]], out: Path, name: str,
@@ -77,7 +77,7 @@ def figure_panels(panels: Sequence[tuple[str, Mapping[str, tuple[np.ndarray, np.
     axes[0][0].set_ylabel(ylabel)
     axes[0][-1].legend(fontsize=7)
     figure.suptitle(title)
-    return _save(figure, out, name)
+    return save_figure(figure, out, name)
 
 
 def figure_step_outcomes(grid: Mapping[str, Sequence[tuple[float, str]]], out: Path, name: str, title: str) -> str:
@@ -96,7 +96,7 @@ def figure_step_outcomes(grid: Mapping[str, Sequence[tuple[float, str]]], out: P
     axis.set_yticks(range(len(labels)), labels, fontsize=8)
     axis.set(xlabel="dt / estimated stability limit", title=title)
     axis.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.0, 1.0))
-    return _save(figure, out, name)
+    return save_figure(figure, out, name)
 
 
 __all__ = ["figure_pi_time", "figure_drift", "figure_panels", "figure_step_outcomes"]
