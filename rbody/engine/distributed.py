@@ -131,7 +131,7 @@ def integrate_rows(scene: Scene, start: int, stop: int, method: str, dt: float, 
     numba's threads are limited to the worker's threads, so that a worker per core does not oversubscribe."""
     import numba
 
-    from rbody.engine.simulate import _integrate, _integrate_across_break
+    from rbody.engine.simulate import integrate_model
 
     model = scene.native_model  # built once per worker: the scattered scene is one object there
     rows = dataclasses.replace(model, y0=np.ascontiguousarray(model.y0[start:stop]),
@@ -140,10 +140,7 @@ def integrate_rows(scene: Scene, start: int, stop: int, method: str, dt: float, 
     previous = numba.get_num_threads()
     numba.set_num_threads(max(1, min(previous, _worker_threads())))  # this thread's launches only
     try:
-        if rows.break_time is not None and 0 < rows.break_time < nsteps * dt:  # as simulate decides
-            failed = _integrate_across_break(rows, method, dt, nsteps, save_every, out)
-        else:
-            failed = _integrate(rows, method, dt, nsteps, save_every, out)
+        failed = integrate_model(rows, method, dt, nsteps, save_every, out)  # as simulate runs them
     finally:
         numba.set_num_threads(previous)
     return out, failed

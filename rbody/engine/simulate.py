@@ -81,10 +81,8 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
     if client is not None:  # the batch's rows as tasks on a Dask cluster, each as below
         from rbody.engine.distributed import integrate_on_cluster
         failed = integrate_on_cluster(client, scene, model, method, dt, nsteps, save_every, out, chunk)
-    elif model.break_time is not None and 0 < model.break_time < nsteps * dt:
-        failed = _integrate_across_break(model, method, dt, nsteps, save_every, out)
     else:
-        failed = _integrate(model, method, dt, nsteps, save_every, out)
+        failed = integrate_model(model, method, dt, nsteps, save_every, out)
     if np.any(failed >= 0):
         b = int(np.argmax(failed >= 0))
         what = "a non-finite state"
@@ -179,7 +177,7 @@ def estimate_work(scene: Scene, dt: float, t_end: float, save_every: int) -> dic
         model = scene.native_model
         state = model.y0.shape[1]
         held = samples * state * batch
-        if model.break_time is not None and 0 < model.break_time < steps * dt:
+        if crosses_break(model, steps, dt):
             held += (steps + 1) * state * batch      # _integrate_across_break keeps every step
     return {"steps": float(steps), "batch": batch, "samples": float(samples), "bytes": 8.0 * held,
             "impacts": impacts}
@@ -212,6 +210,19 @@ def _steps(t_end: float, dt: float, save_every: int) -> int:
     """Number of steps: t_end/dt rounded up (to round-off), then up to a multiple of save_every."""
     nsteps = max(1, math.ceil(t_end / dt * (1 - 1e-12)))
     return -(-nsteps // save_every) * save_every
+
+
+def crosses_break(model, nsteps: int, dt: float) -> bool:
+    """Whether a run of nsteps steps of dt passes model.break_time (then the straddling step is cut there)."""
+    return model.break_time is not None and 0 < model.break_time < nsteps * dt
+
+
+def integrate_model(model, method: str, dt: float, nsteps: int, save_every: int, out: np.ndarray) -> np.ndarray:
+    """The compiled run of `model` (a whole batch or some of its rows): cut at its break time where the run
+    crosses it, else in one loop. out (nsteps // save_every + 1, B, n) filled; returns failed (B,)."""
+    if crosses_break(model, nsteps, dt):
+        return _integrate_across_break(model, method, dt, nsteps, save_every, out)
+    return _integrate(model, method, dt, nsteps, save_every, out)
 
 
 def _integrate_across_break(model, method: str, dt: float, nsteps: int, save_every: int,
