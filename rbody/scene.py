@@ -95,7 +95,8 @@ def _direction(axis) -> np.ndarray:
     return unit_axis(axis, "axis")
 
 
-JOINT_KINDS = ("hinge", "slide", "ball", "free")
+JOINT_KINDS = ("hinge", "slide", "ball", "free", "roll")
+ROLL_PERPENDICULAR_TOL = 1e-9  # |axis . normal| of a roll joint above this: the two are not perpendicular
 
 
 @dataclass(frozen=True)
@@ -103,7 +104,8 @@ class Joint:
     """A joint between `body` and its parent.
 
     kind:   "hinge" (angle about axis through anchor), "slide" (distance along axis), "ball" (any
-            rotation about anchor), "free"
+            rotation about anchor), "free", "roll" (a round body of radius `radius` rolling without slipping
+            on a line: one coordinate, the angle turned about `axis` through anchor, the body's centre)
     axis:   (3,) direction in the body frame; anchor: (3,) point in the body frame [m]
     qpos0, qvel0: initial coordinate [rad or m] and rate [rad/s or m/s] (hinge and slide);
             ball: qpos0 a quaternion (w, x, y, z) (0.0: identity), qvel0 (3,) the angular velocity in
@@ -116,8 +118,13 @@ class Joint:
     diagonal of the mass matrix; ref is the coordinate at which the body sits at its reference pose
     (the displacement applied is q - ref).
     A hinge turns the body by +angle about `axis` (right-handed); a slide moves it by +distance along
-    `axis`; several joints on one body compose in the order given (as MJCF). Backends report hinge and
-    slide joints as (qpos (T,), qvel (T,)) under the joint's name.
+    `axis`; several joints on one body compose in the order given (as MJCF). Backends report hinge,
+    slide and roll joints as (qpos (T,), qvel (T,)) under the joint's name.
+    roll:   radius a [m] > 0 and normal e (3,), the unit normal of the surface rolled on, pointing from the
+            contact point to the centre, body frame, perpendicular to `axis`. The body first slides by
+            a (q - ref) along l = axis x normal, then turns by q - ref about `axis` through anchor: the
+            contact point anchor - a e is at rest (v_centre = a q' l). Exported to MJCF as a slide and a
+            hinge tied by a joint equality.
     """
 
     name: str
@@ -132,11 +139,24 @@ class Joint:
     springref: float = 0.0
     armature: float = 0.0
     ref: float = 0.0
+    radius: float = 0.0
+    normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
 
     def __post_init__(self) -> None:
         if self.kind not in JOINT_KINDS:
             raise ValueError(f"joint {self.name!r}: kind={self.kind!r}, expected one of {JOINT_KINDS}")
         object.__setattr__(self, "axis", tuple(_direction(self.axis).tolist()))
+        object.__setattr__(self, "normal", tuple(_direction(self.normal).tolist()))
+        radius = float(finite_array(self.radius, f"joint {self.name!r}: radius", shape=()))
+        object.__setattr__(self, "radius", radius)
+        if self.kind == "roll":
+            if not radius > 0:
+                raise ValueError(f"joint {self.name!r}: radius={self.radius!r}: a roll joint needs a rolling radius > 0 [m]")
+            if abs(float(np.dot(self.axis, self.normal))) > ROLL_PERPENDICULAR_TOL:
+                raise ValueError(f"joint {self.name!r}: axis={self.axis!r} and normal={self.normal!r} are not "
+                                 "perpendicular: a roll joint turns about an axis lying in the surface it rolls on")
+        elif radius != 0.0:
+            raise ValueError(f"joint {self.name!r}: radius={self.radius!r} is only for roll joints (kind={self.kind!r})")
         for name in ("damping", "stiffness", "armature"):
             value = finite_array(getattr(self, name), f"joint {self.name!r}: {name}", shape=())
             object.__setattr__(self, name, float(nonnegative(value, f"joint {self.name!r}: {name}")))
