@@ -302,6 +302,17 @@ class Rolling(Scene):
         contact = Contact(body.shapes[0].name, "incline", friction=float(self.friction), restitution=0.0)
         return Layout(bodies=(body,), joints=joints, fixed=(incline_shape,), contacts=(contact,))
 
+    def rolling_tree(self) -> Layout:
+        """The reduced description (unbatched scenes): the body on one roll joint "roll" (rbody.scene.Joint),
+        the rolling constraint held by the coordinate; the incline drawn but touching nothing (no contacts).
+        Valid while the body rolls (self.rolls); `layout` is the contact model every simulator can run."""
+        self.require_single("the rolling tree")
+        radius, mass, incline = float(self.radius), float(self.mass), float(self.incline)
+        inertia = _body_inertia(self.body, mass, radius)
+        travel = float(self.exact([self.t_end])["distance"][0])
+        part, joint = _roll_body(self.body, inertia, radius, incline, np.zeros(3), "body", "roll")
+        return Layout(bodies=(part,), joints=(joint,), fixed=(_incline_shape(incline, travel, 4 * radius, radius),))
+
     def observe(self, t, bodies, joints) -> dict[str, np.ndarray]:
         radius, incline = float(self.radius), float(self.incline)
         x, speed = (np.asarray(v, dtype=float) for v in joints["x"])
@@ -313,6 +324,20 @@ class Rolling(Scene):
     def describe(self) -> str:
         return (f"{self.name}({_label(self.body)}, radius={self.radius!r} m, mass={self.mass!r} kg, "
                 f"incline={self.incline!r} rad, friction={self.friction!r})")
+
+
+def _roll_body(body: str | Inertia, inertia: Inertia, radius: float, incline: float, offset: np.ndarray,
+               name: str, joint: str) -> tuple[Body, Joint]:
+    """The body as in _rolling_body (centre of mass at a n + offset, body axes = world axes) on one roll
+    joint `joint`: axis +y, normal n = (sin(alpha), 0, cos(alpha)), anchor the centre of mass. Then
+    l = y x n = (cos(alpha), 0, -sin(alpha)) = d: a positive angle rolls the body down the slope."""
+    _down, normal = _slope_frame(incline)
+    com = inertia.com
+    centre = radius * normal + offset
+    shape = _body_shape(body, radius, f"{name}_shape", com)
+    part = Body(name, inertia, shapes=(shape,), pos=tuple((centre - com).tolist()))
+    return part, Joint(joint, "roll", name, axis=(0.0, 1.0, 0.0), anchor=tuple(com.tolist()), radius=radius,
+                       normal=tuple(normal.tolist()))
 
 
 def _rolling_body(body: str | Inertia, inertia: Inertia, radius: float, incline: float, offset: np.ndarray,
@@ -530,6 +555,22 @@ class RollingRace(Scene):
             joints.extend(body_joints)
             contacts.append(Contact(part.shapes[0].name, "incline", friction=self.friction, restitution=0.0))
         return Layout(bodies=tuple(parts), joints=tuple(joints), fixed=(incline_shape,), contacts=tuple(contacts))
+
+    def rolling_tree(self) -> Layout:
+        """The reduced description: body_i on roll joint "roll_i" (rbody.scene.Joint), side by side as in the
+        layout, the incline drawn but touching nothing. Valid for the bodies that roll (self.rolls); `layout`
+        is the contact model every simulator can run."""
+        n = len(self.bodies)
+        travel = float(np.max(self.exact([self.t_end])["distance"]))
+        parts, joints = [], []
+        for i, spec in enumerate(self.bodies):
+            inertia = _body_inertia(spec, self.mass, self.radius)
+            offset = np.array([0.0, (i - (n - 1) / 2) * self._spacing(), 0.0])
+            part, joint = _roll_body(spec, inertia, self.radius, self.incline, offset, f"body_{i}", f"roll_{i}")
+            parts.append(part)
+            joints.append(joint)
+        incline_shape = _incline_shape(self.incline, travel, n * self._spacing() / 2 + 2 * self.radius, self.radius)
+        return Layout(bodies=tuple(parts), joints=tuple(joints), fixed=(incline_shape,))
 
     def observe(self, t, bodies, joints) -> dict[str, np.ndarray]:
         n = len(self.bodies)
