@@ -382,35 +382,37 @@ class Rolling(Scene):
                 f"incline={self.incline!r} rad, friction={self.friction!r})")
 
 
-def _roll_body(body: str | Inertia, inertia: Inertia, radius: float, incline: float, offset: np.ndarray,
-               name: str, joint: str) -> tuple[Body, Joint]:
-    """The body as in _rolling_body (centre of mass at a n + offset, body axes = world axes) on one roll
-    joint `joint`: axis +y, normal n = (sin(alpha), 0, cos(alpha)), anchor the centre of mass. Then
-    l = y x n = (cos(alpha), 0, -sin(alpha)) = d: a positive angle rolls the body down the slope."""
+def _placed_body(body: str | Inertia, inertia: Inertia, radius: float, incline: float, offset: np.ndarray,
+                 name: str) -> Body:
+    """The body with its centre of mass at a n + offset (reference pose, body axes = world axes)."""
     _down, normal = _slope_frame(incline)
     com = inertia.com
-    centre = radius * normal + offset
     shape = _body_shape(body, radius, f"{name}_shape", com)
-    part = Body(name, inertia, shapes=(shape,), pos=tuple((centre - com).tolist()))
-    return part, Joint(joint, "roll", name, axis=(0.0, 1.0, 0.0), anchor=tuple(com.tolist()), radius=radius,
-                       normal=tuple(normal.tolist()))
+    return Body(name, inertia, shapes=(shape,), pos=tuple((radius * normal + offset - com).tolist()))
+
+
+def _roll_body(body: str | Inertia, inertia: Inertia, radius: float, incline: float, offset: np.ndarray,
+               name: str, joint: str) -> tuple[Body, Joint]:
+    """The placed body on one roll joint `joint`: axis +y, normal n = (sin(alpha), 0, cos(alpha)), anchor the
+    centre of mass. Then l = y x n = (cos(alpha), 0, -sin(alpha)) = d: a positive angle rolls it down the slope."""
+    _down, normal = _slope_frame(incline)
+    return (_placed_body(body, inertia, radius, incline, offset, name),
+            Joint(joint, "roll", name, axis=(0.0, 1.0, 0.0), anchor=tuple(inertia.com.tolist()), radius=radius,
+                  normal=tuple(normal.tolist())))
 
 
 def _rolling_body(body: str | Inertia, inertia: Inertia, radius: float, incline: float, offset: np.ndarray,
                   name: str, suffix: str) -> tuple[Body, tuple[Joint, ...]]:
-    """The body with its centre of mass at a n + offset (reference pose, body axes = world axes) and its
-    joints: slide "x" along d, slide "z" along n, hinge "phi" about +y through the centre of mass."""
+    """The placed body and its joints: slide "x" along d, slide "z" along n, hinge "phi" about +y through the
+    centre of mass."""
     down, normal = _slope_frame(incline)
     com = inertia.com
-    centre = radius * normal + offset
-    shape = _body_shape(body, radius, f"{name}_shape", com)
-    part = Body(name, inertia, shapes=(shape,), pos=tuple((centre - com).tolist()))
     joints = (
         Joint(f"x{suffix}", "slide", name, axis=tuple(down.tolist()), anchor=tuple(com.tolist())),
         Joint(f"z{suffix}", "slide", name, axis=tuple(normal.tolist()), anchor=tuple(com.tolist())),
         Joint(f"phi{suffix}", "hinge", name, axis=(0.0, 1.0, 0.0), anchor=tuple(com.tolist())),
     )
-    return part, joints
+    return _placed_body(body, inertia, radius, incline, offset, name), joints
 
 
 def _stacked_tree_native(trees: Sequence[Layout], gravity: float, t_end: float, which: np.ndarray) -> NativeModel:
