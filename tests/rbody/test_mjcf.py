@@ -556,6 +556,15 @@ def test_mujoco_rolls_the_exported_roll_joint_by_the_closed_form(body):
 RATIO_OF = {"disc": 1 / 2, "hollow_cylinder": 1.0, "solid_sphere": 2 / 5, "spherical_shell": 2 / 3}
 
 
+def test_roll_joint_passive_attributes_go_on_the_hinge_the_coordinate_q():
+    scene = rolling_tree_scene(damping=0.3, stiffness=2.0, springref=0.4, armature=0.01)
+    model = compile_scene(scene, dt=1e-3)
+    np.testing.assert_array_equal(model.dof_damping, [0.0, 0.3])
+    np.testing.assert_array_equal(model.dof_armature, [0.0, 0.01])
+    np.testing.assert_array_equal(model.jnt_stiffness, [0.0, 2.0])
+    np.testing.assert_array_equal(model.qpos_spring, [0.0, 0.4])
+
+
 def test_roll_joint_names_and_degrees_of_freedom_are_checked():
     tree = rolling(radius=0.1, incline=0.5).rolling_tree()
     body = tree.bodies[0]
