@@ -574,3 +574,28 @@ def test_roll_joint_names_and_degrees_of_freedom_are_checked():
     many = [Joint(f"s{i}", "slide", "body", axis="z") for i in range(5)]
     with pytest.raises(ValueError, match="at most 6 degrees of freedom"):
         to_mjcf(handmade([body], [*many, tree.joints[0]]))
+
+
+def test_exported_roll_tree_has_the_engines_kinematics():
+    """A user's tree (Scene.from_layout) with a roll joint carrying a pendulum, at a state away from rest: the
+    exported model's body poses and velocities (MuJoCo's kinematics) equal the general engine's."""
+    tree = rolling("spherical_shell", radius=0.2, incline=0.3).rolling_tree()
+    wheel = dataclasses.replace(tree.joints[0], ref=0.2)
+    bob = Body("bob", Inertia.box(0.3, (0.05, 0.1, 0.2)).translated([0.0, 0.0, -0.25]), parent="body",
+               pos=(0.0, 0.0, 0.0))
+    swing = Joint("swing", "hinge", "bob", axis=(0.0, 1.0, 0.0))
+    user = Scene.from_layout(Layout(bodies=(*tree.bodies, bob), joints=(wheel, swing)), t_end=1.0,
+                             qpos0=[1.1, -0.4], qvel0=[2.0, 0.7])
+    model = compile_scene(user, dt=1e-3)
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, 0)
+    np.testing.assert_allclose(data.qpos, [0.2 * 1.1, 1.1, -0.4], rtol=1e-15)
+    mujoco.mj_forward(model, data)
+    states = user.multibody.body_states(np.array([1.1, -0.4]), np.array([2.0, 0.7]))
+    for i, name in enumerate(user.multibody.body_names):
+        b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
+        velocity = np.zeros(6)
+        mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, b, velocity, 0)
+        np.testing.assert_allclose(states["com"][i], data.xipos[b], atol=1e-14)
+        np.testing.assert_allclose(states["velocity"][i], velocity[3:], atol=1e-14)
+        np.testing.assert_allclose(states["omega"][i], velocity[:3], atol=1e-14)

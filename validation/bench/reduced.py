@@ -25,7 +25,6 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
 
 import mujoco
 import numpy as np
@@ -34,7 +33,7 @@ from mujoco import rollout as mj_rollout
 from rbody._checks import run_times, whole_number
 from rbody.errors import SimulationError
 from rbody.mjcf import to_mjcf
-from rbody.scene import Layout, Scene
+from rbody.scene import Scene
 from rbody.trajectory import Trajectory
 
 VARIANTS = ("slide", "slide+hinge")
@@ -43,20 +42,6 @@ VARIANTS = ("slide", "slide+hinge")
 # (0.02 s; 0.9, 0.95) the disc slips by 0.088 m/s and the distance error stays at 2.5e-3 m for every dt; with
 # these it falls to 4.2e-10 m at RK4, dt = 1e-4.
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
-
-
-@dataclass(frozen=True, kw_only=True)
-class _RollingTree(Scene):
-    """A rolling scene's reduced tree (its rolling_tree(): one roll joint per body) as the scene to_mjcf writes."""
-
-    tree: Layout
-    source: str
-
-    def _layout(self) -> Layout:
-        return self.tree
-
-    def describe(self) -> str:
-        return f"the rolling tree of {self.source}"
 
 
 def _rolling_bodies(scene: Scene) -> list[dict]:
@@ -84,8 +69,8 @@ def reduced_mjcf(scene: Scene, variant: str, dt: float, integrator: str) -> str:
     if variant not in VARIANTS:
         raise ValueError(f"variant={variant!r}: expected one of {VARIANTS}")
     if variant == "slide+hinge":
-        tree = _RollingTree(name=scene.name, t_end=scene.t_end, gravity=scene.gravity, tree=scene.rolling_tree(),
-                            source=scene.describe())
+        tree = Scene.from_layout(scene.rolling_tree(), t_end=scene.t_end, gravity=scene.gravity,
+                                 name=f"{scene.name}_rolling_tree")
         return to_mjcf(tree, dt=dt, integrator=integrator)
     radius = float(scene.radius)
     bodies = []
