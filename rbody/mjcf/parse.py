@@ -618,6 +618,10 @@ class _Reader:
         self.check_attrs(element, set())
         for child in element.children:
             if self.equality_on and child.attrib.get("active", "true") == "true":
+                if child.tag == "joint":  # rbody.to_mjcf writes a roll joint as slide, hinge and this equality
+                    raise child.error("equality constraints are not supported (rbody models trees of joints only); "
+                                      "a joint equality slide = a hinge, as rbody.to_mjcf writes a roll joint, is "
+                                      "not read back as a roll joint: build the tree with Joint(kind=\"roll\")")
                 raise child.error("equality constraints are not supported (rbody models trees of joints only)")
             self.note("equality", "equality constraints ignored (disabled)")
 

@@ -599,3 +599,11 @@ def test_exported_roll_tree_has_the_engines_kinematics():
         np.testing.assert_allclose(states["com"][i], data.xipos[b], atol=1e-14)
         np.testing.assert_allclose(states["velocity"][i], velocity[3:], atol=1e-14)
         np.testing.assert_allclose(states["omega"][i], velocity[:3], atol=1e-14)
+
+
+def test_exported_roll_joint_is_not_read_back_and_the_reader_says_so():
+    from rbody.mjcf import MJCFError, from_mjcf
+
+    xml = to_mjcf(rolling_tree_scene(), dt=1e-3)
+    with pytest.raises(MJCFError, match="roll joint"):
+        from_mjcf(xml)
