@@ -623,8 +623,8 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
                      f"(e = 1): K=(1/dt)^2={1 / dt**2!r}, B=0; 0 < e < 1: K=(pi/({IMPACT_STEPS} dt))^2 with the "
                      "damping of restitution e; condim 1 where frictionless.")
     if rolls:
-        lines.append(f"Roll joints ({', '.join(j.name for j in rolls)}): each is a slide <name>{ROLL_SLIDE_SUFFIX} along "
-                     "axis x normal, then a hinge <name> about its axis, tied by a joint equality slide = a hinge "
+        lines.append(f"Roll joints ({', '.join(j.name for j in rolls)}): each is a slide <name>{ROLL_SLIDE_SUFFIX} "
+                     "along axis x normal, then a hinge <name> about its axis, tied by a joint equality slide = a hinge "
                      f"(rolling without slipping, a the rolling radius), solref=({EQUALITY_TIMECONST_STEPS:g} dt, 1)="
                      f"({EQUALITY_TIMECONST_STEPS * dt!r}, 1), solimp={EQUALITY_SOLIMP}: a soft constraint MuJoCo "
                      "solves every step, so the constraint solver stays on. rbody integrates the one coordinate q "

@@ -17,7 +17,7 @@ from rbody import Inertia, Scene
 from rbody.engine import multibody
 from rbody.mjcf import roll_slide_axis
 from rbody.scenes import rolling, rolling_race
-from rbody.scenes.rolling import rolling_accel, rolling_rhs
+from rbody.scenes.rolling import rolling_rhs
 
 rolling_module = importlib.import_module("rbody.scenes.rolling")  # the module (rbody.scenes.rolling is the factory)
 
@@ -95,7 +95,6 @@ def test_the_engine_accelerations_are_the_kernels():
             accel = np.empty(1)
             engine.accel(y[:1].copy(), np.ascontiguousarray(engine.params[0]), accel)
             assert accel[0] == pytest.approx(want[3], rel=1e-14)
-        _ = rolling_accel  # the kernel's own accel is the oracle of verlet (test_rolling.py)
 
 
 # ----- the tree: l = y x n points down the slope ------------------------------------------------------------
