@@ -534,7 +534,7 @@ class TreeScene(Scene):
         depend on the state), no damping, and every hinge alone in its part of the tree (no other degree of
         freedom above or below it: a hinge with a moving ancestor or descendant couples them through the
         angle). Chains of slides alone keep M constant too."""
-        from rbody.engine.multibody import BALL, D_PARENT, DOF_SIZE, FREE, H_DOF, HINGE, KIND_CODE
+        from rbody.engine.multibody import BALL, D_PARENT, DOF_SIZE, FREE, H_DOF, HINGE, KIND_CODE, ROLL
 
         model = self.multibody
         kinds = [KIND_CODE[k] for k in model.arrays.joint_kinds]
@@ -552,11 +552,25 @@ class TreeScene(Scene):
                 related[k].add(d)
                 k = parent[k]
         for d in range(model.nv):
-            if kinds[model.arrays.dof_joint[d]] == HINGE and related[d]:
-                joint = model.joint_names[model.arrays.dof_joint[d]]
-                return (f"hinge {joint!r} shares its branch of the tree with other joints, so the mass matrix depends "
-                        "on its angle")
+            kind = kinds[model.arrays.dof_joint[d]]
+            joint = model.joint_names[model.arrays.dof_joint[d]]
+            if kind in (HINGE, ROLL) and related[d]:
+                return (f"{model.arrays.joint_kinds[model.arrays.dof_joint[d]]} {joint!r} shares its branch of the "
+                        "tree with other joints, so the mass matrix depends on its angle")
+            if kind == ROLL and not self._roll_inertia_constant(d):
+                return (f"roll {joint!r} carries its centre of mass off its axis, so the mass matrix depends on its "
+                        "angle")
         return ""
+
+    def _roll_inertia_constant(self, dof: int) -> bool:
+        """True when M of a roll degree of freedom alone in its branch is the same at every angle. That entry is
+        m a^2 + I_axis + 2 m a (l . (n x r)), r the centre of mass from the axis turned by the angle: a
+        trigonometric polynomial of degree 1, constant exactly when it takes one value at three angles."""
+        model = self.multibody
+        q = np.repeat(np.asarray(model.qpos0)[None], 3, axis=0)
+        q[:, int(model.arrays.qposadr[model.arrays.dof_joint[dof]])] += (0.0, 2.0, 4.0)
+        values = model.mass_matrix(q)[:, dof, dof]
+        return bool(np.ptp(values) <= 1e-12 * np.max(np.abs(values)))
 
     @property
     def methods(self) -> tuple[str, ...]:  # type: ignore[override]
