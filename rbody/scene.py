@@ -250,20 +250,55 @@ class NativeModel:
     # (B,) |1 - k^2| of a motion near a separatrix (a pendulum released near the top), whose margin the state
     # carries only to ~eps: rbody.stability.resolution_problem refuses runs whose round-off would decide it.
     separatrix_margin: Any = None
-    # diagnose(y (n,)) -> str: why the motion cannot go on from state y ("" when nothing is found), for the
-    # message of a failed run (a tree: the body and joint whose mass matrix pivot vanished).
+    # diagnose(y (n,), y0 (n,), dt) -> str: why the motion cannot go on from state y, started from y0 ("" when nothing
+    # is found), for the message of a failed run (a tree: the body and joint whose mass-matrix pivot vanished).
     diagnose: Any = None
 
 
+NEARLY_SINGULAR = 1e-6  # a pivot below this fraction of its value at the start: the mass matrix is (nearly) singular
+PATH_SAMPLES = 97       # states sampled on the failing step's path, up to 1.5 dt from its start
+
+
 def singular_pivot_diagnosis(multibody) -> Any:
-    """diagnose(y) for a NativeModel whose state starts with a Multibody's qpos (nq,): the ValueError text of
-    multibody.check_pivots (the body and joint whose pivot vanished), or ""."""
-    def diagnose(y: np.ndarray) -> str:
+    """diagnose(y, y0, dt) for a NativeModel whose states start with a Multibody's (qpos (nq), qvel (nv)): at the
+    last finite state y of a failed run started from y0, the body and joint whose mass-matrix pivot vanishes there
+    (the ValueError of multibody.check_pivots) or on the path of the failing step, the hinge and slide coordinates
+    moved on at their rates for up to 1.5 dt (where a stage of the step may have met a singular configuration
+    that no whole step reached); "" when neither."""
+    from rbody.engine.multibody import _forward_batch
+
+    nq, nv = multibody.nq, multibody.nv
+    moving = [(int(qa), int(da)) for kind, qa, da in zip(multibody.arrays.joint_kinds, multibody.arrays.qposadr,
+                                                         multibody.arrays.dofadr) if kind in ("hinge", "slide", "roll")]
+
+    def pivots(q: np.ndarray) -> np.ndarray:
+        q = np.ascontiguousarray(q, dtype=np.float64).reshape(-1, nq)
+        zeros = np.zeros((q.shape[0], nv))
+        out, found = np.empty((q.shape[0], nv)), np.empty((q.shape[0], nv))
+        _forward_batch(multibody.params, q, zeros, zeros, out, found)
+        return found
+
+    def diagnose(y: np.ndarray, y0: np.ndarray, dt: float) -> str:
+        y, y0 = np.asarray(y, dtype=np.float64), np.asarray(y0, dtype=np.float64)
         try:
-            multibody.check_pivots(np.asarray(y, dtype=np.float64)[:multibody.nq])
+            multibody.check_pivots(y[:nq])
         except ValueError as error:
             return str(error)
-        return ""
+        fraction = np.linspace(0.0, 1.5, PATH_SAMPLES)
+        path = np.repeat(y[None, :nq], PATH_SAMPLES, axis=0)
+        for qa, da in moving:
+            path[:, qa] += fraction * dt * y[nq + da]
+        ratio = pivots(path) / pivots(y0[:nq])
+        where, d = np.unravel_index(int(np.argmin(ratio)), ratio.shape)
+        if not ratio[where, d] < NEARLY_SINGULAR:
+            return ""
+        body = multibody.body_names[multibody.arrays.dof_body[d]]
+        joint = multibody.joint_names[multibody.arrays.dof_joint[d]]
+        return (f"the mass matrix became singular: body {body!r} gives its joint {joint!r} (degree of freedom {d}) "
+                f"no inertia about {fraction[where]:.2g} dt after the last finite state (its pivot falls to "
+                f"{ratio[where, d]:.2g} of its value at the start: the joints' axes line up there, or the joint moves "
+                "nothing with mass); give the body inertia about that joint or armature, or other joints (a ball "
+                "joint has no singular configuration)")
     return diagnose
 
 

@@ -46,7 +46,7 @@ import dataclasses
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 from rbody.engine import integrators
 from rbody.engine.methods import method as method_record, yoshida6_interval
@@ -95,6 +95,14 @@ def fastest_rate(scene: Scene, method: str | None = None) -> np.ndarray:
     return cache[method]
 
 
+def _largest_rate(scene: Scene, method: str | None) -> float:
+    """max over the batch of fastest_rate(scene, method), kept beside it."""
+    cache = scene.__dict__.setdefault("_largest_rate", {})
+    if method not in cache:
+        cache[method] = float(np.max(fastest_rate(scene, method)))
+    return cache[method]
+
+
 def model_rate(model: NativeModel, method: str | None = None) -> np.ndarray:
     """(B,) fastest rate [1/s] of a NativeModel: model.rate(method) where the scene gives its own; else, with
     model.rate_from_jacobian, the spectral radius of df/dy at y0 and (when model.rest is given) at the state of
@@ -115,35 +123,51 @@ def model_rate(model: NativeModel, method: str | None = None) -> np.ndarray:
 
 
 def jacobian_rate(rhs, y: np.ndarray, params: np.ndarray) -> np.ndarray:
-    """(B,) spectral radius of df/dy at each row of y (B, n), by central differences of the compiled rhs: the B
-    Jacobians (B, n, n) are formed in one compiled loop and their eigenvalues in one stacked numpy call."""
+    """(B,) spectral radius of df/dy at each row of y (B, n), by central differences of the compiled rhs: the
+    Jacobians of a block of elements in one compiled loop (threads over chunks of it), their eigenvalues in one
+    stacked numpy call; blocks of at most JACOBIAN_BLOCK numbers bound the memory of a long chain's batch."""
     y, params = np.ascontiguousarray(y, dtype=np.float64), np.ascontiguousarray(params, dtype=np.float64)
-    jacobians = np.empty((y.shape[0], y.shape[1], y.shape[1]))
-    _jacobians(integrators.pointer_function(rhs), y, params, JACOBIAN_STEP, jacobians)
-    return np.max(np.abs(np.linalg.eigvals(jacobians)), axis=-1)
+    batch, n = y.shape
+    rates = np.empty(batch)
+    block = max(1, JACOBIAN_BLOCK // (n * n))
+    pointer = integrators.pointer_function(rhs)
+    for start in range(0, batch, block):
+        stop = min(batch, start + block)
+        jacobians = np.empty((stop - start, n, n))
+        _jacobians(pointer, y[start:stop], params[start:stop], JACOBIAN_STEP, jacobians)
+        finite = np.all(np.isfinite(jacobians), axis=(1, 2))
+        rates[start:stop] = np.inf  # a Jacobian that is not finite: no step is safe
+        if np.any(finite):
+            rates[start:stop][finite] = np.max(np.abs(np.linalg.eigvals(jacobians[finite])), axis=-1)
+    return rates
 
 
-@njit(cache=True)
+JACOBIAN_BLOCK = 2**21  # numbers (16 MB) of Jacobians held at once
+JACOBIAN_CHUNK = 256    # elements per thread's task in the compiled loop
+
+
+@njit(cache=True, parallel=True)
 def _jacobians(rhs, y, params, relative, out):
-    """out[b] (n, n) = df/dy at y[b] (central differences, step relative * max(1, |y_j|))."""
+    """out[b] (n, n) = df/dy at y[b], by central differences (step relative * max(1, |y_j|))."""
     batch, n = y.shape
     m = params.shape[1]
-    state, row = np.empty((1, n)), np.empty((1, m))
-    plus, minus = np.empty((1, n)), np.empty((1, n))
-    for b in range(batch):
-        for k in range(m):
-            row[0, k] = params[b, k]
-        for j in range(n):
-            state[0, j] = y[b, j]
-        for j in range(n):
-            step = relative * max(1.0, abs(y[b, j]))
-            state[0, j] = y[b, j] + step
-            rhs(integrators._row(state, 0), integrators._row(row, 0), integrators._row(plus, 0), n, m)
-            state[0, j] = y[b, j] - step
-            rhs(integrators._row(state, 0), integrators._row(row, 0), integrators._row(minus, 0), n, m)
-            state[0, j] = y[b, j]
-            for i in range(n):
-                out[b, i, j] = (plus[0, i] - minus[0, i]) / (2.0 * step)
+    for c in prange(-(-batch // JACOBIAN_CHUNK)):
+        state, row = np.empty((1, n)), np.empty((1, m))
+        plus, minus = np.empty((1, n)), np.empty((1, n))
+        for b in range(c * JACOBIAN_CHUNK, min(batch, (c + 1) * JACOBIAN_CHUNK)):
+            for k in range(m):
+                row[0, k] = params[b, k]
+            for j in range(n):
+                state[0, j] = y[b, j]
+            for j in range(n):
+                step = relative * max(1.0, abs(y[b, j]))
+                state[0, j] = y[b, j] + step
+                rhs(integrators._row(state, 0), integrators._row(row, 0), integrators._row(plus, 0), n, m)
+                state[0, j] = y[b, j] - step
+                rhs(integrators._row(state, 0), integrators._row(row, 0), integrators._row(minus, 0), n, m)
+                state[0, j] = y[b, j]
+                for i in range(n):
+                    out[b, i, j] = (plus[0, i] - minus[0, i]) / (2.0 * step)
 
 
 def _family_rate(scene: Scene, method: str | None) -> np.ndarray:
@@ -215,7 +239,7 @@ def stability_limit(scene: Scene, method: str, t_end: float | None = None) -> fl
     beta = stability_interval(method)
     if beta == math.inf:
         return math.inf
-    rate = float(np.max(fastest_rate(scene, method)))
+    rate = _largest_rate(scene, method)
     if rate == 0.0:
         return math.inf
     if beta == 0.0:  # no interval (euler): the step whose amplitude growth over the run is EULER_GROWTH
@@ -238,6 +262,8 @@ def resolution_problem(scene: Scene, dt: float | None = None, t_end: float | Non
     t_end = scene.t_end if t_end is None else float(t_end)
     steps = 1 if dt is None else max(1, math.ceil(t_end / dt))
     drift = EPS * math.sqrt(steps)
+    if scene.__dict__["_smallest_margin"] >= RESOLUTION_FACTOR * drift:  # the common case, without array work
+        return None
     bad = (margin > 0) & (margin < RESOLUTION_FACTOR * drift)
     if not np.any(bad):
         return None
@@ -261,10 +287,13 @@ def _separatrix_margin(scene: Scene) -> np.ndarray | None:
             from rbody.scenes.pendulum import Pendulum
 
             margin = scene._one_minus_modulus() if isinstance(scene, Pendulum) else None
+        smallest = math.inf
         if margin is not None:
             margin = np.abs(np.asarray(margin, dtype=np.float64)).reshape(-1)
             margin.setflags(write=False)
-        cache["_separatrix_margin"] = margin
+            positive = margin[margin > 0]
+            smallest = float(positive.min()) if positive.size else math.inf
+        cache["_separatrix_margin"], cache["_smallest_margin"] = margin, smallest
     return cache["_separatrix_margin"]
 
 

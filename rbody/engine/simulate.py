@@ -84,7 +84,7 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
         failed = integrate_on_cluster(client, scene, model, method, dt, nsteps, save_every, out, chunk)
     else:
         failed = integrate_model(model, record, dt, nsteps, save_every, out)
-    if np.any(failed >= 0):
+    if failed.size and failed.max() >= 0:
         raise _failure(scene, model, record, dt, save_every, out, failed)
     t = np.arange(out.shape[0]) * (dt * save_every)
     try:  # every state is finite here; one the observables cannot take (a quaternion of zero length) is a failure
@@ -146,7 +146,7 @@ def _failure(scene: Scene, model, record: Method, dt: float, save_every: int, ou
     if model.diagnose is not None and model.break_time is None and step >= 1:
         last = _last_finite_state(model, record, dt, save_every, out, b, step)
         if last is not None:
-            cause = model.diagnose(last)
+            cause = model.diagnose(last, np.asarray(model.y0)[b], dt)
     higher = [m.name for m in RECORDS if m.order is not None and m.order >= 4 and m.applies(model)]
     advice = "a smaller dt" + ("" if record.name in higher or not higher else
                                f" or a method of higher order ({', '.join(higher)})")
@@ -181,6 +181,7 @@ MAX_ELEMENT_STEPS = 10**10    # steps x batch: ~2 min at 10 ns per pendulum step
 MAX_IMPACTS = 10**10          # impacts of an event-driven run: ~25 ns each (pi, 3.1e9 impacts in ~65 s)
 MAX_ELEMENT_SAMPLES = 10**9   # saved states x batch
 MEMORY_FRACTION = 0.5         # of the memory available now: the observables formed from the states take more
+MEMORY_CHECKED_ABOVE = 2**20  # bytes of saved states below which the memory available is not read (any machine has it)
 
 
 def available_memory() -> int | None:
@@ -230,7 +231,7 @@ def refuse_large(work: dict[str, float], allow_large: bool = False) -> None:
     if allow_large:
         return
     steps, batch, samples, size, impacts = (work[k] for k in ("steps", "batch", "samples", "bytes", "impacts"))
-    free = available_memory()
+    free = available_memory() if size > MEMORY_CHECKED_ABOVE else None  # reading /proc costs ~50 us a call
     problems = []
     if steps * batch > MAX_ELEMENT_STEPS:
         problems.append(f"{steps:.3g} steps x {batch:.3g} batch elements = {steps * batch:.3g} element-steps, beyond "
