@@ -2,33 +2,29 @@
 
 Linear stability. A method applied to y' = f(y) is stable on a linear mode y' = lambda y while
 h lambda lies in its stability region. Along an oscillation lambda = +-i w, so each method keeps the
-amplitude bounded only while h w < beta, its interval on the imaginary axis:
+amplitude bounded only while h w < beta, its interval on the imaginary axis. beta is a field of the
+method's record (rbody.engine.methods, where each value is derived): euler 0 (none), symplectic_euler
+and verlet 2, rk4 2 sqrt(2), yoshida6 2.2690..., gauss6 1 / (2 rho(A)) = 2.32 (the reach of its
+fixed-point iteration), splitting 2, reference inf.
 
-    euler             none: |1 + i h w| = sqrt(1 + (h w)^2) > 1, the amplitude grows at every step
-    symplectic_euler  2:    the step matrix has trace 2 - (h w)^2, which must stay in [-2, 2]
-    verlet            2:    the same trace
-    rk4               2 sqrt(2): |1 + z + z^2/2 + z^3/6 + z^4/24| <= 1 for z = i h w
-    yoshida6          2.2690579963976...: the trace of its seven verlet steps (weights YOSHIDA6)
-                      first leaves [-2, 2] there (computed by bisection, yoshida6_interval())
-    gauss6            A-stable, but rbody solves its stage equations by fixed-point iteration, which
-                      contracts by h w rho(A) per sweep, rho(A) = 0.2153 the spectral radius of the
-                      tableau: beta = 1 / (2 rho(A)) = 2.32 keeps the contraction at 1/2 or better
-    splitting         the scene's exact sub-flows (free rotation): taken as verlet's 2, the interval of
-                      a second-order symmetric splitting; its yoshida6 composition as yoshida6's
-
-Euler's explicit method has no interval: its limit here is the step at which the fastest linear
-mode grows by a factor `growth` (2) in amplitude over the run, (1 + (h w)^2)^(t / 2h) = 2, i.e.
+A method without an interval (euler, beta = 0): its limit here is the step at which the fastest linear
+mode grows by a factor EULER_GROWTH (2) in amplitude over the run, (1 + (h w)^2)^(t / 2h) = 2, i.e.
 h = 2 ln 2 / (w^2 t) to first order.
 
-The rate w of a scene is the largest |eigenvalue| of the Jacobian df/dy along its motion:
-pendulum: w0 = sqrt(M g d / I) (the linearisation at the bottom, or the growth rate at the top);
-free rotation: max over one period of the exact motion of |omega|/2 (the quaternion's rotation
-rate) and the eigenvalues of Euler's equations linearised, I^-1 ([L]x - [omega]x I) (a wobble, or the
-growth rate near the intermediate axis), and for the splitting and its yoshida6 composition also
-|omega_perp| sqrt(I3/I1), the rate of its sub-rotations on the smallest moment (fastest_rate); rolling: 0 (the
-accelerations are constant, any step is exact); chains: the Jacobian at the initial state and the
-fastest normal mode; other scenes: no estimate (an infinite limit; the check for non-finite states
-after every step remains).
+The rate w of a scene is the largest |eigenvalue| of the Jacobian df/dy along its motion, read from the
+scene's native model, never from its class (model_rate):
+- model.rate(method): the scene's own estimate where it knows its motion. Pendulum: w0 = sqrt(M g d / I)
+  (the linearisation at the bottom, or the growth rate at the top). Free rotation (rotation_rates): max
+  over one period of the exact motion of |omega|/2 (the quaternion's rotation rate) and the eigenvalues
+  of Euler's equations linearised, I^-1 ([L]x - [omega]x I) (a wobble, or the growth rate near the
+  intermediate axis), and for the splitting and its yoshida6 composition also |omega_perp| sqrt(I3/I1),
+  the rate of its sub-rotations on the smallest moment;
+- model.rate_from_jacobian: the spectral radius of df/dy by central differences at y0, and at
+  model.rest (a state of equilibrium: the fastest normal mode) where given (any tree, chains). For a batch
+  the Jacobians are formed in one compiled loop and their eigenvalues in one stacked call;
+- neither: no estimate (rolling: constant accelerations, any step is exact; other scenes: an infinite
+  limit; the check for non-finite states after every step remains).
+Until the pendulum, free rotation and chain modules state theirs, _family_rate supplies them.
 
 Float64 resolution. A pendulum released near the top (k^2 -> 1) carries the margin of its swing below
 the top, 1 - k^2 = cos^2(theta0/2) - omega0^2 / (4 w0^2), in its state only as the speed at the bottom,
