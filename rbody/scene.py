@@ -440,7 +440,11 @@ class Scene:
             return ()
         from rbody.engine.methods import applicable
 
-        return applicable(self.native_model, self.preferred_methods)
+        try:
+            model = self.native_model
+        except NotImplementedError:  # a scene with no native model: nothing runs it here
+            return ()
+        return applicable(model, self.preferred_methods)
 
     def why_not(self, method: str) -> str:
         """Why `method` does not apply to this scene (for the error message): what its record needs that the
