@@ -11,10 +11,10 @@ import importlib
 import numpy as np
 import pytest
 
-from rbody import Inertia, simulate
+from rbody import Inertia, Scene, simulate
 from rbody.engine import integrators
 from rbody.motion import quat_to_matrix
-from rbody.scenes import compound_pendulum, free_rotation, pendulum_chain, swinging_rod
+from rbody.scenes import compound_pendulum, free_rotation, pendulum_chain, swinging_rod, two_body
 
 # the modules (rbody.scenes exports factory functions of the same names)
 pendulum_module, chain_module, rotation_module = (importlib.import_module(f"rbody.scenes.{name}")
@@ -269,3 +269,22 @@ def test_fast_path_chooses_the_free_rotation_kernel(monkeypatch):
             trajectory = simulate(scene, dt=1e-2, method=method)
             exact = scene.exact(trajectory.t)
             assert largest_difference(trajectory, exact, ("omega_body", "energy")) < 2e-4, (fast, method)
+
+
+# ----- the two-body problem -----------------------------------------------------------------------------------
+
+def test_two_body_stays_on_its_kernel_for_the_engine_holds_no_pair_force():
+    """The decision documented in rbody.scenes.two_body: the engine, given the scene's Layout, moves both bodies
+    uniformly (no attraction), so the scene's own kernel, which follows the Kepler orbit, is its native model.
+    Should the engine gain pair forces, this fails and the decision is to be revisited."""
+    two_body_module = importlib.import_module("rbody.scenes.two_body")
+    scene = two_body(1.0, 0.5, separation=1.0, relative_velocity=1.2, t_end=2.0)
+    assert not two_body_module.ENGINE_PATH and scene.native_model.rhs is two_body_module.two_body_rhs
+    free = simulate(Scene.from_layout(scene.layout, t_end=2.0, gravity=0.0), dt=1e-2, method="rk4")
+    np.testing.assert_allclose(free["qpos"], free["qpos"][0] + np.outer(free.t, free["qvel"][0]), atol=1e-12)
+    own = simulate(scene, dt=1e-2, method="rk4")
+    exact = scene.exact(own.t)
+    assert np.max(np.abs(own["r1"] - exact["r1"])) < 1e-6
+    body1 = np.stack([free["qpos"][:, 0], np.zeros(free.t.size), free["qpos"][:, 1]], axis=-1)  # x, z slides
+    np.testing.assert_allclose(body1[0], exact["r1"][0], atol=1e-15)
+    assert np.max(np.abs(body1 - exact["r1"])) > 0.1
