@@ -52,10 +52,11 @@ from rbody.inertia import Inertia
 from rbody.scene import Body, Joint, Layout, NativeModel, Scene, Shape
 
 # native() runs the hand-written chain_rhs for chains of at most this many rods, the general engine on the
-# Layout for longer ones (0: always the engine). rk4 ns per step, hand kernel against engine, one chain,
-# dt = 1e-3: n = 2: 660 / 3890 (5.9x), 8: 2400 / 9560 (4.0x), 16: 6280 / 17650 (2.8x), 24: , 32: 25400 / 33800
-# (1.3x) (python benchmarks/fast_paths.py, 2026-11-23, before the engine's speed work was merged).
-HAND_KERNEL_MAX_LINKS = 16
+# Layout for longer ones (0: always the engine). rk4 ns per step, hand kernel / engine, one chain, dt = 1e-3:
+# n = 2: 1100 / 7330 (6.6x cheaper), 8: 4670 / 12840 (2.8x), 16: 7920 / 33110 (4.2x), 24: 26300 / 51100 (1.9x),
+# 28: 37500 / 59700 (1.6x, within the noise of 1.5x), 32: 51000 / 67500 (1.3x) (python benchmarks/fast_paths.py
+# --repeats 5, 2026-11-23, commit 2a7edef, a shared 2-core machine at load 4.8; before the engine's speed work).
+HAND_KERNEL_MAX_LINKS = 24
 
 # params (p,) = (n, g, lengths (n), masses (n), nu (n), mu_diagonal (n)); y = (theta (n), theta' (n))
 

@@ -141,8 +141,9 @@ def free_rotation_step(y, p, h):
 
 
 # Which kernel native() runs: True, the hand-written free_rotation_rhs (and its splitting); False, the general
-# engine on the scene's Layout. Hand kernel 75 ns against the engine's 4900 ns per rk4 step, 65x cheaper (one
-# body, dt = 1e-3; python benchmarks/fast_paths.py, 2026-11-23, before the engine's speed work was merged).
+# engine on the scene's Layout. Hand kernel 160 ns against the engine's 9940 ns per rk4 step, 62x cheaper (one
+# body, dt = 1e-3; python benchmarks/fast_paths.py --repeats 5, 2026-11-23, commit 2a7edef, before the engine's
+# speed work was merged). The splitting costs about the same on either state (447 / 531 ns).
 FAST_PATH = True
 
 # The columns free_rotation_tree_step reads after the engine's model row: principal moments (3) [kg m^2],

@@ -62,8 +62,9 @@ def pendulum_accel(q, p, out):
 
 
 # Which kernel native() runs: True, the hand-written pendulum_rhs / pendulum_accel; False, the general engine on
-# the scene's Layout. Hand kernel 73 ns against the engine's 2860 ns per rk4 step, 39x cheaper (one rod,
-# dt = 1e-3; python benchmarks/fast_paths.py, 2026-11-23, before the engine's speed work was merged).
+# the scene's Layout. Hand kernel 76 ns against the engine's 3690 ns per rk4 step (49x cheaper), 31 against 1610
+# per verlet step (52x) (one rod, dt = 1e-3; python benchmarks/fast_paths.py --repeats 5, 2026-11-23, commit
+# 2a7edef, before the engine's speed work was merged).
 FAST_PATH = True
 
 PENDULUM_METHODS = ("euler", "symplectic_euler", "verlet", "rk4", "yoshida6", "gauss6", "reference")
