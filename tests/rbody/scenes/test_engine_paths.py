@@ -288,3 +288,51 @@ def test_two_body_stays_on_its_kernel_for_the_engine_holds_no_pair_force():
     body1 = np.stack([free["qpos"][:, 0], np.zeros(free.t.size), free["qpos"][:, 1]], axis=-1)  # x, z slides
     np.testing.assert_allclose(body1[0], exact["r1"][0], atol=1e-15)
     assert np.max(np.abs(body1 - exact["r1"])) > 0.1
+
+
+# ----- every method of every family, through simulate, on both paths ----------------------------------------
+
+def both_paths(monkeypatch, module, constant: str, make, method: str, dt: float):
+    """simulate(make(), dt, method) with the family's switch set to the engine, then to the hand kernel."""
+    runs = []
+    for value in (False, True) if constant == "FAST_PATH" else (0, chain_module.MAX_LINKS):
+        monkeypatch.setattr(module, constant, value)
+        scene = make()  # a new scene: native_model is built once per scene
+        runs.append(simulate(scene, dt=dt, method=method))
+    return runs[0], runs[1]
+
+
+# the same dt, the same method: equal to round-off, except the adaptive reference (DOP853 at rtol 1e-13 picks its
+# own steps from values that differ in their last bits: 2.5e-12 measured on the chain)
+SAME_BOUND = {"reference": 1e-10}
+
+
+@pytest.mark.parametrize("method", pendulum_module.PENDULUM_METHODS)
+def test_every_pendulum_method_runs_on_the_engine(method, monkeypatch):
+    engine, hand = both_paths(monkeypatch, pendulum_module, "FAST_PATH",
+                              lambda: swinging_rod(1.0, theta0=2.0, omega0=0.5, t_end=2.0), method, 1e-2)
+    assert largest_difference(engine, hand, ("theta", "omega", "energy")) < SAME_BOUND.get(method, 1e-12)
+
+
+@pytest.mark.parametrize("method", chain_module.CHAIN_METHODS)
+def test_every_chain_method_runs_on_the_engine(method, monkeypatch):
+    engine, hand = both_paths(monkeypatch, chain_module, "HAND_KERNEL_MAX_LINKS",
+                              lambda: pendulum_chain([1.0, 0.5, 0.8], theta0=[0.5, -0.3, 1.0], t_end=1.0), method, 5e-3)
+    assert largest_difference(engine, hand, ("theta", "omega", "energy")) < SAME_BOUND.get(method, 1e-12)
+
+
+@pytest.mark.parametrize("method", rotation_module.FREE_ROTATION_METHODS)
+def test_every_free_rotation_method_runs_on_the_engine(method, monkeypatch):
+    """omega_body and energy to round-off under every method; the orientation too under the family's own flows
+    (splitting, yoshida6), and within the methods' error of the exact one under the others (module docstring)."""
+    engine, hand = both_paths(monkeypatch, rotation_module, "FAST_PATH",
+                              lambda: free_rotation(BODY, omega0=TILT @ [1.0, 0.5, 2.0], t_end=1.0), method, 1e-2)
+    own_flows = method in ("splitting", "yoshida6")
+    names = SPIN.observables if own_flows else ("omega_body", "energy")
+    # the flows map the state to the principal frame and back: a few ulp per flow (the splitting test above),
+    # 100 steps of up to 7 flows on observables of size ~10
+    bound = 20 * EPS * 100 * 7 * 10 if own_flows else SAME_BOUND.get(method, 1e-12)
+    assert largest_difference(engine, hand, names) < bound
+    exact = SPIN.item(0).exact(engine.t)
+    bound = {"euler": 0.1, "splitting": 2e-4, "rk4": 1e-8}.get(method, 1e-10)  # each method's error at dt = 1e-2
+    assert largest_difference(engine, exact, SPIN.observables) < bound
