@@ -188,17 +188,19 @@ def test_rk4_on_the_chain_engine_is_fourth_order():
 
 def test_the_chain_switch_chooses_by_the_number_of_rods(monkeypatch):
     limit = chain_module.HAND_KERNEL_MAX_LINKS
-    assert 1 <= limit < chain_module.MAX_LINKS  # the longest chains run on the engine
-    short = pendulum_chain(limit, theta0=np.full(limit, 0.2), t_end=1.0)
-    long = pendulum_chain(limit + 1, theta0=np.full(limit + 1, 0.2), t_end=1.0)
-    assert short.native_model.rhs is chain_module.chain_rhs
-    assert long.native_model.rhs is long.engine_model().rhs is not chain_module.chain_rhs
-    monkeypatch.setattr(chain_module, "HAND_KERNEL_MAX_LINKS", 0)
-    two = pendulum_chain(2, theta0=[0.2, 0.3], t_end=1.0)
-    assert two.native_model.rhs is not chain_module.chain_rhs
-    trajectory, hand = simulate(two, dt=1e-2, method="rk4"), run(two.hand_model(), "rk4", 1e-2, 100)
-    assert trajectory["theta"].shape == (101, 2)
-    assert 0 < np.max(np.abs(trajectory["theta"] - hand["theta"][:, 0])) < 1e-12
+    assert 0 <= limit <= chain_module.MAX_LINKS
+    for n in sorted({1, max(limit, 1), min(limit + 1, chain_module.MAX_LINKS), chain_module.MAX_LINKS}):
+        scene = pendulum_chain(n, theta0=np.full(n, 0.2), t_end=1.0)
+        assert (scene.native_model.rhs is chain_module.chain_rhs) == (n <= limit), n
+    for value, hand_kernel in ((0, False), (chain_module.MAX_LINKS, True)):
+        monkeypatch.setattr(chain_module, "HAND_KERNEL_MAX_LINKS", value)
+        two = pendulum_chain(2, theta0=[0.2, 0.3], t_end=1.0)
+        assert (two.native_model.rhs is chain_module.chain_rhs) == hand_kernel
+        assert two.native_model.y0.shape == (1, 4)
+        trajectory, hand = simulate(two, dt=1e-2, method="rk4"), run(two.hand_model(), "rk4", 1e-2, 100)
+        assert trajectory["theta"].shape == (101, 2)
+        difference = np.max(np.abs(trajectory["theta"] - hand["theta"][:, 0]))
+        assert difference == 0 if hand_kernel else 0 < difference < 1e-12
 
 
 # ----- free rotation -----------------------------------------------------------------------------------------
