@@ -99,7 +99,7 @@ def _stack_floats(typingctx, count):
 
 # ----- the algorithms ----------------------------------------------------------------------------------
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _outward(p, y, v0, w):
     """Poses, motion subspaces, velocities, velocity products and rigid inertias of every node, and each
     node's bias force v x* I v, from q = y[0:n] and qvel = y[v0:v0 + n] (v0 < 0: at rest)."""
@@ -178,7 +178,7 @@ def _outward(p, y, v0, w):
         w[k + W_P + 2] = vw * fx
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def _articulated(p, y, v0, out, a0, w):
     """ABA: out[a0 + d] = qacc of node d, from the state y (q = y[0:n], qvel = y[v0:v0 + n], v0 < 0 at rest)
     and the applied forces w[d * WORK + W_TAU]; passive forces included. Returns the first node whose pivot
