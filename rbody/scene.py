@@ -611,7 +611,7 @@ class TreeScene(Scene):
         by_name = dict(zip(model.joint_names, zip(model.arrays.joint_kinds, model.arrays.qposadr, model.arrays.dofadr)))
         for joint in self.tree.joints:
             kind, qa, da = by_name[joint.name]
-            if kind in ("hinge", "slide"):
+            if kind in ("hinge", "slide", "roll"):
                 joints.append(dataclasses.replace(joint, qpos0=float(qpos[qa]), qvel0=float(qvel[da])))
             elif kind == "ball":
                 joints.append(dataclasses.replace(joint, qpos0=tuple(qpos[qa:qa + 4].tolist()),
@@ -636,7 +636,7 @@ class TreeScene(Scene):
             if name not in joints:
                 raise ValueError(f"the backend reported no history for joint {name!r}")
             position, velocity = (np.asarray(a, dtype=np.float64).reshape(count, -1) for a in joints[name])
-            nq_j, nv_j = {"hinge": (1, 1), "slide": (1, 1), "ball": (4, 3), "free": (7, 6)}[kind]
+            nq_j, nv_j = {"hinge": (1, 1), "slide": (1, 1), "roll": (1, 1), "ball": (4, 3), "free": (7, 6)}[kind]
             qpos[:, qa:qa + nq_j], qvel[:, da:da + nv_j] = position, velocity
         data = {"qpos": qpos, "qvel": qvel,
                 "energy": model.kinetic_energy(qpos, qvel) + model.potential_energy(qpos)}
