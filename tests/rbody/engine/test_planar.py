@@ -264,3 +264,82 @@ def test_slides_in_one_plane_and_welds_are_planar():
     q, v = np.array([0.3, -0.2]), np.array([0.5, 1.0])
     assert relative(planar.forward_dynamics(q, v), model.forward_dynamics(q, v)) < 1e-13
     assert relative(planar.mass_matrix(q), model.mass_matrix(q)) < 1e-13
+
+
+# ----- the roll joint (a round body rolling without slipping on a line) -----------------------------------
+
+def rolling_row(*, radius, mass, moment, com, line, gravity=(0.0, -9.81), child=None, sign=1.0):
+    """A planar row by hand: node 0 a disc of `radius` rolling along the unit `line` (plane coordinates), its
+    centre at the origin at q = 0, com (2) and moment about the com; child: (anchor (2), mass, com (2), moment)
+    of a pendulum hinged to the disc."""
+    from rbody.engine import planar as pl
+
+    nodes = 1 if child is None else 2
+    row = np.zeros(pl.HEADER + nodes * pl.NODE_SIZE)
+    row[pl.P_NODES], row[pl.P_GX], row[pl.P_GY] = nodes, -gravity[0], -gravity[1]
+    r = pl.HEADER
+    row[r + pl.N_PARENT], row[r + pl.N_KIND], row[r + pl.N_SIGN] = -1, pl.PLANAR_ROLL, sign
+    row[r + pl.N_RADIUS], row[r + pl.N_LINE:r + pl.N_LINE + 2] = radius, line
+    row[r + pl.N_MASS], row[r + pl.N_COM:r + pl.N_COM + 2], row[r + pl.N_MOMENT] = mass, com, moment
+    if child is not None:
+        anchor, m2, c2, I2 = child
+        r += pl.NODE_SIZE
+        row[r + pl.N_PARENT], row[r + pl.N_KIND], row[r + pl.N_SIGN] = 0, pl.PLANAR_HINGE, 1.0
+        row[r + pl.N_POINT:r + pl.N_POINT + 2] = anchor
+        row[r + pl.N_MASS], row[r + pl.N_COM:r + pl.N_COM + 2], row[r + pl.N_MOMENT] = m2, c2, I2
+    return row
+
+
+def _rot(angle):
+    return np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+
+
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_a_disc_rolls_down_an_incline_at_the_closed_form_rate(sign):
+    """The chapter's rolling disc: q'' = g sin(alpha) / (a (1 + k)), k = I / (M a^2), q the angle turned,
+    whatever q'. The line l = axis x normal runs uphill here (l = (-cos alpha, sin alpha) for axis +n and the
+    normal (sin alpha, cos alpha)), so q'' is negative; with the axis along -n both flip."""
+    alpha, a, M, k = 0.4, 0.3, 2.0, 0.5
+    normal = np.array([np.sin(alpha), np.cos(alpha)])
+    line = sign * np.array([-normal[1], normal[0]])  # (s n) x e in plane coordinates
+    row = rolling_row(radius=a, mass=M, moment=k * M * a * a, com=(0.0, 0.0), line=line, sign=sign)
+    out = np.empty(2)
+    for q, qd in ((0.0, 0.0), (1.3, -2.0), (-4.0, 5.0)):
+        planar_rhs(np.array([q, qd]), row, out)
+        np.testing.assert_allclose(out[1], -sign * 9.81 * np.sin(alpha) / (a * (1 + k)), rtol=1e-14)
+
+
+def _rolling_energy(y, *, radius, mass, moment, com, line, child):
+    """T + V of the disc (and its pendulum) from the kinematics written out here, velocities by central
+    differences along (q', ...): independent of the kernel's recursions."""
+    line, com = np.asarray(line), np.asarray(com)
+    anchor, m2, c2, I2 = child
+
+    def points(q):
+        centre = radius * q[0] * line
+        disc_com = centre + _rot(q[0]) @ com
+        joint = centre + _rot(q[0]) @ np.asarray(anchor)
+        return disc_com, joint + _rot(q[0] + q[1]) @ (np.asarray(c2) - np.asarray(anchor))
+
+    q, qd = y[:2], y[2:]
+    h = 1e-6
+    plus, minus = points(q + h * qd), points(q - h * qd)
+    v1, v2 = ((p - m) / (2 * h) for p, m in zip(plus, minus))
+    x1, x2 = points(q)
+    kinetic = 0.5 * mass * v1 @ v1 + 0.5 * moment * qd[0] ** 2 + 0.5 * m2 * v2 @ v2 + 0.5 * I2 * (qd[0] + qd[1]) ** 2
+    return kinetic + 9.81 * (mass * x1[1] + m2 * x2[1])
+
+
+def test_an_eccentric_disc_with_a_pendulum_keeps_its_energy():
+    """A disc whose com is off its centre rolling on level ground, a pendulum hinged to it: the velocity-product
+    term of the roll joint (its subspace turns with its own angle) is what keeps T + V constant."""
+    geometry = dict(radius=0.4, mass=1.5, moment=0.05, com=(0.15, 0.05), line=(-1.0, 0.0),
+                    child=((0.1, -0.1), 0.7, (0.1, -0.6), 0.02))
+    row = rolling_row(**geometry)
+    y0 = np.array([[0.3, 0.8, 2.0, -1.0]])
+    dt, steps = 1e-3, 3000
+    out = np.empty((steps + 1, 1, 4))
+    integrators.run_rk4(planar_rhs, y0, row[None, :], dt, steps, 1, out)
+    energy = np.array([_rolling_energy(y, **geometry) for y in out[::100, 0]])
+    assert np.ptp(out[:, 0, 2]) > 1.0  # it really moves
+    assert np.max(np.abs(energy - energy[0])) < 1e-8 * max(1.0, abs(energy[0]))
