@@ -181,9 +181,12 @@ def _outward(p, y, v0, w):
 
 
 @njit(cache=True, inline="always")
-def _articulated(p, y, v0, out, a0, w):
+def _articulated(p, y, v0, out, a0, w, applied):
     """ABA in the nodes' own frames: out[a0 + d] = qacc of node d, from the state y (q = y[0:n], qvel =
-    y[v0:v0 + n], v0 < 0 at rest) and the applied forces w[d * WORK + W_TAU]; passive forces included.
+    y[v0:v0 + n], v0 < 0 at rest) and, when `applied`, the applied forces w[d * WORK + W_TAU]; passive forces
+    included. With a0 > 0 it also copies qvel into out[0:n] (the rhs y' = (qvel, qacc)). Everything happens
+    here, in one inlined call per kernel: a loop of the kernel before the call would make numba keep the
+    reference counting of its array arguments (an NRT call each, every evaluation).
 
     A node's frame is the world pulled back by its displacement G_d: there its rigid inertia and (hinge, slide)
     motion subspace are the constants of the row, and only X_d, the motion transform from the parent's frame,
@@ -196,6 +199,8 @@ def _articulated(p, y, v0, out, a0, w):
         k = d * WORK
         x = y[d] - p[r + N_REF]
         qd = y[v0 + d] if v0 >= 0 else 0.0
+        if a0 > 0:
+            out[d] = qd
         kind = int(p[r + N_KIND])
         sw, sx, sy = p[r + N_SUBSPACE], p[r + N_SUBSPACE + 1], p[r + N_SUBSPACE + 2]
         extra_x, extra_y = 0.0, 0.0
@@ -268,8 +273,9 @@ def _articulated(p, y, v0, out, a0, w):
                 bad = d
             D = np.inf
         qd = y[v0 + d] if v0 >= 0 else 0.0
-        force = (w[k + W_TAU] - p[r + N_DAMPING] * qd
-                 - p[r + N_STIFF] * (y[d] - p[r + N_SPRINGREF]))
+        force = -p[r + N_DAMPING] * qd - p[r + N_STIFF] * (y[d] - p[r + N_SPRINGREF])
+        if applied:
+            force += w[k + W_TAU]
         u = force - (sw * w[k + W_P] + sx * w[k + W_P + 1] + sy * w[k + W_P + 2])
         inv = 1.0 / D
         w[k + W_U], w[k + W_U + 1], w[k + W_U + 2] = u0, u1, u2
@@ -336,10 +342,7 @@ def planar_rhs(y, p, out):
     matrix gives NaN (the run fails)."""
     n = int(p[P_NODES])
     w = carray(_stack_floats(n * WORK), n * WORK)
-    for d in range(n):
-        w[d * WORK + W_TAU] = 0.0
-        out[d] = y[n + d]
-    _articulated(p, y, n, out, n, w)
+    _articulated(p, y, n, out, n, w, False)
 
 
 @njit(cache=True)
@@ -347,9 +350,7 @@ def planar_accel(q, p, out):
     """q'' = a(q) (the tree at rest at q: the symplectic methods, where TreeScene.symplectic_applies)."""
     n = int(p[P_NODES])
     w = carray(_stack_floats(n * WORK), n * WORK)
-    for d in range(n):
-        w[d * WORK + W_TAU] = 0.0
-    _articulated(p, q, -1, out, 0, w)
+    _articulated(p, q, -1, out, 0, w, False)
 
 
 @njit(cache=True)
@@ -402,7 +403,7 @@ def _forward_batch(p, Q, V, T, out):
         for d in range(n):
             y[d], y[n + d] = Q[b, d], V[b, d]
             w[d * WORK + W_TAU] = T[b, d]
-        bad[b] = _articulated(p, y, n, out[b], 0, w)
+        bad[b] = _articulated(p, y, n, out[b], 0, w, True)
     return bad
 
 
