@@ -673,10 +673,25 @@ class TreeScene(Scene):
         return f"{method!r} is not a method of a general tree (no splitting into exact flows)"
 
     def native(self) -> NativeModel:
+        """The compiled model of the tree: the planar kernels (rbody.engine.planar: 3-component spatial
+        algebra) when the tree is planar, decided from its structure, else the 3-D engine's. Observables and
+        energies use the 3-D Multibody either way (once per saved sample, not per evaluation)."""
         from rbody.engine import multibody as mb
+        from rbody.engine.planar import planar_accel, planar_model, planar_rhs
 
         model = self.multibody
         qpos0, qvel0 = self._state0()
+        planar = planar_model(model)
+        if planar is not None:
+            nv = model.nv
+
+            def observe_planar(t, y):
+                return self._observables(y[..., :nv], y[..., nv:])
+
+            return NativeModel(y0=np.concatenate([qpos0, qvel0], axis=1),
+                               params=np.tile(planar.row, (qpos0.shape[0], 1)), rhs=planar_rhs,
+                               observe=observe_planar, accel=None if self.symplectic_applies else planar_accel,
+                               rate_from_jacobian=True)
         y0 = np.concatenate([qpos0, qvel0, np.zeros((qpos0.shape[0], 3 * model.nrot))], axis=1)
         params = np.tile(np.asarray(model.params), (qpos0.shape[0], 1))
         nq, nv = model.nq, model.nv
