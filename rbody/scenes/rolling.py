@@ -45,11 +45,11 @@ a tree holds, so sliding runs on the hand kernel (kernel_native(): the constant 
 
 The hand kernel rolling_rhs is the engine's oracle in the tests, and runs the rolling case too while it is
 more than 1.5x cheaper per step than the engine (FAST_PATH; DESIGN.md's rule). Measured with
-`python benchmarks/rolling_fast_path.py --repeats 5 --steps 100000` (AMD EPYC, 2 cores shared, load 5.5;
-numpy 2.4.6, numba 0.68.1; the engine as merged with its roll joint, main 60eb99c), ns per step of the
-compiled loop, engine / kernel: disc rk4 7407 / 120 (62x), verlet 2236 / 19.4 (115x); race of four rk4
-14550 / 440 (33x), verlet 4133 / 170 (24x). The engine pays its tree walk (kinematics, articulated-body
-recursion) for what the kernel holds as two constants.
+`python benchmarks/rolling_fast_path.py --repeats 5 --steps 100000` (AMD EPYC, 2 cores shared, load 5.7;
+numpy 2.4.6, numba 0.68.1; the engine of main f58270b, with its planar kernels), ns per step of the
+compiled loop, engine / kernel: disc rk4 466 / 65.5 (7.1x), verlet 111 / 20.2 (5.5x); race of four
+rk4 1888 / 290 (6.5x), verlet 476 / 230 (2.1x). The engine pays its tree walk (kinematics, articulated-body
+recursion) for what the kernel holds as two constants. (Before the planar kernels: 24x to 115x.)
 """
 
 from __future__ import annotations
@@ -83,7 +83,7 @@ HALF_LENGTH_FRACTION = 0.5
 # Relative size of a product of inertia with y below which y counts as a principal axis.
 PRINCIPAL_RTOL = 1e-9
 # True: the hand kernel runs the rolling case too, being measurably > 1.5x cheaper per step than the general
-# engine (24x to 115x: module docstring). False: rolling runs on the general engine, the kernel is the oracle.
+# engine (2.1x to 7.1x: module docstring). False: rolling runs on the general engine, the kernel is the oracle.
 FAST_PATH = True
 
 # The hand kernel, the general engine's oracle: y = (x, phi, x', phi'); params = (x'' [m/s^2], phi'' [rad/s^2]),
