@@ -624,7 +624,7 @@ class TreeScene(Scene):
         depend on the state), no damping, and every hinge alone in its part of the tree (no other degree of
         freedom above or below it: a hinge with a moving ancestor or descendant couples them through the
         angle). Chains of slides alone keep M constant too."""
-        from rbody.engine.multibody import BALL, D_PARENT, DOF_SIZE, FREE, H_DOF, HINGE, KIND_CODE
+        from rbody.engine.multibody import BALL, D_PARENT, DOF_SIZE, FREE, H_DOF, HINGE, KIND_CODE, ROLL
 
         model = self.multibody
         kinds = [KIND_CODE[k] for k in model.arrays.joint_kinds]
@@ -642,11 +642,25 @@ class TreeScene(Scene):
                 related[k].add(d)
                 k = parent[k]
         for d in range(model.nv):
-            if kinds[model.arrays.dof_joint[d]] == HINGE and related[d]:
-                joint = model.joint_names[model.arrays.dof_joint[d]]
-                return (f"hinge {joint!r} shares its branch of the tree with other joints, so the mass matrix depends "
-                        "on its angle")
+            kind = kinds[model.arrays.dof_joint[d]]
+            joint = model.joint_names[model.arrays.dof_joint[d]]
+            if kind in (HINGE, ROLL) and related[d]:
+                return (f"{model.arrays.joint_kinds[model.arrays.dof_joint[d]]} {joint!r} shares its branch of the "
+                        "tree with other joints, so the mass matrix depends on its angle")
+            if kind == ROLL and not self._roll_inertia_constant(d):
+                return (f"roll {joint!r} carries its centre of mass off its axis, so the mass matrix depends on its "
+                        "angle")
         return ""
+
+    def _roll_inertia_constant(self, dof: int) -> bool:
+        """True when M of a roll degree of freedom alone in its branch is the same at every angle. That entry is
+        m a^2 + I_axis + 2 m a (l . (n x r)), r the centre of mass from the axis turned by the angle: a
+        trigonometric polynomial of degree 1, constant exactly when it takes one value at three angles."""
+        model = self.multibody
+        q = np.repeat(np.asarray(model.qpos0)[None], 3, axis=0)
+        q[:, int(model.arrays.qposadr[model.arrays.dof_joint[dof]])] += (0.0, 2.0, 4.0)
+        values = model.mass_matrix(q)[:, dof, dof]
+        return bool(np.ptp(values) <= 1e-12 * np.max(np.abs(values)))
 
     @property
     def methods(self) -> tuple[str, ...]:  # type: ignore[override]
@@ -659,10 +673,25 @@ class TreeScene(Scene):
         return f"{method!r} is not a method of a general tree (no splitting into exact flows)"
 
     def native(self) -> NativeModel:
+        """The compiled model of the tree: the planar kernels (rbody.engine.planar: 3-component spatial
+        algebra) when the tree is planar, decided from its structure, else the 3-D engine's. Observables and
+        energies use the 3-D Multibody either way (once per saved sample, not per evaluation)."""
         from rbody.engine import multibody as mb
+        from rbody.engine.planar import planar_accel, planar_model, planar_rhs
 
         model = self.multibody
         qpos0, qvel0 = self._state0()
+        planar = planar_model(model)
+        if planar is not None:
+            nv = model.nv
+
+            def observe_planar(t, y):
+                return self._observables(y[..., :nv], y[..., nv:])
+
+            return NativeModel(y0=np.concatenate([qpos0, qvel0], axis=1),
+                               params=np.tile(planar.row, (qpos0.shape[0], 1)), rhs=planar_rhs,
+                               observe=observe_planar, accel=None if self.symplectic_applies else planar_accel,
+                               rate_from_jacobian=True)
         y0 = np.concatenate([qpos0, qvel0, np.zeros((qpos0.shape[0], 3 * model.nrot))], axis=1)
         params = np.tile(np.asarray(model.params), (qpos0.shape[0], 1))
         nq, nv = model.nq, model.nv
@@ -686,7 +715,7 @@ class TreeScene(Scene):
         by_name = dict(zip(model.joint_names, zip(model.arrays.joint_kinds, model.arrays.qposadr, model.arrays.dofadr)))
         for joint in self.tree.joints:
             kind, qa, da = by_name[joint.name]
-            if kind in ("hinge", "slide"):
+            if kind in ("hinge", "slide", "roll"):
                 joints.append(dataclasses.replace(joint, qpos0=float(qpos[qa]), qvel0=float(qvel[da])))
             elif kind == "ball":
                 joints.append(dataclasses.replace(joint, qpos0=tuple(qpos[qa:qa + 4].tolist()),
@@ -711,7 +740,7 @@ class TreeScene(Scene):
             if name not in joints:
                 raise ValueError(f"the backend reported no history for joint {name!r}")
             position, velocity = (np.asarray(a, dtype=np.float64).reshape(count, -1) for a in joints[name])
-            nq_j, nv_j = {"hinge": (1, 1), "slide": (1, 1), "ball": (4, 3), "free": (7, 6)}[kind]
+            nq_j, nv_j = {"hinge": (1, 1), "slide": (1, 1), "roll": (1, 1), "ball": (4, 3), "free": (7, 6)}[kind]
             qpos[:, qa:qa + nq_j], qvel[:, da:da + nv_j] = position, velocity
         data = {"qpos": qpos, "qvel": qvel,
                 "energy": model.kinetic_energy(qpos, qvel) + model.potential_energy(qpos)}
