@@ -287,7 +287,7 @@ def rolling_row(*, radius, mass, moment, com, line, gravity=(0.0, -9.81), child=
         row[r + pl.N_PARENT], row[r + pl.N_KIND], row[r + pl.N_SIGN] = 0, pl.PLANAR_HINGE, 1.0
         row[r + pl.N_POINT:r + pl.N_POINT + 2] = anchor
         row[r + pl.N_MASS], row[r + pl.N_COM:r + pl.N_COM + 2], row[r + pl.N_MOMENT] = m2, c2, I2
-    return pl.with_node_frames(row)
+    return row
 
 
 def _rot(angle):
