@@ -237,8 +237,69 @@ class NativeModel:
     # finish(y, p): compiled, run after every whole step of euler, rk4 and gauss6 and at every sample of
     # reference (a tree folds its rotation vectors into its quaternions: rbody.engine.multibody); None: nothing.
     finish: Any = None
-    # True: the stability check takes the scene's fastest rate from the Jacobian of rhs at y0 (rbody.stability).
+    # How the stability check (rbody.stability) finds the fastest rate w [1/s] of the linearised motion of each
+    # batch element, so that it never asks which scene it has:
+    #   rate: fastest(method name) -> (B,) w, the scene's own estimate where it knows its motion (a pendulum's
+    #         w0, a free rotation's rate over one period); it wins over the two below
+    #   rate_from_jacobian: True: the spectral radius of df/dy by central differences at y0, and also at
+    #         `rest` (n,) when given, a state of equilibrium (there: the fastest normal mode)
+    #   neither: no estimate (rate 0, an infinite limit; the non-finite check after every step remains)
+    rate: Any = None
     rate_from_jacobian: bool = False
+    rest: Any = None
+    # (B,) |1 - k^2| of a motion near a separatrix (a pendulum released near the top), whose margin the state
+    # carries only to ~eps: rbody.stability.resolution_problem refuses runs whose round-off would decide it.
+    separatrix_margin: Any = None
+    # diagnose(y (n,), y0 (n,), dt) -> str: why the motion cannot go on from state y, started from y0 ("" when nothing
+    # is found), for the message of a failed run (a tree: the body and joint whose mass-matrix pivot vanished).
+    diagnose: Any = None
+
+
+NEARLY_SINGULAR = 1e-6  # a pivot below this fraction of its value at the start: the mass matrix is (nearly) singular
+PATH_SAMPLES = 97       # states sampled on the failing step's path, up to 1.5 dt from its start
+
+
+def singular_pivot_diagnosis(multibody) -> Any:
+    """diagnose(y, y0, dt) for a NativeModel whose states start with a Multibody's (qpos (nq), qvel (nv)): at the
+    last finite state y of a failed run started from y0, the body and joint whose mass-matrix pivot vanishes there
+    (the ValueError of multibody.check_pivots) or on the path of the failing step, the hinge and slide coordinates
+    moved on at their rates for up to 1.5 dt (where a stage of the step may have met a singular configuration
+    that no whole step reached); "" when neither."""
+    from rbody.engine.multibody import _forward_batch
+
+    nq, nv = multibody.nq, multibody.nv
+    moving = [(int(qa), int(da)) for kind, qa, da in zip(multibody.arrays.joint_kinds, multibody.arrays.qposadr,
+                                                         multibody.arrays.dofadr) if kind in ("hinge", "slide", "roll")]
+
+    def pivots(q: np.ndarray) -> np.ndarray:
+        q = np.ascontiguousarray(q, dtype=np.float64).reshape(-1, nq)
+        zeros = np.zeros((q.shape[0], nv))
+        out, found = np.empty((q.shape[0], nv)), np.empty((q.shape[0], nv))
+        _forward_batch(multibody.params, q, zeros, zeros, out, found)
+        return found
+
+    def diagnose(y: np.ndarray, y0: np.ndarray, dt: float) -> str:
+        y, y0 = np.asarray(y, dtype=np.float64), np.asarray(y0, dtype=np.float64)
+        try:
+            multibody.check_pivots(y[:nq])
+        except ValueError as error:
+            return str(error)
+        fraction = np.linspace(0.0, 1.5, PATH_SAMPLES)
+        path = np.repeat(y[None, :nq], PATH_SAMPLES, axis=0)
+        for qa, da in moving:
+            path[:, qa] += fraction * dt * y[nq + da]
+        ratio = pivots(path) / pivots(y0[:nq])
+        where, d = np.unravel_index(int(np.argmin(ratio)), ratio.shape)
+        if not ratio[where, d] < NEARLY_SINGULAR:
+            return ""
+        body = multibody.body_names[multibody.arrays.dof_body[d]]
+        joint = multibody.joint_names[multibody.arrays.dof_joint[d]]
+        return (f"the mass matrix became singular: body {body!r} gives its joint {joint!r} (degree of freedom {d}) "
+                f"no inertia about {fraction[where]:.2g} dt after the last finite state (its pivot falls to "
+                f"{ratio[where, d]:.2g} of its value at the start: the joints' axes line up there, or the joint moves "
+                "nothing with mass); give the body inertia about that joint or armature, or other joints (a ball "
+                "joint has no singular configuration)")
+    return diagnose
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -275,7 +336,9 @@ class Scene:
     event_driven: ClassVar[bool] = False   # impacts found exactly; no time step in the dynamics
     applies_gravity: ClassVar[bool] = True  # False: the scene accepts `gravity` but no body feels it
                                             # (a table carries the weight, or only internal forces act)
-    methods: ClassVar[tuple[str, ...]] = ()  # native methods that apply (empty for event-driven)
+    # The methods a scene prefers, its default first (simulate takes verlet where it applies, else the first
+    # method of `methods`); the methods that apply follow from its native model (Scene.methods).
+    preferred_methods: ClassVar[tuple[str, ...]] = ()
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
@@ -284,7 +347,10 @@ class Scene:
         if t_end.ndim != 0 or t_end <= 0:
             raise ValueError(f"t_end={self.t_end!r}: must be a single duration > 0 [s]")
         object.__setattr__(self, "t_end", float(t_end))
-        object.__setattr__(self, "gravity", float(nonnegative(self.gravity, "gravity")))
+        gravity = nonnegative(self.gravity, "gravity")
+        if np.ndim(gravity) != 0:
+            raise ValueError(f"gravity={self.gravity!r}: expected one number, the magnitude g >= 0 [m/s^2] along -z")
+        object.__setattr__(self, "gravity", float(gravity))
 
     # ----- batches -------------------------------------------------------------------------------
 
@@ -354,16 +420,40 @@ class Scene:
     @cached_property
     def native_model(self) -> NativeModel:
         """self.native(), built once per scene (a scene is frozen, so its model never changes); simulate
-        and the stability check use it, so repeated runs of one scene skip rebuilding its arrays."""
-        return self.native()
+        and the stability check use it, so repeated runs of one scene skip rebuilding its arrays.
+        A scene built on a Multibody (self.multibody) whose model names no diagnose gets one: the body and joint
+        whose mass-matrix pivot vanished at a state (Multibody.check_pivots)."""
+        model = self.native()
+        if model.diagnose is None and getattr(type(self), "multibody", None) is not None:
+            model = dataclasses.replace(model, diagnose=singular_pivot_diagnosis(self.multibody))
+        return model
 
     def run_events(self, t_end: float, sample_dt: float | None):
         """Event-driven scenes: the exact event-by-event run (see rbody.engine.events)."""
         raise NotImplementedError(f"{type(self).__name__} is not event-driven")
 
+    @property
+    def methods(self) -> tuple[str, ...]:
+        """Names of the native methods that apply: those whose needs the native model meets (rbody.engine.methods),
+        preferred_methods first; () for event-driven scenes."""
+        if self.event_driven:
+            return ()
+        from rbody.engine.methods import applicable
+
+        try:
+            model = self.native_model
+        except NotImplementedError:  # a scene with no native model: nothing runs it here
+            return ()
+        return applicable(model, self.preferred_methods)
+
     def why_not(self, method: str) -> str:
-        """Why `method` does not apply to this scene (for the error message)."""
-        return f"{type(self).__name__} does not provide what {method!r} needs"
+        """Why `method` does not apply to this scene (for the error message): what its record needs that the
+        native model does not provide."""
+        from rbody.engine.methods import method as record
+
+        if self.event_driven:
+            return "the scene is event-driven (its impacts are found exactly; there is no integrator to choose)"
+        return record(method).missing(self.native_model) or f"{method!r} applies to this scene"
 
     def describe(self) -> str:
         """One line naming the scene and its parameters, for reports and error messages."""
@@ -534,7 +624,7 @@ class TreeScene(Scene):
         depend on the state), no damping, and every hinge alone in its part of the tree (no other degree of
         freedom above or below it: a hinge with a moving ancestor or descendant couples them through the
         angle). Chains of slides alone keep M constant too."""
-        from rbody.engine.multibody import BALL, D_PARENT, DOF_SIZE, FREE, H_DOF, HINGE, KIND_CODE
+        from rbody.engine.multibody import BALL, D_PARENT, DOF_SIZE, FREE, H_DOF, HINGE, KIND_CODE, ROLL
 
         model = self.multibody
         kinds = [KIND_CODE[k] for k in model.arrays.joint_kinds]
@@ -552,11 +642,25 @@ class TreeScene(Scene):
                 related[k].add(d)
                 k = parent[k]
         for d in range(model.nv):
-            if kinds[model.arrays.dof_joint[d]] == HINGE and related[d]:
-                joint = model.joint_names[model.arrays.dof_joint[d]]
-                return (f"hinge {joint!r} shares its branch of the tree with other joints, so the mass matrix depends "
-                        "on its angle")
+            kind = kinds[model.arrays.dof_joint[d]]
+            joint = model.joint_names[model.arrays.dof_joint[d]]
+            if kind in (HINGE, ROLL) and related[d]:
+                return (f"{model.arrays.joint_kinds[model.arrays.dof_joint[d]]} {joint!r} shares its branch of the "
+                        "tree with other joints, so the mass matrix depends on its angle")
+            if kind == ROLL and not self._roll_inertia_constant(d):
+                return (f"roll {joint!r} carries its centre of mass off its axis, so the mass matrix depends on its "
+                        "angle")
         return ""
+
+    def _roll_inertia_constant(self, dof: int) -> bool:
+        """True when M of a roll degree of freedom alone in its branch is the same at every angle. That entry is
+        m a^2 + I_axis + 2 m a (l . (n x r)), r the centre of mass from the axis turned by the angle: a
+        trigonometric polynomial of degree 1, constant exactly when it takes one value at three angles."""
+        model = self.multibody
+        q = np.repeat(np.asarray(model.qpos0)[None], 3, axis=0)
+        q[:, int(model.arrays.qposadr[model.arrays.dof_joint[dof]])] += (0.0, 2.0, 4.0)
+        values = model.mass_matrix(q)[:, dof, dof]
+        return bool(np.ptp(values) <= 1e-12 * np.max(np.abs(values)))
 
     @property
     def methods(self) -> tuple[str, ...]:  # type: ignore[override]

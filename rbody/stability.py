@@ -2,33 +2,29 @@
 
 Linear stability. A method applied to y' = f(y) is stable on a linear mode y' = lambda y while
 h lambda lies in its stability region. Along an oscillation lambda = +-i w, so each method keeps the
-amplitude bounded only while h w < beta, its interval on the imaginary axis:
+amplitude bounded only while h w < beta, its interval on the imaginary axis. beta is a field of the
+method's record (rbody.engine.methods, where each value is derived): euler 0 (none), symplectic_euler
+and verlet 2, rk4 2 sqrt(2), yoshida6 2.2690..., gauss6 1 / (2 rho(A)) = 2.32 (the reach of its
+fixed-point iteration), splitting 2, reference inf.
 
-    euler             none: |1 + i h w| = sqrt(1 + (h w)^2) > 1, the amplitude grows at every step
-    symplectic_euler  2:    the step matrix has trace 2 - (h w)^2, which must stay in [-2, 2]
-    verlet            2:    the same trace
-    rk4               2 sqrt(2): |1 + z + z^2/2 + z^3/6 + z^4/24| <= 1 for z = i h w
-    yoshida6          2.2690579963976...: the trace of its seven verlet steps (weights YOSHIDA6)
-                      first leaves [-2, 2] there (computed by bisection, yoshida6_interval())
-    gauss6            A-stable, but rbody solves its stage equations by fixed-point iteration, which
-                      contracts by h w rho(A) per sweep, rho(A) = 0.2153 the spectral radius of the
-                      tableau: beta = 1 / (2 rho(A)) = 2.32 keeps the contraction at 1/2 or better
-    splitting         the scene's exact sub-flows (free rotation): taken as verlet's 2, the interval of
-                      a second-order symmetric splitting; its yoshida6 composition as yoshida6's
-
-Euler's explicit method has no interval: its limit here is the step at which the fastest linear
-mode grows by a factor `growth` (2) in amplitude over the run, (1 + (h w)^2)^(t / 2h) = 2, i.e.
+A method without an interval (euler, beta = 0): its limit here is the step at which the fastest linear
+mode grows by a factor EULER_GROWTH (2) in amplitude over the run, (1 + (h w)^2)^(t / 2h) = 2, i.e.
 h = 2 ln 2 / (w^2 t) to first order.
 
-The rate w of a scene is the largest |eigenvalue| of the Jacobian df/dy along its motion:
-pendulum: w0 = sqrt(M g d / I) (the linearisation at the bottom, or the growth rate at the top);
-free rotation: max over one period of the exact motion of |omega|/2 (the quaternion's rotation
-rate) and the eigenvalues of Euler's equations linearised, I^-1 ([L]x - [omega]x I) (a wobble, or the
-growth rate near the intermediate axis), and for the splitting and its yoshida6 composition also
-|omega_perp| sqrt(I3/I1), the rate of its sub-rotations on the smallest moment (fastest_rate); rolling: 0 (the
-accelerations are constant, any step is exact); chains: the Jacobian at the initial state and the
-fastest normal mode; other scenes: no estimate (an infinite limit; the check for non-finite states
-after every step remains).
+The rate w of a scene is the largest |eigenvalue| of the Jacobian df/dy along its motion, read from the
+scene's native model, never from its class (model_rate):
+- model.rate(method): the scene's own estimate where it knows its motion. Pendulum: w0 = sqrt(M g d / I)
+  (the linearisation at the bottom, or the growth rate at the top). Free rotation (rotation_rates): max
+  over one period of the exact motion of |omega|/2 (the quaternion's rotation rate) and the eigenvalues
+  of Euler's equations linearised, I^-1 ([L]x - [omega]x I) (a wobble, or the growth rate near the
+  intermediate axis), and for the splitting and its yoshida6 composition also |omega_perp| sqrt(I3/I1),
+  the rate of its sub-rotations on the smallest moment;
+- model.rate_from_jacobian: the spectral radius of df/dy by central differences at y0, and at
+  model.rest (a state of equilibrium: the fastest normal mode) where given (any tree, chains). For a batch
+  the Jacobians are formed in one compiled loop and their eigenvalues in one stacked call;
+- neither: no estimate (rolling: constant accelerations, any step is exact; other scenes: an infinite
+  limit; the check for non-finite states after every step remains).
+Until the pendulum, free rotation and chain modules state theirs, _family_rate supplies them.
 
 Float64 resolution. A pendulum released near the top (k^2 -> 1) carries the margin of its swing below
 the top, 1 - k^2 = cos^2(theta0/2) - omega0^2 / (4 w0^2), in its state only as the speed at the bottom,
@@ -42,13 +38,16 @@ changes the period by ~eps sqrt(n) / (2 |1 - k^2| K(k^2)) (theta0 = pi - 1e-6: 1
 
 from __future__ import annotations
 
+import dataclasses
 import math
-from functools import lru_cache
 
 import numpy as np
+from numba import njit, prange
 
+from rbody.engine import integrators
+from rbody.engine.methods import method as method_record, yoshida6_interval
 from rbody.errors import SimulationError
-from rbody.scene import Scene
+from rbody.scene import NativeModel, Scene
 
 EPS = float(np.finfo(np.float64).eps)
 # Euler's method: the amplitude growth over the run that its limit allows.
@@ -57,100 +56,147 @@ EULER_GROWTH = 2.0
 RESOLUTION_FACTOR = 4.0
 # Samples of one period of the exact free rotation at which the Jacobian is evaluated.
 ROTATION_SAMPLES = 65
-
-
-@lru_cache(maxsize=None)
-def yoshida6_interval() -> float:
-    """h w bound (float) of yoshida6 on the harmonic oscillator: the first h at which the trace of the
-    composed verlet steps leaves [-2, 2] (bisection to round-off)."""
-    from rbody.engine.integrators import YOSHIDA6
-
-    def trace(h: float) -> float:
-        step = np.eye(2)
-        for w in YOSHIDA6:
-            kick = np.array([[1.0, 0.0], [-0.5 * w * h, 1.0]])
-            drift = np.array([[1.0, w * h], [0.0, 1.0]])
-            step = kick @ drift @ kick @ step
-        return float(np.trace(step))
-
-    # The first exit on a grid of 1e-3 (the unstable windows beyond it are wider), then bisection.
-    grid = np.arange(1, 4001) * 1e-3
-    first = next(i for i, h in enumerate(grid) if abs(trace(h)) > 2.0)
-    low, high = float(grid[first - 1]), float(grid[first])
-    for _ in range(60):
-        middle = 0.5 * (low + high)
-        if abs(trace(middle)) <= 2.0:
-            low = middle
-        else:
-            high = middle
-    return low
-
-
-@lru_cache(maxsize=None)
-def _gauss6_interval() -> float:
-    from rbody.engine.integrators import GAUSS6_A
-
-    return 0.5 / float(np.max(np.abs(np.linalg.eigvals(GAUSS6_A))))
+# Relative step of the central differences of the Jacobian (truncation ~ step^2, round-off ~ eps / step).
+JACOBIAN_STEP = 1e-6
 
 
 def stability_interval(method: str) -> float:
     """beta (float): the method keeps an oscillation of angular frequency w bounded while dt w < beta
-    (0 for euler, which has no such interval; inf for 'reference', an adaptive solver)."""
-    intervals = {"euler": 0.0, "symplectic_euler": 2.0, "verlet": 2.0, "rk4": 2.0 * math.sqrt(2.0),
-                 "yoshida6": yoshida6_interval(), "gauss6": _gauss6_interval(), "splitting": 2.0,
-                 "reference": math.inf}
-    if method not in intervals:
-        raise ValueError(f"method={method!r}: expected one of {', '.join(map(repr, intervals))}")
-    return intervals[method]
+    (0 for euler, which has no such interval; inf for 'reference', an adaptive solver): its record's interval
+    (rbody.engine.methods)."""
+    return method_record(method).interval
 
 
 # ----- the fastest rate of a scene ------------------------------------------------------------------
 
 def fastest_rate(scene: Scene, method: str | None = None) -> np.ndarray:
-    """(B,) largest |eigenvalue| of df/dy along the motion of each batch element [1/s] (module docstring).
+    """(B,) largest |eigenvalue| of df/dy along the motion of each batch element [1/s], from the scene's native
+    model (model_rate): the scene's own estimate (model.rate), else the Jacobian of its rhs, else 0.
 
-    method "splitting" or "yoshida6" on a free rotation: also |omega_perp| sqrt(I3 / I1), omega_perp the
-    part of omega across the axis of the smallest moment: the rate at which the exact sub-rotations about
-    the other axes move angular momentum onto that axis, where omega_1 = L_1 / I1. The splitting's error
-    grows as (dt |omega_perp| sqrt(I3/I1))^2 (measured on tumbling needles: 0.0165 (I3/I1) (dt |omega|)^2
-    over 2 s, for I3/I1 from 17 to 1.7e7), so a needle's splitting needs far smaller steps than its
-    dynamics. yoshida6 (6th order) gets a quarter of that rate: measured on the same needles its error is
-    ~1.4e-11 (dt |omega_perp| sqrt(I3/I1))^6 (6.6e-8 at 4.1, 6 % at 41).
-
-    The rate depends only on the scene and the kind of method (the splitting, its yoshida6 composition, or
-    any other), and simulate asks for it on every call: it is computed once and kept in the scene's own
-    __dict__ (read-only). Scenes are frozen dataclasses holding arrays, hence unhashable, so no outside
-    cache could key on them; the scene's __dict__ is where its cached_property values live too, and a
-    frozen scene never changes, so the kept rate never goes stale."""
-    from rbody.scenes.free_rotation import FreeRotation
-
-    kind = {"splitting": "splitting", "yoshida6": "yoshida6"}.get(method) if isinstance(scene, FreeRotation) else None
+    The rate may depend on the method (a free rotation's splitting moves angular momentum at a rate of its
+    own), and simulate asks for it on every call: it is computed once per method and kept in the scene's own
+    __dict__ (read-only). Scenes are frozen dataclasses holding arrays, hence unhashable, so no outside cache
+    could key on them; the scene's __dict__ is where its cached_property values live too, and a frozen scene
+    never changes, so the kept rate never goes stale."""
     cache = scene.__dict__.setdefault("_fastest_rate", {})  # frozen: no setattr, but __dict__ is writable
-    if kind not in cache:
-        rate = np.array(_fastest_rate(scene, kind), dtype=np.float64)
+    if method not in cache:
+        model = scene.native_model
+        if model.rate is None and not model.rate_from_jacobian:
+            rate = _family_rate(scene, method)
+        else:
+            rate = model_rate(model, method)
+        rate = np.array(rate, dtype=np.float64).reshape(model.y0.shape[0])
         rate.setflags(write=False)
-        cache[kind] = rate
-    return cache[kind]
+        cache[method] = rate
+    return cache[method]
 
 
-def _fastest_rate(scene: Scene, method: str | None) -> np.ndarray:
+def _largest_rate(scene: Scene, method: str | None) -> float:
+    """max over the batch of fastest_rate(scene, method), kept beside it."""
+    cache = scene.__dict__.setdefault("_largest_rate", {})
+    if method not in cache:
+        cache[method] = float(np.max(fastest_rate(scene, method)))
+    return cache[method]
+
+
+def model_rate(model: NativeModel, method: str | None = None) -> np.ndarray:
+    """(B,) fastest rate [1/s] of a NativeModel: model.rate(method) where the scene gives its own; else, with
+    model.rate_from_jacobian, the spectral radius of df/dy at y0 and (when model.rest is given) at the state of
+    rest; else zeros (no estimate: constant accelerations, or a scene whose Jacobian at the start says little
+    about its motion; the check for non-finite states after every step remains)."""
+    batch = model.y0.shape[0]
+    if model.rate is not None:
+        return np.broadcast_to(np.asarray(model.rate(method), dtype=np.float64), (batch,))
+    if not model.rate_from_jacobian:
+        return np.zeros(batch)
+    y0 = np.ascontiguousarray(model.y0, dtype=np.float64)
+    params = np.ascontiguousarray(model.params, dtype=np.float64)
+    rate = jacobian_rate(model.rhs, y0, params)
+    if model.rest is not None:
+        rest = np.ascontiguousarray(np.broadcast_to(np.asarray(model.rest, dtype=np.float64), y0.shape))
+        rate = np.maximum(rate, jacobian_rate(model.rhs, rest, params))
+    return rate
+
+
+def jacobian_rate(rhs, y: np.ndarray, params: np.ndarray) -> np.ndarray:
+    """(B,) spectral radius of df/dy at each row of y (B, n), by central differences of the compiled rhs: the
+    Jacobians of a block of elements in one compiled loop (threads over chunks of it), their eigenvalues in one
+    stacked numpy call; blocks of at most JACOBIAN_BLOCK numbers bound the memory of a long chain's batch."""
+    y, params = np.ascontiguousarray(y, dtype=np.float64), np.ascontiguousarray(params, dtype=np.float64)
+    batch, n = y.shape
+    rates = np.empty(batch)
+    block = max(1, JACOBIAN_BLOCK // (n * n))
+    pointer = integrators.pointer_function(rhs)
+    for start in range(0, batch, block):
+        stop = min(batch, start + block)
+        jacobians = np.empty((stop - start, n, n))
+        _jacobians(pointer, y[start:stop], params[start:stop], JACOBIAN_STEP, jacobians)
+        finite = np.all(np.isfinite(jacobians), axis=(1, 2))
+        rates[start:stop] = np.inf  # a Jacobian that is not finite: no step is safe
+        if np.any(finite):
+            rates[start:stop][finite] = np.max(np.abs(np.linalg.eigvals(jacobians[finite])), axis=-1)
+    return rates
+
+
+JACOBIAN_BLOCK = 2**21  # numbers (16 MB) of Jacobians held at once
+JACOBIAN_CHUNK = 256    # elements per thread's task in the compiled loop
+
+
+@njit(cache=True, parallel=True)
+def _jacobians(rhs, y, params, relative, out):
+    """out[b] (n, n) = df/dy at y[b], by central differences (step relative * max(1, |y_j|))."""
+    batch, n = y.shape
+    m = params.shape[1]
+    for c in prange(-(-batch // JACOBIAN_CHUNK)):
+        state, row = np.empty((1, n)), np.empty((1, m))
+        plus, minus = np.empty((1, n)), np.empty((1, n))
+        for b in range(c * JACOBIAN_CHUNK, min(batch, (c + 1) * JACOBIAN_CHUNK)):
+            for k in range(m):
+                row[0, k] = params[b, k]
+            for j in range(n):
+                state[0, j] = y[b, j]
+            for j in range(n):
+                step = relative * max(1.0, abs(y[b, j]))
+                state[0, j] = y[b, j] + step
+                rhs(integrators._row(state, 0), integrators._row(row, 0), integrators._row(plus, 0), n, m)
+                state[0, j] = y[b, j] - step
+                rhs(integrators._row(state, 0), integrators._row(row, 0), integrators._row(minus, 0), n, m)
+                state[0, j] = y[b, j]
+                for i in range(n):
+                    out[b, i, j] = (plus[0, i] - minus[0, i]) / (2.0 * step)
+
+
+def _family_rate(scene: Scene, method: str | None) -> np.ndarray:
+    """The rates of the three families whose native model does not state its rate yet (pendulum, free rotation,
+    chain). Transitional: deleted once their native() passes rate= or rate_from_jacobian= (the one-line changes
+    in the methods branch's status note); every other model states its rate or has none (zeros)."""
     from rbody.scenes.chain import PendulumChain
     from rbody.scenes.free_rotation import FreeRotation
     from rbody.scenes.pendulum import Pendulum
 
+    model = scene.native_model
     if isinstance(scene, Pendulum):
-        return np.sqrt(scene._w0_squared())
+        return np.sqrt(model.params[:, 0])  # params[:, 0] = w0^2 = M g d / I
     if isinstance(scene, FreeRotation):
-        split = {"splitting": 1.0, "yoshida6": 0.25}.get(method, 0.0)
-        return np.array([_rotation_rate(scene.item(index), split) for index in np.ndindex(*scene.batch_shape)])
-    if isinstance(scene, PendulumChain):
-        return np.maximum(_jacobian_rate(scene), float(np.max(scene.normal_modes()[0])))
-    if scene.native_model.rate_from_jacobian:  # a tree (Scene.from_layout): the linearisation of its model
-        return _jacobian_rate(scene)
-    # Rolling: constant accelerations, any step is exact. Other scenes: no estimate (their Jacobian at the
-    # start says little about the motion, and costs O(n) right-hand sides for n coordinates): the limit is
-    # inf there and the non-finite check after each step is the guard.
-    return np.zeros(scene.native_model.y0.shape[0])
+        return rotation_rates(scene, method)
+    if isinstance(scene, PendulumChain):  # the Jacobian at the start and at rest (the fastest normal mode)
+        return model_rate(dataclasses.replace(model, rate_from_jacobian=True, rest=np.zeros(model.y0.shape[1])))
+    return np.zeros(model.y0.shape[0])
+
+
+def rotation_rates(scene, method: str | None = None) -> np.ndarray:
+    """(B,) the fastest rate of a free rotation (rbody.scenes.FreeRotation) along one period of its exact motion:
+    |omega|/2 and the eigenvalues of Euler's equations linearised; for "splitting" also |omega_perp| sqrt(I3/I1),
+    for "yoshida6" a quarter of that.
+
+    omega_perp is the part of omega across the axis of the smallest moment: the rate at which the exact
+    sub-rotations about the other axes move angular momentum onto that axis, where omega_1 = L_1 / I1. The
+    splitting's error grows as (dt |omega_perp| sqrt(I3/I1))^2 (measured on tumbling needles: 0.0165 (I3/I1)
+    (dt |omega|)^2 over 2 s, for I3/I1 from 17 to 1.7e7), so a needle's splitting needs far smaller steps than
+    its dynamics. yoshida6 (6th order) gets a quarter of that rate: measured on the same needles its error is
+    ~1.4e-11 (dt |omega_perp| sqrt(I3/I1))^6 (6.6e-8 at 4.1, 6 % at 41)."""
+    split = {"splitting": 1.0, "yoshida6": 0.25}.get(method, 0.0)
+    return np.array([_rotation_rate(scene.item(index), split) for index in np.ndindex(*scene.batch_shape)])
 
 
 def _rotation_rate(scene, split: float = 0.0) -> float:
@@ -177,27 +223,6 @@ def _cross_matrix(v: np.ndarray) -> np.ndarray:
     return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
-def _jacobian_rate(scene: Scene) -> np.ndarray:
-    """(B,) spectral radius of df/dy at the initial state, by central differences of the scene's rhs."""
-    model = scene.native_model
-    y0, params = np.ascontiguousarray(model.y0, dtype=np.float64), np.ascontiguousarray(model.params)
-    batch, n = y0.shape
-    rates = np.empty(batch)
-    plus, minus = np.empty(n), np.empty(n)
-    for b in range(batch):
-        jacobian = np.empty((n, n))
-        for j in range(n):
-            step = 1e-6 * max(1.0, abs(y0[b, j]))
-            y = y0[b].copy()
-            y[j] += step
-            model.rhs(y, params[b], plus)
-            y[j] -= 2 * step
-            model.rhs(y, params[b], minus)
-            jacobian[:, j] = (plus - minus) / (2 * step)
-        rates[b] = float(np.max(np.abs(np.linalg.eigvals(jacobian))))
-    return rates
-
-
 # ----- the limit and the check --------------------------------------------------------------------
 
 def stability_limit(scene: Scene, method: str, t_end: float | None = None) -> float:
@@ -208,10 +233,12 @@ def stability_limit(scene: Scene, method: str, t_end: float | None = None) -> fl
     if scene.event_driven:
         return math.inf
     beta = stability_interval(method)
-    rate = float(np.max(fastest_rate(scene, method)))
-    if rate == 0.0 or beta == math.inf:
+    if beta == math.inf:
         return math.inf
-    if method == "euler":
+    rate = _largest_rate(scene, method)
+    if rate == 0.0:
+        return math.inf
+    if beta == 0.0:  # no interval (euler): the step whose amplitude growth over the run is EULER_GROWTH
         t_end = scene.t_end if t_end is None else float(t_end)
         return 2.0 * math.log(EULER_GROWTH) / (rate**2 * t_end)
     return beta / rate
@@ -225,14 +252,14 @@ def resolution_problem(scene: Scene, dt: float | None = None, t_end: float | Non
     run (measured: 0.13 eps sqrt(steps) for verlet, 0.3 for yoshida6). The run is refused when
     RESOLUTION_FACTOR sigma reaches |1 - k^2|: beyond it the round-off alone changes the period by
     ~ sigma / (2 |1 - k^2| K) or turns the swing into a whirl. Without dt, one step is assumed."""
-    from rbody.scenes.pendulum import Pendulum
-
-    if not isinstance(scene, Pendulum):
+    margin = _separatrix_margin(scene)
+    if margin is None:
         return None
     t_end = scene.t_end if t_end is None else float(t_end)
     steps = 1 if dt is None else max(1, math.ceil(t_end / dt))
     drift = EPS * math.sqrt(steps)
-    margin = np.abs(scene._one_minus_modulus())
+    if scene.__dict__["_smallest_margin"] >= RESOLUTION_FACTOR * drift:  # the common case, without array work
+        return None
     bad = (margin > 0) & (margin < RESOLUTION_FACTOR * drift)
     if not np.any(bad):
         return None
@@ -245,10 +272,31 @@ def resolution_problem(scene: Scene, dt: float | None = None, t_end: float | Non
             "the motion from the complement 1 - k^2")
 
 
+def _separatrix_margin(scene: Scene) -> np.ndarray | None:
+    """(B,) |1 - k^2| of a motion carried in its state only to ~eps (model.separatrix_margin), or None; kept in
+    the scene's __dict__ like its rate (simulate asks on every call)."""
+    cache = scene.__dict__
+    if "_separatrix_margin" not in cache:
+        model = scene.native_model
+        margin = model.separatrix_margin
+        if margin is None:  # transitional, until the pendulum's native() passes separatrix_margin= itself
+            from rbody.scenes.pendulum import Pendulum
+
+            margin = scene._one_minus_modulus() if isinstance(scene, Pendulum) else None
+        smallest = math.inf
+        if margin is not None:
+            margin = np.abs(np.asarray(margin, dtype=np.float64)).reshape(-1)
+            margin.setflags(write=False)
+            positive = margin[margin > 0]
+            smallest = float(positive.min()) if positive.size else math.inf
+        cache["_separatrix_margin"], cache["_smallest_margin"] = margin, smallest
+    return cache["_separatrix_margin"]
+
+
 def check_step(scene: Scene, method: str, dt: float, t_end: float | None = None) -> None:
     """Raise SimulationError, before any step, when dt [s] is beyond stability_limit(scene, method, t_end)
     or the scene is beyond float64's resolution (resolution_problem); return None otherwise."""
-    if scene.event_driven or method == "reference":
+    if scene.event_driven or stability_interval(method) == math.inf:  # an adaptive solver: no step to check
         return
     problem = resolution_problem(scene, dt, t_end)
     if problem is not None:
@@ -256,8 +304,8 @@ def check_step(scene: Scene, method: str, dt: float, t_end: float | None = None)
     limit = stability_limit(scene, method, t_end)
     if dt > limit:
         rate = float(np.max(fastest_rate(scene, method)))
-        if method == "euler":
-            why = (f"euler has no stability interval (|1 + i dt w| > 1): at dt={dt:g} s the fastest linear mode "
+        if stability_interval(method) == 0.0:
+            why = (f"{method} has no stability interval (|1 + i dt w| > 1): at dt={dt:g} s the fastest linear mode "
                    f"(w = {rate:.6g} rad/s) grows by more than {EULER_GROWTH:g}x over t_end; its limit here is "
                    f"2 ln {EULER_GROWTH:g} / (w^2 t_end) = {limit:.6g} s")
         else:
@@ -267,5 +315,5 @@ def check_step(scene: Scene, method: str, dt: float, t_end: float | None = None)
         raise SimulationError(f"scene {scene.describe()}: method {method!r}: {why}; use dt <= {limit:.6g} s")
 
 
-__all__ = ["stability_interval", "yoshida6_interval", "fastest_rate", "stability_limit", "resolution_problem",
+__all__ = ["stability_interval", "yoshida6_interval", "fastest_rate", "model_rate", "jacobian_rate", "stability_limit", "resolution_problem",
            "check_step", "EULER_GROWTH", "RESOLUTION_FACTOR"]

@@ -131,6 +131,7 @@ def integrate_rows(scene: Scene, start: int, stop: int, method: str, dt: float, 
     numba's threads are limited to the worker's threads, so that a worker per core does not oversubscribe."""
     import numba
 
+    from rbody.engine.methods import method as method_record
     from rbody.engine.simulate import integrate_model
 
     model = scene.native_model  # built once per worker: the scattered scene is one object there
@@ -140,7 +141,7 @@ def integrate_rows(scene: Scene, start: int, stop: int, method: str, dt: float, 
     previous = numba.get_num_threads()
     numba.set_num_threads(max(1, min(previous, _worker_threads())))  # this thread's launches only
     try:
-        failed = integrate_model(rows, method, dt, nsteps, save_every, out)  # as simulate runs them
+        failed = integrate_model(rows, method_record(method), dt, nsteps, save_every, out)  # as simulate runs them
     finally:
         numba.set_num_threads(previous)
     return out, failed

@@ -8,7 +8,7 @@ equations do not converge), freezing that element there. The scene supplies
     rhs(y, p, out)    y' = f(y)            (every general method)
     accel(q, p, out)  q'' = a(q), y = (q, q')  (the symplectic methods: the Hamiltonian is separable)
 
-Methods (order in brackets):
+Methods (order in brackets; each method's facts are one record in rbody.engine.methods):
     euler [1]             y += dt f(y)
     symplectic_euler [1]  v += dt a(q); q += dt v
     verlet [2]            velocity Verlet (kick-drift-kick), symmetric and symplectic
@@ -35,19 +35,16 @@ import numpy as np
 from numba import carray, cfunc, get_num_threads, njit, prange, types
 from numba.extending import intrinsic
 
-METHOD_ORDER = {
-    "euler": 1,
-    "symplectic_euler": 1,
-    "verlet": 2,
-    "rk4": 4,
-    "yoshida6": 6,
-    "gauss6": 6,
-    "splitting": 2,
-    "reference": None,
-}
-METHODS = tuple(METHOD_ORDER)
-SYMPLECTIC = ("symplectic_euler", "verlet", "yoshida6", "gauss6", "splitting")
-SYMMETRIC = ("verlet", "yoshida6", "gauss6", "splitting")
+
+def __getattr__(name: str):
+    """METHODS, METHOD_ORDER, SYMPLECTIC, SYMMETRIC: derived from the method records (rbody.engine.methods),
+    read from there lazily (that module imports this one)."""
+    if name in ("METHODS", "METHOD_ORDER", "SYMPLECTIC", "SYMMETRIC"):
+        from rbody.engine import methods
+
+        return getattr(methods, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 # Yoshida (1990), 6th order, solution A: weights w3 w2 w1 w0 w1 w2 w3 of the symmetric base step.
 _W1, _W2, _W3 = -1.17767998417887, 0.235573213359357, 0.784513610477560

@@ -8,11 +8,14 @@ of freedom (damping, armature). Every algorithm is an @njit(cache=True) free fun
 integrators hand to the right-hand side of a TreeScene (rbody.scene).
 
 Coordinates are MuJoCo's for the same model: bodies depth first from the world, joints in the order a
-body lists them; hinge and slide: one coordinate, displacement q - ref; ball: qpos a unit quaternion
+body lists them; hinge, slide and roll: one coordinate, displacement q - ref; ball: qpos a unit quaternion
 (w, x, y, z), qvel the body-frame angular velocity; free: qpos the world position of the body frame's
 origin and its quaternion, qvel that origin's world velocity then the body-frame angular velocity.
 Several joints on one body compose in the order given, as MJCF composes them; a body without joints is
 welded to its parent (no degree of freedom: its inertia simply adds to what its parent carries).
+A roll joint (a round body of radius a rolling without slipping on a line) is a slide by a (q - ref)
+along l = axis x normal followed by a hinge by q - ref about the axis through the anchor: one coordinate,
+the contact point anchor - a normal at rest.
 
 Algorithms (Featherstone, Rigid Body Dynamics Algorithms, 2008), all with spatial vectors
 (rbody.engine.spatial) written in one frame, the world's axes about the world origin ("ground
@@ -28,7 +31,7 @@ massless virtual links with no transform between them, and nothing is ever moved
   as an upward acceleration of the world.
 - the mass matrix: the composite-rigid-body algorithm (CRBA), inertias added towards the root
   (composites in this one frame add component by component).
-Passive forces are MuJoCo's: -stiffness (q - springref) - damping qvel per hinge or slide, -damping
+Passive forces are MuJoCo's: -stiffness (q - springref) - damping qvel per hinge, slide or roll, -damping
 qvel per degree of freedom of a ball or free joint (stiffness on those is refused).
 
 A ball joint's degrees of freedom are rotations about the body's final axes (MuJoCo: "assume no
@@ -56,10 +59,11 @@ from rbody.engine.spatial import (cross3, dexp_inverse, dot6, force_cross, inert
                                   inertia_matrix, motion_cross, quat_axis_angle, quat_exp, quat_multiply,
                                   quat_rotate, quat_to_matrix)
 
-HINGE, SLIDE, BALL, FREE = 0, 1, 2, 3
-KIND_CODE = {"hinge": HINGE, "slide": SLIDE, "ball": BALL, "free": FREE}
-NQ = {HINGE: 1, SLIDE: 1, BALL: 4, FREE: 7}
-NV = {HINGE: 1, SLIDE: 1, BALL: 3, FREE: 6}
+HINGE, SLIDE, BALL, FREE, ROLL = 0, 1, 2, 3, 4
+KIND_CODE = {"hinge": HINGE, "slide": SLIDE, "ball": BALL, "free": FREE, "roll": ROLL}
+NQ = {HINGE: 1, SLIDE: 1, BALL: 4, FREE: 7, ROLL: 1}
+NV = {HINGE: 1, SLIDE: 1, BALL: 3, FREE: 6, ROLL: 1}
+SCALAR_KINDS = (HINGE, SLIDE, ROLL)  # one coordinate, displacement q - ref
 
 # Header of the params row.
 H_BODIES, H_JOINTS, H_DOFS, H_NQ, H_ROT, H_GRAVITY, H_BODY, H_JOINT, H_DOF = range(9)
@@ -69,9 +73,11 @@ HEADER = 9
 B_PARENT, B_POS, B_QUAT, B_MASS, B_COM, B_TENSOR, B_DOF0, B_NDOF, B_JNT0, B_NJNT = 0, 1, 4, 8, 9, 12, 21, 22, 23, 24
 BODY_SIZE = 25
 # Joint record: kind, body, axis (3), anchor (3), qpos address, qvel address, ref, stiffness, springref,
-# rotation slot (index of the joint's rotation vector phi among the ball and free joints, -1 otherwise).
+# rotation slot (index of the joint's rotation vector phi among the ball and free joints, -1 otherwise),
+# rolling radius a and rolling line l = axis x normal (3, body frame) of a roll joint (0 for the others).
 J_KIND, J_BODY, J_AXIS, J_ANCHOR, J_QADR, J_DADR, J_REF, J_STIFF, J_SPRINGREF, J_ROT = 0, 1, 2, 5, 8, 9, 10, 11, 12, 13
-JOINT_SIZE = 14
+J_RADIUS, J_LINE = 14, 15
+JOINT_SIZE = 18
 # Degree-of-freedom record: joint, index within the joint, starts a group (1: the velocity its bias uses
 # is the body's velocity so far; 0: the same as the dof before), damping, armature, parent dof (-1 none).
 D_JOINT, D_INDEX, D_GROUP, D_DAMPING, D_ARMATURE, D_PARENT = 0, 1, 2, 3, 4, 5
@@ -106,9 +112,10 @@ def body_offset(p, i):
 # ----- kinematics -------------------------------------------------------------------------------------------
 
 @njit(cache=True, inline="always")
-def kinematics(p, q, xpos, xquat, xmat, xaxis, xanchor, scratch):
+def kinematics(p, q, xpos, xquat, xmat, xaxis, xanchor, xline, scratch):
     """World poses of every body from qpos q (nq,), as MuJoCo's mj_kinematics: xpos (nb, 3) body-frame
-    origins [m], xquat (nb, 4), xmat (nb, 3, 3); per joint its world axis and anchor (nj, 3) [m]."""
+    origins [m], xquat (nb, 4), xmat (nb, 3, 3); per joint its world axis and anchor (nj, 3) [m] (a roll
+    joint's anchor after its slide) and a roll joint's world rolling line l (nj, 3)."""
     nb = int(p[H_BODIES])
     bo, jo = int(p[H_BODY]), int(p[H_JOINT])
     qloc, quat, previous, vec = scratch[0:4], scratch[4:8], scratch[8:12], scratch[12:15]
@@ -149,19 +156,25 @@ def kinematics(p, q, xpos, xquat, xmat, xaxis, xanchor, scratch):
                     d = q[qa] - p[r + J_REF]
                     for a in range(3):
                         xpos[i, a] += xaxis[j, a] * d
-                else:  # hinge or ball: turn about the anchor
-                    if kind == BALL:
-                        norm = np.sqrt(q[qa] ** 2 + q[qa + 1] ** 2 + q[qa + 2] ** 2 + q[qa + 3] ** 2)
-                        for a in range(4):
-                            qloc[a] = q[qa + a] / norm
-                    else:
-                        quat_axis_angle(axis, q[qa] - p[r + J_REF], qloc)
-                    for a in range(4):
-                        previous[a] = quat[a]
-                    quat_multiply(previous, qloc, quat)
-                    quat_rotate(quat, anchor, vec)
+                    continue
+                if kind == ROLL:  # first slide by a (q - ref) along l (anchor and body together), then turn
+                    quat_rotate(quat, p[r + J_LINE:r + J_LINE + 3], xline[j])
+                    d = p[r + J_RADIUS] * (q[qa] - p[r + J_REF])
                     for a in range(3):
-                        xpos[i, a] = xanchor[j, a] - vec[a]
+                        xanchor[j, a] += xline[j, a] * d
+                # hinge, roll or ball: turn about the anchor
+                if kind == BALL:
+                    norm = np.sqrt(q[qa] ** 2 + q[qa + 1] ** 2 + q[qa + 2] ** 2 + q[qa + 3] ** 2)
+                    for a in range(4):
+                        qloc[a] = q[qa + a] / norm
+                else:
+                    quat_axis_angle(axis, q[qa] - p[r + J_REF], qloc)
+                for a in range(4):
+                    previous[a] = quat[a]
+                quat_multiply(previous, qloc, quat)
+                quat_rotate(quat, anchor, vec)
+                for a in range(3):
+                    xpos[i, a] = xanchor[j, a] - vec[a]
         norm = np.sqrt(quat[0] ** 2 + quat[1] ** 2 + quat[2] ** 2 + quat[3] ** 2)
         for a in range(4):
             xquat[i, a] = quat[a] / norm
@@ -169,10 +182,11 @@ def kinematics(p, q, xpos, xquat, xmat, xaxis, xanchor, scratch):
 
 
 @njit(cache=True, inline="always")
-def motion_subspaces(p, xpos, xmat, xaxis, xanchor, S, scratch):
+def motion_subspaces(p, xpos, xmat, xaxis, xanchor, xline, S, scratch):
     """S (nv, 6): each degree of freedom's unit motion (omega; v at the world origin), world axes, as
-    MuJoCo's cdof. Hinge (a; x x a) about its anchor x; slide (0; a); ball and free rotations about the
-    body's own axes (columns of xmat) through the anchor; free translations along the world axes."""
+    MuJoCo's cdof. Hinge (a; x x a) about its anchor x; slide (0; a); roll (a; x x a) + radius (0; l) (the
+    hinge about the anchor after the slide, plus the slide); ball and free rotations about the body's own
+    axes (columns of xmat) through the anchor; free translations along the world axes."""
     nv = int(p[H_DOFS])
     jo, do = int(p[H_JOINT]), int(p[H_DOF])
     axis = scratch[0:3]
@@ -191,7 +205,7 @@ def motion_subspaces(p, xpos, xmat, xaxis, xanchor, S, scratch):
         if kind == FREE and k < 3:
             S[d, 3 + k] = 1.0
             continue
-        if kind == HINGE:
+        if kind == HINGE or kind == ROLL:
             for a in range(3):
                 axis[a] = xaxis[j, a]
         else:
@@ -201,15 +215,20 @@ def motion_subspaces(p, xpos, xmat, xaxis, xanchor, S, scratch):
         for a in range(3):
             S[d, a] = axis[a]
         cross3(xanchor[j], axis, S[d, 3:])
+        if kind == ROLL:
+            radius = p[r + J_RADIUS]
+            for a in range(3):
+                S[d, 3 + a] += radius * xline[j, a]
 
 
 @njit(cache=True, inline="always")
-def velocities(p, S, v, vel, bias, scratch):
+def velocities(p, S, v, xaxis, xline, vel, bias, scratch):
     """vel (nb, 6): each body's spatial velocity (world axes, about the origin); bias (nv, 6): each degree of
     freedom's velocity-product acceleration S' v_d = (v_before x S) v_d (MuJoCo's cdof_dot qvel), v_before
-    the body's velocity before the joint (ball and free rotations: before the whole group)."""
+    the body's velocity before the joint (ball and free rotations: before the whole group). A roll joint's
+    hinge part moves with its slide part: + radius v_d^2 (0; l x axis) (= (radius v_d (0; l)) x (axis; x x axis))."""
     nb = int(p[H_BODIES])
-    bo, do = int(p[H_BODY]), int(p[H_DOF])
+    bo, jo, do = int(p[H_BODY]), int(p[H_JOINT]), int(p[H_DOF])
     base = scratch[0:6]
     for i in range(nb):
         b = bo + i * BODY_SIZE
@@ -224,6 +243,12 @@ def velocities(p, S, v, vel, bias, scratch):
             for a in range(6):
                 bias[d, a] = 0.0
             motion_cross(base, S[d], v[d], bias[d])
+            j = int(p[do + d * DOF_SIZE + D_JOINT])
+            if int(p[jo + j * JOINT_SIZE + J_KIND]) == ROLL:
+                scale = p[jo + j * JOINT_SIZE + J_RADIUS] * v[d] * v[d]
+                bias[d, 3] += scale * (xline[j, 1] * xaxis[j, 2] - xline[j, 2] * xaxis[j, 1])
+                bias[d, 4] += scale * (xline[j, 2] * xaxis[j, 0] - xline[j, 0] * xaxis[j, 2])
+                bias[d, 5] += scale * (xline[j, 0] * xaxis[j, 1] - xline[j, 1] * xaxis[j, 0])
             for a in range(6):
                 vel[i, a] += S[d, a] * v[d]
 
@@ -262,7 +287,7 @@ def passive(p, q, v, out):
 def workspace_size(p) -> int:
     """Floats of the workspace of one evaluation (see _views)."""
     nb, nj, nv, nq = int(p[H_BODIES]), int(p[H_JOINTS]), int(p[H_DOFS]), int(p[H_NQ])
-    return 91 * nb + 6 * nj + 22 * nv + nq + SCRATCH
+    return 91 * nb + 9 * nj + 22 * nv + nq + SCRATCH
 
 
 SCRATCH = 32  # floats of small temporaries (quaternions, 3- and 6-vectors) at the end of the workspace
@@ -277,8 +302,8 @@ def _views(p, w):
     at = 0
     six = w[at:at + 6 * (3 * nv + 4 * nb)].reshape((3 * nv + 4 * nb, 6))
     at += 6 * (3 * nv + 4 * nb)
-    three = w[at:at + 3 * (2 * nb + 2 * nj)].reshape((2 * nb + 2 * nj, 3))
-    at += 3 * (2 * nb + 2 * nj)
+    three = w[at:at + 3 * (2 * nb + 3 * nj)].reshape((2 * nb + 3 * nj, 3))
+    at += 3 * (2 * nb + 3 * nj)
     matrices = w[at:at + 18 * nb].reshape((2 * nb, 3, 3))
     at += 18 * nb
     IA = w[at:at + 36 * nb].reshape((nb, 6, 6))
@@ -290,6 +315,7 @@ def _views(p, w):
     acc, force = six[3 * nv + 2 * nb:3 * nv + 3 * nb], six[3 * nv + 3 * nb:3 * nv + 4 * nb]
     xpos, h = three[0:nb], three[nb:2 * nb]
     xaxis, xanchor = three[2 * nb:2 * nb + nj], three[2 * nb + nj:2 * nb + 2 * nj]
+    xline = three[2 * nb + 2 * nj:2 * nb + 3 * nj]
     xmat, Ibar = matrices[0:nb], matrices[nb:2 * nb]
     u = w[at:at + nv]
     mass = w[at + nv:at + nv + nb]
@@ -299,16 +325,16 @@ def _views(p, w):
     pivots = w[at + nq + nv:at + nq + 2 * nv]
     zero = w[at + nq + 2 * nv:at + nq + 3 * nv]
     scratch = w[at + nq + 3 * nv:at + nq + 3 * nv + SCRATCH]
-    return (xpos, xquat, xmat, xaxis, xanchor, S, bias, vel, h, Ibar, IA, pA, U, u, acc, force, mass, q, tau,
-            pivots, zero, scratch)
+    return (xpos, xquat, xmat, xaxis, xanchor, xline, S, bias, vel, h, Ibar, IA, pA, U, u, acc, force, mass, q,
+            tau, pivots, zero, scratch)
 
 
 @njit(cache=True, inline="always")
-def _frames(p, q, v, xpos, xquat, xmat, xaxis, xanchor, S, bias, vel, h, Ibar, scratch):
+def _frames(p, q, v, xpos, xquat, xmat, xaxis, xanchor, xline, S, bias, vel, h, Ibar, scratch):
     """Kinematics, motion subspaces, velocities and world inertias of one state, into the given arrays."""
-    kinematics(p, q, xpos, xquat, xmat, xaxis, xanchor, scratch)
-    motion_subspaces(p, xpos, xmat, xaxis, xanchor, S, scratch)
-    velocities(p, S, v, vel, bias, scratch)
+    kinematics(p, q, xpos, xquat, xmat, xaxis, xanchor, xline, scratch)
+    motion_subspaces(p, xpos, xmat, xaxis, xanchor, xline, S, scratch)
+    velocities(p, S, v, xaxis, xline, vel, bias, scratch)
     world_inertias(p, xpos, xmat, h, Ibar, scratch)
 
 
@@ -386,9 +412,9 @@ def articulated_body(p, S, bias, vel, h, Ibar, tau, qacc, pivots, IA, pA, U, u, 
 def forward_one(p, q, v, tau, qacc, pivots, w):
     """qacc (nv,) = M^-1 (tau + passive - bias) at one state, w the workspace; returns the first singular dof
     or -1 (pivots (nv,) the ABA's D)."""
-    (xpos, xquat, xmat, xaxis, xanchor, S, bias, vel, h, Ibar, IA, pA, U, u, acc, _force, _mass, _q, force,
+    (xpos, xquat, xmat, xaxis, xanchor, xline, S, bias, vel, h, Ibar, IA, pA, U, u, acc, _force, _mass, _q, force,
      _pivots, _zero, scratch) = _views(p, w)
-    _frames(p, q, v, xpos, xquat, xmat, xaxis, xanchor, S, bias, vel, h, Ibar, scratch)
+    _frames(p, q, v, xpos, xquat, xmat, xaxis, xanchor, xline, S, bias, vel, h, Ibar, scratch)
     nv = int(p[H_DOFS])
     passive(p, q, v, force)
     for d in range(nv):
@@ -401,9 +427,9 @@ def forward_one(p, q, v, tau, qacc, pivots, w):
 @njit(cache=True)
 def inverse_one(p, q, v, qacc, gravity_on, out, w):
     """RNEA: out (nv,) = M qacc + bias (gravity included when gravity_on), passive forces not included."""
-    (xpos, xquat, xmat, xaxis, xanchor, S, bias, vel, h, Ibar, _IA, _pA, _U, _u, acc, force, _mass, _q, _tau,
+    (xpos, xquat, xmat, xaxis, xanchor, xline, S, bias, vel, h, Ibar, _IA, _pA, _U, _u, acc, force, _mass, _q, _tau,
      _pivots, _zero, scratch) = _views(p, w)
-    _frames(p, q, v, xpos, xquat, xmat, xaxis, xanchor, S, bias, vel, h, Ibar, scratch)
+    _frames(p, q, v, xpos, xquat, xmat, xaxis, xanchor, xline, S, bias, vel, h, Ibar, scratch)
     nb = int(p[H_BODIES])
     bo, do = int(p[H_BODY]), int(p[H_DOF])
     tmp = scratch[0:6]
@@ -438,11 +464,11 @@ def mass_matrix_one(p, q, out, w):
     """CRBA: out (nv, nv) = M(q), armature on the diagonal."""
     nb, nv = int(p[H_BODIES]), int(p[H_DOFS])
     bo, do = int(p[H_BODY]), int(p[H_DOF])
-    (xpos, xquat, xmat, xaxis, xanchor, S, bias, vel, h, Ibar, _IA, _pA, _U, _u, _acc, _force, mass, _q, _tau,
+    (xpos, xquat, xmat, xaxis, xanchor, xline, S, bias, vel, h, Ibar, _IA, _pA, _U, _u, _acc, _force, mass, _q, _tau,
      _pivots, v, scratch) = _views(p, w)
     for d in range(nv):
         v[d] = 0.0
-    _frames(p, q, v, xpos, xquat, xmat, xaxis, xanchor, S, bias, vel, h, Ibar, scratch)
+    _frames(p, q, v, xpos, xquat, xmat, xaxis, xanchor, xline, S, bias, vel, h, Ibar, scratch)
     for i in range(nb):
         mass[i] = p[bo + i * BODY_SIZE + B_MASS]
     for i in range(nb - 1, -1, -1):  # composite inertias: add each body's to its parent's
@@ -474,9 +500,9 @@ def mass_matrix_one(p, q, out, w):
 @njit(cache=True)
 def energies_one(p, q, v, w):
     """(kinetic, potential) [J]: sum 1/2 v_i . I_i v_i; sum m g z_com + 1/2 stiffness (q - springref)^2."""
-    (xpos, xquat, xmat, xaxis, xanchor, S, bias, vel, h, Ibar, _IA, _pA, _U, _u, _acc, _force, _mass, _q, _tau,
+    (xpos, xquat, xmat, xaxis, xanchor, xline, S, bias, vel, h, Ibar, _IA, _pA, _U, _u, _acc, _force, _mass, _q, _tau,
      _pivots, _zero, scratch) = _views(p, w)
-    _frames(p, q, v, xpos, xquat, xmat, xaxis, xanchor, S, bias, vel, h, Ibar, scratch)
+    _frames(p, q, v, xpos, xquat, xmat, xaxis, xanchor, xline, S, bias, vel, h, Ibar, scratch)
     nb, nj = int(p[H_BODIES]), int(p[H_JOINTS])
     bo, jo = int(p[H_BODY]), int(p[H_JOINT])
     tmp = scratch[0:6]
@@ -497,9 +523,9 @@ def energies_one(p, q, v, w):
 def body_states_one(p, q, v, com, quat, velocity, omega, w):
     """World centre of mass (nb, 3) [m], orientation (nb, 4), centre-of-mass velocity (nb, 3) [m/s] and
     angular velocity (nb, 3) [rad/s] of every body."""
-    (xpos, xquat, xmat, xaxis, xanchor, S, bias, vel, h, Ibar, _IA, _pA, _U, _u, _acc, _force, _mass, _q, _tau,
+    (xpos, xquat, xmat, xaxis, xanchor, xline, S, bias, vel, h, Ibar, _IA, _pA, _U, _u, _acc, _force, _mass, _q, _tau,
      _pivots, _zero, scratch) = _views(p, w)
-    _frames(p, q, v, xpos, xquat, xmat, xaxis, xanchor, S, bias, vel, h, Ibar, scratch)
+    _frames(p, q, v, xpos, xquat, xmat, xaxis, xanchor, xline, S, bias, vel, h, Ibar, scratch)
     nb = int(p[H_BODIES])
     bo = int(p[H_BODY])
     for i in range(nb):
@@ -554,7 +580,7 @@ def tree_rhs(y, p, out):
         r = jo + j * JOINT_SIZE
         kind = int(p[r + J_KIND])
         qa, da = int(p[r + J_QADR]), int(p[r + J_DADR])
-        if kind == HINGE or kind == SLIDE:
+        if kind == HINGE or kind == SLIDE or kind == ROLL:
             out[qa] = y[nq + da]
             continue
         base = qa
@@ -597,7 +623,7 @@ def tree_accel(q, p, out):
     nq = nv): forward dynamics at zero velocity."""
     nv = int(p[H_DOFS])
     w = np.empty(workspace_size(p))
-    (_xpos, _xquat, _xmat, _xaxis, _xanchor, _S, _bias, _vel, _h, _Ibar, _IA, _pA, _U, _u, _acc, _force, v,
+    (_xpos, _xquat, _xmat, _xaxis, _xanchor, _xline, _S, _bias, _vel, _h, _Ibar, _IA, _pA, _U, _u, _acc, _force, v,
      _q, _tau, pivots, tau, _scratch) = _views(p, w)
     for d in range(nv):
         v[d] = 0.0
@@ -708,7 +734,7 @@ def initial_coordinates(layout, order, joints) -> tuple[np.ndarray, np.ndarray]:
     qpos, qvel = [], []
     for joint in joints:
         what = f"joint {joint.name!r}"
-        if joint.kind in ("hinge", "slide"):
+        if joint.kind in ("hinge", "slide", "roll"):
             qpos.append(_number(joint.qpos0, f"{what}: qpos0"))
             qvel.append(_number(joint.qvel0, f"{what}: qvel0"))
         elif joint.kind == "ball":
@@ -815,10 +841,14 @@ def build_tree(layout, gravity: float) -> tuple[TreeArrays, np.ndarray, np.ndarr
             r = joint_offset + j * JOINT_SIZE
             row[r + J_KIND], row[r + J_BODY] = code, i
             axis = _vector(joint.axis, f"joint {joint.name!r}: axis", 3)
-            row[r + J_AXIS:r + J_AXIS + 3] = axis / np.linalg.norm(axis) if code in (HINGE, SLIDE) else (0, 0, 1)
+            row[r + J_AXIS:r + J_AXIS + 3] = axis / np.linalg.norm(axis) if code in SCALAR_KINDS else (0, 0, 1)
             row[r + J_ANCHOR:r + J_ANCHOR + 3] = (_vector(joint.anchor, "anchor", 3) if code != FREE else 0.0)
             row[r + J_QADR], row[r + J_DADR] = qposadr[j], dofadr[j]
-            row[r + J_REF] = getattr(joint, "ref", 0.0) if code in (HINGE, SLIDE) else 0.0
+            row[r + J_REF] = getattr(joint, "ref", 0.0) if code in SCALAR_KINDS else 0.0
+            if code == ROLL:  # l = axis x normal, unit (the Joint checked that axis and normal are perpendicular)
+                line = np.cross(row[r + J_AXIS:r + J_AXIS + 3], _vector(joint.normal, "normal", 3))
+                row[r + J_RADIUS] = _number(joint.radius, f"joint {joint.name!r}: radius")
+                row[r + J_LINE:r + J_LINE + 3] = line / np.linalg.norm(line)
             row[r + J_STIFF] = getattr(joint, "stiffness", 0.0)
             row[r + J_SPRINGREF] = getattr(joint, "springref", 0.0)
             row[r + J_ROT] = rotslot[j]
@@ -826,7 +856,7 @@ def build_tree(layout, gravity: float) -> tuple[TreeArrays, np.ndarray, np.ndarr
                 d = dofadr[j] + k
                 o = dof_offset + d * DOF_SIZE
                 row[o + D_JOINT], row[o + D_INDEX] = j, k
-                row[o + D_GROUP] = 1.0 if (code in (HINGE, SLIDE) or k in (0, 3)) else 0.0
+                row[o + D_GROUP] = 1.0 if (code in SCALAR_KINDS or k in (0, 3)) else 0.0
                 row[o + D_DAMPING] = getattr(joint, "damping", 0.0)
                 row[o + D_ARMATURE] = getattr(joint, "armature", 0.0)
                 row[o + D_PARENT] = parent_dof

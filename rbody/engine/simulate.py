@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from rbody._checks import run_times, whole_number
-from rbody.engine import integrators
+from rbody.engine.methods import BY_NAME, RECORDS, Method, method as method_record
 from rbody.errors import MethodNotApplicable, SimulationError
 from rbody.scene import Scene
 from rbody.stability import check_step
@@ -60,7 +60,8 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
         raise ValueError(f"scene={scene!r}: expected an rbody.Scene (see rbody.scenes)")
     dt, t_end = run_times(scene.t_end, dt, t_end)
     whole_number(save_every, "save_every")
-    method = _choose_method(scene, method)
+    record = _choose_method(scene, method)
+    method = record.name if record is not None else EVENT_METHOD
     if chunk is not None and client is None:
         raise ValueError(f"chunk={chunk!r}: rows per task of a Dask client; give client= too, or leave chunk out")
     refuse_large(estimate_work(scene, dt, t_end, save_every), allow_large)
@@ -82,18 +83,9 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
         from rbody.engine.distributed import integrate_on_cluster
         failed = integrate_on_cluster(client, scene, model, method, dt, nsteps, save_every, out, chunk)
     else:
-        failed = integrate_model(model, method, dt, nsteps, save_every, out)
-    if np.any(failed >= 0):
-        b = int(np.argmax(failed >= 0))
-        what = "a non-finite state"
-        if method == "gauss6":
-            what += " or stage equations that fixed-point iteration could not solve (dt |df/dy| too large)"
-        if method == "reference":
-            what = "a failed solve (scipy's DOP853 could not reach its tolerance)"
-        advice = "a smaller dt" + ("" if method in ("rk4", "gauss6") else " or a method of higher order (rk4, gauss6)")
-        raise SimulationError(
-            f"scene {scene.describe()}: method {method!r} with dt={dt} gave {what} at "
-            f"t={failed[b] * dt:.6g} s (batch element {b} of {failed.size}); try {advice}")
+        failed = integrate_model(model, record, dt, nsteps, save_every, out)
+    if failed.size and failed.max() >= 0:
+        raise _failure(scene, model, record, dt, save_every, out, failed)
     t = np.arange(out.shape[0]) * (dt * save_every)
     try:  # every state is finite here; one the observables cannot take (a quaternion of zero length) is a failure
         data = model.observe(t, out)
@@ -112,24 +104,74 @@ def _shaped(value, leading: tuple[int, ...]):
     return value.reshape(leading + value.shape[2:])
 
 
-def _choose_method(scene: Scene, method: str | None) -> str:
-    valid = integrators.METHODS + (EVENT_METHOD,)
-    if method is not None and method not in valid:
-        raise ValueError(f"method={method!r}: expected one of {', '.join(map(repr, valid))}")
+def _choose_method(scene: Scene, method: str | None) -> Method | None:
+    """The record of the method that runs `scene` (None for an event-driven scene), checked against what the
+    scene's native model provides (never its class): default verlet where it applies, else the scene's first."""
+    if method is not None and method != EVENT_METHOD:
+        record = method_record(method)  # ValueError listing the valid names
+    elif method is None:
+        record = None
+    else:
+        record = EVENT_METHOD
     if scene.event_driven:
         if method not in (None, EVENT_METHOD):
             raise MethodNotApplicable(
                 f"scene {scene.name!r} is event-driven: its impacts are found exactly and there is no "
                 f"integrator to choose (method={method!r}); use method='events' or leave it out — dt only "
                 "sets the sampling")
-        return EVENT_METHOD
-    if method is None:
-        return "verlet" if "verlet" in scene.methods else scene.methods[0]
-    if method not in scene.methods:
+        return None
+    if record == EVENT_METHOD:
+        raise MethodNotApplicable(f"method='events' is for event-driven scenes; scene {scene.name!r} is integrated "
+                                  f"in time: use one of {', '.join(scene.methods)}")
+    if record is None:
+        names = scene.methods
+        return BY_NAME["verlet"] if "verlet" in names else BY_NAME[names[0]]
+    missing = record.missing(scene.native_model)
+    if missing or record.name not in scene.methods:
         raise MethodNotApplicable(
-            f"method={method!r} cannot run scene {scene.name!r}: {scene.why_not(method)}; methods that "
-            f"apply: {', '.join(scene.methods)}")
-    return method
+            f"method={record.name!r} cannot run scene {scene.describe()}: {scene.why_not(record.name)}"
+            + (f" ({missing})" if missing and missing not in scene.why_not(record.name) else "")
+            + f"; methods that apply: {', '.join(scene.methods)}")
+    return record
+
+
+def _failure(scene: Scene, model, record: Method, dt: float, save_every: int, out: np.ndarray,
+             failed: np.ndarray) -> SimulationError:
+    """The SimulationError of a run whose element failed: the scene, method, dt, time, batch element, and what the
+    model diagnoses at the last finite state before the failure (a tree: the body and joint whose mass matrix
+    became singular)."""
+    b = int(np.argmax(failed >= 0))
+    step = int(failed[b])
+    cause = ""
+    if model.diagnose is not None and model.break_time is None and step >= 1:
+        last = _last_finite_state(model, record, dt, save_every, out, b, step)
+        if last is not None:
+            cause = model.diagnose(last, np.asarray(model.y0)[b], dt)
+    higher = [m.name for m in RECORDS if m.order is not None and m.order >= 4 and m.applies(model)]
+    advice = "a smaller dt" + ("" if record.name in higher or not higher else
+                               f" or a method of higher order ({', '.join(higher)})")
+    where = f" at t={step * dt:.6g} s (batch element {b} of {failed.size})"
+    if cause:
+        return SimulationError(f"scene {scene.describe()}: method {record.name!r} with dt={dt} failed{where}: {cause}")
+    return SimulationError(f"scene {scene.describe()}: method {record.name!r} with dt={dt} gave {record.failure}"
+                           f"{where}; try {advice}")
+
+
+def _last_finite_state(model, record: Method, dt: float, save_every: int, out: np.ndarray, b: int,
+                       step: int) -> np.ndarray | None:
+    """(n,) state of element b at step `step` - 1, the last before its failure: from the saved samples, re-run
+    from the last one before it (at most save_every - 1 steps, element b alone)."""
+    saved = (step - 1) // save_every
+    start = out[saved, b]
+    if not np.all(np.isfinite(start)):
+        return None
+    remaining = step - 1 - saved * save_every
+    if remaining == 0:
+        return start.copy()
+    one = dataclasses.replace(model, y0=start[None, :], params=np.asarray(model.params)[b:b + 1])
+    buffer = np.empty((remaining + 1, 1, start.size))
+    record.integrate(one, one.y0, np.ascontiguousarray(one.params, dtype=np.float64), dt, remaining, 1, buffer)
+    return buffer[-1, 0] if np.all(np.isfinite(buffer[-1, 0])) else None
 
 
 # ----- the work of a run, estimated before it starts ------------------------------------------------
@@ -139,6 +181,7 @@ MAX_ELEMENT_STEPS = 10**10    # steps x batch: ~2 min at 10 ns per pendulum step
 MAX_IMPACTS = 10**10          # impacts of an event-driven run: ~25 ns each (pi, 3.1e9 impacts in ~65 s)
 MAX_ELEMENT_SAMPLES = 10**9   # saved states x batch
 MEMORY_FRACTION = 0.5         # of the memory available now: the observables formed from the states take more
+MEMORY_CHECKED_ABOVE = 2**20  # bytes of saved states below which the memory available is not read (any machine has it)
 
 
 def available_memory() -> int | None:
@@ -188,7 +231,7 @@ def refuse_large(work: dict[str, float], allow_large: bool = False) -> None:
     if allow_large:
         return
     steps, batch, samples, size, impacts = (work[k] for k in ("steps", "batch", "samples", "bytes", "impacts"))
-    free = available_memory()
+    free = available_memory() if size > MEMORY_CHECKED_ABOVE else None  # reading /proc costs ~50 us a call
     problems = []
     if steps * batch > MAX_ELEMENT_STEPS:
         problems.append(f"{steps:.3g} steps x {batch:.3g} batch elements = {steps * batch:.3g} element-steps, beyond "
@@ -217,15 +260,18 @@ def crosses_break(model, nsteps: int, dt: float) -> bool:
     return model.break_time is not None and 0 < model.break_time < nsteps * dt
 
 
-def integrate_model(model, method: str, dt: float, nsteps: int, save_every: int, out: np.ndarray) -> np.ndarray:
+def integrate_model(model, method: Method | str, dt: float, nsteps: int, save_every: int,
+                    out: np.ndarray) -> np.ndarray:
     """The compiled run of `model` (a whole batch or some of its rows): cut at its break time where the run
-    crosses it, else in one loop. out (nsteps // save_every + 1, B, n) filled; returns failed (B,)."""
+    crosses it, else in one loop. method: its record or name. out (nsteps // save_every + 1, B, n) filled;
+    returns failed (B,)."""
+    method = method_record(method) if isinstance(method, str) else method
     if crosses_break(model, nsteps, dt):
         return _integrate_across_break(model, method, dt, nsteps, save_every, out)
     return _integrate(model, method, dt, nsteps, save_every, out)
 
 
-def _integrate_across_break(model, method: str, dt: float, nsteps: int, save_every: int,
+def _integrate_across_break(model, method: Method, dt: float, nsteps: int, save_every: int,
                             out: np.ndarray) -> np.ndarray:
     """The run on the same grid, with the step that straddles model.break_time t_b split there:
     n_b = floor(t_b/dt) steps on the first side, then h1 = t_b - n_b dt on the first side and dt - h1
@@ -263,26 +309,8 @@ def _integrate_across_break(model, method: str, dt: float, nsteps: int, save_eve
     return failed
 
 
-def _integrate(model, method: str, dt: float, nsteps: int, save_every: int, out: np.ndarray) -> np.ndarray:
+def _integrate(model, method: Method | str, dt: float, nsteps: int, save_every: int, out: np.ndarray) -> np.ndarray:
+    """The method's compiled loop on the whole of `model` (its record, or name, says how: rbody.engine.methods)."""
+    method = method_record(method) if isinstance(method, str) else method
     y0, p = np.ascontiguousarray(model.y0, dtype=np.float64), np.ascontiguousarray(model.params, dtype=np.float64)
-    finish = model.finish  # None, or the scene's hook after every whole step (a tree's quaternions)
-    if method == "euler":
-        return integrators.run_euler(model.rhs, y0, p, dt, nsteps, save_every, out, finish=finish)
-    if method == "rk4":
-        return integrators.run_rk4(model.rhs, y0, p, dt, nsteps, save_every, out, finish=finish)
-    if method == "gauss6":
-        return integrators.run_gauss6(model.rhs, integrators.GAUSS6_A, integrators.GAUSS6_B,
-                                      y0, p, dt, nsteps, save_every, out, finish=finish)
-    if method == "reference":
-        return integrators.run_reference(model.rhs, y0, p, dt, nsteps, save_every, out, finish=finish)
-    if method in model.split:  # the scene's own flows (free rotation: "splitting", "yoshida6")
-        step, weights = model.split[method]
-        return integrators.run_composed_flow(step, weights, y0, p, dt, nsteps, save_every, out)
-    if method == "symplectic_euler":
-        return integrators.run_symplectic_euler(model.accel, y0, p, dt, nsteps, save_every, out)
-    if method == "verlet":
-        return integrators.run_composed_verlet(model.accel, np.ones(1), y0, p, dt, nsteps, save_every, out)
-    if method == "yoshida6":
-        return integrators.run_composed_verlet(model.accel, integrators.YOSHIDA6, y0, p, dt, nsteps,
-                                               save_every, out)
-    raise MethodNotApplicable(f"method={method!r} has no native model for this scene")
+    return method.integrate(model, y0, p, dt, nsteps, save_every, out)

@@ -2,8 +2,8 @@
 
 ``to_mjcf(scene)`` writes the scene's layout (rbody.scene.Layout) as one MJCF document:
 
-- the joints the scene uses (hinge, slide, ball, free), bodies nested along ``Body.parent``, each body at its
-  reference pose (every hinge and slide coordinate zero, as in rbody);
+- the joints the scene uses (hinge, slide, ball, free, roll), bodies nested along ``Body.parent``, each body at
+  its reference pose (every hinge and slide coordinate zero, as in rbody);
 - explicit mass properties from rbody's Inertia: ``<inertial pos mass fullinertia="Ixx Iyy Izz Ixy
   Ixz Iyz">`` about the centre of mass in the body frame, with ``inertiafromgeom="false"`` so that no
   geom ever changes a mass;
@@ -54,6 +54,22 @@ Contacts (defaults; every one can be overridden):
 - friction mu = 0: condim 1 (normal force only); mu > 0: condim 3 with friction (mu, mu), the cone
   elliptic and impratio 100 (soft friction trades force for slip; impratio makes it stiffer).
 - Scenes without impacts default to the RK4 integrator.
+
+Roll joints (rolling without slipping, one coordinate q: rbody.scene.Joint). MuJoCo has no joint that
+ties a translation to a rotation, so a roll joint of radius a, axis w and surface normal e is written as
+two joints, in this order, and a joint equality between them:
+
+- slide ``<name>_slide`` along l = w x e (body frame), ref a * ref: the body slides by a (q - ref) first;
+- hinge ``<name>`` about w through the anchor, with the roll joint's ref, damping, stiffness, springref and
+  armature (rbody applies them to q, which is the hinge's coordinate);
+- ``<equality><joint joint1="<name>_slide" joint2="<name>" polycoef="0 a 0 0 0"/>``: slide - a ref =
+  a (hinge - ref), i.e. slide = a hinge, the rolling condition v_centre = a q' l. MuJoCo keeps it as a soft
+  constraint solved every step, at its stiffest: solref (2 dt, 1) (time constant 2 dt, critically damped,
+  the least MuJoCo allows at that step) and solimp EQUALITY_SOLIMP (impedance 0.9999 at any violation).
+  With MuJoCo's defaults (0.02 s; 0.9, 0.95) a rolling disc slips by ~0.09 m/s and its distance stays
+  2.5e-3 m off at every dt (validation.bench.reduced). The initial state: slide a q0, hinge q0 (and
+  a q0', q0'). The constraint solver must then stay on (validation.backends.mujoco.disable_unused turns
+  it off only for a model with no equality).
 """
 
 from __future__ import annotations
@@ -81,6 +97,9 @@ TRIANGLE_RTOL = 1e-12               # A + B - C within this fraction of C is "on
 CONTACT_SOLIMP = (0.99, 0.99, 0.001)  # impedance d = 0.99 at any depth: the contact follows its reference spring
 IMPACT_STEPS = 30                   # inelastic impacts (0 < e < 1) last about this many steps
 RESTING_TIMECONST_STEPS = 2.0       # resting contacts: time constant 2 dt, the stiffest MuJoCo allows (refsafe)
+EQUALITY_TIMECONST_STEPS = 2.0      # roll joints' equality: time constant 2 dt, critically damped (as above)
+EQUALITY_SOLIMP = (0.9999, 0.9999, 0.001)  # roll joints' equality: impedance 0.9999, MuJoCo's largest below 1
+ROLL_SLIDE_SUFFIX = "_slide"        # a roll joint <name> is written as slide <name>_slide and hinge <name>
 FRICTION_IMPRATIO = 100.0
 INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")
 CONES = ("pyramidal", "elliptic")
@@ -88,7 +107,7 @@ CONDIMS = (1, 3, 4, 6)
 INITIAL_KEY = "initial"
 
 _SIZE_COUNT = {"sphere": 1, "cylinder": 2, "capsule": 2, "box": 3, "plane": 2, "mesh": 0}
-_MJCF_JOINT = {"hinge": "hinge", "slide": "slide", "ball": "ball", "free": "free"}
+_MJCF_JOINT = {"hinge": "hinge", "slide": "slide", "ball": "ball", "free": "free", "roll": "hinge"}
 _JOINT_ATTRIBUTES = ("damping", "stiffness", "springref", "armature", "ref")  # written only when non-zero
 
 
@@ -308,7 +327,8 @@ def initial_state(layout: Layout) -> tuple[np.ndarray, np.ndarray]:
     """MuJoCo's qpos (nq,) and qvel (nv,) of the scene's initial state.
 
     hinge/slide: qpos0 [rad | m], qvel0 [rad/s | m/s]; free: qpos = (pos (3,), quat (4,)) of the body,
-    qvel = (v (3,) of the body-frame origin, world; omega (3,) in the BODY frame, R^T omega_world).
+    qvel = (v (3,) of the body-frame origin, world; omega (3,) in the BODY frame, R^T omega_world);
+    roll (two MuJoCo joints, see the module docstring): slide a q0 [m] then hinge q0 [rad], rates a q0', q0'.
     """
     bodies = {body.name: body for body in layout.bodies}
     qpos, qvel = [], []
@@ -327,6 +347,11 @@ def initial_state(layout: Layout) -> tuple[np.ndarray, np.ndarray]:
                 omega, f"joint {joint.name!r}: qvel0", shape=(3,))
             qpos.extend(quat.tolist())
             qvel.extend(omega.tolist())
+        elif joint.kind == "roll":  # slide = a q, hinge = q (the equality's reference)
+            angle = float(joint.qpos0)
+            rate = float(finite_array(joint.qvel0, f"joint {joint.name!r}: qvel0", shape=()))
+            qpos.extend([joint.radius * angle, angle])
+            qvel.extend([joint.radius * rate, rate])
         else:
             qpos.append(float(joint.qpos0))
             qvel.append(float(finite_array(joint.qvel0, f"joint {joint.name!r}: qvel0", shape=())))
@@ -353,7 +378,8 @@ def _free_velocity(joint: Joint) -> np.ndarray:
 def _check_layout(layout: Layout) -> None:
     """Everything MuJoCo would refuse about names and structure, as ValueErrors."""
     _unique("body", [b.name for b in layout.bodies])
-    _unique("joint", [j.name for j in layout.joints])
+    _unique("joint", [j.name for j in layout.joints]
+            + [j.name + ROLL_SLIDE_SUFFIX for j in layout.joints if j.kind == "roll"])
     shapes = list(layout.fixed) + [s for b in layout.bodies for s in b.shapes]
     _unique("shape", [s.name for s in shapes])
     if any(b.name == WORLD for b in layout.bodies):
@@ -383,7 +409,7 @@ def _check_layout(layout: Layout) -> None:
             if len(own) > 1:
                 raise ValueError(f"body {body.name!r} has a free joint and {len(own) - 1} other joints: a free "
                                  "joint must be the body's only joint")
-        if sum({"free": 6, "ball": 3}.get(j.kind, 1) for j in own) > 6:
+        if sum({"free": 6, "ball": 3, "roll": 2}.get(j.kind, 1) for j in own) > 6:
             raise ValueError(f"body {body.name!r} has {len(own)} joints: MuJoCo allows at most 6 degrees of freedom "
                              "per body")
         for shape in body.shapes:
@@ -487,6 +513,25 @@ def _joint(joint: Joint, indent: str, limit: tuple[float, float] | None = None) 
         return f"{indent}<joint {_attrs(name=joint.name, type='ball', pos=_vec(joint.anchor), **extra)}/>"
     attrs = _attrs(name=joint.name, type=_MJCF_JOINT[joint.kind], pos=_vec(joint.anchor), axis=_vec(joint.axis),
                    **extra)
+    if joint.kind == "roll":  # the slide along l first, then the hinge (module docstring)
+        slide_ref = {"ref": _num(joint.radius * joint.ref)} if joint.ref != 0.0 else {}
+        slide = _attrs(name=joint.name + ROLL_SLIDE_SUFFIX, type="slide", pos=_vec(joint.anchor),
+                       axis=_vec(roll_slide_axis(joint)), **slide_ref)
+        return f"{indent}<joint {slide}/>\n{indent}<joint {attrs}/>"
+    return f"{indent}<joint {attrs}/>"
+
+
+def roll_slide_axis(joint: Joint) -> np.ndarray:
+    """(3,) l = axis x normal, body frame: the direction a roll joint's centre moves for q' > 0 (unit, since
+    axis and normal are unit and perpendicular)."""
+    return np.cross(np.asarray(joint.axis, dtype=float), np.asarray(joint.normal, dtype=float))
+
+
+def _roll_equality(joint: Joint, dt: float, indent: str) -> str:
+    """The joint equality slide = a hinge of a roll joint, at MuJoCo's stiffest (module docstring)."""
+    attrs = _attrs(name=joint.name + "_rolls", joint1=joint.name + ROLL_SLIDE_SUFFIX, joint2=joint.name,
+                   polycoef=_vec((0.0, joint.radius, 0.0, 0.0, 0.0)),
+                   solref=_vec((EQUALITY_TIMECONST_STEPS * dt, 1.0)), solimp=_vec(EQUALITY_SOLIMP))
     return f"{indent}<joint {attrs}/>"
 
 
@@ -555,7 +600,8 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
     limits = dict(getattr(scene, "limits", None) or {})  # MJCFScene: the model's declared joint ranges
 
     # --- the comment: what the model holds and where it came from ---
-    counts = {kind: sum(j.kind == kind for j in layout.joints) for kind in ("hinge", "slide", "ball", "free")}
+    counts = {kind: sum(j.kind == kind for j in layout.joints) for kind in ("hinge", "slide", "ball", "free", "roll")}
+    rolls = [j for j in layout.joints if j.kind == "roll"]
     lines = [
         f"Generated by rbody (rbody.mjcf.to_mjcf) from scene {scene.describe()}.",
         f"Contains bodies {', '.join(b.name for b in order)}; joints: "
@@ -576,6 +622,13 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
         lines.append(f"Impacts (restitution > 0): contact springs solref=(-K, -B), solimp={CONTACT_SOLIMP}; elastic "
                      f"(e = 1): K=(1/dt)^2={1 / dt**2!r}, B=0; 0 < e < 1: K=(pi/({IMPACT_STEPS} dt))^2 with the "
                      "damping of restitution e; condim 1 where frictionless.")
+    if rolls:
+        lines.append(f"Roll joints ({', '.join(j.name for j in rolls)}): each is a slide <name>{ROLL_SLIDE_SUFFIX} along "
+                     "axis x normal, then a hinge <name> about its axis, tied by a joint equality slide = a hinge "
+                     f"(rolling without slipping, a the rolling radius), solref=({EQUALITY_TIMECONST_STEPS:g} dt, 1)="
+                     f"({EQUALITY_TIMECONST_STEPS * dt!r}, 1), solimp={EQUALITY_SOLIMP}: a soft constraint MuJoCo "
+                     "solves every step, so the constraint solver stays on. rbody integrates the one coordinate q "
+                     "(the hinge); the slide is a q0 at the start.")
     for name, item in exported.items():
         if item.note:
             lines.append(f"Body {name!r}: {item.note}.")
@@ -627,6 +680,10 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
                                              friction=_vec(p["friction"]), solref=_vec(p["solref"]),
                                              solimp=_vec(p["solimp"])) + "/>")
         out.append("  </contact>")
+    if rolls:
+        out.append("  <equality>")
+        out.extend(_roll_equality(joint, dt, "    ") for joint in joint_order(layout) if joint.kind == "roll")
+        out.append("  </equality>")
     if qpos.size:
         out.append("  <keyframe>")
         out.append(f"    <key {_attrs(name=INITIAL_KEY, qpos=_vec(qpos), qvel=_vec(qvel))}/>")
@@ -636,4 +693,5 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
 
 
 __all__ = ["to_mjcf", "exported_inertia", "ExportedInertia", "contact_parameters", "initial_state",
-           "body_order", "joint_order", "has_impacts", "shape_inertia", "DEFAULT_TIMESTEP"]
+           "body_order", "joint_order", "has_impacts", "shape_inertia", "roll_slide_axis", "DEFAULT_TIMESTEP",
+           "EQUALITY_SOLIMP", "ROLL_SLIDE_SUFFIX"]

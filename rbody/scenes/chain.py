@@ -29,6 +29,13 @@ M0 theta'' = -K theta with M0 = M(0), K = g diag(nu_j l_j): the normal modes (no
 The mass matrix depends on the angles, so theta'' depends on theta' and the Hamiltonian is not
 separable: the explicit symplectic methods (symplectic_euler, verlet, yoshida6) do not apply;
 gauss6 is symplectic for any Hamiltonian.
+
+Native model: the scene's Layout (nested links, one hinge each, the model MuJoCo and pymunk read) runs on the
+general engine (rbody.Scene.from_layout, the articulated-body algorithm, cost linear in n). Its hinges measure
+each rod's angle from its parent's, so the engine's state is (relative angles, their rates) and the
+observables are their cumulative sums. The hand-written chain_rhs above (absolute angles, a dense Cholesky
+solve, cost cubic in n) is the engine's oracle in the tests, and stays the fast path for chains of up to
+HAND_KERNEL_MAX_LINKS rods, where it is more than 1.5x cheaper per step.
 """
 
 from __future__ import annotations
@@ -43,6 +50,13 @@ from numba import njit
 from rbody._checks import finite_array, positive, representable, scene_arguments
 from rbody.inertia import Inertia
 from rbody.scene import Body, Joint, Layout, NativeModel, Scene, Shape
+
+# native() runs the hand-written chain_rhs for chains of at most this many rods, the general engine on the
+# Layout for longer ones (0: always the engine). rk4 ns per step, hand kernel / engine, one chain, dt = 1e-3:
+# n = 2: 1100 / 7330 (6.6x cheaper), 8: 4670 / 12840 (2.8x), 16: 7920 / 33110 (4.2x), 24: 26300 / 51100 (1.9x),
+# 28: 37500 / 59700 (1.6x, within the noise of 1.5x), 32: 51000 / 67500 (1.3x) (python benchmarks/fast_paths.py
+# --repeats 5, 2026-11-23, commit 2a7edef, a shared 2-core machine at load 4.8; before the engine's speed work).
+HAND_KERNEL_MAX_LINKS = 24
 
 # params (p,) = (n, g, lengths (n), masses (n), nu (n), mu_diagonal (n)); y = (theta (n), theta' (n))
 
@@ -247,6 +261,29 @@ class PendulumChain(Scene):
     # ----- native model ------------------------------------------------------------------------------
 
     def native(self) -> NativeModel:
+        """The hand kernel (hand_model) for chains of at most HAND_KERNEL_MAX_LINKS rods, else the general
+        engine (engine_model); the same observables either way."""
+        return self.hand_model() if self.n <= HAND_KERNEL_MAX_LINKS else self.engine_model()
+
+    def engine_model(self) -> NativeModel:
+        """The chain on the general engine: the scene's Layout as a TreeScene (rbody.Scene.from_layout), state
+        y (B, 2n) = (hinge qpos, hinge qvel): the angles of each rod from its parent and their rates."""
+        theta0, omega0 = self._state0()
+        tree = Scene.from_layout(self._layout(), t_end=self.t_end, name=self.name, gravity=self.gravity,
+                                 qpos0=np.diff(theta0, axis=1, prepend=0.0), qvel0=np.diff(omega0, axis=1, prepend=0.0))
+        model = tree.native()
+
+        def observe(t, y):
+            """Absolute angles and rates: cumulative sums of the relative ones along the chain."""
+            data = model.observe(t, y)
+            qpos, qvel = (value() if callable(value) else value for value in (data["qpos"], data["qvel"]))
+            theta, omega = np.cumsum(qpos, axis=-1), np.cumsum(qvel, axis=-1)
+            return {"theta": theta, "omega": omega, "energy": self.energy_of(theta, omega)}
+
+        return replace(model, observe=observe)
+
+    def hand_model(self) -> NativeModel:
+        """The hand-written kernel chain_rhs: y (B, 2n) = (absolute angles, their rates)."""
         theta0, omega0 = self._state0()
         nu, diagonal = self._coefficients
         row = np.concatenate([[self.n, self.gravity], self.lengths, self.masses, nu, diagonal])

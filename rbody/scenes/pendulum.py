@@ -22,10 +22,18 @@ by the arithmetic-geometric mean started from sqrt(1 - m) (scipy's ellipj loses 
 
 Coordinates: world pivot at the origin, hinge axis along world y, theta = 0 with the centre of
 mass straight below the pivot; positive theta turns the body about +y.
+
+Native model: the scene's Layout (one body on one hinge, the model MuJoCo and pymunk read) runs on the
+general engine (rbody.Scene.from_layout: theta is the hinge's qpos, omega its qvel), or on the hand-written
+kernel pendulum_rhs / pendulum_accel (theta'' = -w0^2 sin theta), which is the engine's oracle in the tests
+and stays the scene's fast path while FAST_PATH says it is more than 1.5x cheaper per step. Both paths offer
+every method of PENDULUM_METHODS (one hinge: the engine's mass matrix is constant, so the symplectic methods
+apply there too).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any, ClassVar
 
@@ -52,6 +60,12 @@ def pendulum_rhs(y, p, out):
 def pendulum_accel(q, p, out):
     out[0] = -p[0] * np.sin(q[0])
 
+
+# Which kernel native() runs: True, the hand-written pendulum_rhs / pendulum_accel; False, the general engine on
+# the scene's Layout. Hand kernel 76 ns against the engine's 3690 ns per rk4 step (49x cheaper), 31 against 1610
+# per verlet step (52x) (one rod, dt = 1e-3; python benchmarks/fast_paths.py --repeats 5, 2026-11-23, commit
+# 2a7edef, before the engine's speed work was merged).
+FAST_PATH = True
 
 PENDULUM_METHODS = ("euler", "symplectic_euler", "verlet", "rk4", "yoshida6", "gauss6", "reference")
 
@@ -168,6 +182,41 @@ class Pendulum(Scene):
     # --- native model ----------------------------------------------------------------------------
 
     def native(self) -> NativeModel:
+        """The hand kernel (hand_model) when the module's FAST_PATH is True, else the general engine
+        (engine_model); the same observables either way."""
+        return self.hand_model() if FAST_PATH else self.engine_model()
+
+    def engine_model(self) -> NativeModel:
+        """The pendulum on the general engine: the scene's Layout as a TreeScene (rbody.Scene.from_layout), state
+        y (B, 2) = (hinge qpos, hinge qvel) = (theta, omega). Batched physical parameters (a rod's length and
+        mass) give each batch element the model row of its own Layout (one row per distinct set)."""
+        theta0, omega0 = self._state0()
+        physical = [name for name in self.batch_fields if name not in ("theta0", "omega0")]
+        keys = np.stack([self.batched(name) for name in physical], axis=1) if physical else np.zeros((theta0.size, 0))
+        distinct, which = np.unique(keys, axis=0, return_inverse=True)
+        trees = [self._engine_tree(dict(zip(physical, row.tolist()))) for row in distinct]
+        tree = dataclasses.replace(trees[0], qpos0=theta0[:, None], qvel0=omega0[:, None])
+        model = tree.native()
+        rows = [model.params[0]] + [other.native().params[0] for other in trees[1:]]
+        if len({row.shape for row in rows}) != 1:
+            raise ValueError(f"scene {self.describe()}: the engine's model rows differ in size across the batch")
+        moment, mgd = self._moment_pivot(), self._mass() * self.gravity * self._distance()
+
+        def observe(t, y):
+            """theta, omega: the hinge's qpos and qvel; energy lazily, as the hand kernel's."""
+            data = model.observe(t, y)
+            theta, omega = _value(data["qpos"])[..., 0], _value(data["qvel"])[..., 0]
+            return {"theta": theta, "omega": omega, "energy": lambda: _energy(moment, mgd, theta, omega)}
+
+        return dataclasses.replace(model, params=np.stack(rows)[np.reshape(which, -1)], observe=observe)
+
+    def _engine_tree(self, physics: dict[str, float]):
+        """TreeScene of the Layout of one batch element with the physical parameters `physics`."""
+        one = dataclasses.replace(self, theta0=0.0, omega0=0.0, **physics)
+        return Scene.from_layout(one._layout(), t_end=self.t_end, name=self.name, gravity=self.gravity)
+
+    def hand_model(self) -> NativeModel:
+        """The hand-written kernel: y (B, 2) = (theta, omega), params (w0^2, I, M g d)."""
         theta0, omega0 = self._state0()
         moment, mgd = self._moment_pivot(), self._mass() * self.gravity * self._distance()
         params = np.stack([self._w0_squared(), moment, mgd], axis=1)
@@ -188,6 +237,11 @@ class Pendulum(Scene):
     def observe(self, t, bodies, joints) -> dict[str, np.ndarray]:
         theta, omega = joints["hinge"]
         return {"theta": theta, "omega": omega, "energy": self.energy_of(theta, omega)}
+
+
+def _value(observable):
+    """An observable as an array: lazy ones (callables) evaluated."""
+    return observable() if callable(observable) else observable
 
 
 ENERGY_BLOCK = 1 << 18  # elements per block of the energy: its temporaries stay a few MB

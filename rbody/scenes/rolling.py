@@ -32,10 +32,28 @@ Coordinates (layout for other simulators): the incline's top point at the world 
 descending toward +x: down-slope d = (cos(alpha), 0, -sin(alpha)), normal n = (sin(alpha), 0,
 cos(alpha)). The centre starts at a n; phi is the rotation about world +y (v_centre = a phi' y x n
 = a phi' d when rolling).
+
+Two descriptions. `layout` is the contact model every simulator can run: the body on slides x (along d)
+and z (along n) and the hinge phi, held on the incline by a contact with friction (MuJoCo, pymunk).
+`rolling_tree()` is the reduced one, valid while the body rolls: the body on one roll joint (rbody.Joint
+kind "roll": axis +y, normal n, anchor the centre of mass, radius a; l = y x n = d, so a positive angle q
+rolls it down the slope), x = a q, phi = q. The general engine runs it (engine_native(): Scene.from_layout
+of the tree, one tree per distinct element of a batch; the race is one tree of n roll joints), and
+rbody.to_mjcf writes it for MuJoCo as a slide and a hinge tied by a joint equality. A sliding body
+(friction < mu_min) has no such tree: kinetic friction is a force of the contact's slip, which no joint of
+a tree holds, so sliding runs on the hand kernel (kernel_native(): the constant accelerations above).
+
+The hand kernel rolling_rhs is the engine's oracle in the tests, and runs the rolling case too while it is
+more than 1.5x cheaper per step than the engine (FAST_PATH; DESIGN.md's rule). Measured with
+`python benchmarks/rolling_fast_path.py --repeats 3 --steps 100000` (AMD EPYC, 2 cores shared, load 4.6;
+the engine of the speed branch as of 14:25 UTC), ns per step, engine / kernel:
+disc rk4 5982 / 75.6 (79x), verlet 1761 / 19.8 (89x); race of four rk4 11668 / 492 (24x),
+verlet 3249 / 159 (20x).
 """
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 from typing import Any, ClassVar, Sequence
 
@@ -63,8 +81,12 @@ ROLLING_METHODS = ("euler", "symplectic_euler", "verlet", "rk4", "yoshida6", "ga
 HALF_LENGTH_FRACTION = 0.5
 # Relative size of a product of inertia with y below which y counts as a principal axis.
 PRINCIPAL_RTOL = 1e-9
+# True: the hand kernel runs the rolling case too, being measurably > 1.5x cheaper per step than the general
+# engine (20x to 89x: module docstring). False: rolling runs on the general engine, the kernel is the oracle.
+FAST_PATH = True
 
-# y = (x, phi, x', phi'); params = (x'' [m/s^2], phi'' [rad/s^2]): both constant.
+# The hand kernel, the general engine's oracle: y = (x, phi, x', phi'); params = (x'' [m/s^2], phi'' [rad/s^2]),
+# both constant.
 
 
 @njit(cache=True)
@@ -277,6 +299,16 @@ class Rolling(Scene):
     # --- native model -----------------------------------------------------------------------------------
 
     def native(self) -> NativeModel:
+        """The general engine on the rolling tree when every element rolls (engine_native), else the hand kernel
+        (kernel_native): a sliding body is driven by kinetic friction, a force of the contact's slip, which no
+        joint of a tree holds; a batch that mixes the two cases runs on the hand kernel as one call. With
+        FAST_PATH the hand kernel runs every case (module docstring: measured cost)."""
+        if FAST_PATH or not np.all(self._flat()[7]):
+            return self.kernel_native()
+        return self.engine_native()
+
+    def kernel_native(self) -> NativeModel:
+        """The hand kernel: y = (x, phi, x', phi') with the closed form's constant accelerations."""
         x_dd, phi_dd = self._flat()[5:7]
         radius = self.batched("radius")
 
@@ -287,6 +319,30 @@ class Rolling(Scene):
 
         return NativeModel(y0=np.zeros((x_dd.size, 4)), params=np.stack([x_dd, phi_dd], axis=1),
                            rhs=rolling_rhs, accel=rolling_accel, observe=observe)
+
+    def engine_native(self) -> NativeModel:
+        """The general engine (rbody.engine.multibody) on rolling_tree(): y = (q, q'), q the roll angle; one
+        tree per distinct (radius, mass, incline) of the batch. distance a q, speed a q', spin q', slip 0
+        (held by the coordinate). Raises ValueError where a body slides (friction < mu_min)."""
+        rolls = self._flat()[7]
+        if not np.all(rolls):
+            raise ValueError(f"scene {self.describe()}: friction below mu_min at batch elements "
+                             f"{np.flatnonzero(~rolls).tolist()}: the body slides there, which the rolling tree "
+                             "(a roll joint) cannot hold; use kernel_native()")
+        columns = np.stack([self.batched(name) for name in ("radius", "mass", "incline")], axis=1)
+        _unique, first, which = np.unique(columns, axis=0, return_index=True, return_inverse=True)
+        trees = [self.item(np.unravel_index(int(b), self.batch_shape) if self.batch_shape else ()).rolling_tree()
+                 for b in first]
+        model = _stacked_tree_native(trees, self.gravity, self.t_end, which.reshape(-1))
+        radius = self.batched("radius")
+
+        def observe(t, y):
+            angle, rate = y[..., 0], y[..., 1]
+            distance, speed = radius * angle, radius * rate
+            return {"distance": distance, "speed": speed, "spin": rate, "slip": np.zeros_like(rate),
+                    "energy": self._energy(distance, angle, speed, rate)}
+
+        return dataclasses.replace(model, observe=observe)
 
     def why_not(self, method: str) -> str:
         return f"{method!r} is not a rolling method"
@@ -302,6 +358,17 @@ class Rolling(Scene):
         contact = Contact(body.shapes[0].name, "incline", friction=float(self.friction), restitution=0.0)
         return Layout(bodies=(body,), joints=joints, fixed=(incline_shape,), contacts=(contact,))
 
+    def rolling_tree(self) -> Layout:
+        """The reduced description (unbatched scenes): the body on one roll joint "roll" (rbody.scene.Joint),
+        the rolling constraint held by the coordinate; the incline drawn but touching nothing (no contacts).
+        Valid while the body rolls (self.rolls); `layout` is the contact model every simulator can run."""
+        self.require_single("the rolling tree")
+        radius, mass, incline = float(self.radius), float(self.mass), float(self.incline)
+        inertia = _body_inertia(self.body, mass, radius)
+        travel = float(self.exact([self.t_end])["distance"][0])
+        part, joint = _roll_body(self.body, inertia, radius, incline, np.zeros(3), "body", "roll")
+        return Layout(bodies=(part,), joints=(joint,), fixed=(_incline_shape(incline, travel, 4 * radius, radius),))
+
     def observe(self, t, bodies, joints) -> dict[str, np.ndarray]:
         radius, incline = float(self.radius), float(self.incline)
         x, speed = (np.asarray(v, dtype=float) for v in joints["x"])
@@ -315,21 +382,50 @@ class Rolling(Scene):
                 f"incline={self.incline!r} rad, friction={self.friction!r})")
 
 
+def _placed_body(body: str | Inertia, inertia: Inertia, radius: float, incline: float, offset: np.ndarray,
+                 name: str) -> Body:
+    """The body with its centre of mass at a n + offset (reference pose, body axes = world axes)."""
+    _down, normal = _slope_frame(incline)
+    com = inertia.com
+    shape = _body_shape(body, radius, f"{name}_shape", com)
+    return Body(name, inertia, shapes=(shape,), pos=tuple((radius * normal + offset - com).tolist()))
+
+
+def _roll_body(body: str | Inertia, inertia: Inertia, radius: float, incline: float, offset: np.ndarray,
+               name: str, joint: str) -> tuple[Body, Joint]:
+    """The placed body on one roll joint `joint`: axis +y, normal n = (sin(alpha), 0, cos(alpha)), anchor the
+    centre of mass. Then l = y x n = (cos(alpha), 0, -sin(alpha)) = d: a positive angle rolls it down the slope."""
+    _down, normal = _slope_frame(incline)
+    return (_placed_body(body, inertia, radius, incline, offset, name),
+            Joint(joint, "roll", name, axis=(0.0, 1.0, 0.0), anchor=tuple(inertia.com.tolist()), radius=radius,
+                  normal=tuple(normal.tolist())))
+
+
 def _rolling_body(body: str | Inertia, inertia: Inertia, radius: float, incline: float, offset: np.ndarray,
                   name: str, suffix: str) -> tuple[Body, tuple[Joint, ...]]:
-    """The body with its centre of mass at a n + offset (reference pose, body axes = world axes) and its
-    joints: slide "x" along d, slide "z" along n, hinge "phi" about +y through the centre of mass."""
+    """The placed body and its joints: slide "x" along d, slide "z" along n, hinge "phi" about +y through the
+    centre of mass."""
     down, normal = _slope_frame(incline)
     com = inertia.com
-    centre = radius * normal + offset
-    shape = _body_shape(body, radius, f"{name}_shape", com)
-    part = Body(name, inertia, shapes=(shape,), pos=tuple((centre - com).tolist()))
     joints = (
         Joint(f"x{suffix}", "slide", name, axis=tuple(down.tolist()), anchor=tuple(com.tolist())),
         Joint(f"z{suffix}", "slide", name, axis=tuple(normal.tolist()), anchor=tuple(com.tolist())),
         Joint(f"phi{suffix}", "hinge", name, axis=(0.0, 1.0, 0.0), anchor=tuple(com.tolist())),
     )
-    return part, joints
+    return _placed_body(body, inertia, radius, incline, offset, name), joints
+
+
+def _stacked_tree_native(trees: Sequence[Layout], gravity: float, t_end: float, which: np.ndarray) -> NativeModel:
+    """The general engine's model of each tree (rbody.Scene.from_layout), one row per batch element: element
+    b runs trees[which[b]] (trees of one structure, so their params rows have one length). Its stability rate
+    is 0, as the hand kernel's (constant accelerations: any step is stable), not the tree's Jacobian."""
+    models = [Scene.from_layout(tree, t_end=t_end, gravity=gravity).native() for tree in trees]
+    if len({m.params.shape[1] for m in models}) != 1 or len({m.y0.shape[1] for m in models}) != 1:
+        raise ValueError("the rolling trees of this batch differ in structure; they cannot run as one batch")
+    params = np.vstack([m.params for m in models])[which]
+    y0 = np.vstack([m.y0 for m in models])[which]
+    return dataclasses.replace(models[0], y0=np.ascontiguousarray(y0), params=np.ascontiguousarray(params),
+                               rate_from_jacobian=False)
 
 
 # ----- the race ---------------------------------------------------------------------------------------
@@ -493,19 +589,46 @@ class RollingRace(Scene):
     # --- native model: the n bodies as a batch of n -------------------------------------------------
 
     def native(self) -> NativeModel:
+        """The general engine on the race's rolling tree when every body rolls (engine_native), else the hand
+        kernel (kernel_native; a sliding body's kinetic friction is no force a tree's joints hold). With
+        FAST_PATH the hand kernel runs every race (module docstring: measured cost)."""
+        if FAST_PATH or not np.all(self.rolls):
+            return self.kernel_native()
+        return self.engine_native()
+
+    def _race_observables(self, t, x, speed, spin, slip) -> dict[str, np.ndarray]:
+        """(T, n) arrays of the race -> each observable as (T, 1, n), which becomes (T, n) for batch shape ()."""
+        arrival = np.broadcast_to(_arrival(t, x, speed, self.length), x.shape)
+        values = {"distance": x, "speed": speed, "spin": spin, "slip": slip,
+                  "energy": self._energy(x, speed, spin), "arrival_time": arrival}
+        return {name: np.ascontiguousarray(value)[:, None, :] for name, value in values.items()}
+
+    def kernel_native(self) -> NativeModel:
+        """The hand kernel, the n bodies as a batch of n: y (n, 4) = (x, phi, x', phi') each."""
         x_dd, phi_dd = self._flat()[1:3]
 
         def observe(t, y):
-            # y (T, n, 4): one race whose bodies are the integrator's batch; each observable is returned
-            # as (T, 1, n) so that it becomes (T, n) for the race's batch shape ().
-            x, speed, spin = y[..., 0], y[..., 2], y[..., 3]
-            arrival = np.broadcast_to(_arrival(t, x, speed, self.length), x.shape)
-            values = {"distance": x, "speed": speed, "spin": spin, "slip": speed - self.radius * spin,
-                      "energy": self._energy(x, speed, spin), "arrival_time": arrival}
-            return {name: np.ascontiguousarray(value)[:, None, :] for name, value in values.items()}
+            x, speed, spin = y[..., 0], y[..., 2], y[..., 3]  # y (T, n, 4): the bodies are the batch
+            return self._race_observables(t, x, speed, spin, speed - self.radius * spin)
 
         return NativeModel(y0=np.zeros((x_dd.size, 4)), params=np.stack([x_dd, phi_dd], axis=1),
                            rhs=rolling_rhs, accel=rolling_accel, observe=observe)
+
+    def engine_native(self) -> NativeModel:
+        """The general engine on rolling_tree(), one tree of n bodies each on its roll joint: y (1, 2n) =
+        (q_1..q_n, q_1'..q_n'). Raises ValueError where a body slides."""
+        if not np.all(self.rolls):
+            raise ValueError(f"race {self.describe()}: bodies {np.flatnonzero(~self.rolls).tolist()} slide "
+                             f"(friction {self.friction!r} < mu_min {self.mu_min.tolist()}), which the rolling tree "
+                             "cannot hold; use kernel_native()")
+        n = len(self.bodies)
+        model = _stacked_tree_native([self.rolling_tree()], self.gravity, self.t_end, np.zeros(1, dtype=int))
+
+        def observe(t, y):
+            angle, rate = y[:, 0, :n], y[:, 0, n:2 * n]  # y (T, 1, 2n)
+            return self._race_observables(t, self.radius * angle, self.radius * rate, rate, np.zeros_like(rate))
+
+        return dataclasses.replace(model, observe=observe)
 
     def why_not(self, method: str) -> str:
         return f"{method!r} is not a rolling method"
@@ -530,6 +653,22 @@ class RollingRace(Scene):
             joints.extend(body_joints)
             contacts.append(Contact(part.shapes[0].name, "incline", friction=self.friction, restitution=0.0))
         return Layout(bodies=tuple(parts), joints=tuple(joints), fixed=(incline_shape,), contacts=tuple(contacts))
+
+    def rolling_tree(self) -> Layout:
+        """The reduced description: body_i on roll joint "roll_i" (rbody.scene.Joint), side by side as in the
+        layout, the incline drawn but touching nothing. Valid for the bodies that roll (self.rolls); `layout`
+        is the contact model every simulator can run."""
+        n = len(self.bodies)
+        travel = float(np.max(self.exact([self.t_end])["distance"]))
+        parts, joints = [], []
+        for i, spec in enumerate(self.bodies):
+            inertia = _body_inertia(spec, self.mass, self.radius)
+            offset = np.array([0.0, (i - (n - 1) / 2) * self._spacing(), 0.0])
+            part, joint = _roll_body(spec, inertia, self.radius, self.incline, offset, f"body_{i}", f"roll_{i}")
+            parts.append(part)
+            joints.append(joint)
+        incline_shape = _incline_shape(self.incline, travel, n * self._spacing() / 2 + 2 * self.radius, self.radius)
+        return Layout(bodies=tuple(parts), joints=tuple(joints), fixed=(incline_shape,))
 
     def observe(self, t, bodies, joints) -> dict[str, np.ndarray]:
         n = len(self.bodies)

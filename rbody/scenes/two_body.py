@@ -31,6 +31,14 @@ Native model: y = (x1, x2, v1, v2) (12 numbers; the y components stay exactly 0)
 pair force computed once and applied with both signs, so total momentum is conserved to round-off
 and the symplectic methods apply.
 
+The general engine is not used here, by decision: it simulates a tree of bodies and joints under uniform
+gravity, joint springs and damping (rbody.Multibody), and the attraction between two bodies is a pair force,
+which no joint of a tree holds; the engine takes no applied or pair forces. Given this scene's Layout (each
+body on an x and a z slide, what MuJoCo and pymunk are given, with the pair force applied by their wrappers
+through pair_force) it would move the two bodies uniformly, with no attraction at all. So the hand-written
+kernel above stays the scene's only native model (ENGINE_PATH below), not a fast path beside the engine;
+adding force elements to the engine is the change that would let it run on the engine.
+
 Other simulators: each body slides on two joints, along world x and world z (planar, no rotation),
 with uniform gravity switched off and the pair force `pair_force(x1, x2)` applied each step.
 """
@@ -47,6 +55,10 @@ from rbody._checks import describe_values, finite_array, positive, representable
 from rbody.inertia import Inertia
 from rbody.particles import reduced_mass
 from rbody.scene import Body, Joint, Layout, NativeModel, Scene, Shape
+
+# False: native() always runs the hand kernel two_body_rhs / two_body_accel: the general engine holds no pair
+# force (module docstring). There is no engine path to measure (benchmarks/fast_paths.py times the kernel alone).
+ENGINE_PATH = False
 
 TWO_BODY_METHODS = ("euler", "symplectic_euler", "verlet", "rk4", "yoshida6", "gauss6", "reference")
 PARABOLIC_BAND = 1e-6     # |1 - e| below this: refused (Kepler's equation in E or H loses 1/|1 - e|)

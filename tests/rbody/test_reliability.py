@@ -217,3 +217,31 @@ def test_a_mesh_too_large_to_check_is_refused_not_left_unchecked():
 
     with pytest.raises(ValueError, match="cannot check in reasonable time"):
         Inertia.from_mesh(trimesh.creation.cylinder(radius=1.0, height=2.0, sections=1500), mass=1.0)
+
+
+@pytest.mark.parametrize("gravity", [np.array(()), np.array([9.81, 1.0]), [9.81], np.zeros((1, 1))])
+def test_array_gravity_is_a_value_error_naming_it(gravity):
+    from rbody import Body, Inertia, Joint, Layout, Scene
+
+    layout = Layout((Body("rod", Inertia(1.0, (0, 0, -0.5), np.diag([0.1, 0.1, 0.01]))),),
+                    (Joint("pivot", "hinge", "rod", axis=(0, 1, 0)),))
+    with pytest.raises(ValueError, match=r"gravity=.*expected one number"):
+        Scene.from_layout(layout, t_end=1.0, gravity=gravity)
+    assert Scene.from_layout(layout, t_end=1.0, gravity=np.float64(9.81)).gravity == 9.81
+
+
+def test_stability_rate_of_a_large_batch_is_each_elements():
+    """A batch of 20000 double pendulums (a tree) at random angles: the rate of each equals the rate of that
+    element run alone (the batch Jacobian is one compiled loop, not a Python loop over the batch)."""
+    from rbody import Body, Inertia, Joint, Layout, Scene, stability
+
+    rod = Inertia(1.0, (0, 0, -0.5), np.diag([1 / 12, 1 / 12, 1e-4]))
+    layout = Layout((Body("a", rod), Body("b", rod, parent="a", pos=(0, 0, -1.0))),
+                    (Joint("ja", "hinge", "a", axis=(0, 1, 0)), Joint("jb", "hinge", "b", axis=(0, 1, 0))))
+    qpos0 = np.random.default_rng(3).uniform(-2, 2, (20000, 2))
+    batch = Scene.from_layout(layout, t_end=1.0, qpos0=qpos0)
+    rates = stability.fastest_rate(batch, "rk4")
+    assert rates.shape == (20000,) and np.all(rates > 0)
+    for b in (0, 777, 19999):
+        alone = Scene.from_layout(layout, t_end=1.0, qpos0=qpos0[b])
+        assert rates[b] == pytest.approx(float(stability.fastest_rate(alone, "rk4")[0]), rel=1e-12)

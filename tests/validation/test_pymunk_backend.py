@@ -11,6 +11,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+import rbody
 from rbody import Inertia
 from rbody.motion import quat_to_matrix
 from rbody.scenes import rolling, swinging_rod
@@ -410,3 +411,21 @@ def test_balls_off_a_common_line_get_grooves():
     # (the grooves push along z only): equal masses exchange velocities, as in the centred impact.
     assert np.allclose(trajectory["velocities"][-1], [0.0, 1.0], rtol=0, atol=1e-12)
     assert trajectory["collisions"][-1] == 1
+
+
+@dataclasses.dataclass(frozen=True, kw_only=True)
+class _RollingTree(rbody.Scene):
+    """A rolling scene's reduced tree (one roll joint), as a scene (tests only)."""
+
+    rolling: object
+
+    def _layout(self):
+        return self.rolling.rolling_tree()
+
+
+def test_roll_joint_is_refused_and_the_rolling_scene_keeps_its_contacts():
+    scene = rolling("disc", radius=0.1, incline=0.5, t_end=0.2)
+    with pytest.raises(NotImplementedError, match="roll joint.*no joint that ties a body's rotation to its translation"):
+        pm.check(_RollingTree(name="rolling_tree", t_end=0.2, rolling=scene))
+    pm.check(scene)  # the scene itself: a body on the incline, held by a contact with friction
+    assert {c.shape_b for c in scene.layout.contacts} == {"incline"}

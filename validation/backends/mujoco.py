@@ -31,6 +31,12 @@ collision is counted when a pair goes from no contact to contact between two ste
 MuJoCo's contact sensor on every step: ``collisions`` (T,) counts onsets over all pairs,
 ``ball_collisions`` (T,) over pairs of two moving bodies, both cumulative.
 
+Roll joints (rolling without slipping, one coordinate): to_mjcf writes each as a slide <name>_slide and a
+hinge <name> tied by a stiff joint equality (rbody.mjcf.export). The joint's history (qpos, qvel) is the
+hinge's; how far the soft equality let the two apart is reported in meta["roll_slip"][name] as the largest
+|slide - a hinge| [m] ("max_position") and |slide' - a hinge'| [m/s] ("max_rate") over the saved states.
+The constraint solver stays on for them (disable_unused keeps it for any model with an equality).
+
 Scenes with a varying mass or applied forces (body_mass, slide_force, pair_force) run in a plain
 mj_step loop instead (see _Run.drive); scenes whose class sets applies_gravity = False get no gravity.
 """
@@ -47,7 +53,7 @@ from mujoco import rollout as mj_rollout
 
 from rbody._checks import run_times, whole_number
 from rbody.errors import SimulationError
-from rbody.mjcf import INITIAL_KEY, has_impacts, to_mjcf
+from rbody.mjcf import INITIAL_KEY, ROLL_SLIDE_SUFFIX, has_impacts, to_mjcf
 from rbody.scene import BodyStates, Scene
 from rbody.trajectory import Trajectory
 
@@ -159,11 +165,14 @@ def run(scene: Scene, dt: float, t_end: float | None = None, *, integrator: str 
         values = run_.sensors[:, 13 * i:13 * (i + 1)]
         bodies[body.name] = BodyStates(com=values[:, 0:3].copy(), quat=values[:, 3:7].copy(),
                                        velocity=values[:, 7:10].copy(), omega=values[:, 10:13].copy())
-    joints = {}
+    joints, roll_slip = {}, {}
     for joint in layout.joints:
         j = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, joint.name)
         qa, da = model.jnt_qposadr[j], model.jnt_dofadr[j]
-        if joint.kind in ("hinge", "slide"):
+        if joint.kind == "roll":  # MuJoCo's hinge <name> holds q; its slide should hold a q (the equality)
+            joints[joint.name] = (qpos[:, qa].copy(), qvel[:, da].copy())
+            roll_slip[joint.name] = _roll_slip(model, joint, qpos, qvel)
+        elif joint.kind in ("hinge", "slide"):
             joints[joint.name] = (qpos[:, qa].copy(), qvel[:, da].copy())
         else:  # ball (T, 4), (T, 3); free (T, 7), (T, 6): MuJoCo's qpos and qvel (body-frame angular velocity)
             nq_j, nv_j = (4, 3) if joint.kind == "ball" else (7, 6)
@@ -179,10 +188,21 @@ def run(scene: Scene, dt: float, t_end: float | None = None, *, integrator: str 
             "nsteps": nsteps, "save_every": save_every, "integrator": _integrator_name(model),
             "settings": _effective_settings(model), "mujoco_version": mujoco.__version__,
             "step_seconds": step_seconds, "run_seconds": run_seconds,
+            **({"roll_slip": roll_slip} if roll_slip else {}),
             "stepping": ("mujoco.rollout" if plan is None else
                          f"mj_step loop, setting {', '.join(plan['hooks'])} from the scene before every step "
                          "(timed with that Python work and MuJoCo's sensors)")}
     return Trajectory(t, observables, meta=meta)
+
+
+def _roll_slip(model: mujoco.MjModel, joint, qpos: np.ndarray, qvel: np.ndarray) -> dict[str, float]:
+    """How far MuJoCo's soft equality lets a roll joint slip (rbody.mjcf.export: slide <name>_slide = a hinge
+    <name>): the largest |slide - a hinge| [m] and |slide' - a hinge'| [m/s] over the saved states."""
+    hinge = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, joint.name)
+    slide = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, joint.name + ROLL_SLIDE_SUFFIX)
+    position = qpos[:, model.jnt_qposadr[slide]] - joint.radius * qpos[:, model.jnt_qposadr[hinge]]
+    rate = qvel[:, model.jnt_dofadr[slide]] - joint.radius * qvel[:, model.jnt_dofadr[hinge]]
+    return {"max_position": float(np.max(np.abs(position))), "max_rate": float(np.max(np.abs(rate)))}
 
 
 # ----- stepping and observing ----------------------------------------------------------------------

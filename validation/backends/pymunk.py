@@ -247,6 +247,12 @@ def _joint_plan(joint: Joint, rot0: np.ndarray, origin0: np.ndarray) -> _JointPl
     direction = rot0 @ np.array(joint.axis)
     if joint.kind == "free":
         raise NotImplementedError(f"joint {joint.name!r} is free: pymunk is 2-D and cannot express 3-D rotation")
+    if joint.kind == "roll":
+        raise NotImplementedError(
+            f"joint {joint.name!r} is a roll joint (rolling without slipping, one coordinate): pymunk has no joint "
+            "that ties a body's rotation to its translation (a GearJoint ties two rotations, a GrooveJoint or "
+            "SlideJoint positions), only a contact with friction does that, so it cannot be modelled exactly; "
+            "the rolling scenes give pymunk their contact layout (scene.layout) instead")
     if joint.kind not in ("hinge", "slide"):
         raise NotImplementedError(f"joint {joint.name!r} is a {joint.kind} joint: pymunk's plane has hinges about "
                                   "its normal and slides along it only")

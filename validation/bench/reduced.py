@@ -9,9 +9,11 @@ axis, rolling radius R):
     slide        one slide joint x along the slope with armature I / R^2: the effective mass M + I/R^2
                  under the force M g sin(alpha) gives x'' = g sin(alpha) / (1 + I/(M R^2)), exactly the
                  rolling acceleration; phi = x / R by construction (no slip can exist).
-    slide+hinge  the slide x and the hinge phi, tied by MuJoCo's joint equality x = R phi (a soft
-                 constraint, solved each step; solref (2 dt, 1), solimp EQUALITY_SOLIMP): the rolling
-                 constraint kept by the solver, not by the coordinates; contacts disabled.
+    slide+hinge  the scene's rolling tree (one roll joint per body: Rolling.rolling_tree) as rbody.to_mjcf
+                 writes it: a slide a q along the slope and the hinge q, tied by MuJoCo's joint equality
+                 slide = R hinge (a soft constraint, solved each step; solref (2 dt, 1), solimp
+                 rbody.mjcf.EQUALITY_SOLIMP): the rolling constraint kept by the solver, not by the
+                 coordinates; contacts disabled (the incline is drawn, touching nothing).
 
 Observables, from the joint coordinates (distance, speed, spin, slip, energy, and a race's
 arrival_time), with the energy of the reduced model:
@@ -23,6 +25,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import dataclass
 
 import mujoco
 import numpy as np
@@ -30,15 +33,30 @@ from mujoco import rollout as mj_rollout
 
 from rbody._checks import run_times, whole_number
 from rbody.errors import SimulationError
-from rbody.scene import Scene
+from rbody.mjcf import to_mjcf
+from rbody.scene import Layout, Scene
 from rbody.trajectory import Trajectory
 
 VARIANTS = ("slide", "slide+hinge")
-# The joint equality at its stiffest (as the benchmark's best contact): time constant 2 dt, critically damped,
-# MuJoCo's largest impedance. With MuJoCo's defaults (0.02 s; 0.9, 0.95) the disc slips by 0.088 m/s and
-# the distance error stays at 2.5e-3 m for every dt; with these it falls to 4.2e-10 m at RK4, dt = 1e-4.
-EQUALITY_SOLIMP = "0.9999 0.9999 0.001"
+# The joint equality of slide+hinge is rbody.to_mjcf's for a roll joint, at its stiffest (as the benchmark's
+# best contact): time constant 2 dt, critically damped, impedance EQUALITY_SOLIMP. With MuJoCo's defaults
+# (0.02 s; 0.9, 0.95) the disc slips by 0.088 m/s and the distance error stays at 2.5e-3 m for every dt; with
+# these it falls to 4.2e-10 m at RK4, dt = 1e-4.
 _FULL = mujoco.mjtState.mjSTATE_FULLPHYSICS
+
+
+@dataclass(frozen=True, kw_only=True)
+class _RollingTree(Scene):
+    """A rolling scene's reduced tree (its rolling_tree(): one roll joint per body) as the scene to_mjcf writes."""
+
+    tree: Layout
+    source: str
+
+    def _layout(self) -> Layout:
+        return self.tree
+
+    def describe(self) -> str:
+        return f"the rolling tree of {self.source}"
 
 
 def _rolling_bodies(scene: Scene) -> list[dict]:
@@ -61,30 +79,26 @@ def _rolling_bodies(scene: Scene) -> list[dict]:
 
 
 def reduced_mjcf(scene: Scene, variant: str, dt: float, integrator: str) -> str:
-    """MJCF of the reduced rolling model (module docstring), contacts disabled (and constraints too for
+    """MJCF of the reduced rolling model (module docstring); run() disables contacts (and constraints too for
     'slide', which has none)."""
     if variant not in VARIANTS:
         raise ValueError(f"variant={variant!r}: expected one of {VARIANTS}")
+    if variant == "slide+hinge":
+        tree = _RollingTree(name=scene.name, t_end=scene.t_end, gravity=scene.gravity, tree=scene.rolling_tree(),
+                            source=scene.describe())
+        return to_mjcf(tree, dt=dt, integrator=integrator)
     radius = float(scene.radius)
-    flags = 'contact="disable" constraint="disable"' if variant == "slide" else 'contact="disable"'
-    bodies, equalities = [], []
+    bodies = []
     for b in _rolling_bodies(scene):
         s = b["suffix"]
         axis = " ".join(f"{v:.17g}" for v in b["axis"])
         inertial = (f'<inertial pos="0 0 0" mass="{b["mass"]:.17g}" '
                     f'diaginertia="{b["moment"]:.17g} {b["moment"]:.17g} {b["moment"]:.17g}"/>')
-        if variant == "slide":
-            joints = f'<joint name="x{s}" type="slide" axis="{axis}" armature="{b["moment"] / radius**2:.17g}"/>'
-        else:
-            hinge = " ".join(f"{v:.17g}" for v in b["hinge"])
-            joints = (f'<joint name="x{s}" type="slide" axis="{axis}"/>'
-                      f'<joint name="phi{s}" type="hinge" axis="{hinge}"/>')
-            equalities.append(f'<joint joint1="x{s}" joint2="phi{s}" polycoef="0 {radius:.17g} 0 0 0" '
-                              f'solref="{2 * dt:.17g} 1" solimp="{EQUALITY_SOLIMP}"/>')
+        joints = f'<joint name="x{s}" type="slide" axis="{axis}" armature="{b["moment"] / radius**2:.17g}"/>'
         bodies.append(f'<body name="body{s}">{joints}{inertial}</body>')
-    equality = f"<equality>{''.join(equalities)}</equality>" if equalities else ""
     return (f'<mujoco><option timestep="{dt:.17g}" integrator="{integrator}" gravity="0 0 {-scene.gravity:.17g}">'
-            f"<flag {flags}/></option><worldbody>{''.join(bodies)}</worldbody>{equality}</mujoco>")
+            f'<flag contact="disable" constraint="disable"/></option><worldbody>{"".join(bodies)}</worldbody>'
+            "</mujoco>")
 
 
 def run(scene: Scene, dt: float, t_end: float | None = None, *, variant: str = "slide", integrator: str = "RK4",
@@ -95,7 +109,10 @@ def run(scene: Scene, dt: float, t_end: float | None = None, *, variant: str = "
     dt, t_end = run_times(scene.t_end, dt, t_end)
     whole_number(save_every, "save_every")
     model = mujoco.MjModel.from_xml_string(reduced_mjcf(scene, variant, dt, integrator))
+    model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)  # nothing touches: the incline is drawn only
     data = mujoco.MjData(model)
+    if model.nkey:
+        mujoco.mj_resetDataKeyframe(model, data, 0)
     nsteps = max(1, math.ceil(t_end / dt * (1 - 1e-12)))
     nsteps = -(-nsteps // save_every) * save_every
     state = np.empty(mujoco.mj_stateSize(model, _FULL))

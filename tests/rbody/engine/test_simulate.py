@@ -195,3 +195,80 @@ def test_trajectory_rejects_mismatched_lengths_and_unknown_names():
     run = Trajectory(np.arange(3.0), {"x": np.zeros(3)})
     with pytest.raises(KeyError, match="'y'"):
         run["y"]
+
+
+# ----- methods from the native model, for every family -----------------------------------------------------------
+
+def test_each_familys_method_tuple_is_what_its_model_provides():
+    """Scene modules may still list their methods; the records decide what applies, and the two agree (the lists
+    can be derived from the records: rbody.engine.methods.applicable(model, preferred))."""
+    from rbody.engine.methods import applicable
+    from rbody.scene import Scene as Base
+    from rbody.scenes import free_rotation
+
+    from tests.rbody.test_fuzz_scenes import FACTORIES
+
+    scenes = [factory(**arguments) for factory, arguments in FACTORIES.values()]
+    scenes.append(free_rotation(rbody.Inertia(1.0, np.zeros(3), np.diag([1.0, 2.0, 3.0])), omega0=(0.1, 2.0, 0.1),
+                                t_end=1.0))
+    checked = 0
+    for scene in scenes:
+        if scene.event_driven:
+            assert scene.methods == ()
+            continue
+        derived = Base.methods.fget(scene)  # the base class's: from the native model
+        assert set(scene.methods) == set(derived) == set(applicable(scene.native_model)), scene.name
+        checked += 1
+    assert checked >= 8
+
+
+# ----- a mass matrix that becomes singular during a run ------------------------------------------------------------
+
+def gimbal(**joint_changes):
+    """A body held at its centre by three hinges z, y, z (Euler angles), turning about y at 1 rad/s from a middle
+    angle of 0.5 rad, no gravity: the first and last axes line up, and M is singular, at t = 0.5 s."""
+    body = rbody.Body("ball", rbody.Inertia(1.0, (0, 0, 0), np.diag([0.4, 0.5, 0.6])))
+    joints = (rbody.Joint("yaw", "hinge", "ball", axis=(0, 0, 1)),
+              rbody.Joint("pitch", "hinge", "ball", axis=(0, 1, 0), qpos0=0.5, qvel0=-1.0),
+              rbody.Joint("roll", "hinge", "ball", axis=(0, 0, 1), **joint_changes))
+    return rbody.Scene.from_layout(rbody.Layout((body,), joints), t_end=1.0, gravity=0.0, name="gimbal")
+
+
+@pytest.mark.parametrize("method, dt, save_every", [("euler", 0.01, 3), ("rk4", 0.01, 1), ("rk4", 0.02, 7),
+                                                    ("rk4", 0.1, 1)])
+def test_singular_mass_matrix_during_a_run_names_time_body_and_joint(method, dt, save_every):
+    with pytest.raises(SimulationError) as error:
+        simulate(gimbal(), dt=dt, method=method, save_every=save_every)
+    message = str(error.value)
+    assert "gimbal" in message and "singular" in message and "'ball'" in message and "'yaw'" in message
+    time = float(message.split(" at t=")[1].split(" s")[0])
+    assert 0.5 - 1e-9 <= time <= 0.5 + dt + 1e-9  # the step that met (or followed) the singular pose
+
+
+def test_a_run_that_stays_away_from_the_singular_pose_is_not_refused():
+    """Armature on the last hinge keeps M regular: the same motion runs through t = 0.5 s (the middle angle
+    crosses 0 and goes on at -1 rad/s, the other two stay 0 by symmetry)."""
+    run = simulate(gimbal(armature=0.1), dt=0.01, method="rk4")
+    np.testing.assert_allclose(run["qpos"][-1], [0.0, -0.5, 0.0], atol=1e-12)
+
+
+def test_a_non_finite_state_of_a_tree_far_from_any_singular_pose_says_only_what_it_knows():
+    """A blow-up that is not a singular M (euler far beyond any limit on a regular tree) is not blamed on a joint."""
+    scene = gimbal(armature=0.1)
+    record = importlib.import_module("rbody.engine.methods").method("euler")
+    model = scene.native_model
+    y = np.ascontiguousarray(model.y0)
+    assert model.diagnose(y[0], y[0], 0.01) == ""
+    out = np.empty((2,) + y.shape)
+    out[0] = y
+    out[1] = np.nan
+    error = engine._failure(scene, model, record, 0.01, 1, out, np.array([1]))
+    assert "non-finite" in str(error) and "singular" not in str(error)
+
+
+def test_small_runs_do_not_read_the_memory_available(monkeypatch, rod):
+    def unavailable():
+        raise AssertionError("read the memory for a run of a few kB")
+
+    monkeypatch.setattr(engine, "available_memory", unavailable)
+    assert simulate(rod, dt=1e-2).t.size == 101
