@@ -40,6 +40,7 @@ from rbody import Scene  # noqa: E402
 from rbody.engine import integrators  # noqa: E402
 from rbody.engine import multibody as mb  # noqa: E402
 from rbody.engine.planar import planar_rhs  # noqa: E402
+from rbody.scenes.pendulum import pendulum_rhs  # noqa: E402
 from multibody_speed import DT, chain, mujoco_model  # noqa: E402
 from validation.machine import describe_machine  # noqa: E402
 
@@ -93,6 +94,7 @@ def section_steps(repeats: int) -> None:
     model = rod_tree.native_model
     planar = loop_ns(model.rhs, model.y0, model.params, 200_000, repeats)
     general = loop_ns(mb.tree_rhs, *three_d(rod_tree), 50_000, repeats)
+    assert rod.native_model.rhs is pendulum_rhs
     hand = loop_ns(rod.native_model.rhs, rod.native_model.y0, rod.native_model.params, 200_000, repeats)
     theirs = mujoco_step_ns(rod, 50_000, repeats)
     print(f"   rod        {planar:8.0f}   {general:10.0f}   {hand:11.0f}   {theirs:10.0f}   {planar / hand:11.2f}   "
@@ -105,7 +107,8 @@ def section_steps(repeats: int) -> None:
         model = tree.native_model
         planar = loop_ns(model.rhs, model.y0, model.params, steps, repeats)
         general = loop_ns(mb.tree_rhs, *three_d(tree), steps // 4, repeats)
-        hand = loop_ns(scene.native_model.rhs, scene.native_model.y0, scene.native_model.params, steps, repeats)
+        kernel = scene.hand_model()  # chain_rhs, whatever native() picks
+        hand = loop_ns(kernel.rhs, kernel.y0, kernel.params, steps, repeats)
         theirs = mujoco_step_ns(scene, steps, repeats)
         print(f"   chain {n:2d}   {planar:8.0f}   {general:10.0f}   {hand:11.0f}   {theirs:10.0f}   {planar / hand:11.2f}"
               f"   {general / planar:10.2f}   {theirs / planar:13.2f}   (target MuJoCo/planar >= 5)")
@@ -123,13 +126,14 @@ def section_batch(repeats: int, count: int) -> None:
     tree = Scene.from_layout(scene.item(0).layout, t_end=1.0, qpos0=np.column_stack([theta[:, 0], np.diff(theta)[:, 0]]))
     model = tree.native_model
     assert model.rhs is planar_rhs
+    hand = scene.hand_model()
     wall = time.perf_counter
     figures = {}
     for label, clock in (("wall", wall), ("CPU", time.process_time)):
         figures[f"planar, compiled loop ({label})"] = loop_ns(model.rhs, model.y0, model.params, 10, repeats, clock) / count
         figures[f"3-D engine, compiled loop ({label})"] = loop_ns(mb.tree_rhs, *three_d(tree), 4, repeats, clock) / count
-        figures[f"hand chain_rhs, compiled loop ({label})"] = loop_ns(
-            scene.native_model.rhs, scene.native_model.y0, scene.native_model.params, 10, repeats, clock) / count
+        figures[f"hand chain_rhs, compiled loop ({label})"] = loop_ns(hand.rhs, hand.y0, hand.params, 10, repeats,
+                                                                      clock) / count
         figures[f"planar, rbody.simulate ({label})"] = best(
             lambda: rbody.simulate(tree, dt=DT, t_end=10 * DT, save_every=10, method="rk4"), repeats,
             clock) / 10 * 1e9 / count
