@@ -14,7 +14,7 @@ import pytest
 
 import rbody
 from rbody import Inertia, Scene
-from rbody.engine import multibody
+from rbody.engine.planar import planar_rhs  # the engine's kernel for planar trees, such as every rolling scene
 from rbody.mjcf import roll_slide_axis
 from rbody.scenes import rolling, rolling_race
 from rbody.scenes.rolling import rolling_accel, rolling_rhs
@@ -38,7 +38,7 @@ def _close(got, want, scale, rtol=1e-12):
 def on_engine(scene):
     """The scene with the general engine as its native model (whatever FAST_PATH chooses for native())."""
     scene.__dict__["native_model"] = scene.engine_native()  # the cached model (a scene is otherwise frozen)
-    assert scene.native_model.rhs is multibody.tree_rhs
+    assert scene.native_model.rhs is planar_rhs
     return scene
 
 
@@ -196,7 +196,7 @@ def test_race_with_a_sliding_body_keeps_the_hand_kernel():
 @pytest.mark.parametrize("fast", [True, False])
 def test_native_follows_fast_path_where_the_body_rolls(monkeypatch, fast):
     monkeypatch.setattr(rolling_module, "FAST_PATH", fast)
-    want = rolling_rhs if fast else multibody.tree_rhs
+    want = rolling_rhs if fast else planar_rhs
     assert rolling("disc", radius=0.1, incline=0.5).native_model.rhs is want
     assert rolling("disc", radius=np.array([0.1, 0.2]), incline=0.5).native_model.rhs is want
     assert rolling_race(radius=0.1, incline=0.5, length=1.0).native_model.rhs is want
