@@ -11,8 +11,10 @@ Prints the machine and versions, then
    rbody.simulate (whole call, observables not evaluated);
 2. a batch of double pendulums (default 10^5) in one rk4 call: ns per pendulum-step, planar path, 3-D engine,
    hand chain_rhs, through the compiled loop and through rbody.simulate.
-Every figure is the minimum over --repeats runs after a warm-up. Benchmarks are not tests; the machine may
-be shared (the load average is printed): compare the figures of one run with each other.
+Every figure is the minimum over --repeats runs after a warm-up. Section 1 times the CPU time of this process
+(time.process_time: one thread runs a single scene), which a shared machine inflates far less than wall time;
+section 2 gives both wall time (all numba threads) and CPU time. Benchmarks are not tests; the machine may be
+shared (the load average is printed): compare the figures of one run with each other.
 """
 
 from __future__ import annotations
@@ -31,21 +33,43 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import mujoco  # noqa: E402
 import numba  # noqa: E402
+from mujoco import rollout  # noqa: E402
 
 import rbody  # noqa: E402
 from rbody import Scene  # noqa: E402
 from rbody.engine import integrators  # noqa: E402
 from rbody.engine import multibody as mb  # noqa: E402
 from rbody.engine.planar import planar_rhs  # noqa: E402
-from multibody_speed import DT, best, chain, mujoco_step_ns  # noqa: E402
+from rbody.scenes.pendulum import pendulum_rhs  # noqa: E402
+from multibody_speed import DT, chain, mujoco_model  # noqa: E402
 from validation.machine import describe_machine  # noqa: E402
 
 
-def loop_ns(rhs, y0, params, steps: int, repeats: int, finish=None) -> float:
+def best(function, repeats: int, clock=time.process_time) -> float:
+    """Minimum time [s] of function() on `clock` over `repeats` runs after one warm-up."""
+    function()
+    times = []
+    for _ in range(repeats):
+        start = clock()
+        function()
+        times.append(clock() - start)
+    return min(times)
+
+
+def mujoco_step_ns(scene, steps: int, repeats: int) -> float:
+    """ns per MuJoCo RK4 step (mujoco.rollout, one state), CPU time of this process."""
+    model, data = mujoco_model(scene)
+    kind = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    state = np.empty(mujoco.mj_stateSize(model, kind))
+    mujoco.mj_getState(model, data, state, kind)
+    return best(lambda: rollout.rollout(model, data, state[None], nstep=steps), repeats) / steps * 1e9
+
+
+def loop_ns(rhs, y0, params, steps: int, repeats: int, clock=time.process_time) -> float:
     """ns per rk4 step of the whole batch (y0 (B, n), params (B, p)), the compiled loop alone."""
     y0, params = np.ascontiguousarray(y0), np.ascontiguousarray(params)
     out = np.empty((2,) + y0.shape)
-    seconds = best(lambda: integrators.run_rk4(rhs, y0, params, DT, steps, steps, out, finish=finish), repeats)
+    seconds = best(lambda: integrators.run_rk4(rhs, y0, params, DT, steps, steps, out), repeats, clock)
     return seconds / steps * 1e9
 
 
@@ -57,7 +81,8 @@ def three_d(tree) -> tuple[np.ndarray, np.ndarray]:
 
 def simulate_ns(scene, steps: int, repeats: int) -> float:
     """ns per step of a whole rbody.simulate call (observables are computed lazily: not included)."""
-    return best(lambda: rbody.simulate(scene, dt=DT, t_end=steps * DT, save_every=steps), repeats) / steps * 1e9
+    return best(lambda: rbody.simulate(scene, dt=DT, t_end=steps * DT, save_every=steps, method="rk4"),
+                repeats) / steps * 1e9
 
 
 def section_steps(repeats: int) -> None:
@@ -69,6 +94,7 @@ def section_steps(repeats: int) -> None:
     model = rod_tree.native_model
     planar = loop_ns(model.rhs, model.y0, model.params, 200_000, repeats)
     general = loop_ns(mb.tree_rhs, *three_d(rod_tree), 50_000, repeats)
+    assert rod.native_model.rhs is pendulum_rhs
     hand = loop_ns(rod.native_model.rhs, rod.native_model.y0, rod.native_model.params, 200_000, repeats)
     theirs = mujoco_step_ns(rod, 50_000, repeats)
     print(f"   rod        {planar:8.0f}   {general:10.0f}   {hand:11.0f}   {theirs:10.0f}   {planar / hand:11.2f}   "
@@ -81,7 +107,8 @@ def section_steps(repeats: int) -> None:
         model = tree.native_model
         planar = loop_ns(model.rhs, model.y0, model.params, steps, repeats)
         general = loop_ns(mb.tree_rhs, *three_d(tree), steps // 4, repeats)
-        hand = loop_ns(scene.native_model.rhs, scene.native_model.y0, scene.native_model.params, steps, repeats)
+        kernel = scene.hand_model()  # chain_rhs, whatever native() picks
+        hand = loop_ns(kernel.rhs, kernel.y0, kernel.params, steps, repeats)
         theirs = mujoco_step_ns(scene, steps, repeats)
         print(f"   chain {n:2d}   {planar:8.0f}   {general:10.0f}   {hand:11.0f}   {theirs:10.0f}   {planar / hand:11.2f}"
               f"   {general / planar:10.2f}   {theirs / planar:13.2f}   (target MuJoCo/planar >= 5)")
@@ -99,16 +126,19 @@ def section_batch(repeats: int, count: int) -> None:
     tree = Scene.from_layout(scene.item(0).layout, t_end=1.0, qpos0=np.column_stack([theta[:, 0], np.diff(theta)[:, 0]]))
     model = tree.native_model
     assert model.rhs is planar_rhs
-    figures = {
-        "planar, compiled loop": loop_ns(model.rhs, model.y0, model.params, 10, repeats) / count,
-        "3-D engine, compiled loop": loop_ns(mb.tree_rhs, *three_d(tree), 4, repeats) / count,
-        "hand chain_rhs, compiled loop": loop_ns(scene.native_model.rhs, scene.native_model.y0,
-                                                 scene.native_model.params, 10, repeats) / count,
-        "planar, rbody.simulate": best(lambda: rbody.simulate(tree, dt=DT, t_end=10 * DT, save_every=10),
-                                       repeats) / 10 * 1e9 / count,
-    }
+    hand = scene.hand_model()
+    wall = time.perf_counter
+    figures = {}
+    for label, clock in (("wall", wall), ("CPU", time.process_time)):
+        figures[f"planar, compiled loop ({label})"] = loop_ns(model.rhs, model.y0, model.params, 10, repeats, clock) / count
+        figures[f"3-D engine, compiled loop ({label})"] = loop_ns(mb.tree_rhs, *three_d(tree), 4, repeats, clock) / count
+        figures[f"hand chain_rhs, compiled loop ({label})"] = loop_ns(hand.rhs, hand.y0, hand.params, 10, repeats,
+                                                                      clock) / count
+        figures[f"planar, rbody.simulate ({label})"] = best(
+            lambda: rbody.simulate(tree, dt=DT, t_end=10 * DT, save_every=10, method="rk4"), repeats,
+            clock) / 10 * 1e9 / count
     for name, value in figures.items():
-        print(f"   {name:32s} {value:7.1f}")
+        print(f"   {name:42s} {value:7.1f}")
 
 
 def main() -> None:

@@ -44,8 +44,14 @@ and L = R(angle_parent) l, whose velocity-product term has, beside (v_parent x S
 turning with q itself: (0, s r Ly, -s r Lx) q'^2 (the slide's subspace crossed with the hinge's).
 
 Kernels: rhs(y, p, out) and accel(q, p, out), the integrators' signatures, over a row p of this module's
-layout. An evaluation allocates nothing: its workspace (31 floats a node) is a stack buffer (_stack_floats,
-an LLVM alloca freed on return), read and written by flat index.
+layout. An evaluation allocates nothing: its workspace (WORK = 32 floats a node) is a stack buffer
+(_stack_floats, an LLVM alloca freed on return), read and written by flat index, and each kernel is one
+inlined call, so that numba keeps no reference counting of its arrays.
+
+Ground coordinates rather than each node's own frame (where a node's inertia and subspace are constants
+and only the parent-to-node transform moves): measured in one run (benchmarks/planar_speed.py setting), the
+own-frame ABA was 12% faster on the one-hinge rod but 8% slower at 8 links and 13% at 32, its backward pass
+carrying a 3x3 congruence per node where ground coordinates add inertias as they are.
 """
 
 from __future__ import annotations
@@ -67,12 +73,10 @@ P_NODES, P_GX, P_GY = range(3)
 HEADER = 3
 # Node record: parent node (-1 world), kind, sign s of the axis along n, point (2) (hinge and roll: anchor;
 # slide: unit direction) at the reference pose, ref, stiffness, springref, damping, armature, mass,
-# com (2) at the reference pose, I_n about the com, roll radius, roll line (2) at the reference pose; then the
-# same in the node's own frame (below): its rigid inertia (6: 00 01 02 11 12 22) and motion subspace (3; roll:
-# the hinge part).
+# com (2) at the reference pose, I_n about the com, roll radius, roll line (2) at the reference pose.
 (N_PARENT, N_KIND, N_SIGN, N_POINT, N_REF, N_STIFF, N_SPRINGREF, N_DAMPING, N_ARMATURE, N_MASS, N_COM, N_MOMENT,
- N_RADIUS, N_LINE, N_INERTIA, N_SUBSPACE) = (0, 1, 2, 3, 5, 6, 7, 8, 9, 10, 11, 13, 14, 15, 17, 23)
-NODE_SIZE = 26
+ N_RADIUS, N_LINE) = (0, 1, 2, 3, 5, 6, 7, 8, 9, 10, 11, 13, 14, 15)
+NODE_SIZE = 17
 # Workspace of a node (one evaluation): cos, sin, angle of G; t of G (2); S (3); v (3); c (3) the velocity
 # product; articulated inertia (6: 00 01 02 11 12 22); articulated bias force (3); U = I S (3); 1/D; u;
 # acceleration (3); applied generalised force.
@@ -102,9 +106,10 @@ def _stack_floats(typingctx, count):
 # ----- the algorithms ----------------------------------------------------------------------------------
 
 @njit(cache=True, inline="always")
-def _outward(p, y, v0, w):
+def _outward(p, y, v0, w, out, copy):
     """Poses, motion subspaces, velocities, velocity products and rigid inertias of every node, and each
-    node's bias force v x* I v, from q = y[0:n] and qvel = y[v0:v0 + n] (v0 < 0: at rest)."""
+    node's bias force v x* I v, from q = y[0:n] and qvel = y[v0:v0 + n] (v0 < 0: at rest); when `copy`,
+    qvel into out[0:n] too."""
     n = int(p[P_NODES])
     for d in range(n):
         r = HEADER + d * NODE_SIZE
@@ -119,6 +124,8 @@ def _outward(p, y, v0, w):
             angle, cp, sp, tx, ty, vw, vx, vy = 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
         x = y[d] - p[r + N_REF]
         qd = y[v0 + d] if v0 >= 0 else 0.0
+        if copy:
+            out[d] = qd
         kind = int(p[r + N_KIND])
         px, py = p[r + N_POINT], p[r + N_POINT + 1]
         extra_x, extra_y = 0.0, 0.0
@@ -182,61 +189,67 @@ def _outward(p, y, v0, w):
 
 @njit(cache=True, inline="always")
 def _articulated(p, y, v0, out, a0, w, applied):
-    """ABA in the nodes' own frames: out[a0 + d] = qacc of node d, from the state y (q = y[0:n], qvel =
-    y[v0:v0 + n], v0 < 0 at rest) and, when `applied`, the applied forces w[d * WORK + W_TAU]; passive forces
-    included. With a0 > 0 it also copies qvel into out[0:n] (the rhs y' = (qvel, qacc)). Everything happens
-    here, in one inlined call per kernel: a loop of the kernel before the call would make numba keep the
-    reference counting of its array arguments (an NRT call each, every evaluation).
+    """ABA: out[a0 + d] = qacc of node d, from the state y (q = y[0:n], qvel = y[v0:v0 + n], v0 < 0 at rest)
+    and, when `applied`, the applied forces w[d * WORK + W_TAU]; passive forces included. With a0 > 0 it also
+    copies qvel into out[0:n] (the rhs y' = (qvel, qacc)). Returns the first node whose pivot D is not positive
+    beyond PIVOT_RTOL of its scale (its qacc is NaN), or -1.
 
-    A node's frame is the world pulled back by its displacement G_d: there its rigid inertia and (hinge, slide)
-    motion subspace are the constants of the row, and only X_d, the motion transform from the parent's frame,
-    moves: for J_d = (alpha, u), X m = (omega, R(-alpha) (v + omega (-uy, ux))); forces go back by X^T.
-    Returns the first node whose pivot D is not positive beyond PIVOT_RTOL of its scale (its qacc is NaN),
-    or -1."""
+    Everything happens here, in one inlined call per kernel: a loop of the kernel before the call makes numba
+    keep the reference counting of the kernel's array arguments (an NRT call each, every evaluation)."""
     n = int(p[P_NODES])
+    # the outward pass, as _outward, written out: with _outward inlined here numba keeps the reference
+    # counting of the array arguments
     for d in range(n):
         r = HEADER + d * NODE_SIZE
         k = d * WORK
+        parent = int(p[r + N_PARENT])
+        if parent >= 0:
+            o = parent * WORK
+            angle, cp, sp = w[o + W_ANGLE], w[o + W_COS], w[o + W_SIN]
+            tx, ty = w[o + W_T], w[o + W_T + 1]
+            vw, vx, vy = w[o + W_V], w[o + W_V + 1], w[o + W_V + 2]
+        else:
+            angle, cp, sp, tx, ty, vw, vx, vy = 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
         x = y[d] - p[r + N_REF]
         qd = y[v0 + d] if v0 >= 0 else 0.0
         if a0 > 0:
             out[d] = qd
         kind = int(p[r + N_KIND])
-        sw, sx, sy = p[r + N_SUBSPACE], p[r + N_SUBSPACE + 1], p[r + N_SUBSPACE + 2]
+        px, py = p[r + N_POINT], p[r + N_POINT + 1]
         extra_x, extra_y = 0.0, 0.0
+        radius, lx, ly = 0.0, 0.0, 0.0
         if kind == PLANAR_SLIDE:
-            c, s_ = 1.0, 0.0
-            ux, uy = sx * x, sy * x
+            sw = 0.0
+            sx = cp * px - sp * py
+            sy = sp * px + cp * py
+            tx += sx * x
+            ty += sy * x
+            c, s_ = cp, sp
         else:
             sign = p[r + N_SIGN]
-            px, py = p[r + N_POINT], p[r + N_POINT + 1]
-            c, s_ = np.cos(sign * x), np.sin(sign * x)
-            ux = px - (c * px - s_ * py)  # u = a - R a (+ r x l)
-            uy = py - (s_ * px + c * py)
+            # the anchor (roll: the centre, after the slide r x along l), moved by the parent's displacement
             if kind == PLANAR_ROLL:
-                radius, lx, ly = p[r + N_RADIUS], p[r + N_LINE], p[r + N_LINE + 1]
-                ux += radius * x * lx
-                uy += radius * x * ly
-                # the slide part of S, along L = R(-s x) l in the node's frame, and its turning with q
-                llx = c * lx + s_ * ly
-                lly = c * ly - s_ * lx
-                sx += radius * llx
-                sy += radius * lly
-                extra_x, extra_y = sign * radius * lly * qd * qd, -sign * radius * llx * qd * qd
-        w1 = -c * uy + s_ * ux  # R(-alpha) (-uy, ux)
-        w2 = s_ * uy + c * ux
-        w[k + W_COS], w[k + W_SIN], w[k + W_T], w[k + W_T + 1] = c, s_, w1, w2
+                radius = p[r + N_RADIUS]
+                lx = cp * p[r + N_LINE] - sp * p[r + N_LINE + 1]
+                ly = sp * p[r + N_LINE] + cp * p[r + N_LINE + 1]
+                ax = cp * px - sp * py + tx + radius * x * lx
+                ay = sp * px + cp * py + ty + radius * x * ly
+            else:
+                ax = cp * px - sp * py + tx
+                ay = sp * px + cp * py + ty
+            angle += sign * x
+            c, s_ = np.cos(angle), np.sin(angle)
+            tx = ax - (c * px - s_ * py)
+            ty = ay - (s_ * px + c * py)
+            sw, sx, sy = sign, sign * ay, -sign * ax
+            if kind == PLANAR_ROLL:
+                sx += radius * lx
+                sy += radius * ly
+                extra_x, extra_y = sign * radius * ly * qd * qd, -sign * radius * lx * qd * qd
+        w[k + W_ANGLE], w[k + W_COS], w[k + W_SIN] = angle, c, s_
+        w[k + W_T], w[k + W_T + 1] = tx, ty
         w[k + W_S], w[k + W_S + 1], w[k + W_S + 2] = sw, sx, sy
-        parent = int(p[r + N_PARENT])
-        if parent >= 0:
-            o = parent * WORK
-            pw, px_, py_ = w[o + W_V], w[o + W_V + 1], w[o + W_V + 2]
-            vw = pw
-            vx = w1 * pw + c * px_ + s_ * py_
-            vy = w2 * pw - s_ * px_ + c * py_
-        else:
-            vw, vx, vy = 0.0, 0.0, 0.0
-        # c = (X v_parent) x S q' (+ the roll's own term)
+        # c = (v_parent x S) q' (+ the roll's own term)
         w[k + W_C] = 0.0
         w[k + W_C + 1] = (sw * vy - vw * sy) * qd + extra_x
         w[k + W_C + 2] = (vw * sx - sw * vx) * qd + extra_y
@@ -244,13 +257,19 @@ def _articulated(p, y, v0, out, a0, w, applied):
         vx += sx * qd
         vy += sy * qd
         w[k + W_V], w[k + W_V + 1], w[k + W_V + 2] = vw, vx, vy
-        i00, i01, i02 = p[r + N_INERTIA], p[r + N_INERTIA + 1], p[r + N_INERTIA + 2]
-        i11, i12, i22 = p[r + N_INERTIA + 3], p[r + N_INERTIA + 4], p[r + N_INERTIA + 5]
-        for a in range(6):
-            w[k + W_I + a] = p[r + N_INERTIA + a]
-        fw = i00 * vw + i01 * vx + i02 * vy
-        fx = i01 * vw + i11 * vx + i12 * vy
-        fy = i02 * vw + i12 * vx + i22 * vy
+        # rigid inertia about the origin at the current pose
+        m = p[r + N_MASS]
+        cx0, cy0 = p[r + N_COM], p[r + N_COM + 1]
+        comx = c * cx0 - s_ * cy0 + tx
+        comy = s_ * cx0 + c * cy0 + ty
+        hx, hy = m * comx, m * comy
+        inertia = p[r + N_MOMENT] + hx * comx + hy * comy
+        w[k + W_I], w[k + W_I + 1], w[k + W_I + 2] = inertia, -hy, hx
+        w[k + W_I + 3], w[k + W_I + 4], w[k + W_I + 5] = m, 0.0, m
+        # I v, then v x* (I v)
+        fw = inertia * vw - hy * vx + hx * vy
+        fx = m * vx - hy * vw
+        fy = m * vy + hx * vw
         w[k + W_P] = vx * fy - vy * fx
         w[k + W_P + 1] = -vw * fy
         w[k + W_P + 2] = vw * fx
@@ -283,7 +302,7 @@ def _articulated(p, y, v0, out, a0, w, applied):
         parent = int(p[r + N_PARENT])
         if parent < 0:
             continue
-        # Ia = I - U U^T / D; pa = pA + Ia c + U u / D; the parent gets X^T Ia X and X^T pa
+        # Ia = I - U U^T / D; pa = pA + Ia c + U u / D, added to the parent's
         i00 -= u0 * u0 * inv
         i01 -= u0 * u1 * inv
         i02 -= u0 * u2 * inv
@@ -292,40 +311,28 @@ def _articulated(p, y, v0, out, a0, w, applied):
         i22 -= u2 * u2 * inv
         c0, c1, c2 = w[k + W_C], w[k + W_C + 1], w[k + W_C + 2]
         ui = u * inv
-        f0 = w[k + W_P] + i00 * c0 + i01 * c1 + i02 * c2 + u0 * ui
-        f1 = w[k + W_P + 1] + i01 * c0 + i11 * c1 + i12 * c2 + u1 * ui
-        f2 = w[k + W_P + 2] + i02 * c0 + i12 * c1 + i22 * c2 + u2 * ui
-        c, s_, w1, w2 = w[k + W_COS], w[k + W_SIN], w[k + W_T], w[k + W_T + 1]
         o = parent * WORK
-        w[o + W_P] += f0 + w1 * f1 + w2 * f2
-        w[o + W_P + 1] += c * f1 - s_ * f2
-        w[o + W_P + 2] += s_ * f1 + c * f2
-        # B = Ia X (columns b0, b1, b2), then X^T B (rows: B0 + w1 B1 + w2 B2, c B1 - s B2, s B1 + c B2)
-        b00 = i00 + w1 * i01 + w2 * i02
-        b10 = i01 + w1 * i11 + w2 * i12
-        b20 = i02 + w1 * i12 + w2 * i22
-        b11, b21 = c * i11 - s_ * i12, c * i12 - s_ * i22
-        b12, b22 = s_ * i11 + c * i12, s_ * i12 + c * i22
-        b01, b02 = c * i01 - s_ * i02, s_ * i01 + c * i02
-        w[o + W_I] += b00 + w1 * b10 + w2 * b20
-        w[o + W_I + 1] += b01 + w1 * b11 + w2 * b21
-        w[o + W_I + 2] += b02 + w1 * b12 + w2 * b22
-        w[o + W_I + 3] += c * b11 - s_ * b21
-        w[o + W_I + 4] += c * b12 - s_ * b22
-        w[o + W_I + 5] += s_ * b12 + c * b22
+        w[o + W_P] += w[k + W_P] + i00 * c0 + i01 * c1 + i02 * c2 + u0 * ui
+        w[o + W_P + 1] += w[k + W_P + 1] + i01 * c0 + i11 * c1 + i12 * c2 + u1 * ui
+        w[o + W_P + 2] += w[k + W_P + 2] + i02 * c0 + i12 * c1 + i22 * c2 + u2 * ui
+        w[o + W_I] += i00
+        w[o + W_I + 1] += i01
+        w[o + W_I + 2] += i02
+        w[o + W_I + 3] += i11
+        w[o + W_I + 4] += i12
+        w[o + W_I + 5] += i22
     for d in range(n):
         r = HEADER + d * NODE_SIZE
         k = d * WORK
         parent = int(p[r + N_PARENT])
-        c, s_, w1, w2 = w[k + W_COS], w[k + W_SIN], w[k + W_T], w[k + W_T + 1]
         if parent >= 0:
             o = parent * WORK
-            pw, px_, py_ = w[o + W_A], w[o + W_A + 1], w[o + W_A + 2]
+            a0_, a1, a2 = w[o + W_A], w[o + W_A + 1], w[o + W_A + 2]
         else:
-            pw, px_, py_ = 0.0, p[P_GX], p[P_GY]  # gravity: the world accelerates upwards
-        a0_ = pw + w[k + W_C]
-        a1 = w1 * pw + c * px_ + s_ * py_ + w[k + W_C + 1]
-        a2 = w2 * pw - s_ * px_ + c * py_ + w[k + W_C + 2]
+            a0_, a1, a2 = 0.0, p[P_GX], p[P_GY]  # gravity: the world accelerates upwards
+        a0_ += w[k + W_C]
+        a1 += w[k + W_C + 1]
+        a2 += w[k + W_C + 2]
         qdd = (w[k + W_SMALL_U] - (w[k + W_U] * a0_ + w[k + W_U + 1] * a1 + w[k + W_U + 2] * a2)) * w[k + W_DINV]
         if d == bad:
             qdd = np.nan
@@ -361,7 +368,7 @@ def _inverse(p, q, v, qacc, gravity_on, out, w):
     for d in range(n):
         y[d] = q[d]
         y[n + d] = v[d]
-    _outward(p, y, n, w)
+    _outward(p, y, n, w, out, False)
     for d in range(n):
         r = HEADER + d * NODE_SIZE
         k = d * WORK
@@ -617,25 +624,8 @@ def planar_structure(multibody: mb.Multibody) -> tuple[PlanarModel | None, str]:
         planar[n_ + N_MASS] = mass
         planar[n_ + N_COM:n_ + N_COM + 2] = com
         planar[n_ + N_MOMENT] = moment
-    with_node_frames(planar)
     planar.setflags(write=False)
     return PlanarModel(row=planar, normal=normal, basis=basis, nv=nv, multibody=multibody), ""
-
-
-def with_node_frames(row: np.ndarray) -> np.ndarray:
-    """Fill, in place, every node's rigid inertia and motion subspace in its own frame (the world pulled back
-    by the node's displacement, i.e. the reference pose) from its mass, com, moment, kind, sign and point:
-    inertia [[I_n + m |c|^2, -m cy, m cx], [., m, 0], [., ., m]]; hinge and roll (s, s ay, -s ax) about the
-    anchor a; slide (0, d). Returns row."""
-    for d in range(int(row[P_NODES])):
-        r = HEADER + d * NODE_SIZE
-        m, (cx, cy) = row[r + N_MASS], row[r + N_COM:r + N_COM + 2]
-        row[r + N_INERTIA:r + N_INERTIA + 6] = (row[r + N_MOMENT] + m * (cx * cx + cy * cy), -m * cy, m * cx, m, 0.0, m)
-        px, py = row[r + N_POINT:r + N_POINT + 2]
-        sign = row[r + N_SIGN]
-        row[r + N_SUBSPACE:r + N_SUBSPACE + 3] = ((0.0, px, py) if int(row[r + N_KIND]) == PLANAR_SLIDE
-                                                  else (sign, sign * py, -sign * px))
-    return row
 
 
 def planar_model(multibody: mb.Multibody) -> PlanarModel | None:

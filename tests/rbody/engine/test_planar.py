@@ -29,11 +29,11 @@ NORMALS = {
 _OFF = mujoco.mjtDisableBit.mjDSBL_CONTACT | mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
 
 
-def planar_tree(rng: np.random.Generator, bodies: int, normal: np.ndarray) -> Layout:
+def planar_tree(rng: np.random.Generator, bodies: int, normal: np.ndarray, roll: bool = True) -> Layout:
     """A random tree whose hinges all turn about +-normal and whose slides lie in its plane: bodies in random
     3-D orientations (so the joint axes in their frames are arbitrary), offsets and com off the plane, inertia
     tensors with products of inertia, welded bodies, one to three joints per body, branches, damping,
-    stiffness, springref, armature and ref."""
+    stiffness, springref, armature and ref; roll joints (random radius, surface normal in the plane)."""
     out_bodies, out_joints, rotation = [], [], {"world": np.eye(3)}
     for i in range(bodies):
         parent = "world" if i == 0 or rng.random() < 0.25 else f"b{rng.integers(0, i)}"
@@ -43,9 +43,15 @@ def planar_tree(rng: np.random.Generator, bodies: int, normal: np.ndarray) -> La
                                quat=tuple(quat)))
         count = int(rng.choice([0, 1, 1, 2, 3]))  # 0: welded to its parent
         for k in range(count):
-            kind = str(rng.choice(["hinge", "hinge", "slide"]))
-            if kind == "hinge":
+            kind = str(rng.choice(["hinge", "hinge", "slide", "roll"] if roll else ["hinge", "hinge", "slide"]))
+            extra = {}
+            if kind in ("hinge", "roll"):
                 world_axis = normal * rng.choice([-1.0, 1.0])
+                if kind == "roll":
+                    surface = rng.normal(size=3)
+                    surface -= normal * (surface @ normal)
+                    extra = dict(radius=float(rng.uniform(0.1, 0.5)),
+                                 normal=tuple(rotation[f"b{i}"].T @ (surface / np.linalg.norm(surface))))
             else:
                 direction = rng.normal(size=3)
                 world_axis = direction - normal * (direction @ normal)
@@ -54,7 +60,7 @@ def planar_tree(rng: np.random.Generator, bodies: int, normal: np.ndarray) -> La
                 anchor=tuple(rng.uniform(-0.3, 0.3, 3)), qpos0=float(rng.uniform(-1, 1)),
                 qvel0=float(rng.uniform(-1, 1)), damping=float(rng.uniform(0, 0.5)),
                 armature=float(rng.uniform(0, 0.1)), stiffness=float(rng.uniform(0, 2)),
-                springref=float(rng.uniform(-0.5, 0.5)), ref=float(rng.uniform(-0.5, 0.5))))
+                springref=float(rng.uniform(-0.5, 0.5)), ref=float(rng.uniform(-0.5, 0.5)), **extra))
     if not out_joints:  # at least one degree of freedom
         out_joints.append(Joint("j0_0", "hinge", "b0", axis=tuple(rotation["b0"].T @ normal)))
     return Layout(bodies=tuple(out_bodies), joints=tuple(out_joints))
@@ -71,6 +77,9 @@ def random_states(rng, model: Multibody, count: int):
 
 # ----- the same dynamics as the 3-D engine and MuJoCo ------------------------------------------------------
 
+kinds: set = set()  # joint kinds the random trees below used
+
+
 @pytest.mark.parametrize("normal", list(NORMALS))
 @pytest.mark.parametrize("seed", range(5))
 def test_planar_dynamics_equal_the_3d_engine(seed, normal):
@@ -78,6 +87,7 @@ def test_planar_dynamics_equal_the_3d_engine(seed, normal):
     model = Multibody(planar_tree(rng, int(rng.integers(1, 13)), NORMALS[normal]))
     planar, why = planar_structure(model)
     assert planar is not None, why
+    kinds.update(model.arrays.joint_kinds)
     assert abs(abs(float(planar.normal @ NORMALS[normal])) - 1.0) < 1e-12
     q, v, tau = random_states(rng, model, 6)
     assert relative(planar.mass_matrix(q), model.mass_matrix(q)) < 1e-12
@@ -94,6 +104,12 @@ def test_planar_dynamics_equal_the_3d_engine(seed, normal):
     assert relative(acc, model.forward_dynamics(q[0], np.zeros(model.nv))) < 1e-12
 
 
+def test_the_random_planar_trees_used_every_planar_joint_kind():
+    if len(kinds) == 0:
+        pytest.skip("run with test_planar_dynamics_equal_the_3d_engine")
+    assert kinds == {"hinge", "slide", "roll"}
+
+
 def mujoco_data(scene, dt: float = 2e-3):
     mj = mujoco.MjModel.from_xml_string(rbody.to_mjcf(scene, dt=dt, integrator="RK4"))
     mj.opt.disableflags |= _OFF
@@ -108,7 +124,8 @@ def test_planar_dynamics_equal_mujoco(seed, normal):
     """MuJoCo's mj_fullM, qfrc_bias and qacc (constraints off). 1e-10 as the 3-D engine's own test: MuJoCo
     sums about each subtree's centre of mass, rbody about the world origin (round-off ~ |x| / tree size)."""
     rng = np.random.default_rng(50 + seed)
-    scene = Scene.from_layout(planar_tree(rng, int(rng.integers(2, 13)), NORMALS[normal]), t_end=1.0)
+    # no roll joints: MJCF writes one as a slide and a hinge tied by an equality, a constraint switched off here
+    scene = Scene.from_layout(planar_tree(rng, int(rng.integers(2, 13)), NORMALS[normal], roll=False), t_end=1.0)
     planar = planar_model(scene.multibody)
     mj, data = mujoco_data(scene)
     q, v, _ = random_states(rng, scene.multibody, 3)
@@ -287,7 +304,7 @@ def rolling_row(*, radius, mass, moment, com, line, gravity=(0.0, -9.81), child=
         row[r + pl.N_PARENT], row[r + pl.N_KIND], row[r + pl.N_SIGN] = 0, pl.PLANAR_HINGE, 1.0
         row[r + pl.N_POINT:r + pl.N_POINT + 2] = anchor
         row[r + pl.N_MASS], row[r + pl.N_COM:r + pl.N_COM + 2], row[r + pl.N_MOMENT] = m2, c2, I2
-    return pl.with_node_frames(row)
+    return row
 
 
 def _rot(angle):
