@@ -27,6 +27,7 @@ massless virtual links with no transform between them, and nothing is ever moved
   degrees of freedom. Chosen over the composite-rigid-body algorithm and a dense Cholesky (cubic in n)
   because the goal is long chains and big batches; for the tree's sparsity it needs no factorisation.
   Armature adds to the pivot D of its degree of freedom, which is exactly (M + diag(armature)) qdd.
+  Articulated inertias are symmetric: only their upper triangles are updated and summed (21 of 36).
 - inverse dynamics and the bias forces: the recursive Newton-Euler algorithm (RNEA), gravity entering
   as an upward acceleration of the world.
 - the mass matrix: the composite-rigid-body algorithm (CRBA), inertias added towards the root
@@ -61,7 +62,7 @@ from numba.extending import intrinsic
 
 from rbody.engine.spatial import (cross3, dexp_inverse, dot6, force_cross, inertia_apply, inertia_in_world,
                                   inertia_matrix, motion_cross, quat_axis_angle, quat_exp, quat_multiply,
-                                  quat_rotate, quat_to_matrix)
+                                  quat_rotate, quat_to_matrix, symmetric_apply)
 
 HINGE, SLIDE, BALL, FREE, ROLL = 0, 1, 2, 3, 4
 KIND_CODE = {"hinge": HINGE, "slide": SLIDE, "ball": BALL, "free": FREE, "roll": ROLL}
@@ -388,7 +389,7 @@ def _frames(p, q, v, w):
 
 # ----- the articulated-body algorithm ---------------------------------------------------------------------
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")  # 1 / D without a zero check: D is checked, and set to inf when bad
 def articulated_body(p, w, qacc):
     """ABA: qacc (nv,) from the generalised forces in the workspace's tau (nv,) (applied + passive), after
     _frames; the workspace's pivots (nv,) get the D of every degree of freedom (armature included). Returns
@@ -411,12 +412,10 @@ def articulated_body(p, w, qacc):
     for i in range(nb - 1, -1, -1):
         b = bo + i * BODY_SIZE
         d0, nd = int(p[b + B_DOF0]), int(p[b + B_NDOF])
-        Ia, pa = IA[i], pA[i]
+        Ia, pa = IA[i], pA[i]  # articulated inertia: only its upper triangle is kept (it is symmetric)
         for d in range(d0 + nd - 1, d0 - 1, -1):
             s = S[d]
-            for a in range(6):
-                U[d, a] = (Ia[a, 0] * s[0] + Ia[a, 1] * s[1] + Ia[a, 2] * s[2] + Ia[a, 3] * s[3]
-                           + Ia[a, 4] * s[4] + Ia[a, 5] * s[5])
+            symmetric_apply(Ia, s, U[d])  # U = Ia S
             D = dot6(s, U[d]) + p[do + d * DOF_SIZE + D_ARMATURE]
             pivots[d] = D
             scale = abs(dot6(s, U[d])) + abs(p[do + d * DOF_SIZE + D_ARMATURE])
@@ -428,19 +427,18 @@ def articulated_body(p, w, qacc):
                 D = np.inf  # keeps the sweep finite; the caller reports the dof
             u[d] = tau[d] - dot6(s, pa)
             inv = 1.0 / D
-            for a in range(6):
-                for c in range(6):
+            for a in range(6):  # Ia -= U U^T / D
+                for c in range(a, 6):
                     Ia[a, c] -= U[d, a] * U[d, c] * inv
             # pa += Ia c + U u / D (Ia after the update)
-            cb = bias[d]
+            symmetric_apply(Ia, bias[d], tmp)
             for a in range(6):
-                pa[a] += (Ia[a, 0] * cb[0] + Ia[a, 1] * cb[1] + Ia[a, 2] * cb[2] + Ia[a, 3] * cb[3]
-                          + Ia[a, 4] * cb[4] + Ia[a, 5] * cb[5]) + U[d, a] * u[d] * inv
+                pa[a] += tmp[a] + U[d, a] * u[d] * inv
         parent = int(p[b + B_PARENT])
         if parent >= 0:
             for a in range(6):
                 pA[parent, a] += pa[a]
-                for c in range(6):
+                for c in range(a, 6):
                     IA[parent, a, c] += Ia[a, c]
     for i in range(nb):
         b = bo + i * BODY_SIZE
