@@ -941,6 +941,9 @@ class Multibody:
         self.gravity = float(gravity)
         self.arrays = arrays
         self.params = arrays.row
+        # a writable copy for the kernels: the same array type as the rows the integrators pass (a read-only
+        # array is another numba type, which would compile every algorithm a second time)
+        self._kernel_params = np.array(arrays.row)
         self.nq, self.nv, self.nrot = arrays.nq, arrays.nv, arrays.nrot
         self.body_names, self.joint_names = arrays.names, arrays.joint_names
         qpos0.setflags(write=False)
@@ -971,7 +974,7 @@ class Multibody:
         count = Q.shape[0]
         out, pivots = np.empty((count, self.nv)), np.empty((count, self.nv))
         zeros = np.zeros((count, self.nv))
-        bad = _forward_batch(self.params, Q, zeros, zeros, out, pivots)
+        bad = _forward_batch(self._kernel_params, Q, zeros, zeros, out, pivots)
         if np.any(bad >= 0):
             d = int(bad[bad >= 0][0])
             body = self.body_names[self.arrays.dof_body[d]]
@@ -988,21 +991,21 @@ class Multibody:
         """M (..., nv, nv) [kg, kg m, kg m^2] at q (..., nq), armature on the diagonal (MuJoCo's mj_fullM)."""
         shape, (Q,) = self._batch((q, self.nq, "q"))
         out = np.empty((Q.shape[0], self.nv, self.nv))
-        _mass_matrix_batch(self.params, Q, out)
+        _mass_matrix_batch(self._kernel_params, Q, out)
         return out.reshape(shape + (self.nv, self.nv))
 
     def bias_forces(self, q, v) -> np.ndarray:
         """(..., nv) gravity, Coriolis and centrifugal generalised forces (MuJoCo's qfrc_bias)."""
         shape, (Q, V) = self._batch((q, self.nq, "q"), (v, self.nv, "v"))
         out = np.empty((Q.shape[0], self.nv))
-        _inverse_batch(self.params, Q, V, np.zeros_like(V), True, out)
+        _inverse_batch(self._kernel_params, Q, V, np.zeros_like(V), True, out)
         return out.reshape(shape + (self.nv,))
 
     def passive_forces(self, q, v) -> np.ndarray:
         """(..., nv) springs and dampers (MuJoCo's qfrc_passive)."""
         shape, (Q, V) = self._batch((q, self.nq, "q"), (v, self.nv, "v"))
         out = np.empty((Q.shape[0], self.nv))
-        _passive_batch(self.params, Q, V, out)
+        _passive_batch(self._kernel_params, Q, V, out)
         return out.reshape(shape + (self.nv,))
 
     def forward_dynamics(self, q, v, tau=None) -> np.ndarray:
@@ -1012,7 +1015,7 @@ class Multibody:
         tau = np.zeros(self.nv) if tau is None else tau
         shape, (Q, V, T) = self._batch((q, self.nq, "q"), (v, self.nv, "v"), (tau, self.nv, "tau"))
         out, pivots = np.empty((Q.shape[0], self.nv)), np.empty((Q.shape[0], self.nv))
-        bad = _forward_batch(self.params, Q, V, T, out, pivots)
+        bad = _forward_batch(self._kernel_params, Q, V, T, out, pivots)
         if np.any(bad >= 0):
             self.check_pivots(Q[int(np.argmax(bad >= 0))])
         return out.reshape(shape + (self.nv,))
@@ -1021,15 +1024,15 @@ class Multibody:
         """tau (..., nv) with forward_dynamics(q, v, tau) = a: M a + bias - passive (RNEA)."""
         shape, (Q, V, A) = self._batch((q, self.nq, "q"), (v, self.nv, "v"), (a, self.nv, "a"))
         out = np.empty((Q.shape[0], self.nv))
-        _inverse_batch(self.params, Q, V, A, True, out)
+        _inverse_batch(self._kernel_params, Q, V, A, True, out)
         passive_ = np.empty_like(out)
-        _passive_batch(self.params, Q, V, passive_)
+        _passive_batch(self._kernel_params, Q, V, passive_)
         return (out - passive_).reshape(shape + (self.nv,))
 
     def _energies(self, q, v) -> tuple[tuple[int, ...], np.ndarray]:
         shape, (Q, V) = self._batch((q, self.nq, "q"), (v, self.nv, "v"))
         out = np.empty((Q.shape[0], 2))
-        _energies_batch(self.params, Q, V, out)
+        _energies_batch(self._kernel_params, Q, V, out)
         return shape, out
 
     def kinetic_energy(self, q, v) -> np.ndarray:
@@ -1050,7 +1053,7 @@ class Multibody:
         nb = len(self.body_names)
         com, quat = np.empty((Q.shape[0], nb, 3)), np.empty((Q.shape[0], nb, 4))
         velocity, omega = np.empty((Q.shape[0], nb, 3)), np.empty((Q.shape[0], nb, 3))
-        _body_states_batch(self.params, Q, V, com, quat, velocity, omega)
+        _body_states_batch(self._kernel_params, Q, V, com, quat, velocity, omega)
         return {"com": com.reshape(shape + (nb, 3)), "quat": quat.reshape(shape + (nb, 4)),
                 "velocity": velocity.reshape(shape + (nb, 3)), "omega": omega.reshape(shape + (nb, 3))}
 
