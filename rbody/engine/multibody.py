@@ -116,6 +116,12 @@ def body_offset(p, i):
 
 # ----- kinematics -------------------------------------------------------------------------------------------
 
+@njit(cache=True, inline="always")
+def _is_identity(p, at):
+    """Whether p[at:at + 4] is the identity quaternion (1, 0, 0, 0) exactly."""
+    return p[at] == 1.0 and p[at + 1] == 0.0 and p[at + 2] == 0.0 and p[at + 3] == 0.0
+
+
 @njit(cache=True)
 def kinematics(p, q, w):
     """World poses of every body from qpos q (nq,), as MuJoCo's mj_kinematics, into the workspace w (_views):
@@ -144,7 +150,11 @@ def kinematics(p, q, w):
                 for a in range(3):
                     xpos[i, a] = xpos[parent, a] + (xmat[parent, a, 0] * p[b + B_POS] + xmat[parent, a, 1]
                                                     * p[b + B_POS + 1] + xmat[parent, a, 2] * p[b + B_POS + 2])
-                quat_multiply(xquat[parent], p[b + B_QUAT:b + B_QUAT + 4], quat)
+                if _is_identity(p, b + B_QUAT):  # the common case: the body's axes are its parent's
+                    for a in range(4):
+                        quat[a] = xquat[parent, a]
+                else:
+                    quat_multiply(xquat[parent], p[b + B_QUAT:b + B_QUAT + 4], quat)
             else:
                 for a in range(3):
                     xpos[i, a] = p[b + B_POS + a]
@@ -155,10 +165,15 @@ def kinematics(p, q, w):
                 kind = int(p[r + J_KIND])
                 axis = p[r + J_AXIS:r + J_AXIS + 3]
                 anchor = p[r + J_ANCHOR:r + J_ANCHOR + 3]
+                at_origin = anchor[0] == 0.0 and anchor[1] == 0.0 and anchor[2] == 0.0  # the common case
                 quat_rotate(quat, axis, xaxis[j])
-                quat_rotate(quat, anchor, xanchor[j])
-                for a in range(3):
-                    xanchor[j, a] += xpos[i, a]
+                if at_origin:
+                    for a in range(3):
+                        xanchor[j, a] = xpos[i, a]
+                else:
+                    quat_rotate(quat, anchor, xanchor[j])
+                    for a in range(3):
+                        xanchor[j, a] += xpos[i, a]
                 qa = int(p[r + J_QADR])
                 if kind == SLIDE:
                     d = q[qa] - p[r + J_REF]
@@ -180,9 +195,13 @@ def kinematics(p, q, w):
                 for a in range(4):
                     previous[a] = quat[a]
                 quat_multiply(previous, qloc, quat)
-                quat_rotate(quat, anchor, vec)
-                for a in range(3):
-                    xpos[i, a] = xanchor[j, a] - vec[a]
+                if at_origin:  # the body frame's origin is the anchor
+                    for a in range(3):
+                        xpos[i, a] = xanchor[j, a]
+                else:
+                    quat_rotate(quat, anchor, vec)
+                    for a in range(3):
+                        xpos[i, a] = xanchor[j, a] - vec[a]
         norm = np.sqrt(quat[0] ** 2 + quat[1] ** 2 + quat[2] ** 2 + quat[3] ** 2)
         for a in range(4):
             xquat[i, a] = quat[a] / norm
