@@ -27,6 +27,7 @@ massless virtual links with no transform between them, and nothing is ever moved
   degrees of freedom. Chosen over the composite-rigid-body algorithm and a dense Cholesky (cubic in n)
   because the goal is long chains and big batches; for the tree's sparsity it needs no factorisation.
   Armature adds to the pivot D of its degree of freedom, which is exactly (M + diag(armature)) qdd.
+  Articulated inertias are symmetric: only their upper triangles are updated and summed (21 of 36).
 - inverse dynamics and the bias forces: the recursive Newton-Euler algorithm (RNEA), gravity entering
   as an upward acceleration of the world.
 - the mass matrix: the composite-rigid-body algorithm (CRBA), inertias added towards the root
@@ -38,10 +39,12 @@ A ball joint's degrees of freedom are rotations about the body's final axes (MuJ
 subsequent rotations"), so a ball joint must be the last joint of its body; a free joint is the only
 joint of a child of the world.
 
-Cost: one evaluation allocates one workspace (the views of _views) and the algorithms are inlined into the
-functions that call them (numba inline="always"), which removes the reference counting of array arguments
-at every call; the price is a longer first compilation (cached on disk after it). numba's cache does not
-follow imports: after editing spatial.py, delete rbody/engine/__pycache__/multibody*.nb[ci].
+Cost: an evaluation of the right-hand side allocates nothing: its workspace is an array on its own stack
+(_stack_floats, an alloca), cut by _views into arrays over that memory (numba carrays: no reshape, no
+reference counting), and each algorithm takes (params, state, workspace) and cuts its own arrays, so that
+calls pass a few pointers. Only small spatial functions are inlined; each algorithm is compiled once (a
+first compilation of a minute, cached on disk after it). numba's cache does not follow imports: after
+editing spatial.py, delete rbody/engine/__pycache__/multibody*.nb[ci].
 
 Precision: spatial quantities about the world origin lose digits in proportion to a body's distance
 from it (|x| / size of the tree); MuJoCo works about each tree's centre of mass instead. Within a
@@ -50,14 +53,16 @@ tree of metre scale near the origin the two agree to ~1e-13.
 
 from __future__ import annotations
 
+from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+from numba import carray, njit, types
+from numba.extending import intrinsic
 
 from rbody.engine.spatial import (cross3, dexp_inverse, dot6, force_cross, inertia_apply, inertia_in_world,
                                   inertia_matrix, motion_cross, quat_axis_angle, quat_exp, quat_multiply,
-                                  quat_rotate, quat_to_matrix)
+                                  quat_rotate, quat_to_matrix, symmetric_apply)
 
 HINGE, SLIDE, BALL, FREE, ROLL = 0, 1, 2, 3, 4
 KIND_CODE = {"hinge": HINGE, "slide": SLIDE, "ball": BALL, "free": FREE, "roll": ROLL}
@@ -112,10 +117,19 @@ def body_offset(p, i):
 # ----- kinematics -------------------------------------------------------------------------------------------
 
 @njit(cache=True, inline="always")
-def kinematics(p, q, xpos, xquat, xmat, xaxis, xanchor, xline, scratch):
-    """World poses of every body from qpos q (nq,), as MuJoCo's mj_kinematics: xpos (nb, 3) body-frame
-    origins [m], xquat (nb, 4), xmat (nb, 3, 3); per joint its world axis and anchor (nj, 3) [m] (a roll
-    joint's anchor after its slide) and a roll joint's world rolling line l (nj, 3)."""
+def _is_identity(p, at):
+    """Whether p[at:at + 4] is the identity quaternion (1, 0, 0, 0) exactly."""
+    return p[at] == 1.0 and p[at + 1] == 0.0 and p[at + 2] == 0.0 and p[at + 3] == 0.0
+
+
+@njit(cache=True)
+def kinematics(p, q, w):
+    """World poses of every body from qpos q (nq,), as MuJoCo's mj_kinematics, into the workspace w (_views):
+    xpos (nb, 3) body-frame origins [m], xquat (nb, 4), xmat (nb, 3, 3); per joint its world axis and anchor
+    (nj, 3) [m] (a roll joint's anchor after its slide) and a roll joint's world rolling line l (nj, 3)."""
+    ws = _views(p, w)
+    xpos, xquat, xmat, scratch = ws.xpos, ws.xquat, ws.xmat, ws.scratch
+    xaxis, xanchor, xline = ws.xaxis, ws.xanchor, ws.xline
     nb = int(p[H_BODIES])
     bo, jo = int(p[H_BODY]), int(p[H_JOINT])
     qloc, quat, previous, vec = scratch[0:4], scratch[4:8], scratch[8:12], scratch[12:15]
@@ -136,7 +150,11 @@ def kinematics(p, q, xpos, xquat, xmat, xaxis, xanchor, xline, scratch):
                 for a in range(3):
                     xpos[i, a] = xpos[parent, a] + (xmat[parent, a, 0] * p[b + B_POS] + xmat[parent, a, 1]
                                                     * p[b + B_POS + 1] + xmat[parent, a, 2] * p[b + B_POS + 2])
-                quat_multiply(xquat[parent], p[b + B_QUAT:b + B_QUAT + 4], quat)
+                if _is_identity(p, b + B_QUAT):  # the common case: the body's axes are its parent's
+                    for a in range(4):
+                        quat[a] = xquat[parent, a]
+                else:
+                    quat_multiply(xquat[parent], p[b + B_QUAT:b + B_QUAT + 4], quat)
             else:
                 for a in range(3):
                     xpos[i, a] = p[b + B_POS + a]
@@ -147,10 +165,15 @@ def kinematics(p, q, xpos, xquat, xmat, xaxis, xanchor, xline, scratch):
                 kind = int(p[r + J_KIND])
                 axis = p[r + J_AXIS:r + J_AXIS + 3]
                 anchor = p[r + J_ANCHOR:r + J_ANCHOR + 3]
+                at_origin = anchor[0] == 0.0 and anchor[1] == 0.0 and anchor[2] == 0.0  # the common case
                 quat_rotate(quat, axis, xaxis[j])
-                quat_rotate(quat, anchor, xanchor[j])
-                for a in range(3):
-                    xanchor[j, a] += xpos[i, a]
+                if at_origin:
+                    for a in range(3):
+                        xanchor[j, a] = xpos[i, a]
+                else:
+                    quat_rotate(quat, anchor, xanchor[j])
+                    for a in range(3):
+                        xanchor[j, a] += xpos[i, a]
                 qa = int(p[r + J_QADR])
                 if kind == SLIDE:
                     d = q[qa] - p[r + J_REF]
@@ -172,24 +195,29 @@ def kinematics(p, q, xpos, xquat, xmat, xaxis, xanchor, xline, scratch):
                 for a in range(4):
                     previous[a] = quat[a]
                 quat_multiply(previous, qloc, quat)
-                quat_rotate(quat, anchor, vec)
-                for a in range(3):
-                    xpos[i, a] = xanchor[j, a] - vec[a]
+                if at_origin:  # the body frame's origin is the anchor
+                    for a in range(3):
+                        xpos[i, a] = xanchor[j, a]
+                else:
+                    quat_rotate(quat, anchor, vec)
+                    for a in range(3):
+                        xpos[i, a] = xanchor[j, a] - vec[a]
         norm = np.sqrt(quat[0] ** 2 + quat[1] ** 2 + quat[2] ** 2 + quat[3] ** 2)
         for a in range(4):
             xquat[i, a] = quat[a] / norm
         quat_to_matrix(xquat[i], xmat[i])
 
 
-@njit(cache=True, inline="always")
-def motion_subspaces(p, xpos, xmat, xaxis, xanchor, xline, S, scratch):
+@njit(cache=True)
+def motion_subspaces(p, w):
     """S (nv, 6): each degree of freedom's unit motion (omega; v at the world origin), world axes, as
     MuJoCo's cdof. Hinge (a; x x a) about its anchor x; slide (0; a); roll (a; x x a) + radius (0; l) (the
     hinge about the anchor after the slide, plus the slide); ball and free rotations about the body's own
     axes (columns of xmat) through the anchor; free translations along the world axes."""
+    ws = _views(p, w)
+    xmat, xaxis, xanchor, xline, S, axis = ws.xmat, ws.xaxis, ws.xanchor, ws.xline, ws.S, ws.scratch[0:3]
     nv = int(p[H_DOFS])
     jo, do = int(p[H_JOINT]), int(p[H_DOF])
-    axis = scratch[0:3]
     for d in range(nv):
         j = int(p[do + d * DOF_SIZE + D_JOINT])
         k = int(p[do + d * DOF_SIZE + D_INDEX])
@@ -221,15 +249,16 @@ def motion_subspaces(p, xpos, xmat, xaxis, xanchor, xline, S, scratch):
                 S[d, 3 + a] += radius * xline[j, a]
 
 
-@njit(cache=True, inline="always")
-def velocities(p, S, v, xaxis, xline, vel, bias, scratch):
+@njit(cache=True)
+def velocities(p, v, w):
     """vel (nb, 6): each body's spatial velocity (world axes, about the origin); bias (nv, 6): each degree of
     freedom's velocity-product acceleration S' v_d = (v_before x S) v_d (MuJoCo's cdof_dot qvel), v_before
     the body's velocity before the joint (ball and free rotations: before the whole group). A roll joint's
     hinge part moves with its slide part: + radius v_d^2 (0; l x axis) (= (radius v_d (0; l)) x (axis; x x axis))."""
+    ws = _views(p, w)
+    S, xaxis, xline, vel, bias, base = ws.S, ws.xaxis, ws.xline, ws.vel, ws.bias, ws.scratch[0:6]
     nb = int(p[H_BODIES])
     bo, jo, do = int(p[H_BODY]), int(p[H_JOINT]), int(p[H_DOF])
-    base = scratch[0:6]
     for i in range(nb):
         b = bo + i * BODY_SIZE
         parent = int(p[b + B_PARENT])
@@ -253,12 +282,14 @@ def velocities(p, S, v, xaxis, xline, vel, bias, scratch):
                 vel[i, a] += S[d, a] * v[d]
 
 
-@njit(cache=True, inline="always")
-def world_inertias(p, xpos, xmat, h, Ibar, scratch):
+@njit(cache=True)
+def world_inertias(p, w):
     """Each body's inertia about the world origin, world axes: h (nb, 3) = m c, Ibar (nb, 3, 3)."""
+    ws = _views(p, w)
+    xpos, xmat, h, Ibar = ws.xpos, ws.xmat, ws.h, ws.Ibar
+    Ic = carray(_address(ws.scratch, 0), (3, 3))
     nb = int(p[H_BODIES])
     bo = int(p[H_BODY])
-    Ic = scratch[0:9].reshape((3, 3))
     for i in range(nb):
         b = bo + i * BODY_SIZE
         for a in range(3):
@@ -267,7 +298,7 @@ def world_inertias(p, xpos, xmat, h, Ibar, scratch):
         inertia_in_world(p[b + B_MASS], p[b + B_COM:b + B_COM + 3], Ic, xmat[i], xpos[i], h[i], Ibar[i])
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def passive(p, q, v, out):
     """out (nv,) = MuJoCo's qfrc_passive: -stiffness (q - springref) per hinge and slide, -damping v per dof."""
     nj, nv = int(p[H_JOINTS]), int(p[H_DOFS])
@@ -283,6 +314,45 @@ def passive(p, q, v, out):
 
 # ----- the state of one evaluation ------------------------------------------------------------------------
 
+@intrinsic
+def _stack_floats(typingctx, count):
+    """float64* to `count` uninitialised doubles on the stack of the calling function (an alloca: freed
+    when that function returns, so call it only in the function that uses the memory, never in a helper)."""
+    if not isinstance(count, types.Integer):
+        return None
+
+    def codegen(context, builder, signature, args):
+        size = context.cast(builder, args[0], signature.args[0], types.intp)
+        return builder.alloca(context.get_value_type(types.float64), size=size)
+    return types.CPointer(types.float64)(count), codegen
+
+
+@intrinsic
+def _address(typingctx, array, offset):
+    """float64* to array[offset] of a contiguous 1-D float64 array (no view is formed)."""
+    if not (isinstance(array, types.Array) and array.dtype == types.float64 and array.ndim == 1
+            and isinstance(offset, types.Integer)):
+        return None
+
+    def codegen(context, builder, signature, args):
+        data = context.make_array(signature.args[0])(context, builder, args[0]).data
+        return builder.gep(data, [context.cast(builder, args[1], signature.args[1], types.intp)])
+    return types.CPointer(types.float64)(array, offset), codegen
+
+
+STACK_FLOATS = 16384  # workspaces up to this size (128 kB, ~570 bodies) live on the stack of an evaluation
+SCRATCH = 32  # floats of small temporaries (quaternions, 3- and 6-vectors) at the end of the workspace
+
+
+# The arrays of one evaluation (_views): per body xpos (nb, 3), xquat (nb, 4), xmat (nb, 3, 3), spatial velocity
+# vel, articulated bias force pA, acceleration acc, force (nb, 6), inertia about the origin h (nb, 3),
+# Ibar (nb, 3, 3), articulated inertia IA (nb, 6, 6), mass (nb,); per joint xaxis, xanchor, xline (nj, 3); per
+# dof S, bias, U (nv, 6), u (nv,), tau, pivots, zero (nv,); q (nq,); scratch (SCRATCH,).
+Workspace = namedtuple("Workspace", ["xpos", "xquat", "xmat", "xaxis", "xanchor", "xline", "S", "bias", "vel", "h",
+                                     "Ibar", "IA", "pA", "U", "u", "acc", "force", "mass", "q", "tau", "pivots",
+                                     "zero", "scratch"])
+
+
 @njit(cache=True)
 def workspace_size(p) -> int:
     """Floats of the workspace of one evaluation (see _views)."""
@@ -290,61 +360,62 @@ def workspace_size(p) -> int:
     return 91 * nb + 9 * nj + 22 * nv + nq + SCRATCH
 
 
-SCRATCH = 32  # floats of small temporaries (quaternions, 3- and 6-vectors) at the end of the workspace
-
-
 @njit(cache=True, inline="always")
+def _rows(w, at, rows, columns):
+    """(rows, columns) array over w[at:at + rows * columns]."""
+    return carray(_address(w, at), (rows, columns))
+
+
+@njit(cache=True)
 def _views(p, w):
-    """The arrays of one evaluation, as views of one workspace w (workspace_size(p),): allocating each
-    (~25 small arrays) would cost more than the algorithms themselves. Five blocks are reshaped (a reshape
-    costs tens of ns in numba); the arrays are row slices of them."""
+    """The arrays of one evaluation, cut from one workspace w (workspace_size(p),) as arrays over its memory
+    (numba carrays: no reshape, no reference count; the caller keeps w alive). Allocating each (~25 small
+    arrays) would cost more than the algorithms themselves."""
     nb, nj, nv, nq = int(p[H_BODIES]), int(p[H_JOINTS]), int(p[H_DOFS]), int(p[H_NQ])
     at = 0
-    six = w[at:at + 6 * (3 * nv + 4 * nb)].reshape((3 * nv + 4 * nb, 6))
-    at += 6 * (3 * nv + 4 * nb)
-    three = w[at:at + 3 * (2 * nb + 3 * nj)].reshape((2 * nb + 3 * nj, 3))
-    at += 3 * (2 * nb + 3 * nj)
-    matrices = w[at:at + 18 * nb].reshape((2 * nb, 3, 3))
+    S, bias, U = _rows(w, at, nv, 6), _rows(w, at + 6 * nv, nv, 6), _rows(w, at + 12 * nv, nv, 6)
+    at += 18 * nv
+    vel, pA = _rows(w, at, nb, 6), _rows(w, at + 6 * nb, nb, 6)
+    acc, force = _rows(w, at + 12 * nb, nb, 6), _rows(w, at + 18 * nb, nb, 6)
+    at += 24 * nb
+    xpos, h = _rows(w, at, nb, 3), _rows(w, at + 3 * nb, nb, 3)
+    at += 6 * nb
+    xaxis, xanchor, xline = _rows(w, at, nj, 3), _rows(w, at + 3 * nj, nj, 3), _rows(w, at + 6 * nj, nj, 3)
+    at += 9 * nj
+    xmat, Ibar = carray(_address(w, at), (nb, 3, 3)), carray(_address(w, at + 9 * nb), (nb, 3, 3))
     at += 18 * nb
-    IA = w[at:at + 36 * nb].reshape((nb, 6, 6))
+    IA = carray(_address(w, at), (nb, 6, 6))
     at += 36 * nb
-    xquat = w[at:at + 4 * nb].reshape((nb, 4))
+    xquat = _rows(w, at, nb, 4)
     at += 4 * nb
-    S, bias, U = six[0:nv], six[nv:2 * nv], six[2 * nv:3 * nv]
-    vel, pA = six[3 * nv:3 * nv + nb], six[3 * nv + nb:3 * nv + 2 * nb]
-    acc, force = six[3 * nv + 2 * nb:3 * nv + 3 * nb], six[3 * nv + 3 * nb:3 * nv + 4 * nb]
-    xpos, h = three[0:nb], three[nb:2 * nb]
-    xaxis, xanchor = three[2 * nb:2 * nb + nj], three[2 * nb + nj:2 * nb + 2 * nj]
-    xline = three[2 * nb + 2 * nj:2 * nb + 3 * nj]
-    xmat, Ibar = matrices[0:nb], matrices[nb:2 * nb]
-    u = w[at:at + nv]
-    mass = w[at + nv:at + nv + nb]
+    u, mass = carray(_address(w, at), nv), carray(_address(w, at + nv), nb)
     at += nv + nb
-    q = w[at:at + nq]
-    tau = w[at + nq:at + nq + nv]
-    pivots = w[at + nq + nv:at + nq + 2 * nv]
-    zero = w[at + nq + 2 * nv:at + nq + 3 * nv]
-    scratch = w[at + nq + 3 * nv:at + nq + 3 * nv + SCRATCH]
-    return (xpos, xquat, xmat, xaxis, xanchor, xline, S, bias, vel, h, Ibar, IA, pA, U, u, acc, force, mass, q,
-            tau, pivots, zero, scratch)
+    q, tau = carray(_address(w, at), nq), carray(_address(w, at + nq), nv)
+    pivots, zero = carray(_address(w, at + nq + nv), nv), carray(_address(w, at + nq + 2 * nv), nv)
+    scratch = carray(_address(w, at + nq + 3 * nv), SCRATCH)
+    return Workspace(xpos, xquat, xmat, xaxis, xanchor, xline, S, bias, vel, h, Ibar, IA, pA, U, u, acc, force, mass,
+                     q, tau, pivots, zero, scratch)
 
 
-@njit(cache=True, inline="always")
-def _frames(p, q, v, xpos, xquat, xmat, xaxis, xanchor, xline, S, bias, vel, h, Ibar, scratch):
-    """Kinematics, motion subspaces, velocities and world inertias of one state, into the given arrays."""
-    kinematics(p, q, xpos, xquat, xmat, xaxis, xanchor, xline, scratch)
-    motion_subspaces(p, xpos, xmat, xaxis, xanchor, xline, S, scratch)
-    velocities(p, S, v, xaxis, xline, vel, bias, scratch)
-    world_inertias(p, xpos, xmat, h, Ibar, scratch)
+@njit(cache=True)
+def _frames(p, q, v, w):
+    """Kinematics, motion subspaces, velocities and world inertias of one state, into the workspace w."""
+    kinematics(p, q, w)
+    motion_subspaces(p, w)
+    velocities(p, v, w)
+    world_inertias(p, w)
 
 
 # ----- the articulated-body algorithm ---------------------------------------------------------------------
 
-@njit(cache=True, inline="always")
-def articulated_body(p, S, bias, vel, h, Ibar, tau, qacc, pivots, IA, pA, U, u, acc, scratch):
-    """ABA: qacc (nv,) from the generalised forces tau (nv,) (applied + passive), pivots (nv,) the D of every
-    degree of freedom (armature included). Returns the first dof whose pivot is not positive beyond
-    PIVOT_RTOL of its scale, or -1."""
+@njit(cache=True, error_model="numpy")  # 1 / D without a zero check: D is checked, and set to inf when bad
+def articulated_body(p, w, qacc):
+    """ABA: qacc (nv,) from the generalised forces in the workspace's tau (nv,) (applied + passive), after
+    _frames; the workspace's pivots (nv,) get the D of every degree of freedom (armature included). Returns
+    the first dof whose pivot is not positive beyond PIVOT_RTOL of its scale, or -1."""
+    ws = _views(p, w)
+    S, bias, vel, h, Ibar, tau, pivots = ws.S, ws.bias, ws.vel, ws.h, ws.Ibar, ws.tau, ws.pivots
+    IA, pA, U, u, acc, scratch = ws.IA, ws.pA, ws.U, ws.u, ws.acc, ws.scratch
     nb, nv = int(p[H_BODIES]), int(p[H_DOFS])
     bo, do = int(p[H_BODY]), int(p[H_DOF])
     g = p[H_GRAVITY]
@@ -360,12 +431,10 @@ def articulated_body(p, S, bias, vel, h, Ibar, tau, qacc, pivots, IA, pA, U, u, 
     for i in range(nb - 1, -1, -1):
         b = bo + i * BODY_SIZE
         d0, nd = int(p[b + B_DOF0]), int(p[b + B_NDOF])
-        Ia, pa = IA[i], pA[i]
+        Ia, pa = IA[i], pA[i]  # articulated inertia: only its upper triangle is kept (it is symmetric)
         for d in range(d0 + nd - 1, d0 - 1, -1):
             s = S[d]
-            for a in range(6):
-                U[d, a] = (Ia[a, 0] * s[0] + Ia[a, 1] * s[1] + Ia[a, 2] * s[2] + Ia[a, 3] * s[3]
-                           + Ia[a, 4] * s[4] + Ia[a, 5] * s[5])
+            symmetric_apply(Ia, s, U[d])  # U = Ia S
             D = dot6(s, U[d]) + p[do + d * DOF_SIZE + D_ARMATURE]
             pivots[d] = D
             scale = abs(dot6(s, U[d])) + abs(p[do + d * DOF_SIZE + D_ARMATURE])
@@ -377,19 +446,18 @@ def articulated_body(p, S, bias, vel, h, Ibar, tau, qacc, pivots, IA, pA, U, u, 
                 D = np.inf  # keeps the sweep finite; the caller reports the dof
             u[d] = tau[d] - dot6(s, pa)
             inv = 1.0 / D
-            for a in range(6):
-                for c in range(6):
+            for a in range(6):  # Ia -= U U^T / D
+                for c in range(a, 6):
                     Ia[a, c] -= U[d, a] * U[d, c] * inv
             # pa += Ia c + U u / D (Ia after the update)
-            cb = bias[d]
+            symmetric_apply(Ia, bias[d], tmp)
             for a in range(6):
-                pa[a] += (Ia[a, 0] * cb[0] + Ia[a, 1] * cb[1] + Ia[a, 2] * cb[2] + Ia[a, 3] * cb[3]
-                          + Ia[a, 4] * cb[4] + Ia[a, 5] * cb[5]) + U[d, a] * u[d] * inv
+                pa[a] += tmp[a] + U[d, a] * u[d] * inv
         parent = int(p[b + B_PARENT])
         if parent >= 0:
             for a in range(6):
                 pA[parent, a] += pa[a]
-                for c in range(6):
+                for c in range(a, 6):
                     IA[parent, a, c] += Ia[a, c]
     for i in range(nb):
         b = bo + i * BODY_SIZE
@@ -408,18 +476,20 @@ def articulated_body(p, S, bias, vel, h, Ibar, tau, qacc, pivots, IA, pA, U, u, 
     return bad
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def forward_one(p, q, v, tau, qacc, pivots, w):
     """qacc (nv,) = M^-1 (tau + passive - bias) at one state, w the workspace; returns the first singular dof
     or -1 (pivots (nv,) the ABA's D)."""
-    (xpos, xquat, xmat, xaxis, xanchor, xline, S, bias, vel, h, Ibar, IA, pA, U, u, acc, _force, _mass, _q, force,
-     _pivots, _zero, scratch) = _views(p, w)
-    _frames(p, q, v, xpos, xquat, xmat, xaxis, xanchor, xline, S, bias, vel, h, Ibar, scratch)
+    _frames(p, q, v, w)
+    ws = _views(p, w)
     nv = int(p[H_DOFS])
-    passive(p, q, v, force)
+    passive(p, q, v, ws.tau)
     for d in range(nv):
-        force[d] += tau[d]
-    return articulated_body(p, S, bias, vel, h, Ibar, force, qacc, pivots, IA, pA, U, u, acc, scratch)
+        ws.tau[d] += tau[d]
+    bad = articulated_body(p, w, qacc)
+    for d in range(nv):
+        pivots[d] = ws.pivots[d]
+    return bad
 
 
 # ----- recursive Newton-Euler and composite rigid bodies -------------------------------------------------
@@ -427,9 +497,9 @@ def forward_one(p, q, v, tau, qacc, pivots, w):
 @njit(cache=True)
 def inverse_one(p, q, v, qacc, gravity_on, out, w):
     """RNEA: out (nv,) = M qacc + bias (gravity included when gravity_on), passive forces not included."""
-    (xpos, xquat, xmat, xaxis, xanchor, xline, S, bias, vel, h, Ibar, _IA, _pA, _U, _u, acc, force, _mass, _q, _tau,
-     _pivots, _zero, scratch) = _views(p, w)
-    _frames(p, q, v, xpos, xquat, xmat, xaxis, xanchor, xline, S, bias, vel, h, Ibar, scratch)
+    _frames(p, q, v, w)
+    ws = _views(p, w)
+    S, bias, vel, h, Ibar, acc, force, scratch = ws.S, ws.bias, ws.vel, ws.h, ws.Ibar, ws.acc, ws.force, ws.scratch
     nb = int(p[H_BODIES])
     bo, do = int(p[H_BODY]), int(p[H_DOF])
     tmp = scratch[0:6]
@@ -464,11 +534,11 @@ def mass_matrix_one(p, q, out, w):
     """CRBA: out (nv, nv) = M(q), armature on the diagonal."""
     nb, nv = int(p[H_BODIES]), int(p[H_DOFS])
     bo, do = int(p[H_BODY]), int(p[H_DOF])
-    (xpos, xquat, xmat, xaxis, xanchor, xline, S, bias, vel, h, Ibar, _IA, _pA, _U, _u, _acc, _force, mass, _q, _tau,
-     _pivots, v, scratch) = _views(p, w)
+    ws = _views(p, w)
+    S, h, Ibar, mass, v, scratch = ws.S, ws.h, ws.Ibar, ws.mass, ws.zero, ws.scratch
     for d in range(nv):
         v[d] = 0.0
-    _frames(p, q, v, xpos, xquat, xmat, xaxis, xanchor, xline, S, bias, vel, h, Ibar, scratch)
+    _frames(p, q, v, w)
     for i in range(nb):
         mass[i] = p[bo + i * BODY_SIZE + B_MASS]
     for i in range(nb - 1, -1, -1):  # composite inertias: add each body's to its parent's
@@ -500,9 +570,9 @@ def mass_matrix_one(p, q, out, w):
 @njit(cache=True)
 def energies_one(p, q, v, w):
     """(kinetic, potential) [J]: sum 1/2 v_i . I_i v_i; sum m g z_com + 1/2 stiffness (q - springref)^2."""
-    (xpos, xquat, xmat, xaxis, xanchor, xline, S, bias, vel, h, Ibar, _IA, _pA, _U, _u, _acc, _force, _mass, _q, _tau,
-     _pivots, _zero, scratch) = _views(p, w)
-    _frames(p, q, v, xpos, xquat, xmat, xaxis, xanchor, xline, S, bias, vel, h, Ibar, scratch)
+    _frames(p, q, v, w)
+    ws = _views(p, w)
+    vel, h, Ibar, scratch = ws.vel, ws.h, ws.Ibar, ws.scratch
     nb, nj = int(p[H_BODIES]), int(p[H_JOINTS])
     bo, jo = int(p[H_BODY]), int(p[H_JOINT])
     tmp = scratch[0:6]
@@ -523,9 +593,9 @@ def energies_one(p, q, v, w):
 def body_states_one(p, q, v, com, quat, velocity, omega, w):
     """World centre of mass (nb, 3) [m], orientation (nb, 4), centre-of-mass velocity (nb, 3) [m/s] and
     angular velocity (nb, 3) [rad/s] of every body."""
-    (xpos, xquat, xmat, xaxis, xanchor, xline, S, bias, vel, h, Ibar, _IA, _pA, _U, _u, _acc, _force, _mass, _q, _tau,
-     _pivots, _zero, scratch) = _views(p, w)
-    _frames(p, q, v, xpos, xquat, xmat, xaxis, xanchor, xline, S, bias, vel, h, Ibar, scratch)
+    _frames(p, q, v, w)
+    ws = _views(p, w)
+    xquat, vel, h = ws.xquat, ws.vel, ws.h
     nb = int(p[H_BODIES])
     bo = int(p[H_BODY])
     for i in range(nb):
@@ -543,7 +613,7 @@ def body_states_one(p, q, v, com, quat, velocity, omega, w):
 
 # ----- the native state of a TreeScene: y = (qpos, qvel, phi) ---------------------------------------------
 
-@njit(cache=True, inline="always")
+@njit(cache=True)
 def _effective_qpos(p, y, q, turn):
     """q (nq,) = qpos with every ball/free quaternion q_n replaced by q_n (x) exp(phi)."""
     nj, nq, nv = int(p[H_JOINTS]), int(p[H_NQ]), int(p[H_DOFS])
@@ -568,14 +638,14 @@ def tree_rhs(y, p, out):
     nj, nq, nv = int(p[H_JOINTS]), int(p[H_NQ]), int(p[H_DOFS])
     jo = int(p[H_JOINT])
     size = workspace_size(p)
-    w = np.empty(size + nq + 2 * nv + 4)  # the one allocation of an evaluation: the workspace, then q, tau, ...
-    q, tau = w[size:size + nq], w[size + nq:size + nq + nv]
-    pivots, turn = w[size + nq + nv:size + nq + 2 * nv], w[size + nq + 2 * nv:size + nq + 2 * nv + 4]
-    _effective_qpos(p, y, q, turn)
-    v = y[nq:nq + nv]
-    for d in range(nv):
-        tau[d] = 0.0
-    forward_one(p, q, v, tau, out[nq:nq + nv], pivots, w)
+    # the workspace on this function's stack (no allocation per evaluation), on the heap for huge trees
+    w = carray(_stack_floats(size), size) if size <= STACK_FLOATS else np.empty(size)
+    ws = _views(p, w)
+    q = ws.q
+    _effective_qpos(p, y, q, ws.scratch[SCRATCH - 4:])
+    _frames(p, q, y[nq:nq + nv], w)
+    passive(p, q, y[nq:nq + nv], ws.tau)
+    articulated_body(p, w, out[nq:nq + nv])
     for j in range(nj):
         r = jo + j * JOINT_SIZE
         kind = int(p[r + J_KIND])
@@ -622,13 +692,14 @@ def tree_accel(q, p, out):
     """q'' = a(q) for trees whose mass matrix is constant and forces depend on q only (no ball or free joint:
     nq = nv): forward dynamics at zero velocity."""
     nv = int(p[H_DOFS])
-    w = np.empty(workspace_size(p))
-    (_xpos, _xquat, _xmat, _xaxis, _xanchor, _xline, _S, _bias, _vel, _h, _Ibar, _IA, _pA, _U, _u, _acc, _force, v,
-     _q, _tau, pivots, tau, _scratch) = _views(p, w)
+    size = workspace_size(p)
+    w = carray(_stack_floats(size), size) if size <= STACK_FLOATS else np.empty(size)
+    zero = _views(p, w).zero
     for d in range(nv):
-        v[d] = 0.0
-        tau[d] = 0.0
-    forward_one(p, q, v, tau, out, pivots, w)
+        zero[d] = 0.0
+    _frames(p, q, zero, w)
+    passive(p, q, zero, _views(p, w).tau)
+    articulated_body(p, w, out)
 
 
 # ----- batches: one compiled loop per algorithm -----------------------------------------------------------
@@ -889,6 +960,9 @@ class Multibody:
         self.gravity = float(gravity)
         self.arrays = arrays
         self.params = arrays.row
+        # a writable copy for the kernels: the same array type as the rows the integrators pass (a read-only
+        # array is another numba type, which would compile every algorithm a second time)
+        self._kernel_params = np.array(arrays.row)
         self.nq, self.nv, self.nrot = arrays.nq, arrays.nv, arrays.nrot
         self.body_names, self.joint_names = arrays.names, arrays.joint_names
         qpos0.setflags(write=False)
@@ -919,7 +993,7 @@ class Multibody:
         count = Q.shape[0]
         out, pivots = np.empty((count, self.nv)), np.empty((count, self.nv))
         zeros = np.zeros((count, self.nv))
-        bad = _forward_batch(self.params, Q, zeros, zeros, out, pivots)
+        bad = _forward_batch(self._kernel_params, Q, zeros, zeros, out, pivots)
         if np.any(bad >= 0):
             d = int(bad[bad >= 0][0])
             body = self.body_names[self.arrays.dof_body[d]]
@@ -936,21 +1010,21 @@ class Multibody:
         """M (..., nv, nv) [kg, kg m, kg m^2] at q (..., nq), armature on the diagonal (MuJoCo's mj_fullM)."""
         shape, (Q,) = self._batch((q, self.nq, "q"))
         out = np.empty((Q.shape[0], self.nv, self.nv))
-        _mass_matrix_batch(self.params, Q, out)
+        _mass_matrix_batch(self._kernel_params, Q, out)
         return out.reshape(shape + (self.nv, self.nv))
 
     def bias_forces(self, q, v) -> np.ndarray:
         """(..., nv) gravity, Coriolis and centrifugal generalised forces (MuJoCo's qfrc_bias)."""
         shape, (Q, V) = self._batch((q, self.nq, "q"), (v, self.nv, "v"))
         out = np.empty((Q.shape[0], self.nv))
-        _inverse_batch(self.params, Q, V, np.zeros_like(V), True, out)
+        _inverse_batch(self._kernel_params, Q, V, np.zeros_like(V), True, out)
         return out.reshape(shape + (self.nv,))
 
     def passive_forces(self, q, v) -> np.ndarray:
         """(..., nv) springs and dampers (MuJoCo's qfrc_passive)."""
         shape, (Q, V) = self._batch((q, self.nq, "q"), (v, self.nv, "v"))
         out = np.empty((Q.shape[0], self.nv))
-        _passive_batch(self.params, Q, V, out)
+        _passive_batch(self._kernel_params, Q, V, out)
         return out.reshape(shape + (self.nv,))
 
     def forward_dynamics(self, q, v, tau=None) -> np.ndarray:
@@ -960,7 +1034,7 @@ class Multibody:
         tau = np.zeros(self.nv) if tau is None else tau
         shape, (Q, V, T) = self._batch((q, self.nq, "q"), (v, self.nv, "v"), (tau, self.nv, "tau"))
         out, pivots = np.empty((Q.shape[0], self.nv)), np.empty((Q.shape[0], self.nv))
-        bad = _forward_batch(self.params, Q, V, T, out, pivots)
+        bad = _forward_batch(self._kernel_params, Q, V, T, out, pivots)
         if np.any(bad >= 0):
             self.check_pivots(Q[int(np.argmax(bad >= 0))])
         return out.reshape(shape + (self.nv,))
@@ -969,15 +1043,15 @@ class Multibody:
         """tau (..., nv) with forward_dynamics(q, v, tau) = a: M a + bias - passive (RNEA)."""
         shape, (Q, V, A) = self._batch((q, self.nq, "q"), (v, self.nv, "v"), (a, self.nv, "a"))
         out = np.empty((Q.shape[0], self.nv))
-        _inverse_batch(self.params, Q, V, A, True, out)
+        _inverse_batch(self._kernel_params, Q, V, A, True, out)
         passive_ = np.empty_like(out)
-        _passive_batch(self.params, Q, V, passive_)
+        _passive_batch(self._kernel_params, Q, V, passive_)
         return (out - passive_).reshape(shape + (self.nv,))
 
     def _energies(self, q, v) -> tuple[tuple[int, ...], np.ndarray]:
         shape, (Q, V) = self._batch((q, self.nq, "q"), (v, self.nv, "v"))
         out = np.empty((Q.shape[0], 2))
-        _energies_batch(self.params, Q, V, out)
+        _energies_batch(self._kernel_params, Q, V, out)
         return shape, out
 
     def kinetic_energy(self, q, v) -> np.ndarray:
@@ -998,7 +1072,7 @@ class Multibody:
         nb = len(self.body_names)
         com, quat = np.empty((Q.shape[0], nb, 3)), np.empty((Q.shape[0], nb, 4))
         velocity, omega = np.empty((Q.shape[0], nb, 3)), np.empty((Q.shape[0], nb, 3))
-        _body_states_batch(self.params, Q, V, com, quat, velocity, omega)
+        _body_states_batch(self._kernel_params, Q, V, com, quat, velocity, omega)
         return {"com": com.reshape(shape + (nb, 3)), "quat": quat.reshape(shape + (nb, 4)),
                 "velocity": velocity.reshape(shape + (nb, 3)), "omega": omega.reshape(shape + (nb, 3))}
 

@@ -186,6 +186,18 @@ def inertia_matrix(mass, h, Ibar, out):
 
 
 @njit(**_JIT)
+def symmetric_apply(M, x, out):
+    """out = M x for a symmetric (6, 6) M of which only the upper triangle (column >= row) is read."""
+    for a in range(6):
+        acc = M[a, a] * x[a]
+        for c in range(a):
+            acc += M[c, a] * x[c]
+        for c in range(a + 1, 6):
+            acc += M[a, c] * x[c]
+        out[a] = acc
+
+
+@njit(**_JIT)
 def inertia_in_world(mass, com, Ic, R, origin, h, Ibar):
     """A body's inertia about the world origin, world axes: mass [kg], com (3,) its centre of mass in the
     body frame, Ic (3, 3) its tensor about the com in body axes, R (3, 3) and origin (3,) the body frame's

@@ -276,3 +276,26 @@ def test_a_step_beyond_the_stability_limit_is_refused():
     tree = Scene.from_layout(rod.layout, t_end=1.0)
     with pytest.raises(SimulationError, match="stability limit"):
         rbody.simulate(tree, dt=0.1, method="rk4")
+
+
+def test_a_tree_too_big_for_the_stack_workspace_gives_the_same_right_hand_side():
+    """tree_rhs keeps its workspace on the stack up to STACK_FLOATS floats and on the heap beyond: both give
+    forward_dynamics (the batch path, whose workspace is always on the heap)."""
+    from rbody.engine import multibody as mb
+
+    for links in (3, 190):
+        rod = Inertia(1.0, np.array([0.0, 0.0, -0.05]), np.diag([1e-3, 1e-3, 1e-4]))
+        bodies = (Body("b0", rod),) + tuple(Body(f"b{i}", rod, parent=f"b{i - 1}", pos=(0.0, 0.0, -0.1))
+                                            for i in range(1, links))
+        joints = tuple(Joint(f"j{i}", "hinge", f"b{i}", axis=(0.0, 1.0, 0.0), qpos0=0.1) for i in range(links))
+        layout = Layout(bodies=bodies, joints=joints)
+        model = Multibody(layout)
+        size = mb.workspace_size(model._kernel_params)
+        assert (size > mb.STACK_FLOATS) == (links == 190)
+        rng = np.random.default_rng(links)
+        q, v = rng.uniform(-1, 1, model.nv), rng.uniform(-1, 1, model.nv)
+        y, out = np.concatenate([q, v]), np.full(2 * model.nv, np.nan)
+        mb.tree_rhs(y, np.array(model.params), out)
+        np.testing.assert_array_equal(out[:model.nv], v)
+        np.testing.assert_allclose(out[model.nv:], model.forward_dynamics(q, v), rtol=0,
+                                   atol=1e-12 * np.max(np.abs(out[model.nv:])))
