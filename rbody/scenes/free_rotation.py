@@ -141,9 +141,9 @@ def free_rotation_step(y, p, h):
 
 
 # Which kernel native() runs: True, the hand-written free_rotation_rhs (and its splitting); False, the general
-# engine on the scene's Layout. Hand kernel 160 ns against the engine's 9940 ns per rk4 step, 62x cheaper (one
-# body, dt = 1e-3; python benchmarks/fast_paths.py --repeats 5, 2026-11-23, commit 2a7edef, before the engine's
-# speed work was merged). The splitting costs about the same on either state (447 / 531 ns).
+# engine on the scene's Layout. Hand kernel 160 ns against the engine's 12100 ns per rk4 step, 76x cheaper (one
+# body, dt = 1e-3; python benchmarks/fast_paths.py --repeats 5, 2026-11-23, commit f58270b, a shared 2-core
+# machine at load 6.8). The splitting costs about the same on either state (526 / 766 ns).
 FAST_PATH = True
 
 # The columns free_rotation_tree_step reads after the engine's model row: principal moments (3) [kg m^2],
