@@ -81,9 +81,8 @@ def fastest_rate(scene: Scene, method: str | None = None) -> np.ndarray:
     cache = scene.__dict__.setdefault("_fastest_rate", {})  # frozen: no setattr, but __dict__ is writable
     if method not in cache:
         model = scene.native_model
-        if model.rate is None and not model.rate_from_jacobian:
-            rate = _family_rate(scene, method)
-        else:
+        rate = _family_rate(scene, method) if model.rate is None else None
+        if rate is None:
             rate = model_rate(model, method)
         rate = np.array(rate, dtype=np.float64).reshape(model.y0.shape[0])
         rate.setflags(write=False)
@@ -166,22 +165,23 @@ def _jacobians(rhs, y, params, relative, out):
                     out[b, i, j] = (plus[0, i] - minus[0, i]) / (2.0 * step)
 
 
-def _family_rate(scene: Scene, method: str | None) -> np.ndarray:
-    """The rates of the three families whose native model does not state its rate yet (pendulum, free rotation,
-    chain). Transitional: deleted once their native() passes rate= or rate_from_jacobian= (the one-line changes
-    in the methods branch's status note); every other model states its rate or has none (zeros)."""
+def _family_rate(scene: Scene, method: str | None) -> np.ndarray | None:
+    """The rates of the three families whose native model (hand kernel or engine path) does not state its rate
+    yet: pendulum, free rotation, chain; None for every other scene. Transitional: deleted once their native()
+    passes rate= (the one-line changes in the methods branch's status note)."""
     from rbody.scenes.chain import PendulumChain
     from rbody.scenes.free_rotation import FreeRotation
     from rbody.scenes.pendulum import Pendulum
 
     model = scene.native_model
     if isinstance(scene, Pendulum):
-        return np.sqrt(model.params[:, 0])  # params[:, 0] = w0^2 = M g d / I
+        return np.sqrt(scene._w0_squared())  # w0^2 = M g d / I
     if isinstance(scene, FreeRotation):
         return rotation_rates(scene, method)
     if isinstance(scene, PendulumChain):  # the Jacobian at the start and at rest (the fastest normal mode)
-        return model_rate(dataclasses.replace(model, rate_from_jacobian=True, rest=np.zeros(model.y0.shape[1])))
-    return np.zeros(model.y0.shape[0])
+        return model_rate(dataclasses.replace(model, rate=None, rate_from_jacobian=True,
+                                              rest=np.zeros(model.y0.shape[1])))
+    return None
 
 
 def rotation_rates(scene, method: str | None = None) -> np.ndarray:

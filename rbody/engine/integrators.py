@@ -451,6 +451,36 @@ def _pick(loop, batch: int, size: int):
     return _SERIAL[loop] if batch <= size else loop
 
 
+# The compiled entry point of each loop's overload, by the kinds of its arguments: numba's dispatcher types
+# every argument on every call (~40 us per call, most of it the C function pointers), which is most of the
+# fixed cost of a short simulate call; a call whose arguments are of kinds already typed skips it.
+_ENTRY_POINTS: dict[tuple, Any] = {}
+
+
+def _argument_kind(value) -> Any:
+    """What numba's type of `value` depends on: an array's dtype, rank, layout and flags; a number's Python
+    type; any other object (a C function pointer, made once per function and kept) itself, by id."""
+    if isinstance(value, np.ndarray):
+        flags = value.flags
+        return (value.dtype.str, value.ndim, flags.c_contiguous, flags.f_contiguous, flags.writeable, flags.aligned)
+    if isinstance(value, (bool, int, float, np.generic)):
+        return type(value)
+    return id(value)
+
+
+def _launch(loop, *args):
+    """loop(*args), through the kept entry point of the overload that typed arguments of the same kinds before."""
+    key = (loop,) + tuple(_argument_kind(a) for a in args)
+    entry = _ENTRY_POINTS.get(key)
+    if entry is not None:
+        return entry(*args)
+    result = loop(*args)  # compiles or loads the loop, and types these arguments
+    overload = loop.overloads.get(tuple(loop.typeof_pyval(a) for a in args))
+    if overload is not None:
+        _ENTRY_POINTS[key] = overload.entry_point
+    return result
+
+
 def _c(array: np.ndarray) -> np.ndarray:
     """C-contiguous float64 (the loops hand pointers to rows of y0 and params to the scene)."""
     return np.ascontiguousarray(array, dtype=np.float64)
@@ -467,7 +497,7 @@ def run_euler(rhs, y0, params, dt, nsteps, save_every, out, finish=None):
     y0, params = _c(y0), _c(params)
     size = chunk_size(y0.shape[0])
     loop = _pick(_euler_loop, y0.shape[0], size)
-    return loop(pointer_function(rhs), *finish_pointer(finish), y0, params, dt, nsteps, save_every, out, size)
+    return _launch(loop, pointer_function(rhs), *finish_pointer(finish), y0, params, dt, nsteps, save_every, out, size)
 
 
 def run_rk4(rhs, y0, params, dt, nsteps, save_every, out, finish=None):
@@ -475,7 +505,7 @@ def run_rk4(rhs, y0, params, dt, nsteps, save_every, out, finish=None):
     y0, params = _c(y0), _c(params)
     size = chunk_size(y0.shape[0])
     loop = _pick(_rk4_loop, y0.shape[0], size)
-    return loop(pointer_function(rhs), *finish_pointer(finish), y0, params, dt, nsteps, save_every, out, size)
+    return _launch(loop, pointer_function(rhs), *finish_pointer(finish), y0, params, dt, nsteps, save_every, out, size)
 
 
 def run_symplectic_euler(accel, y0, params, dt, nsteps, save_every, out):
@@ -483,7 +513,7 @@ def run_symplectic_euler(accel, y0, params, dt, nsteps, save_every, out):
     y0, params = _c(y0), _c(params)
     size = chunk_size(y0.shape[0])
     loop = _pick(_symplectic_euler_loop, y0.shape[0], size)
-    return loop(pointer_function(accel), y0, params, dt, nsteps, save_every, out, size)
+    return _launch(loop, pointer_function(accel), y0, params, dt, nsteps, save_every, out, size)
 
 
 def run_composed_verlet(accel, weights, y0, params, dt, nsteps, save_every, out):
@@ -493,7 +523,7 @@ def run_composed_verlet(accel, weights, y0, params, dt, nsteps, save_every, out)
     y0, params = _c(y0), _c(params)
     size = chunk_size(y0.shape[0])
     loop = _pick(_composed_verlet_loop, y0.shape[0], size)
-    return loop(pointer_function(accel), weights, y0, params, dt, nsteps, save_every, out, size)
+    return _launch(loop, pointer_function(accel), weights, y0, params, dt, nsteps, save_every, out, size)
 
 
 def run_gauss6(rhs, A, weights, y0, params, dt, nsteps, save_every, out, finish=None):
@@ -509,7 +539,7 @@ def run_gauss6(rhs, A, weights, y0, params, dt, nsteps, save_every, out, finish=
     y0, params = _c(y0), _c(params)
     size = chunk_size(y0.shape[0])
     loop = _pick(_gauss_loop, y0.shape[0], size)
-    return loop(pointer_function(rhs), *finish_pointer(finish), A, weights, second, later, y0, params, dt, nsteps,
+    return _launch(loop, pointer_function(rhs), *finish_pointer(finish), A, weights, second, later, y0, params, dt, nsteps,
                 save_every, out, size)
 
 
@@ -542,7 +572,7 @@ def run_composed_flow(step, weights, y0, params, dt, nsteps, save_every, out):
     y0, params = _c(y0), _c(params)
     size = chunk_size(y0.shape[0])
     loop = _pick(_composed_flow_loop, y0.shape[0], size)
-    return loop(pointer_function(step, "step"), weights, y0, params, dt, nsteps, save_every, out, size)
+    return _launch(loop, pointer_function(step, "step"), weights, y0, params, dt, nsteps, save_every, out, size)
 
 
 def run_reference(rhs, y0: np.ndarray, params: np.ndarray, dt: float, nsteps: int, save_every: int,

@@ -107,12 +107,7 @@ def _shaped(value, leading: tuple[int, ...]):
 def _choose_method(scene: Scene, method: str | None) -> Method | None:
     """The record of the method that runs `scene` (None for an event-driven scene), checked against what the
     scene's native model provides (never its class): default verlet where it applies, else the scene's first."""
-    if method is not None and method != EVENT_METHOD:
-        record = method_record(method)  # ValueError listing the valid names
-    elif method is None:
-        record = None
-    else:
-        record = EVENT_METHOD
+    record = method_record(method) if method not in (None, EVENT_METHOD) else None  # ValueError: unknown name
     if scene.event_driven:
         if method not in (None, EVENT_METHOD):
             raise MethodNotApplicable(
@@ -120,7 +115,7 @@ def _choose_method(scene: Scene, method: str | None) -> Method | None:
                 f"integrator to choose (method={method!r}); use method='events' or leave it out — dt only "
                 "sets the sampling")
         return None
-    if record == EVENT_METHOD:
+    if method == EVENT_METHOD:
         raise MethodNotApplicable(f"method='events' is for event-driven scenes; scene {scene.name!r} is integrated "
                                   f"in time: use one of {', '.join(scene.methods)}")
     if record is None:
@@ -128,10 +123,11 @@ def _choose_method(scene: Scene, method: str | None) -> Method | None:
         return BY_NAME["verlet"] if "verlet" in names else BY_NAME[names[0]]
     missing = record.missing(scene.native_model)
     if missing or record.name not in scene.methods:
-        raise MethodNotApplicable(
-            f"method={record.name!r} cannot run scene {scene.describe()}: {scene.why_not(record.name)}"
-            + (f" ({missing})" if missing and missing not in scene.why_not(record.name) else "")
-            + f"; methods that apply: {', '.join(scene.methods)}")
+        why = scene.why_not(record.name)
+        if missing and missing not in why:
+            why += f" ({missing})"
+        raise MethodNotApplicable(f"method={record.name!r} cannot run scene {scene.describe()}: {why}; methods that "
+                                  f"apply: {', '.join(scene.methods)}")
     return record
 
 

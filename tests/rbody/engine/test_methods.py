@@ -225,3 +225,25 @@ def test_batch_rates_equal_the_rates_of_each_element():
     w = np.random.default_rng(1).uniform(0.1, 50.0, 1000)
     rates = stability.jacobian_rate(oscillator_rhs, np.tile([0.3, -0.2], (w.size, 1)), (w**2)[:, None])
     np.testing.assert_allclose(rates, w, rtol=1e-8)
+
+
+def test_kept_entry_points_give_the_dispatchers_bits_and_new_kinds_of_argument_are_typed_again():
+    """integrators._launch skips numba's per-call typing once arguments of the same kinds were typed; an argument
+    of another kind (a read-only y0, an int dt) goes through the dispatcher again, with the same result."""
+    record = methods.method("verlet")
+    model = oscillator([1.0, 2.0, 3.0])
+    first, _ = run(record, model, 0.1, 50)
+    again, _ = run(record, model, 0.1, 50)  # through the kept entry point
+    np.testing.assert_array_equal(first, again)
+    frozen = np.array(model.y0)
+    frozen.setflags(write=False)
+    out = np.empty((51,) + frozen.shape)
+    record.integrate(model, frozen, np.ascontiguousarray(model.params), 0.1, 50, 1, out)
+    np.testing.assert_array_equal(out, first)
+    whole = np.empty((3,) + frozen.shape)
+    record.integrate(model, frozen, np.ascontiguousarray(model.params), 1, 2, 1, whole)  # dt an int
+    reference, _ = run(record, model, 1.0, 2)
+    np.testing.assert_array_equal(whole, reference)
+    loops = (integrators._composed_verlet_loop, integrators._SERIAL[integrators._composed_verlet_loop])
+    kinds = {key[1:] for key in integrators._ENTRY_POINTS if key[0] in loops}
+    assert len(kinds) >= 3  # writable y0 and float dt; read-only y0; int dt

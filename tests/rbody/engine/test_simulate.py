@@ -272,3 +272,34 @@ def test_small_runs_do_not_read_the_memory_available(monkeypatch, rod):
 
     monkeypatch.setattr(engine, "available_memory", unavailable)
     assert simulate(rod, dt=1e-2).t.size == 101
+
+
+@pytest.mark.parametrize("scene_name", ["rod", "chain", "rotation"])
+def test_the_stability_limit_is_the_same_on_the_hand_kernel_and_on_the_engine(monkeypatch, scene_name):
+    """A family's rate comes from what it is, not from which native model runs it: the rod released
+    horizontally (its Jacobian there is 0, its rate w0), a chain, a tumbling body."""
+    from rbody import stability
+    from rbody.scenes import free_rotation
+
+    chain_module, pendulum_module, rotation_module = (importlib.import_module(f"rbody.scenes.{name}")
+                                                      for name in ("chain", "pendulum", "free_rotation"))
+
+    def build():
+        if scene_name == "rod":
+            return swinging_rod(1.0, theta0=np.pi / 2, t_end=1.0)
+        if scene_name == "chain":
+            return pendulum_chain(2, theta0=[1.0, 0.5], t_end=1.0)
+        return free_rotation(rbody.Inertia(1.0, np.zeros(3), np.diag([1.0, 2.0, 3.0])),
+                                           omega0=(0.1, 2.0, 0.1), t_end=1.0)
+
+    limits = []
+    for fast in (True, False):
+        monkeypatch.setattr(pendulum_module, "FAST_PATH", fast)
+        monkeypatch.setattr(rotation_module, "FAST_PATH", fast)
+        monkeypatch.setattr(chain_module, "HAND_KERNEL_MAX_LINKS", chain_module.MAX_LINKS if fast else 0)
+        scene = build()
+        limits.append([stability.stability_limit(scene, m) for m in ("rk4", "gauss6")])
+    np.testing.assert_allclose(limits[0], limits[1], rtol=1e-6)
+    if scene_name == "rod":
+        w0 = np.sqrt(1.5 * 9.81)
+        assert limits[1][0] == pytest.approx(2 * np.sqrt(2) / w0, rel=1e-12)
