@@ -34,8 +34,8 @@ Native model: the scene's Layout (nested links, one hinge each, the model MuJoCo
 general engine (rbody.Scene.from_layout, the articulated-body algorithm, cost linear in n). Its hinges measure
 each rod's angle from its parent's, so the engine's state is (relative angles, their rates) and the
 observables are their cumulative sums. The hand-written chain_rhs above (absolute angles, a dense Cholesky
-solve, cost cubic in n) is the engine's oracle in the tests, and stays the fast path for chains of up to
-HAND_KERNEL_MAX_LINKS rods, where it is more than 1.5x cheaper per step.
+solve, cost cubic in n) is the engine's oracle in the tests; it would be the fast path for chains of up to
+HAND_KERNEL_MAX_LINKS rods, were it more than 1.5x cheaper per step there (it is not: that constant is 0).
 """
 
 from __future__ import annotations
@@ -52,11 +52,12 @@ from rbody.inertia import Inertia
 from rbody.scene import Body, Joint, Layout, NativeModel, Scene, Shape
 
 # native() runs the hand-written chain_rhs for chains of at most this many rods, the general engine on the
-# Layout for longer ones (0: always the engine). rk4 ns per step, hand kernel / engine, one chain, dt = 1e-3:
-# n = 2: 1100 / 7330 (6.6x cheaper), 8: 4670 / 12840 (2.8x), 16: 7920 / 33110 (4.2x), 24: 26300 / 51100 (1.9x),
-# 28: 37500 / 59700 (1.6x, within the noise of 1.5x), 32: 51000 / 67500 (1.3x) (python benchmarks/fast_paths.py
-# --repeats 5, 2026-11-23, commit 2a7edef, a shared 2-core machine at load 4.8; before the engine's speed work).
-HAND_KERNEL_MAX_LINKS = 24
+# Layout for longer ones (0: always the engine). With the engine's planar path (rbody.engine.planar) the engine is
+# the cheaper at every length measured, so no chain keeps the hand kernel: rk4 ns per step, hand kernel / engine,
+# one chain, dt = 1e-3: n = 1: 1100 / 225, 2: 1280 / 940, 8: 7000 / 5730, 16: 18200 / 12000, 32: 61400 / 17100
+# (python benchmarks/fast_paths.py --repeats 5, 2026-11-23, commit f58270b, a shared 2-core machine at load 6.8).
+# Before the planar path the hand kernel was > 1.5x cheaper up to 24 rods.
+HAND_KERNEL_MAX_LINKS = 0
 
 # params (p,) = (n, g, lengths (n), masses (n), nu (n), mu_diagonal (n)); y = (theta (n), theta' (n))
 

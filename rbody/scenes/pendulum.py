@@ -62,9 +62,10 @@ def pendulum_accel(q, p, out):
 
 
 # Which kernel native() runs: True, the hand-written pendulum_rhs / pendulum_accel; False, the general engine on
-# the scene's Layout. Hand kernel 76 ns against the engine's 3690 ns per rk4 step (49x cheaper), 31 against 1610
-# per verlet step (52x) (one rod, dt = 1e-3; python benchmarks/fast_paths.py --repeats 5, 2026-11-23, commit
-# 2a7edef, before the engine's speed work was merged).
+# the scene's Layout. rk4 ns per step, hand kernel / engine (its planar path): rod 207 / 560 (2.7x cheaper), disc
+# 139 / 477 (3.4x); verlet: rod 63 / 110 (1.75x), disc 31 / 130 (4.1x) (one pendulum, dt = 1e-3; python
+# benchmarks/fast_paths.py --repeats 5, 2026-11-23, commit f58270b, a shared 2-core machine at load 6.8). Before
+# the planar path: 49x for rk4.
 FAST_PATH = True
 
 PENDULUM_METHODS = ("euler", "symplectic_euler", "verlet", "rk4", "yoshida6", "gauss6", "reference")
