@@ -662,10 +662,7 @@ class TreeScene(Scene):
         values = model.mass_matrix(q)[:, dof, dof]
         return bool(np.ptp(values) <= 1e-12 * np.max(np.abs(values)))
 
-    @property
-    def methods(self) -> tuple[str, ...]:  # type: ignore[override]
-        extra = TREE_SYMPLECTIC_METHODS if not self.symplectic_applies else ()
-        return extra + TREE_GENERAL_METHODS
+    preferred_methods: ClassVar[tuple[str, ...]] = TREE_SYMPLECTIC_METHODS + TREE_GENERAL_METHODS
 
     def why_not(self, method: str) -> str:
         if method in TREE_SYMPLECTIC_METHODS:

@@ -14,7 +14,8 @@ h = 2 ln 2 / (w^2 t) to first order.
 The rate w of a scene is the largest |eigenvalue| of the Jacobian df/dy along its motion, read from the
 scene's native model, never from its class (model_rate):
 - model.rate(method): the scene's own estimate where it knows its motion. Pendulum: w0 = sqrt(M g d / I)
-  (the linearisation at the bottom, or the growth rate at the top). Free rotation (rotation_rates): max
+  (the linearisation at the bottom, or the growth rate at the top). Free rotation
+  (rbody.scenes.free_rotation.rotation_rates): max
   over one period of the exact motion of |omega|/2 (the quaternion's rotation rate) and the eigenvalues
   of Euler's equations linearised, I^-1 ([L]x - [omega]x I) (a wobble, or the growth rate near the
   intermediate axis), and for the splitting and its yoshida6 composition also |omega_perp| sqrt(I3/I1),
@@ -24,7 +25,6 @@ scene's native model, never from its class (model_rate):
   the Jacobians are formed in one compiled loop and their eigenvalues in one stacked call;
 - neither: no estimate (rolling: constant accelerations, any step is exact; other scenes: an infinite
   limit; the check for non-finite states after every step remains).
-Until the pendulum, free rotation and chain modules state theirs, _family_rate supplies them.
 
 Float64 resolution. A pendulum released near the top (k^2 -> 1) carries the margin of its swing below
 the top, 1 - k^2 = cos^2(theta0/2) - omega0^2 / (4 w0^2), in its state only as the speed at the bottom,
@@ -55,7 +55,6 @@ EULER_GROWTH = 2.0
 # A pendulum run is refused when this many times the round-off drift eps sqrt(steps) reaches |1 - k^2|.
 RESOLUTION_FACTOR = 4.0
 # Samples of one period of the exact free rotation at which the Jacobian is evaluated.
-ROTATION_SAMPLES = 65
 # Relative step of the central differences of the Jacobian (truncation ~ step^2, round-off ~ eps / step).
 JACOBIAN_STEP = 1e-6
 
@@ -81,9 +80,7 @@ def fastest_rate(scene: Scene, method: str | None = None) -> np.ndarray:
     cache = scene.__dict__.setdefault("_fastest_rate", {})  # frozen: no setattr, but __dict__ is writable
     if method not in cache:
         model = scene.native_model
-        rate = _family_rate(scene, method) if model.rate is None else None
-        if rate is None:
-            rate = model_rate(model, method)
+        rate = model_rate(model, method)
         rate = np.array(rate, dtype=np.float64).reshape(model.y0.shape[0])
         rate.setflags(write=False)
         cache[method] = rate
@@ -165,64 +162,6 @@ def _jacobians(rhs, y, params, relative, out):
                     out[b, i, j] = (plus[0, i] - minus[0, i]) / (2.0 * step)
 
 
-def _family_rate(scene: Scene, method: str | None) -> np.ndarray | None:
-    """The rates of the three families whose native model (hand kernel or engine path) does not state its rate
-    yet: pendulum, free rotation, chain; None for every other scene. Transitional: deleted once their native()
-    passes rate= (the one-line changes in the methods branch's status note)."""
-    from rbody.scenes.chain import PendulumChain
-    from rbody.scenes.free_rotation import FreeRotation
-    from rbody.scenes.pendulum import Pendulum
-
-    model = scene.native_model
-    if isinstance(scene, Pendulum):
-        return np.sqrt(scene._w0_squared())  # w0^2 = M g d / I
-    if isinstance(scene, FreeRotation):
-        return rotation_rates(scene, method)
-    if isinstance(scene, PendulumChain):  # the Jacobian at the start and at rest (the fastest normal mode)
-        return model_rate(dataclasses.replace(model, rate=None, rate_from_jacobian=True,
-                                              rest=np.zeros(model.y0.shape[1])))
-    return None
-
-
-def rotation_rates(scene, method: str | None = None) -> np.ndarray:
-    """(B,) the fastest rate of a free rotation (rbody.scenes.FreeRotation) along one period of its exact motion:
-    |omega|/2 and the eigenvalues of Euler's equations linearised; for "splitting" also |omega_perp| sqrt(I3/I1),
-    for "yoshida6" a quarter of that.
-
-    omega_perp is the part of omega across the axis of the smallest moment: the rate at which the exact
-    sub-rotations about the other axes move angular momentum onto that axis, where omega_1 = L_1 / I1. The
-    splitting's error grows as (dt |omega_perp| sqrt(I3/I1))^2 (measured on tumbling needles: 0.0165 (I3/I1)
-    (dt |omega|)^2 over 2 s, for I3/I1 from 17 to 1.7e7), so a needle's splitting needs far smaller steps than
-    its dynamics. yoshida6 (6th order) gets a quarter of that rate: measured on the same needles its error is
-    ~1.4e-11 (dt |omega_perp| sqrt(I3/I1))^6 (6.6e-8 at 4.1, 6 % at 41)."""
-    split = {"splitting": 1.0, "yoshida6": 0.25}.get(method, 0.0)
-    return np.array([_rotation_rate(scene.item(index), split) for index in np.ndindex(*scene.batch_shape)])
-
-
-def _rotation_rate(scene, split: float = 0.0) -> float:
-    """max over one period (or the run) of the exact motion of |omega|/2 and |eig(I^-1 ([L]x - [w]x I))|
-    (and split x |omega_perp| sqrt(I3/I1))."""
-    moments = scene.principal_moments
-    _moments, axes = scene.inertia.principal()
-    period = scene.period
-    span = scene.t_end if not np.isfinite(period) else min(period, scene.t_end)
-    t = np.linspace(0.0, span, ROTATION_SAMPLES)
-    omega = scene.exact(t)["omega_body"].reshape(-1, 3) @ axes  # principal components
-    rate = 0.0
-    for w in omega:
-        momentum = moments * w
-        jacobian = (_cross_matrix(momentum) - _cross_matrix(w) * moments) / moments[:, None]
-        rate = max(rate, 0.5 * float(np.linalg.norm(w)), float(np.max(np.abs(np.linalg.eigvals(jacobian)))))
-        if split:  # the rotations about axes 2 and 3 move L onto axis 1, where omega_1 = L_1 / I1
-            rate = max(rate, split * float(np.hypot(w[1], w[2])) * math.sqrt(moments[2] / moments[0]))
-    return rate
-
-
-def _cross_matrix(v: np.ndarray) -> np.ndarray:
-    """[v]x (3, 3): [v]x u = v x u."""
-    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
-
-
 # ----- the limit and the check --------------------------------------------------------------------
 
 def stability_limit(scene: Scene, method: str, t_end: float | None = None) -> float:
@@ -279,10 +218,6 @@ def _separatrix_margin(scene: Scene) -> np.ndarray | None:
     if "_separatrix_margin" not in cache:
         model = scene.native_model
         margin = model.separatrix_margin
-        if margin is None:  # transitional, until the pendulum's native() passes separatrix_margin= itself
-            from rbody.scenes.pendulum import Pendulum
-
-            margin = scene._one_minus_modulus() if isinstance(scene, Pendulum) else None
         smallest = math.inf
         if margin is not None:
             margin = np.abs(np.asarray(margin, dtype=np.float64)).reshape(-1)

@@ -139,7 +139,7 @@ class PendulumChain(Scene):
 
     observables: ClassVar[tuple[str, ...]] = ("theta", "omega", "energy")
     main_observable: ClassVar[str] = "theta"
-    methods: ClassVar[tuple[str, ...]] = CHAIN_METHODS
+    preferred_methods: ClassVar[tuple[str, ...]] = CHAIN_METHODS
     batch_fields: ClassVar[tuple[str, ...]] = ("theta0", "omega0")
 
     def __post_init__(self) -> None:
@@ -264,7 +264,9 @@ class PendulumChain(Scene):
     def native(self) -> NativeModel:
         """The hand kernel (hand_model) for chains of at most HAND_KERNEL_MAX_LINKS rods, else the general
         engine (engine_model); the same observables either way."""
-        return self.hand_model() if self.n <= HAND_KERNEL_MAX_LINKS else self.engine_model()
+        model = self.hand_model() if self.n <= HAND_KERNEL_MAX_LINKS else self.engine_model()
+        # the stability rate from the Jacobian, also at the hanging rest state (the fastest normal mode)
+        return replace(model, rate=None, rate_from_jacobian=True, rest=np.zeros(2 * self.n))
 
     def engine_model(self) -> NativeModel:
         """The chain on the general engine: the scene's Layout as a TreeScene (rbody.Scene.from_layout), state

@@ -166,7 +166,7 @@ class ParticleSystem(Scene):
     observables: ClassVar[tuple[str, ...]] = ("momentum", "angular_momentum", "energy")
     main_observable: ClassVar[str] = "energy"
     planar: ClassVar[bool] = False
-    methods: ClassVar[tuple[str, ...]] = PARTICLE_METHODS
+    preferred_methods: ClassVar[tuple[str, ...]] = PARTICLE_METHODS
     applies_gravity: ClassVar[bool] = False  # internal forces only
 
     def __post_init__(self) -> None:

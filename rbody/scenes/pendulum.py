@@ -84,7 +84,7 @@ class Pendulum(Scene):
 
     observables: ClassVar[tuple[str, ...]] = ("theta", "omega", "energy")
     main_observable: ClassVar[str] = "theta"
-    methods: ClassVar[tuple[str, ...]] = PENDULUM_METHODS
+    preferred_methods: ClassVar[tuple[str, ...]] = PENDULUM_METHODS
     batch_fields: ClassVar[tuple[str, ...]] = ("theta0", "omega0")
 
     def __post_init__(self) -> None:
@@ -185,7 +185,10 @@ class Pendulum(Scene):
     def native(self) -> NativeModel:
         """The hand kernel (hand_model) when the module's FAST_PATH is True, else the general engine
         (engine_model); the same observables either way."""
-        return self.hand_model() if FAST_PATH else self.engine_model()
+        model = self.hand_model() if FAST_PATH else self.engine_model()
+        # the stability rate is the small-swing w0 = sqrt(M g d / I); near the top, the margin 1 - k^2
+        return dataclasses.replace(model, rate=lambda method: np.sqrt(self._w0_squared()),
+                                   separatrix_margin=self._one_minus_modulus())
 
     def engine_model(self) -> NativeModel:
         """The pendulum on the general engine: the scene's Layout as a TreeScene (rbody.Scene.from_layout), state

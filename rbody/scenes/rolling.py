@@ -224,7 +224,7 @@ class Rolling(Scene):
 
     observables: ClassVar[tuple[str, ...]] = ("distance", "speed", "spin", "slip", "energy")
     main_observable: ClassVar[str] = "distance"
-    methods: ClassVar[tuple[str, ...]] = ROLLING_METHODS
+    preferred_methods: ClassVar[tuple[str, ...]] = ROLLING_METHODS
     batch_fields: ClassVar[tuple[str, ...]] = ("radius", "mass", "incline", "friction")
 
     def __post_init__(self) -> None:
@@ -491,7 +491,7 @@ class RollingRace(Scene):
 
     observables: ClassVar[tuple[str, ...]] = ("distance", "speed", "spin", "slip", "energy", "arrival_time")
     main_observable: ClassVar[str] = "distance"
-    methods: ClassVar[tuple[str, ...]] = ROLLING_METHODS
+    preferred_methods: ClassVar[tuple[str, ...]] = ROLLING_METHODS
 
     def __post_init__(self) -> None:
         super().__post_init__()

@@ -118,7 +118,7 @@ class TwoBody(Scene):
 
     observables: ClassVar[tuple[str, ...]] = ("r1", "r2", "separation", "energy", "angular_momentum")
     main_observable: ClassVar[str] = "r1"
-    methods: ClassVar[tuple[str, ...]] = TWO_BODY_METHODS
+    preferred_methods: ClassVar[tuple[str, ...]] = TWO_BODY_METHODS
     batch_fields: ClassVar[tuple[str, ...]] = ("m1", "m2", "G")
     applies_gravity: ClassVar[bool] = False  # no external force: other simulators switch gravity off
 

@@ -112,7 +112,7 @@ class Rocket(Scene):
 
     observables: ClassVar[tuple[str, ...]] = ("distance", "speed", "mass")
     main_observable: ClassVar[str] = "distance"
-    methods: ClassVar[tuple[str, ...]] = VARIABLE_MASS_METHODS
+    preferred_methods: ClassVar[tuple[str, ...]] = VARIABLE_MASS_METHODS
     batch_fields: ClassVar[tuple[str, ...]] = ("m0", "burn_rate", "exhaust_speed", "dry_mass", "drag", "v0")
 
     def __post_init__(self) -> None:
@@ -299,7 +299,7 @@ class Avalanche(Scene):
 
     observables: ClassVar[tuple[str, ...]] = ("distance", "speed", "mass")
     main_observable: ClassVar[str] = "distance"
-    methods: ClassVar[tuple[str, ...]] = VARIABLE_MASS_METHODS
+    preferred_methods: ClassVar[tuple[str, ...]] = VARIABLE_MASS_METHODS
     batch_fields: ClassVar[tuple[str, ...]] = ("slope", "snow_density", "snow_height", "width", "x0")
 
     def __post_init__(self) -> None:
