@@ -5,7 +5,9 @@ kernels, MuJoCo and Pinocchio, and the accuracy of rotations under rk4 in rbody 
 
 Prints the machine and versions, then
 1. rk4, ns per step, one scene: the swinging rod (general engine vs its hand kernel), N-link chains N = 2, 8, 32
-   (general engine, the hand-written chain_rhs, MuJoCo RK4 through mujoco.rollout, contacts and
+   (general engine: Scene.from_layout, which takes its planar path for these planar trees
+   (rbody/engine/planar.py; benchmarks/planar_speed.py times the 3-D path beside it), the hand-written
+   chain_rhs (the scene's hand_model(), whatever its native() runs), MuJoCo RK4 through mujoco.rollout, contacts and
    constraints disabled, the same model written by rbody.to_mjcf);
 2. forward dynamics, ns per evaluation against N (the articulated-body algorithm over a batch of states),
    beside Pinocchio's pin.aba per call (from Python: its figure includes the call overhead) when installed;
@@ -87,7 +89,7 @@ def section_steps(repeats: int) -> None:
     print("\n1. rk4, ns per step, one scene (dt = 1e-3 s)")
     rod = rbody.scenes.swinging_rod(1.0, theta0=1.0, t_end=1.0)
     rod_tree = Scene.from_layout(rod.layout, t_end=1.0)
-    hand, tree = rk4_step_ns(rod.native_model, 200_000, repeats), rk4_step_ns(rod_tree.native_model, 50_000, repeats)
+    hand, tree = rk4_step_ns(rod.hand_model(), 200_000, repeats), rk4_step_ns(rod_tree.native_model, 50_000, repeats)
     print(f"   swinging rod: general engine {tree:9.0f}   hand kernel {hand:7.0f}   ratio {tree / hand:6.1f} "
           "(target <= 2)")
     print("   chain N   general engine   hand chain_rhs   MuJoCo RK4 (rollout)   MuJoCo / general (target >= 5)")
@@ -96,7 +98,7 @@ def section_steps(repeats: int) -> None:
         tree_scene = Scene.from_layout(scene.layout, t_end=1.0)
         steps = 40_000 if n < 32 else 10_000
         general = rk4_step_ns(tree_scene.native_model, steps, repeats)
-        handwritten = rk4_step_ns(scene.native_model, steps, repeats)
+        handwritten = rk4_step_ns(scene.hand_model(), steps, repeats)
         theirs = mujoco_step_ns(scene, steps, repeats)
         print(f"   {n:7d}   {general:14.0f}   {handwritten:14.0f}   {theirs:20.0f}   {theirs / general:8.2f}"
               f"   (issue's MuJoCo figure {MUJOCO_REPORTED_US[n]} us)")
@@ -155,7 +157,7 @@ def section_batch(repeats: int) -> None:
     theta = rng.uniform(-1, 1, (count, 2))
     scene = rbody.scenes.pendulum_chain(2, theta0=theta, t_end=1.0)
     tree = Scene.from_layout(scene.item(0).layout, t_end=1.0, qpos0=np.column_stack([theta[:, 0], np.diff(theta)[:, 0]]))
-    for name, model in (("general engine", tree.native_model), ("hand chain_rhs", scene.native_model)):
+    for name, model in (("general engine", tree.native_model), ("hand chain_rhs", scene.hand_model())):
         per = rk4_step_ns(model, 10, repeats) / count
         print(f"   {name}: {per:6.1f} ns per pendulum-step ({numba.get_num_threads()} threads)")
 

@@ -94,8 +94,9 @@ def section_steps(repeats: int) -> None:
     model = rod_tree.native_model
     planar = loop_ns(model.rhs, model.y0, model.params, 200_000, repeats)
     general = loop_ns(mb.tree_rhs, *three_d(rod_tree), 50_000, repeats)
-    assert rod.native_model.rhs is pendulum_rhs
-    hand = loop_ns(rod.native_model.rhs, rod.native_model.y0, rod.native_model.params, 200_000, repeats)
+    assert rod.hand_model().rhs is pendulum_rhs
+    hand_model = rod.hand_model()
+    hand = loop_ns(hand_model.rhs, hand_model.y0, hand_model.params, 200_000, repeats)
     theirs = mujoco_step_ns(rod, 50_000, repeats)
     print(f"   rod        {planar:8.0f}   {general:10.0f}   {hand:11.0f}   {theirs:10.0f}   {planar / hand:11.2f}   "
           f"{general / planar:10.2f}   {theirs / planar:13.2f}   (targets: planar/hand <= 2)")

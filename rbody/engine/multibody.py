@@ -40,7 +40,7 @@ subsequent rotations"), so a ball joint must be the last joint of its body; a fr
 joint of a child of the world.
 
 Cost: an evaluation of the right-hand side allocates nothing: its workspace is an array on its own stack
-(_stack_floats, an alloca), cut by _views into arrays over that memory (numba carrays: no reshape, no
+(stack_floats, an alloca), cut by _views into arrays over that memory (numba carrays: no reshape, no
 reference counting), and each algorithm takes (params, state, workspace) and cuts its own arrays, so that
 calls pass a few pointers. Only small spatial functions are inlined; each algorithm is compiled once (a
 first compilation of a minute, cached on disk after it). numba's cache does not follow imports: after
@@ -57,9 +57,9 @@ from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
-from numba import carray, njit, types
-from numba.extending import intrinsic
+from numba import carray, njit
 
+from rbody.engine.memory import address, stack_floats
 from rbody.engine.spatial import (cross3, dexp_inverse, dot6, force_cross, inertia_apply, inertia_in_world,
                                   inertia_matrix, motion_cross, quat_axis_angle, quat_exp, quat_multiply,
                                   quat_rotate, quat_to_matrix, symmetric_apply)
@@ -287,7 +287,7 @@ def world_inertias(p, w):
     """Each body's inertia about the world origin, world axes: h (nb, 3) = m c, Ibar (nb, 3, 3)."""
     ws = _views(p, w)
     xpos, xmat, h, Ibar = ws.xpos, ws.xmat, ws.h, ws.Ibar
-    Ic = carray(_address(ws.scratch, 0), (3, 3))
+    Ic = carray(address(ws.scratch, 0), (3, 3))
     nb = int(p[H_BODIES])
     bo = int(p[H_BODY])
     for i in range(nb):
@@ -314,32 +314,6 @@ def passive(p, q, v, out):
 
 # ----- the state of one evaluation ------------------------------------------------------------------------
 
-@intrinsic
-def _stack_floats(typingctx, count):
-    """float64* to `count` uninitialised doubles on the stack of the calling function (an alloca: freed
-    when that function returns, so call it only in the function that uses the memory, never in a helper)."""
-    if not isinstance(count, types.Integer):
-        return None
-
-    def codegen(context, builder, signature, args):
-        size = context.cast(builder, args[0], signature.args[0], types.intp)
-        return builder.alloca(context.get_value_type(types.float64), size=size)
-    return types.CPointer(types.float64)(count), codegen
-
-
-@intrinsic
-def _address(typingctx, array, offset):
-    """float64* to array[offset] of a contiguous 1-D float64 array (no view is formed)."""
-    if not (isinstance(array, types.Array) and array.dtype == types.float64 and array.ndim == 1
-            and isinstance(offset, types.Integer)):
-        return None
-
-    def codegen(context, builder, signature, args):
-        data = context.make_array(signature.args[0])(context, builder, args[0]).data
-        return builder.gep(data, [context.cast(builder, args[1], signature.args[1], types.intp)])
-    return types.CPointer(types.float64)(array, offset), codegen
-
-
 STACK_FLOATS = 16384  # workspaces up to this size (128 kB, ~570 bodies) live on the stack of an evaluation
 SCRATCH = 32  # floats of small temporaries (quaternions, 3- and 6-vectors) at the end of the workspace
 
@@ -363,7 +337,7 @@ def workspace_size(p) -> int:
 @njit(cache=True, inline="always")
 def _rows(w, at, rows, columns):
     """(rows, columns) array over w[at:at + rows * columns]."""
-    return carray(_address(w, at), (rows, columns))
+    return carray(address(w, at), (rows, columns))
 
 
 @njit(cache=True)
@@ -382,17 +356,17 @@ def _views(p, w):
     at += 6 * nb
     xaxis, xanchor, xline = _rows(w, at, nj, 3), _rows(w, at + 3 * nj, nj, 3), _rows(w, at + 6 * nj, nj, 3)
     at += 9 * nj
-    xmat, Ibar = carray(_address(w, at), (nb, 3, 3)), carray(_address(w, at + 9 * nb), (nb, 3, 3))
+    xmat, Ibar = carray(address(w, at), (nb, 3, 3)), carray(address(w, at + 9 * nb), (nb, 3, 3))
     at += 18 * nb
-    IA = carray(_address(w, at), (nb, 6, 6))
+    IA = carray(address(w, at), (nb, 6, 6))
     at += 36 * nb
     xquat = _rows(w, at, nb, 4)
     at += 4 * nb
-    u, mass = carray(_address(w, at), nv), carray(_address(w, at + nv), nb)
+    u, mass = carray(address(w, at), nv), carray(address(w, at + nv), nb)
     at += nv + nb
-    q, tau = carray(_address(w, at), nq), carray(_address(w, at + nq), nv)
-    pivots, zero = carray(_address(w, at + nq + nv), nv), carray(_address(w, at + nq + 2 * nv), nv)
-    scratch = carray(_address(w, at + nq + 3 * nv), SCRATCH)
+    q, tau = carray(address(w, at), nq), carray(address(w, at + nq), nv)
+    pivots, zero = carray(address(w, at + nq + nv), nv), carray(address(w, at + nq + 2 * nv), nv)
+    scratch = carray(address(w, at + nq + 3 * nv), SCRATCH)
     return Workspace(xpos, xquat, xmat, xaxis, xanchor, xline, S, bias, vel, h, Ibar, IA, pA, U, u, acc, force, mass,
                      q, tau, pivots, zero, scratch)
 
@@ -639,7 +613,7 @@ def tree_rhs(y, p, out):
     jo = int(p[H_JOINT])
     size = workspace_size(p)
     # the workspace on this function's stack (no allocation per evaluation), on the heap for huge trees
-    w = carray(_stack_floats(size), size) if size <= STACK_FLOATS else np.empty(size)
+    w = carray(stack_floats(size), size) if size <= STACK_FLOATS else np.empty(size)
     ws = _views(p, w)
     q = ws.q
     _effective_qpos(p, y, q, ws.scratch[SCRATCH - 4:])
@@ -693,7 +667,7 @@ def tree_accel(q, p, out):
     nq = nv): forward dynamics at zero velocity."""
     nv = int(p[H_DOFS])
     size = workspace_size(p)
-    w = carray(_stack_floats(size), size) if size <= STACK_FLOATS else np.empty(size)
+    w = carray(stack_floats(size), size) if size <= STACK_FLOATS else np.empty(size)
     zero = _views(p, w).zero
     for d in range(nv):
         zero[d] = 0.0

@@ -45,7 +45,7 @@ turning with q itself: (0, s r Ly, -s r Lx) q'^2 (the slide's subspace crossed w
 
 Kernels: rhs(y, p, out) and accel(q, p, out), the integrators' signatures, over a row p of this module's
 layout. An evaluation allocates nothing: its workspace (WORK = 32 floats a node) is a stack buffer
-(_stack_floats, an LLVM alloca freed on return), read and written by flat index, and each kernel is one
+(stack_floats, an LLVM alloca freed on return), read and written by flat index, and each kernel is one
 inlined call, so that numba keeps no reference counting of its arrays.
 
 Ground coordinates rather than each node's own frame (where a node's inertia and subspace are constants
@@ -59,10 +59,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import carray, njit, types
-from numba.extending import intrinsic
+from numba import carray, njit
 
 from rbody.engine import multibody as mb
+from rbody.engine.memory import stack_floats
 
 PLANAR_HINGE, PLANAR_SLIDE, PLANAR_ROLL = 0, 1, 2
 PARALLEL_TOL = 1e-12  # |a x n| of a hinge axis, |d . n| of a slide direction: beyond this, not planar
@@ -85,120 +85,22 @@ NODE_SIZE = 17
 WORK = 32
 
 
-# ----- a stack buffer ------------------------------------------------------------------------------------
-
-_F64P = types.CPointer(types.float64)
-
-
-@intrinsic
-def _stack_floats(typingctx, count):
-    """float64* to `count` floats on the stack of the calling function (LLVM alloca, freed on its return;
-    where LLVM inlines the caller into a loop it brackets it with stacksave/stackrestore)."""
-    if not isinstance(count, types.Integer):
-        return None
-
-    def codegen(context, builder, signature, args):
-        size = context.cast(builder, args[0], signature.args[0], types.intp)
-        return builder.alloca(context.get_value_type(types.float64), size=size)
-    return _F64P(count), codegen
-
-
 # ----- the algorithms ----------------------------------------------------------------------------------
 
 @njit(cache=True, inline="always")
-def _outward(p, y, v0, w, out, copy):
-    """Poses, motion subspaces, velocities, velocity products and rigid inertias of every node, and each
-    node's bias force v x* I v, from q = y[0:n] and qvel = y[v0:v0 + n] (v0 < 0: at rest); when `copy`,
-    qvel into out[0:n] too."""
-    n = int(p[P_NODES])
-    for d in range(n):
-        r = HEADER + d * NODE_SIZE
-        k = d * WORK
-        parent = int(p[r + N_PARENT])
-        if parent >= 0:
-            o = parent * WORK
-            angle, cp, sp = w[o + W_ANGLE], w[o + W_COS], w[o + W_SIN]
-            tx, ty = w[o + W_T], w[o + W_T + 1]
-            vw, vx, vy = w[o + W_V], w[o + W_V + 1], w[o + W_V + 2]
-        else:
-            angle, cp, sp, tx, ty, vw, vx, vy = 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-        x = y[d] - p[r + N_REF]
-        qd = y[v0 + d] if v0 >= 0 else 0.0
-        if copy:
-            out[d] = qd
-        kind = int(p[r + N_KIND])
-        px, py = p[r + N_POINT], p[r + N_POINT + 1]
-        extra_x, extra_y = 0.0, 0.0
-        radius, lx, ly = 0.0, 0.0, 0.0
-        if kind == PLANAR_SLIDE:
-            sw = 0.0
-            sx = cp * px - sp * py
-            sy = sp * px + cp * py
-            tx += sx * x
-            ty += sy * x
-            c, s_ = cp, sp
-        else:
-            sign = p[r + N_SIGN]
-            # the anchor (roll: the centre, after the slide r x along l), moved by the parent's displacement
-            if kind == PLANAR_ROLL:
-                radius = p[r + N_RADIUS]
-                lx = cp * p[r + N_LINE] - sp * p[r + N_LINE + 1]
-                ly = sp * p[r + N_LINE] + cp * p[r + N_LINE + 1]
-                ax = cp * px - sp * py + tx + radius * x * lx
-                ay = sp * px + cp * py + ty + radius * x * ly
-            else:
-                ax = cp * px - sp * py + tx
-                ay = sp * px + cp * py + ty
-            angle += sign * x
-            c, s_ = np.cos(angle), np.sin(angle)
-            tx = ax - (c * px - s_ * py)
-            ty = ay - (s_ * px + c * py)
-            sw, sx, sy = sign, sign * ay, -sign * ax
-            if kind == PLANAR_ROLL:
-                sx += radius * lx
-                sy += radius * ly
-                extra_x, extra_y = sign * radius * ly * qd * qd, -sign * radius * lx * qd * qd
-        w[k + W_ANGLE], w[k + W_COS], w[k + W_SIN] = angle, c, s_
-        w[k + W_T], w[k + W_T + 1] = tx, ty
-        w[k + W_S], w[k + W_S + 1], w[k + W_S + 2] = sw, sx, sy
-        # c = (v_parent x S) q' (+ the roll's own term)
-        w[k + W_C] = 0.0
-        w[k + W_C + 1] = (sw * vy - vw * sy) * qd + extra_x
-        w[k + W_C + 2] = (vw * sx - sw * vx) * qd + extra_y
-        vw += sw * qd
-        vx += sx * qd
-        vy += sy * qd
-        w[k + W_V], w[k + W_V + 1], w[k + W_V + 2] = vw, vx, vy
-        # rigid inertia about the origin at the current pose
-        m = p[r + N_MASS]
-        cx0, cy0 = p[r + N_COM], p[r + N_COM + 1]
-        comx = c * cx0 - s_ * cy0 + tx
-        comy = s_ * cx0 + c * cy0 + ty
-        hx, hy = m * comx, m * comy
-        inertia = p[r + N_MOMENT] + hx * comx + hy * comy
-        w[k + W_I], w[k + W_I + 1], w[k + W_I + 2] = inertia, -hy, hx
-        w[k + W_I + 3], w[k + W_I + 4], w[k + W_I + 5] = m, 0.0, m
-        # I v, then v x* (I v)
-        fw = inertia * vw - hy * vx + hx * vy
-        fx = m * vx - hy * vw
-        fy = m * vy + hx * vw
-        w[k + W_P] = vx * fy - vy * fx
-        w[k + W_P + 1] = -vw * fy
-        w[k + W_P + 2] = vw * fx
-
-
-@njit(cache=True, inline="always")
-def _articulated(p, y, v0, out, a0, w, applied):
+def _articulated(p, y, v0, out, a0, w, applied, outward_only=False):
     """ABA: out[a0 + d] = qacc of node d, from the state y (q = y[0:n], qvel = y[v0:v0 + n], v0 < 0 at rest)
     and, when `applied`, the applied forces w[d * WORK + W_TAU]; passive forces included. With a0 > 0 it also
     copies qvel into out[0:n] (the rhs y' = (qvel, qacc)). Returns the first node whose pivot D is not positive
     beyond PIVOT_RTOL of its scale (its qacc is NaN), or -1.
+    outward_only: stop after the outward pass (poses, motion subspaces, velocities, velocity products, rigid
+    inertias and bias forces v x* I v of every node, into w), which is also RNEA's first pass; returns -1.
 
     Everything happens here, in one inlined call per kernel: a loop of the kernel before the call makes numba
     keep the reference counting of the kernel's array arguments (an NRT call each, every evaluation)."""
     n = int(p[P_NODES])
-    # the outward pass, as _outward, written out: with _outward inlined here numba keeps the reference
-    # counting of the array arguments
+    # the outward pass, written here rather than as a function of its own: inlined, a separate pass makes
+    # numba keep the reference counting of the array arguments
     for d in range(n):
         r = HEADER + d * NODE_SIZE
         k = d * WORK
@@ -273,6 +175,8 @@ def _articulated(p, y, v0, out, a0, w, applied):
         w[k + W_P] = vx * fy - vy * fx
         w[k + W_P + 1] = -vw * fy
         w[k + W_P + 2] = vw * fx
+    if outward_only:
+        return -1
     bad = -1
     for d in range(n - 1, -1, -1):
         r = HEADER + d * NODE_SIZE
@@ -348,7 +252,7 @@ def planar_rhs(y, p, out):
     """y' = (qvel, qacc) for y = (qpos (n), qvel (n)) of a planar tree; p its planar row. A singular mass
     matrix gives NaN (the run fails)."""
     n = int(p[P_NODES])
-    w = carray(_stack_floats(n * WORK), n * WORK)
+    w = carray(stack_floats(n * WORK), n * WORK)
     _articulated(p, y, n, out, n, w, False)
 
 
@@ -356,7 +260,7 @@ def planar_rhs(y, p, out):
 def planar_accel(q, p, out):
     """q'' = a(q) (the tree at rest at q: the symplectic methods, where TreeScene.symplectic_applies)."""
     n = int(p[P_NODES])
-    w = carray(_stack_floats(n * WORK), n * WORK)
+    w = carray(stack_floats(n * WORK), n * WORK)
     _articulated(p, q, -1, out, 0, w, False)
 
 
@@ -368,7 +272,7 @@ def _inverse(p, q, v, qacc, gravity_on, out, w):
     for d in range(n):
         y[d] = q[d]
         y[n + d] = v[d]
-    _outward(p, y, n, w, out, False)
+    _articulated(p, y, n, out, 0, w, False, True)
     for d in range(n):
         r = HEADER + d * NODE_SIZE
         k = d * WORK

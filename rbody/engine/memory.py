@@ -1,0 +1,40 @@
+"""Raw memory for the compiled kernels: a buffer on the stack of an evaluation, the address of an element.
+
+An evaluation of a tree's right-hand side runs millions of times per simulation; an array allocated in it
+(np.empty: the allocator, reference counting) would cost more than the arithmetic of a small tree. These two
+numba intrinsics let a kernel work in memory it never allocates on the heap.
+"""
+
+from __future__ import annotations
+
+from numba import types
+from numba.extending import intrinsic
+
+F64P = types.CPointer(types.float64)
+
+
+@intrinsic
+def stack_floats(typingctx, count):
+    """float64* to `count` uninitialised doubles on the stack of the calling function (an LLVM alloca, freed
+    when that function returns: call it in the function that uses the memory, never in a helper that returns
+    it; where LLVM inlines the caller into a loop it brackets the alloca with stacksave/stackrestore)."""
+    if not isinstance(count, types.Integer):
+        return None
+
+    def codegen(context, builder, signature, args):
+        size = context.cast(builder, args[0], signature.args[0], types.intp)
+        return builder.alloca(context.get_value_type(types.float64), size=size)
+    return F64P(count), codegen
+
+
+@intrinsic
+def address(typingctx, array, offset):
+    """float64* to array[offset] of a contiguous 1-D float64 array (no view is formed)."""
+    if not (isinstance(array, types.Array) and array.dtype == types.float64 and array.ndim == 1
+            and isinstance(offset, types.Integer)):
+        return None
+
+    def codegen(context, builder, signature, args):
+        data = context.make_array(signature.args[0])(context, builder, args[0]).data
+        return builder.gep(data, [context.cast(builder, args[1], signature.args[1], types.intp)])
+    return F64P(array, offset), codegen
