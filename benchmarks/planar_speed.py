@@ -42,18 +42,13 @@ from rbody.engine import multibody as mb  # noqa: E402
 from rbody.engine.planar import planar_rhs  # noqa: E402
 from rbody.scenes.pendulum import pendulum_rhs  # noqa: E402
 from multibody_speed import DT, chain, mujoco_model  # noqa: E402
+from multibody_speed import best as best_wall_or  # noqa: E402
 from validation.machine import describe_machine  # noqa: E402
 
 
 def best(function, repeats: int, clock=time.process_time) -> float:
-    """Minimum time [s] of function() on `clock` over `repeats` runs after one warm-up."""
-    function()
-    times = []
-    for _ in range(repeats):
-        start = clock()
-        function()
-        times.append(clock() - start)
-    return min(times)
+    """Minimum time [s] of function() on `clock` (default: CPU time of this process) over `repeats` runs."""
+    return best_wall_or(function, repeats, clock)
 
 
 def mujoco_step_ns(scene, steps: int, repeats: int) -> float:

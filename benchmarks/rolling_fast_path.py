@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import os
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -27,19 +26,13 @@ from rbody.engine import integrators  # noqa: E402
 from rbody.scenes import rolling, rolling_race  # noqa: E402
 from validation.machine import describe_machine  # noqa: E402
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from multibody_speed import best  # noqa: E402  (min wall time over repeats after a warm-up)
+
 DT = 1e-3
 FAST_PATH_RATIO = 1.5  # DESIGN.md: keep a hand kernel only where it is more than this much cheaper per step
 
 
-def best(function, repeats: int) -> float:
-    """Minimum wall time [s] of function() over `repeats` runs after one warm-up."""
-    function()
-    times = []
-    for _ in range(repeats):
-        start = time.perf_counter()
-        function()
-        times.append(time.perf_counter() - start)
-    return min(times)
 
 
 def step_ns(model, method: str, steps: int, repeats: int) -> float:

@@ -37,6 +37,17 @@ def relative(a, b) -> float:
     return float(np.max(np.abs(np.asarray(a) - np.asarray(b))) / max(np.max(np.abs(b)), 1e-300))
 
 
+def mujoco_dynamics(mj, data, q, v) -> dict[str, np.ndarray]:
+    """MuJoCo's dynamics at (q, v): mass matrix (mj_fullM), bias (qfrc_bias), passive (qfrc_passive) and
+    forward (qacc, constraints off), each a copy."""
+    data.qpos[:], data.qvel[:] = q, v
+    mujoco.mj_forward(mj, data)
+    full = np.zeros((mj.nv, mj.nv))
+    mujoco.mj_fullM(mj, data, full)
+    return {"mass_matrix": full, "bias": data.qfrc_bias.copy(), "passive": data.qfrc_passive.copy(),
+            "forward": data.qacc.copy()}
+
+
 def random_state(rng, model: Multibody):
     """A random (q, v) of the tree: coordinates moved from qpos0, quaternions random unit ones."""
     q = model.qpos0 + rng.uniform(-0.5, 0.5, model.nq)
@@ -60,14 +71,11 @@ def test_dynamics_equal_mujoco_on_random_trees(seed):
     np.testing.assert_allclose(data.qvel, model.qvel0, rtol=0, atol=1e-14)
     for _ in range(3):
         q, v = random_state(rng, model)
-        data.qpos[:], data.qvel[:] = q, v
-        mujoco.mj_forward(mj, data)
-        full = np.zeros((mj.nv, mj.nv))
-        mujoco.mj_fullM(mj, data, full)
-        assert relative(model.mass_matrix(q), full) < 1e-10
-        assert relative(model.bias_forces(q, v), data.qfrc_bias) < 1e-10
-        assert relative(model.passive_forces(q, v), data.qfrc_passive) < 1e-10
-        assert relative(model.forward_dynamics(q, v), data.qacc) < 1e-10
+        theirs = mujoco_dynamics(mj, data, q, v)
+        assert relative(model.mass_matrix(q), theirs["mass_matrix"]) < 1e-10
+        assert relative(model.bias_forces(q, v), theirs["bias"]) < 1e-10
+        assert relative(model.passive_forces(q, v), theirs["passive"]) < 1e-10
+        assert relative(model.forward_dynamics(q, v), theirs["forward"]) < 1e-10
         com, quat = model.body_poses(q)
         ids = [mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_BODY, name) for name in model.body_names]
         np.testing.assert_allclose(com, data.xipos[ids], rtol=0, atol=1e-12)

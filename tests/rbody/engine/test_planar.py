@@ -6,7 +6,6 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-import mujoco
 import numpy as np
 import pytest
 
@@ -18,6 +17,7 @@ from rbody.engine.planar import planar_accel, planar_model, planar_rhs, planar_s
 from rbody.motion import quat_normalize, quat_to_matrix
 
 sys.path.insert(0, str(Path(__file__).parent))
+from test_multibody import mujoco_dynamics, mujoco_model, relative  # noqa: E402
 from trees import random_inertia, random_tree  # noqa: E402
 
 NORMALS = {
@@ -26,7 +26,6 @@ NORMALS = {
     "horizontal": np.array([np.cos(0.7), np.sin(0.7), 0.0]),  # a tilted normal in the horizontal plane
     "inclined": quat_to_matrix(quat_normalize([1.0, 0.3, -0.2, 0.1])) @ np.array([0.0, 1.0, 0.0]),  # plane not vertical
 }
-_OFF = mujoco.mjtDisableBit.mjDSBL_CONTACT | mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
 
 
 def planar_tree(rng: np.random.Generator, bodies: int, normal: np.ndarray, roll: bool = True) -> Layout:
@@ -64,10 +63,6 @@ def planar_tree(rng: np.random.Generator, bodies: int, normal: np.ndarray, roll:
     if not out_joints:  # at least one degree of freedom
         out_joints.append(Joint("j0_0", "hinge", "b0", axis=tuple(rotation["b0"].T @ normal)))
     return Layout(bodies=tuple(out_bodies), joints=tuple(out_joints))
-
-
-def relative(a, b) -> float:
-    return float(np.max(np.abs(np.asarray(a) - np.asarray(b))) / max(np.max(np.abs(b)), 1e-300))
 
 
 def random_states(rng, model: Multibody, count: int):
@@ -110,14 +105,6 @@ def test_the_random_planar_trees_used_every_planar_joint_kind():
     assert kinds == {"hinge", "slide", "roll"}
 
 
-def mujoco_data(scene, dt: float = 2e-3):
-    mj = mujoco.MjModel.from_xml_string(rbody.to_mjcf(scene, dt=dt, integrator="RK4"))
-    mj.opt.disableflags |= _OFF
-    data = mujoco.MjData(mj)
-    mujoco.mj_resetDataKeyframe(mj, data, 0)
-    return mj, data
-
-
 @pytest.mark.parametrize("normal", ["y", "horizontal"])
 @pytest.mark.parametrize("seed", range(3))
 def test_planar_dynamics_equal_mujoco(seed, normal):
@@ -127,16 +114,13 @@ def test_planar_dynamics_equal_mujoco(seed, normal):
     # no roll joints: MJCF writes one as a slide and a hinge tied by an equality, a constraint switched off here
     scene = Scene.from_layout(planar_tree(rng, int(rng.integers(2, 13)), NORMALS[normal], roll=False), t_end=1.0)
     planar = planar_model(scene.multibody)
-    mj, data = mujoco_data(scene)
+    mj, data = mujoco_model(scene)
     q, v, _ = random_states(rng, scene.multibody, 3)
     for qi, vi in zip(q, v):
-        data.qpos[:], data.qvel[:] = qi, vi
-        mujoco.mj_forward(mj, data)
-        full = np.zeros((mj.nv, mj.nv))
-        mujoco.mj_fullM(mj, data, full)
-        assert relative(planar.mass_matrix(qi), full) < 1e-10
-        assert relative(planar.bias_forces(qi, vi), data.qfrc_bias) < 1e-10
-        assert relative(planar.forward_dynamics(qi, vi), data.qacc) < 1e-10
+        theirs = mujoco_dynamics(mj, data, qi, vi)
+        assert relative(planar.mass_matrix(qi), theirs["mass_matrix"]) < 1e-10
+        assert relative(planar.bias_forces(qi, vi), theirs["bias"]) < 1e-10
+        assert relative(planar.forward_dynamics(qi, vi), theirs["forward"]) < 1e-10
 
 
 @pytest.mark.parametrize("seed", range(3))
