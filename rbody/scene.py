@@ -164,6 +164,13 @@ class Joint:
             object.__setattr__(self, name, float(finite_array(getattr(self, name), f"joint {self.name!r}: {name}",
                                                               shape=())))
 
+    @property
+    def line(self) -> np.ndarray:
+        """(3,) unit l = axis x normal, body frame: the direction a roll joint's centre moves for q' > 0 (roll
+        joints only: their axis and normal are perpendicular)."""
+        line = np.cross(self.axis, self.normal)
+        return line / np.linalg.norm(line)
+
 
 @dataclass(frozen=True)
 class Contact:
@@ -265,18 +272,9 @@ def singular_pivot_diagnosis(multibody) -> Any:
     (the ValueError of multibody.check_pivots) or on the path of the failing step, the hinge and slide coordinates
     moved on at their rates for up to 1.5 dt (where a stage of the step may have met a singular configuration
     that no whole step reached); "" when neither."""
-    from rbody.engine.multibody import _forward_batch
-
-    nq, nv = multibody.nq, multibody.nv
+    nq = multibody.nq
     moving = [(int(qa), int(da)) for kind, qa, da in zip(multibody.arrays.joint_kinds, multibody.arrays.qposadr,
                                                          multibody.arrays.dofadr) if kind in ("hinge", "slide", "roll")]
-
-    def pivots(q: np.ndarray) -> np.ndarray:
-        q = np.ascontiguousarray(q, dtype=np.float64).reshape(-1, nq)
-        zeros = np.zeros((q.shape[0], nv))
-        out, found = np.empty((q.shape[0], nv)), np.empty((q.shape[0], nv))
-        _forward_batch(multibody.params, q, zeros, zeros, out, found)
-        return found
 
     def diagnose(y: np.ndarray, y0: np.ndarray, dt: float) -> str:
         y, y0 = np.asarray(y, dtype=np.float64), np.asarray(y0, dtype=np.float64)
@@ -288,7 +286,7 @@ def singular_pivot_diagnosis(multibody) -> Any:
         path = np.repeat(y[None, :nq], PATH_SAMPLES, axis=0)
         for qa, da in moving:
             path[:, qa] += fraction * dt * y[nq + da]
-        ratio = pivots(path) / pivots(y0[:nq])
+        ratio = multibody._pivots(path)[0] / multibody._pivots(y0[:nq])[0]
         where, d = np.unravel_index(int(np.argmin(ratio)), ratio.shape)
         if not ratio[where, d] < NEARLY_SINGULAR:
             return ""

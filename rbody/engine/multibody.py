@@ -390,7 +390,7 @@ def articulated_body(p, w, qacc):
     ws = _views(p, w)
     S, bias, vel, h, Ibar, tau, pivots = ws.S, ws.bias, ws.vel, ws.h, ws.Ibar, ws.tau, ws.pivots
     IA, pA, U, u, acc, scratch = ws.IA, ws.pA, ws.U, ws.u, ws.acc, ws.scratch
-    nb, nv = int(p[H_BODIES]), int(p[H_DOFS])
+    nb = int(p[H_BODIES])
     bo, do = int(p[H_BODY]), int(p[H_DOF])
     g = p[H_GRAVITY]
     tmp = scratch[0:6]
@@ -668,11 +668,12 @@ def tree_accel(q, p, out):
     nv = int(p[H_DOFS])
     size = workspace_size(p)
     w = carray(stack_floats(size), size) if size <= STACK_FLOATS else np.empty(size)
-    zero = _views(p, w).zero
+    ws = _views(p, w)
+    zero = ws.zero
     for d in range(nv):
         zero[d] = 0.0
     _frames(p, q, zero, w)
-    passive(p, q, zero, _views(p, w).tau)
+    passive(p, q, zero, ws.tau)
     articulated_body(p, w, out)
 
 
@@ -890,10 +891,9 @@ def build_tree(layout, gravity: float) -> tuple[TreeArrays, np.ndarray, np.ndarr
             row[r + J_ANCHOR:r + J_ANCHOR + 3] = (_vector(joint.anchor, "anchor", 3) if code != FREE else 0.0)
             row[r + J_QADR], row[r + J_DADR] = qposadr[j], dofadr[j]
             row[r + J_REF] = getattr(joint, "ref", 0.0) if code in SCALAR_KINDS else 0.0
-            if code == ROLL:  # l = axis x normal, unit (the Joint checked that axis and normal are perpendicular)
-                line = np.cross(row[r + J_AXIS:r + J_AXIS + 3], _vector(joint.normal, "normal", 3))
+            if code == ROLL:  # the rolling line l = axis x normal (rbody.scene.Joint.line)
                 row[r + J_RADIUS] = _number(joint.radius, f"joint {joint.name!r}: radius")
-                row[r + J_LINE:r + J_LINE + 3] = line / np.linalg.norm(line)
+                row[r + J_LINE:r + J_LINE + 3] = joint.line
             row[r + J_STIFF] = getattr(joint, "stiffness", 0.0)
             row[r + J_SPRINGREF] = getattr(joint, "springref", 0.0)
             row[r + J_ROT] = rotslot[j]
@@ -961,13 +961,19 @@ class Multibody:
                 for a in arrays]
         return shape, flat
 
-    def check_pivots(self, q) -> None:
-        """Raise ValueError naming the body and joint when M(q) is singular (an ABA pivot <= 0)."""
-        shape, (Q,) = self._batch((q, self.nq, "q"))
+    def _pivots(self, q) -> tuple[np.ndarray, np.ndarray]:
+        """(pivots (B, nv), bad (B,)): the ABA's pivot D of every degree of freedom at each q (..., nq) flattened
+        to B states, armature included, and the first dof of each state whose pivot is not positive (-1: none)."""
+        _, (Q,) = self._batch((q, self.nq, "q"))
         count = Q.shape[0]
         out, pivots = np.empty((count, self.nv)), np.empty((count, self.nv))
         zeros = np.zeros((count, self.nv))
         bad = _forward_batch(self._kernel_params, Q, zeros, zeros, out, pivots)
+        return pivots, bad
+
+    def check_pivots(self, q) -> None:
+        """Raise ValueError naming the body and joint when M(q) is singular (an ABA pivot <= 0)."""
+        _, bad = self._pivots(q)
         if np.any(bad >= 0):
             d = int(bad[bad >= 0][0])
             body = self.body_names[self.arrays.dof_body[d]]
