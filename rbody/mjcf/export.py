@@ -516,15 +516,9 @@ def _joint(joint: Joint, indent: str, limit: tuple[float, float] | None = None) 
     if joint.kind == "roll":  # the slide along l first, then the hinge (module docstring)
         slide_ref = {"ref": _num(joint.radius * joint.ref)} if joint.ref != 0.0 else {}
         slide = _attrs(name=joint.name + ROLL_SLIDE_SUFFIX, type="slide", pos=_vec(joint.anchor),
-                       axis=_vec(roll_slide_axis(joint)), **slide_ref)
+                       axis=_vec(joint.line), **slide_ref)
         return f"{indent}<joint {slide}/>\n{indent}<joint {attrs}/>"
     return f"{indent}<joint {attrs}/>"
-
-
-def roll_slide_axis(joint: Joint) -> np.ndarray:
-    """(3,) l = axis x normal, body frame: the direction a roll joint's centre moves for q' > 0 (unit, since
-    axis and normal are unit and perpendicular)."""
-    return np.cross(np.asarray(joint.axis, dtype=float), np.asarray(joint.normal, dtype=float))
 
 
 def _roll_equality(joint: Joint, dt: float, indent: str) -> str:
@@ -693,5 +687,5 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
 
 
 __all__ = ["to_mjcf", "exported_inertia", "ExportedInertia", "contact_parameters", "initial_state",
-           "body_order", "joint_order", "has_impacts", "shape_inertia", "roll_slide_axis", "DEFAULT_TIMESTEP",
+           "body_order", "joint_order", "has_impacts", "shape_inertia", "DEFAULT_TIMESTEP",
            "EQUALITY_SOLIMP", "ROLL_SLIDE_SUFFIX"]

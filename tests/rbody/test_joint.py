@@ -10,6 +10,7 @@ def test_roll_joint_keeps_its_radius_and_unit_normal():
     assert joint.radius == 0.25
     assert joint.axis == (0.0, 1.0, 0.0)
     assert joint.normal == (0.0, 0.0, 1.0)
+    assert tuple(joint.line) == (1.0, 0.0, 0.0)  # l = y x z: the centre moves along +x for q' > 0
 
 
 @pytest.mark.parametrize("radius", [0.0, -0.1])
