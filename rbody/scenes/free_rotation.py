@@ -80,7 +80,7 @@ from scipy.special import elliprf, elliprj
 
 from rbody.elliptic import jacobi
 from rbody._checks import finite_array, representable, scene_arguments
-from rbody.engine import integrators
+from rbody.engine import integrators, spatial
 from rbody.inertia import Inertia
 from rbody.motion import quat_conjugate, quat_exp, quat_from_matrix, quat_multiply, quat_to_matrix
 from rbody.scene import Body, BodyStates, Joint, Layout, NativeModel, Scene, Shape
@@ -142,35 +142,14 @@ def free_rotation_step(y, p, h):
 
 
 # Which kernel native() runs: True, the hand-written free_rotation_rhs (and its splitting); False, the general
-# engine on the scene's Layout. Hand kernel 160 ns against the engine's 12100 ns per rk4 step, 76x cheaper (one
-# body, dt = 1e-3; python benchmarks/fast_paths.py --repeats 5, 2026-11-23, commit f58270b, a shared 2-core
-# machine at load 6.8). The splitting costs about the same on either state (526 / 766 ns).
+# engine on the scene's Layout. Hand kernel 78 ns against the engine's 3276 ns per rk4 step, 42x cheaper (one
+# body, dt = 1e-3; python benchmarks/fast_paths.py --repeats 5, 2026-11-23, commit a920624, AMD EPYC, 2 cores,
+# idle). The splitting costs about the same on either state (202 / 282 ns).
 FAST_PATH = True
 
 # The columns free_rotation_tree_step reads after the engine's model row: principal moments (3) [kg m^2],
 # the quaternion (4) of the principal axes in the Inertia's frame, the centre of mass (3) in that frame [m].
 TREE_STEP_COLUMNS = 10
-
-
-@njit(cache=True)
-def _quat_product(a, b, out):
-    """out = a (x) b, quaternions (w, x, y, z)."""
-    w = a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3]
-    x = a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2]
-    y = a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1]
-    z = a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0]
-    out[0], out[1], out[2], out[3] = w, x, y, z
-
-
-@njit(cache=True)
-def _rotate(q, sign, v, out):
-    """out = R(q) v (sign 1) or R(q)^T v (sign -1) for a unit quaternion q: v + 2 w (u x v) + 2 u x (u x v),
-    u = sign (x, y, z)."""
-    ux, uy, uz = sign * q[1], sign * q[2], sign * q[3]
-    cx, cy, cz = uy * v[2] - uz * v[1], uz * v[0] - ux * v[2], ux * v[1] - uy * v[0]
-    out[0] = v[0] + 2.0 * (q[0] * cx + uy * cz - uz * cy)
-    out[1] = v[1] + 2.0 * (q[0] * cy + uz * cx - ux * cz)
-    out[2] = v[2] + 2.0 * (q[0] * cz + ux * cy - uy * cx)
 
 
 @njit(cache=True)
@@ -183,20 +162,20 @@ def free_rotation_tree_step(y, p, h):
     moments, axes, com = p[t:t + 3], p[t + 3:t + 7], p[t + 7:t + 10]
     z = np.empty(20)
     principal, inverse, arm_before, arm_after, spin = z[0:7], z[7:11], z[11:14], z[14:17], z[17:20]
-    _rotate(y[3:7], 1.0, com, arm_before)  # R com before the step
-    _quat_product(y[3:7], axes, principal[0:4])
-    _rotate(axes, -1.0, y[10:13], principal[4:7])
-    free_rotation_step(principal, moments, h)
     inverse[0], inverse[1], inverse[2], inverse[3] = axes[0], -axes[1], -axes[2], -axes[3]
-    _quat_product(principal[0:4], inverse, y[3:7])
-    _rotate(axes, 1.0, principal[4:7], y[10:13])
-    _rotate(y[3:7], 1.0, com, arm_after)
+    spatial.quat_rotate(y[3:7], com, arm_before)  # R com before the step
+    spatial.quat_multiply(y[3:7], axes, principal[0:4])
+    spatial.quat_rotate(inverse, y[10:13], principal[4:7])
+    free_rotation_step(principal, moments, h)
+    spatial.quat_multiply(principal[0:4], inverse, y[3:7])
+    spatial.quat_rotate(axes, principal[4:7], y[10:13])
+    spatial.quat_rotate(y[3:7], com, arm_after)
     for a in range(3):
         y[a] += arm_before[a] - arm_after[a]  # the centre, origin + R com, stays put
     spin[0] = com[1] * y[12] - com[2] * y[11]  # com x w_body = -(w_body x com)
     spin[1] = com[2] * y[10] - com[0] * y[12]
     spin[2] = com[0] * y[11] - com[1] * y[10]
-    _rotate(y[3:7], 1.0, spin, y[7:10])  # v = R (com x w_body)
+    spatial.quat_rotate(y[3:7], spin, y[7:10])  # v = R (com x w_body)
 
 
 # The relabelling (1, 2, 3) -> (3, -2, 1): principal coordinates x_p = FLIP x_E (a proper rotation).
@@ -340,7 +319,7 @@ class FreeRotation(Scene):
 
         def observe(t, y):
             data = model.observe(t, y)
-            qpos, qvel = (value() if callable(value) else value for value in (data["qpos"], data["qvel"]))
+            qpos, qvel = data["qpos"], data["qvel"]  # arrays (the rest is lazy)
             quaternion, omega = qpos[..., 3:7], qvel[..., 3:6]
             momentum = omega @ tensor  # body frame (the tensor is symmetric)
             return {"omega_body": omega, "quaternion": quaternion,
