@@ -54,8 +54,8 @@ from rbody.scene import Body, Joint, Layout, NativeModel, Scene, Shape
 # native() runs the hand-written chain_rhs for chains of at most this many rods, the general engine on the
 # Layout for longer ones (0: always the engine). With the engine's planar path (rbody.engine.planar) the engine is
 # the cheaper at every length measured, so no chain keeps the hand kernel: rk4 ns per step, hand kernel / engine,
-# one chain, dt = 1e-3: n = 1: 1100 / 225, 2: 1280 / 940, 8: 7000 / 5730, 16: 18200 / 12000, 32: 61400 / 17100
-# (python benchmarks/fast_paths.py --repeats 5, 2026-11-23, commit f58270b, a shared 2-core machine at load 6.8).
+# one chain, dt = 1e-3: n = 1: 461 / 227, 2: 663 / 456, 8: 2383 / 1836, 16: 6263 / 3598, 32: 25524 / 7115
+# (python benchmarks/fast_paths.py --repeats 5, 2026-11-23, commit a920624, AMD EPYC, 2 cores, idle).
 # Before the planar path the hand kernel was > 1.5x cheaper up to 24 rods.
 HAND_KERNEL_MAX_LINKS = 0
 
@@ -279,7 +279,7 @@ class PendulumChain(Scene):
         def observe(t, y):
             """Absolute angles and rates: cumulative sums of the relative ones along the chain."""
             data = model.observe(t, y)
-            qpos, qvel = (value() if callable(value) else value for value in (data["qpos"], data["qvel"]))
+            qpos, qvel = data["qpos"], data["qvel"]  # arrays (the rest is lazy)
             theta, omega = np.cumsum(qpos, axis=-1), np.cumsum(qvel, axis=-1)
             return {"theta": theta, "omega": omega, "energy": self.energy_of(theta, omega)}
 

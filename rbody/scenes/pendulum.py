@@ -62,10 +62,9 @@ def pendulum_accel(q, p, out):
 
 
 # Which kernel native() runs: True, the hand-written pendulum_rhs / pendulum_accel; False, the general engine on
-# the scene's Layout. rk4 ns per step, hand kernel / engine (its planar path): rod 207 / 560 (2.7x cheaper), disc
-# 139 / 477 (3.4x); verlet: rod 63 / 110 (1.75x), disc 31 / 130 (4.1x) (one pendulum, dt = 1e-3; python
-# benchmarks/fast_paths.py --repeats 5, 2026-11-23, commit f58270b, a shared 2-core machine at load 6.8). Before
-# the planar path: 49x for rk4.
+# the scene's Layout. ns per step, hand kernel / engine (its planar path): rk4 73 / 233 (3.2x cheaper) for the rod
+# and for the disc, verlet 28 / 66 (2.3x) (one pendulum, dt = 1e-3; python benchmarks/fast_paths.py --repeats 5,
+# 2026-11-23, commit a920624, AMD EPYC, 2 cores, idle). Before the planar path: 49x for rk4.
 FAST_PATH = True
 
 PENDULUM_METHODS = ("euler", "symplectic_euler", "verlet", "rk4", "yoshida6", "gauss6", "reference")
@@ -209,7 +208,7 @@ class Pendulum(Scene):
         def observe(t, y):
             """theta, omega: the hinge's qpos and qvel; energy lazily, as the hand kernel's."""
             data = model.observe(t, y)
-            theta, omega = _value(data["qpos"])[..., 0], _value(data["qvel"])[..., 0]
+            theta, omega = data["qpos"][..., 0], data["qvel"][..., 0]  # arrays (the rest is lazy)
             return {"theta": theta, "omega": omega, "energy": lambda: _energy(moment, mgd, theta, omega)}
 
         return dataclasses.replace(model, params=np.stack(rows)[np.reshape(which, -1)], observe=observe)
@@ -241,11 +240,6 @@ class Pendulum(Scene):
     def observe(self, t, bodies, joints) -> dict[str, np.ndarray]:
         theta, omega = joints["hinge"]
         return {"theta": theta, "omega": omega, "energy": self.energy_of(theta, omega)}
-
-
-def _value(observable):
-    """An observable as an array: lazy ones (callables) evaluated."""
-    return observable() if callable(observable) else observable
 
 
 ENERGY_BLOCK = 1 << 18  # elements per block of the energy: its temporaries stay a few MB

@@ -45,10 +45,10 @@ a tree holds, so sliding runs on the hand kernel (kernel_native(): the constant 
 
 The hand kernel rolling_rhs is the engine's oracle in the tests, and runs the rolling case too while it is
 more than 1.5x cheaper per step than the engine (FAST_PATH; DESIGN.md's rule). Measured with
-`python benchmarks/rolling_fast_path.py --repeats 5 --steps 100000` (AMD EPYC, 2 cores shared, load 5.7;
-numpy 2.4.6, numba 0.68.1; the engine of main f58270b, with its planar kernels), ns per step of the
-compiled loop, engine / kernel: disc rk4 466 / 65.5 (7.1x), verlet 111 / 20.2 (5.5x); race of four
-rk4 1888 / 290 (6.5x), verlet 476 / 230 (2.1x). The engine pays its tree walk (kinematics, articulated-body
+`python benchmarks/rolling_fast_path.py --repeats 5` (AMD EPYC, 2 cores, idle; numpy 2.4.6, numba 0.68.1;
+commit a920624, the engine's planar kernels), ns per step of the compiled loop, engine / kernel: disc rk4
+272 / 59.1 (4.6x), verlet 76.0 / 18.9 (4.0x); race of four rk4 911 / 73.6 (12x), verlet 284 / 30.2 (9.4x).
+The engine pays its tree walk (kinematics, articulated-body
 recursion) for what the kernel holds as two constants. (Before the planar kernels: 24x to 115x.)
 """
 
@@ -83,7 +83,7 @@ HALF_LENGTH_FRACTION = 0.5
 # Relative size of a product of inertia with y below which y counts as a principal axis.
 PRINCIPAL_RTOL = 1e-9
 # True: the hand kernel runs the rolling case too, being measurably > 1.5x cheaper per step than the general
-# engine (2.1x to 7.1x: module docstring). False: rolling runs on the general engine, the kernel is the oracle.
+# engine (4.0x to 12x: module docstring). False: rolling runs on the general engine, the kernel is the oracle.
 FAST_PATH = True
 
 # The hand kernel, the general engine's oracle: y = (x, phi, x', phi'); params = (x'' [m/s^2], phi'' [rad/s^2]),
@@ -640,36 +640,37 @@ class RollingRace(Scene):
         """Distance between neighbouring centres across the slope: 3 a (a gap of at least a)."""
         return 3 * self.radius
 
-    def _layout(self) -> Layout:
+    def _placements(self) -> list[tuple[int, Any, Inertia, np.ndarray]]:
+        """(i, body spec, its Inertia, offset of its centre across the slope) of every body, side by side."""
         n = len(self.bodies)
+        return [(i, spec, _body_inertia(spec, self.mass, self.radius),
+                 np.array([0.0, (i - (n - 1) / 2) * self._spacing(), 0.0])) for i, spec in enumerate(self.bodies)]
+
+    def _incline(self) -> Shape:
+        """The incline, long enough for the farthest body's travel and wide enough for all of them."""
         travel = float(np.max(self.exact([self.t_end])["distance"]))
-        incline_shape = _incline_shape(self.incline, travel, n * self._spacing() / 2 + 2 * self.radius,
-                                       self.radius)
+        return _incline_shape(self.incline, travel, len(self.bodies) * self._spacing() / 2 + 2 * self.radius,
+                              self.radius)
+
+    def _layout(self) -> Layout:
         parts, joints, contacts = [], [], []
-        for i, spec in enumerate(self.bodies):
-            inertia = _body_inertia(spec, self.mass, self.radius)
-            offset = np.array([0.0, (i - (n - 1) / 2) * self._spacing(), 0.0])
+        for i, spec, inertia, offset in self._placements():
             part, body_joints = _rolling_body(spec, inertia, self.radius, self.incline, offset, f"body_{i}", f"_{i}")
             parts.append(part)
             joints.extend(body_joints)
             contacts.append(Contact(part.shapes[0].name, "incline", friction=self.friction, restitution=0.0))
-        return Layout(bodies=tuple(parts), joints=tuple(joints), fixed=(incline_shape,), contacts=tuple(contacts))
+        return Layout(bodies=tuple(parts), joints=tuple(joints), fixed=(self._incline(),), contacts=tuple(contacts))
 
     def rolling_tree(self) -> Layout:
         """The reduced description: body_i on roll joint "roll_i" (rbody.scene.Joint), side by side as in the
         layout, the incline drawn but touching nothing. Valid for the bodies that roll (self.rolls); `layout`
         is the contact model every simulator can run."""
-        n = len(self.bodies)
-        travel = float(np.max(self.exact([self.t_end])["distance"]))
         parts, joints = [], []
-        for i, spec in enumerate(self.bodies):
-            inertia = _body_inertia(spec, self.mass, self.radius)
-            offset = np.array([0.0, (i - (n - 1) / 2) * self._spacing(), 0.0])
+        for i, spec, inertia, offset in self._placements():
             part, joint = _roll_body(spec, inertia, self.radius, self.incline, offset, f"body_{i}", f"roll_{i}")
             parts.append(part)
             joints.append(joint)
-        incline_shape = _incline_shape(self.incline, travel, n * self._spacing() / 2 + 2 * self.radius, self.radius)
-        return Layout(bodies=tuple(parts), joints=tuple(joints), fixed=(incline_shape,))
+        return Layout(bodies=tuple(parts), joints=tuple(joints), fixed=(self._incline(),))
 
     def observe(self, t, bodies, joints) -> dict[str, np.ndarray]:
         n = len(self.bodies)
