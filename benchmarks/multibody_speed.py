@@ -38,7 +38,6 @@ from mujoco import rollout  # noqa: E402
 import rbody  # noqa: E402
 from rbody import Scene  # noqa: E402
 from rbody.engine import integrators  # noqa: E402
-from rbody.scene import BodyStates  # noqa: E402
 from validation.machine import describe_machine  # noqa: E402
 
 DT = 1e-3
@@ -188,14 +187,19 @@ def section_rotation() -> None:
               + "   observed orders " + ", ".join(f"{o:.2f}" for o in orders))
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repeats", type=int, default=3)
-    args = parser.parse_args()
+def print_header() -> None:
+    """The machine, its load and the package versions, printed before the figures."""
     load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
     print(f"machine    {describe_machine()}; numba threads {numba.get_num_threads()}; load avg {load}")
     print(f"versions   python {platform.python_version()}  numpy {np.__version__}  numba {numba.__version__}  "
           f"mujoco {mujoco.__version__}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--repeats", type=int, default=3)
+    args = parser.parse_args()
+    print_header()
     section_steps(args.repeats)
     section_forward(args.repeats)
     section_batch(args.repeats)

@@ -20,8 +20,6 @@ shared (the load average is printed): compare the figures of one run with each o
 from __future__ import annotations
 
 import argparse
-import os
-import platform
 import sys
 import time
 from pathlib import Path
@@ -42,8 +40,7 @@ from rbody.engine import multibody as mb  # noqa: E402
 from rbody.engine.planar import planar_rhs  # noqa: E402
 from rbody.scenes.pendulum import pendulum_rhs  # noqa: E402
 from multibody_speed import DT, chain, mujoco_model  # noqa: E402
-from multibody_speed import best as best_wall_or  # noqa: E402
-from validation.machine import describe_machine  # noqa: E402
+from multibody_speed import best as best_wall_or, print_header  # noqa: E402
 
 
 def best(function, repeats: int, clock=time.process_time) -> float:
@@ -142,10 +139,7 @@ def main() -> None:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--batch", type=int, default=100_000)
     args = parser.parse_args()
-    load = ", ".join(f"{x:.2f}" for x in os.getloadavg())
-    print(f"machine    {describe_machine()}; numba threads {numba.get_num_threads()}; load avg {load}")
-    print(f"versions   python {platform.python_version()}  numpy {np.__version__}  numba {numba.__version__}  "
-          f"mujoco {mujoco.__version__}")
+    print_header()
     section_steps(args.repeats)
     section_batch(args.repeats, args.batch)
 

@@ -38,7 +38,6 @@ changes the period by ~eps sqrt(n) / (2 |1 - k^2| K(k^2)) (theta0 = pi - 1e-6: 1
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import numpy as np
@@ -54,7 +53,6 @@ EPS = float(np.finfo(np.float64).eps)
 EULER_GROWTH = 2.0
 # A pendulum run is refused when this many times the round-off drift eps sqrt(steps) reaches |1 - k^2|.
 RESOLUTION_FACTOR = 4.0
-# Samples of one period of the exact free rotation at which the Jacobian is evaluated.
 # Relative step of the central differences of the Jacobian (truncation ~ step^2, round-off ~ eps / step).
 JACOBIAN_STEP = 1e-6
 

@@ -65,6 +65,7 @@ from rbody.engine import multibody as mb
 from rbody.engine.memory import stack_floats
 
 PLANAR_HINGE, PLANAR_SLIDE, PLANAR_ROLL = 0, 1, 2
+PLANAR_KINDS = {mb.HINGE: PLANAR_HINGE, mb.SLIDE: PLANAR_SLIDE, mb.ROLL: PLANAR_ROLL}  # the 3-D engine's codes
 PARALLEL_TOL = 1e-12  # |a x n| of a hinge axis, |d . n| of a slide direction: beyond this, not planar
 PIVOT_RTOL = mb.PIVOT_RTOL
 
@@ -168,8 +169,7 @@ def _articulated(p, y, v0, out, a0, w, applied, outward_only=False):
         inertia = p[r + N_MOMENT] + hx * comx + hy * comy
         w[k + W_I], w[k + W_I + 1], w[k + W_I + 2] = inertia, -hy, hx
         w[k + W_I + 3], w[k + W_I + 4], w[k + W_I + 5] = m, 0.0, m
-        # I v, then v x* (I v)
-        fw = inertia * vw - hy * vx + hx * vy
+        # I v (its in-plane force part: the moment does not enter v x* (I v)), then v x* (I v)
         fx = m * vx - hy * vw
         fy = m * vy + hx * vw
         w[k + W_P] = vx * fy - vy * fx
@@ -418,13 +418,6 @@ def _plane_basis(normal: np.ndarray) -> np.ndarray:
     return np.column_stack([e1, e2])
 
 
-def _joint_kinds() -> dict[int, int]:
-    kinds = {mb.HINGE: PLANAR_HINGE, mb.SLIDE: PLANAR_SLIDE}
-    if "roll" in mb.KIND_CODE:
-        kinds[mb.KIND_CODE["roll"]] = PLANAR_ROLL
-    return kinds
-
-
 def planar_structure(multibody: mb.Multibody) -> tuple[PlanarModel | None, str]:
     """(the planar model of the tree, "") when it is planar, else (None, why not). Decided from the structure
     at the reference pose: hinge, slide and roll joints only; every hinge and roll axis parallel to one unit n
@@ -433,7 +426,7 @@ def planar_structure(multibody: mb.Multibody) -> tuple[PlanarModel | None, str]:
     row = np.asarray(multibody.params)
     nb, nj, nv = int(row[mb.H_BODIES]), int(row[mb.H_JOINTS]), int(row[mb.H_DOFS])
     jo, do, bo = int(row[mb.H_JOINT]), int(row[mb.H_DOF]), int(row[mb.H_BODY])
-    kinds = _joint_kinds()
+    kinds = PLANAR_KINDS
     names = multibody.joint_names
     if nv == 0:
         return None, "the tree has no degree of freedom"
