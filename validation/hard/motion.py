@@ -302,4 +302,4 @@ def case_intermediate_axis(quick: bool, out: Path) -> CaseResult:
 
 
 __all__ = ["case_near_top", "case_intermediate_axis", "run_backend", "rbody_verdict",
-           "mean_period", "upward_crossings", "envelope", "energy_bounded", "mp_theta"]
+           "mean_period", "envelope", "energy_bounded", "mp_theta"]
