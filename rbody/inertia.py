@@ -17,7 +17,8 @@ from typing import Iterable, Union
 
 import numpy as np
 
-from rbody._checks import finite_array, nonnegative, positive
+from rbody.checks import finite_array, nonnegative, positive
+from rbody.mesh import mass_properties
 
 AxisLike = Union[str, Iterable[float], np.ndarray]
 
@@ -253,10 +254,10 @@ class Inertia:
     @classmethod
     def from_mesh(cls, mesh, *, density: float | None = None, mass: float | None = None,
                   shell: bool = False) -> "Inertia":
-        """Mass properties of a triangle mesh (see rbody.mesh.inertia_from_mesh)."""
-        from rbody.mesh import inertia_from_mesh
-
-        return inertia_from_mesh(mesh, density=density, mass=mass, shell=shell)
+        """Mass properties of a triangle mesh: trimesh.Trimesh (or Scene), or a path trimesh can load; exactly one of
+        density [kg/m^3, or kg/m^2 for shell=True] and mass [kg] (rbody.mesh.mass_properties, which says what is
+        checked and how)."""
+        return cls(*mass_properties(mesh, density=density, mass=mass, shell=shell))
 
     # ----- operations ----------------------------------------------------------------------------
 

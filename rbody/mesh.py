@@ -29,8 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from rbody._checks import finite_array, positive
-from rbody.inertia import Inertia
+from rbody.checks import finite_array, positive
 
 # Signed volume below this fraction of the summed |tetrahedron volumes| is round-off: no volume.
 _ZERO_VOLUME_RTOL = 1e-10
@@ -39,9 +38,10 @@ _QUERIES_PER_COMPONENT = 3
 _PAIRS_PER_CHUNK = 1_000_000
 
 
-def inertia_from_mesh(mesh: Any, *, density: float | None = None, mass: float | None = None,
-                      shell: bool = False) -> Inertia:
-    """Mass properties of a triangle mesh: mass, centre of mass and tensor about it.
+def mass_properties(mesh: Any, *, density: float | None = None, mass: float | None = None,
+                    shell: bool = False) -> tuple[float, np.ndarray, np.ndarray]:
+    """Mass properties of a triangle mesh: mass, centre of mass and tensor about it (rbody.Inertia.from_mesh
+    wraps them in an Inertia).
 
     mesh:    trimesh.Trimesh (or trimesh.Scene, whose geometry is joined), or a path trimesh can
              load; vertices in the frame the body is given in [m]
@@ -50,7 +50,7 @@ def inertia_from_mesh(mesh: Any, *, density: float | None = None, mass: float | 
     shell:   False: the solid the closed surface bounds. True: a thin surface of uniform areal
              density (any mesh, open or closed, wound either way)
 
-    Returns an Inertia with com (3,) in the mesh's frame [m] and tensor (3,3) about it [kg m^2].
+    Returns (mass [kg], com (3,) in the mesh's frame [m], tensor (3,3) about com [kg m^2]).
 
     A solid needs a closed (watertight), consistently wound surface with outward faces; otherwise
     ValueError says which and how to repair it. Exactly repeated vertices are merged and faces
@@ -106,7 +106,7 @@ def inertia_from_mesh(mesh: Any, *, density: float | None = None, mass: float | 
     per_mass = second / measure - np.outer(offset, offset)
     per_mass = 0.5 * (per_mass + per_mass.T) * size**2  # int x x^T dm / m about the centre of mass [m^2]
     tensor = total * (np.trace(per_mass) * np.eye(3) - per_mass)
-    return Inertia(total, centre + offset * size, tensor)
+    return float(total), centre + offset * size, tensor
 
 
 # ----- input ---------------------------------------------------------------------------------------

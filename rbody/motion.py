@@ -11,7 +11,7 @@ from typing import Iterable
 
 import numpy as np
 
-from rbody._checks import finite_array
+from rbody.checks import finite_array
 
 
 def _vectors(value, name: str, size: int) -> np.ndarray:

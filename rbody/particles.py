@@ -8,7 +8,7 @@ from typing import Iterable
 
 import numpy as np
 
-from rbody._checks import finite_array, positive
+from rbody.checks import finite_array, positive
 
 
 @dataclass(frozen=True)

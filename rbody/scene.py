@@ -18,186 +18,15 @@ may be arrays: they broadcast to ``batch_shape`` and one ``simulate`` call runs 
 from __future__ import annotations
 
 import dataclasses
-import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from functools import cached_property
 from typing import Any, ClassVar, Iterable, Mapping
 
 import numpy as np
 
-from rbody._checks import finite_array, nonnegative, in_interval
-from rbody.inertia import Inertia, unit_axis
-
-WORLD = "world"
-
-SHAPE_KINDS = ("sphere", "cylinder", "box", "capsule", "plane", "mesh")
-
-
-@dataclass(frozen=True)
-class Shape:
-    """Collision and drawing geometry, in the frame of the body that carries it (or the world).
-
-    kind:   one of SHAPE_KINDS
-    size:   sphere (radius,); cylinder and capsule (radius, half_length) along the local z;
-            box (half sizes x, y, z); plane (half sizes x, y, or 0 for infinite); mesh: ()
-    pos:    (3,) centre of the shape [m]; quat: (4,) its orientation (w, x, y, z)
-    mesh:   path of the mesh file for kind="mesh" (vertices in the body frame)
-    """
-
-    name: str
-    kind: str
-    size: tuple[float, ...] = ()
-    pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    quat: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
-    mesh: str | None = None
-
-    def __post_init__(self) -> None:
-        if self.kind not in SHAPE_KINDS:
-            raise ValueError(f"shape {self.name!r}: kind={self.kind!r}, expected one of {SHAPE_KINDS}")
-        object.__setattr__(self, "size", tuple(float(s) for s in nonnegative(np.atleast_1d(self.size), "size")))
-        object.__setattr__(self, "pos", tuple(finite_array(self.pos, "pos", shape=(3,)).tolist()))
-        quat = finite_array(self.quat, "quat", shape=(4,))
-        if np.linalg.norm(quat) == 0:
-            raise ValueError(f"shape {self.name!r}: quat={quat.tolist()} must be non-zero")
-        object.__setattr__(self, "quat", tuple((quat if already_unit(quat) else quat / np.linalg.norm(quat)).tolist()))
-
-
-@dataclass(frozen=True)
-class Body:
-    """A rigid body: its mass properties (body frame), its shapes, its parent and where it starts.
-
-    pos (3,) [m] and quat (4,) place the body frame in the parent's frame in the reference pose,
-    where every hinge and slide coordinate is zero (as MJCF's body pos/quat); the joints' qpos0 then
-    set the initial state. A free body starts at pos/quat.
-    """
-
-    name: str
-    inertia: Inertia
-    shapes: tuple[Shape, ...] = ()
-    parent: str = WORLD
-    pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    quat: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
-
-
-def already_unit(vector: np.ndarray) -> bool:
-    """True when |vector| is 1 to 2 eps, its squared norm summed exactly (math.fsum): such a vector is kept
-    as given, since dividing it by a norm whose last bit depends on the CPU's SIMD kernels would change it,
-    and every model exported from it, from one machine to another."""
-    return abs(math.sqrt(math.fsum(float(v) * float(v) for v in vector)) - 1.0) <= 2 * np.finfo(float).eps
-
-
-def _direction(axis) -> np.ndarray:
-    """(3,) unit joint axis: unit_axis, except that an axis already unit is kept as given (already_unit)."""
-    if not isinstance(axis, str):
-        vector = finite_array(axis, "axis", shape=(3,))
-        if already_unit(vector):
-            return vector
-    return unit_axis(axis, "axis")
-
-
-JOINT_KINDS = ("hinge", "slide", "ball", "free", "roll")
-ROLL_PERPENDICULAR_TOL = 1e-9  # |axis . normal| of a roll joint above this: the two are not perpendicular
-
-
-@dataclass(frozen=True)
-class Joint:
-    """A joint between `body` and its parent.
-
-    kind:   "hinge" (angle about axis through anchor), "slide" (distance along axis), "ball" (any
-            rotation about anchor), "free", "roll" (a round body of radius `radius` rolling without slipping
-            on a line: one coordinate, the angle turned about `axis` through anchor, the body's centre)
-    axis:   (3,) direction in the body frame; anchor: (3,) point in the body frame [m]
-    qpos0, qvel0: initial coordinate [rad or m] and rate [rad/s or m/s] (hinge and slide);
-            ball: qpos0 a quaternion (w, x, y, z) (0.0: identity), qvel0 (3,) the angular velocity in
-            the BODY frame [rad/s] (MuJoCo's ball qvel; 0.0: at rest);
-            free joints start from the body's pos/quat with qvel0 = (v (3,) of the body-frame origin,
-            omega (3,)), both in the world frame.
-    damping [N m s/rad or N s/m], stiffness [N m/rad or N/m], springref [rad or m], armature
-    [kg m^2 or kg], ref [rad or m]: MJCF's joint attributes of the same names. Passive force
-    -stiffness (q - springref) - damping qvel (stiffness on hinge and slide only); armature adds to the
-    diagonal of the mass matrix; ref is the coordinate at which the body sits at its reference pose
-    (the displacement applied is q - ref).
-    A hinge turns the body by +angle about `axis` (right-handed); a slide moves it by +distance along
-    `axis`; several joints on one body compose in the order given (as MJCF). Backends report hinge,
-    slide and roll joints as (qpos (T,), qvel (T,)) under the joint's name.
-    roll:   radius a [m] > 0 and normal e (3,), the unit normal of the surface rolled on, pointing from the
-            contact point to the centre, body frame, perpendicular to `axis`. The body first slides by
-            a (q - ref) along l = axis x normal, then turns by q - ref about `axis` through anchor: the
-            contact point anchor - a e is at rest (v_centre = a q' l). Exported to MJCF as a slide and a
-            hinge tied by a joint equality.
-    """
-
-    name: str
-    kind: str
-    body: str
-    axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
-    anchor: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    qpos0: Any = 0.0
-    qvel0: Any = 0.0
-    damping: float = 0.0
-    stiffness: float = 0.0
-    springref: float = 0.0
-    armature: float = 0.0
-    ref: float = 0.0
-    radius: float = 0.0
-    normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
-
-    def __post_init__(self) -> None:
-        if self.kind not in JOINT_KINDS:
-            raise ValueError(f"joint {self.name!r}: kind={self.kind!r}, expected one of {JOINT_KINDS}")
-        object.__setattr__(self, "axis", tuple(_direction(self.axis).tolist()))
-        object.__setattr__(self, "normal", tuple(_direction(self.normal).tolist()))
-        radius = float(finite_array(self.radius, f"joint {self.name!r}: radius", shape=()))
-        object.__setattr__(self, "radius", radius)
-        if self.kind == "roll":
-            if not radius > 0:
-                raise ValueError(f"joint {self.name!r}: radius={self.radius!r}: a roll joint needs a rolling radius > 0 [m]")
-            if abs(float(np.dot(self.axis, self.normal))) > ROLL_PERPENDICULAR_TOL:
-                raise ValueError(f"joint {self.name!r}: axis={self.axis!r} and normal={self.normal!r} are not "
-                                 "perpendicular: a roll joint turns about an axis lying in the surface it rolls on")
-        elif radius != 0.0:
-            raise ValueError(f"joint {self.name!r}: radius={self.radius!r} is only for roll joints (kind={self.kind!r})")
-        for name in ("damping", "stiffness", "armature"):
-            value = finite_array(getattr(self, name), f"joint {self.name!r}: {name}", shape=())
-            object.__setattr__(self, name, float(nonnegative(value, f"joint {self.name!r}: {name}")))
-        for name in ("springref", "ref"):
-            object.__setattr__(self, name, float(finite_array(getattr(self, name), f"joint {self.name!r}: {name}",
-                                                              shape=())))
-
-    @property
-    def line(self) -> np.ndarray:
-        """(3,) unit l = axis x normal, body frame: the direction a roll joint's centre moves for q' > 0 (roll
-        joints only: their axis and normal are perpendicular)."""
-        line = np.cross(self.axis, self.normal)
-        return line / np.linalg.norm(line)
-
-
-@dataclass(frozen=True)
-class Contact:
-    """Two pieces of geometry that may touch: shape names (world shapes or body shapes).
-
-    friction [-] is the Coulomb coefficient of the pair; restitution in [0, 1] the coefficient of
-    restitution of the pair (1 elastic). Pairs not listed never collide.
-    """
-
-    shape_a: str
-    shape_b: str
-    friction: float = 0.0
-    restitution: float = 1.0
-
-    def __post_init__(self) -> None:
-        nonnegative(self.friction, "friction")
-        in_interval(self.restitution, "restitution", 0.0, 1.0, closed=True)
-
-
-@dataclass(frozen=True)
-class Layout:
-    """The physical model of an unbatched scene: what MuJoCo, pymunk and the MJCF exporter build."""
-
-    bodies: tuple[Body, ...]
-    joints: tuple[Joint, ...]
-    fixed: tuple[Shape, ...] = ()
-    contacts: tuple[Contact, ...] = ()
+from rbody.checks import finite_array, nonnegative
+from rbody.engine.native import NativeModel
+from rbody.layout import JOINTS, Layout
 
 
 @dataclass(frozen=True)
@@ -212,92 +41,6 @@ class BodyStates:
     quat: np.ndarray
     velocity: np.ndarray
     omega: np.ndarray
-
-
-@dataclass(frozen=True)
-class NativeModel:
-    """How rbody integrates a continuous scene in minimal coordinates (see rbody.engine).
-
-    y0:        (B, n) initial state, batch flattened
-    params:    (B, p) parameters the kernels read
-    rhs:       compiled f(y (n,), params (p,), out (n,)): y' = f(y), for every general method
-    accel:     compiled a(q (m,), params, out (m,)) when y = (q, q') and q'' depends on q only
-               (enables the symplectic methods); None otherwise
-    split:     name -> (step, weights): the scene's own symmetric one-step map step(y, p, h) and the
-               composition weights (free rotation: "splitting" and its 6th-order "yoshida6")
-    rhs, accel and step must be numba @njit functions over C-contiguous float64 arrays: the engine
-    calls them through C function pointers (see rbody/engine/integrators.py)
-    observe:   function (t (T,), y (T, B, n)) -> dict of observables (T, B, ...)
-    """
-
-    y0: np.ndarray
-    params: np.ndarray
-    rhs: Any
-    observe: Any
-    accel: Any = None
-    split: Mapping[str, Any] = field(default_factory=dict)
-    # A time [s] at which rhs jumps (a rocket's burn-out), shared by the batch, and the params column
-    # that tells rhs which side it is on (1 before, 0 after, -1 decide from the state). simulate splits
-    # the step that straddles it at the break, so that no step integrates across the jump.
-    break_time: float | None = None
-    break_column: int | None = None
-    # finish(y, p): compiled, run after every whole step of euler, rk4 and gauss6 and at every sample of
-    # reference (a tree folds its rotation vectors into its quaternions: rbody.engine.multibody); None: nothing.
-    finish: Any = None
-    # How the stability check (rbody.stability) finds the fastest rate w [1/s] of the linearised motion of each
-    # batch element, so that it never asks which scene it has:
-    #   rate: fastest(method name) -> (B,) w, the scene's own estimate where it knows its motion (a pendulum's
-    #         w0, a free rotation's rate over one period); it wins over the two below
-    #   rate_from_jacobian: True: the spectral radius of df/dy by central differences at y0, and also at
-    #         `rest` (n,) when given, a state of equilibrium (there: the fastest normal mode)
-    #   neither: no estimate (rate 0, an infinite limit; the non-finite check after every step remains)
-    rate: Any = None
-    rate_from_jacobian: bool = False
-    rest: Any = None
-    # (B,) |1 - k^2| of a motion near a separatrix (a pendulum released near the top), whose margin the state
-    # carries only to ~eps: rbody.stability.resolution_problem refuses runs whose round-off would decide it.
-    separatrix_margin: Any = None
-    # diagnose(y (n,), y0 (n,), dt) -> str: why the motion cannot go on from state y, started from y0 ("" when nothing
-    # is found), for the message of a failed run (a tree: the body and joint whose mass-matrix pivot vanished).
-    diagnose: Any = None
-
-
-NEARLY_SINGULAR = 1e-6  # a pivot below this fraction of its value at the start: the mass matrix is (nearly) singular
-PATH_SAMPLES = 97       # states sampled on the failing step's path, up to 1.5 dt from its start
-
-
-def singular_pivot_diagnosis(multibody) -> Any:
-    """diagnose(y, y0, dt) for a NativeModel whose states start with a Multibody's (qpos (nq), qvel (nv)): at the
-    last finite state y of a failed run started from y0, the body and joint whose mass-matrix pivot vanishes there
-    (the ValueError of multibody.check_pivots) or on the path of the failing step, the hinge and slide coordinates
-    moved on at their rates for up to 1.5 dt (where a stage of the step may have met a singular configuration
-    that no whole step reached); "" when neither."""
-    nq = multibody.nq
-    moving = [(int(qa), int(da)) for kind, qa, da in zip(multibody.arrays.joint_kinds, multibody.arrays.qposadr,
-                                                         multibody.arrays.dofadr) if kind in ("hinge", "slide", "roll")]
-
-    def diagnose(y: np.ndarray, y0: np.ndarray, dt: float) -> str:
-        y, y0 = np.asarray(y, dtype=np.float64), np.asarray(y0, dtype=np.float64)
-        try:
-            multibody.check_pivots(y[:nq])
-        except ValueError as error:
-            return str(error)
-        fraction = np.linspace(0.0, 1.5, PATH_SAMPLES)
-        path = np.repeat(y[None, :nq], PATH_SAMPLES, axis=0)
-        for qa, da in moving:
-            path[:, qa] += fraction * dt * y[nq + da]
-        ratio = multibody._pivots(path)[0] / multibody._pivots(y0[:nq])[0]
-        where, d = np.unravel_index(int(np.argmin(ratio)), ratio.shape)
-        if not ratio[where, d] < NEARLY_SINGULAR:
-            return ""
-        body = multibody.body_names[multibody.arrays.dof_body[d]]
-        joint = multibody.joint_names[multibody.arrays.dof_joint[d]]
-        return (f"the mass matrix became singular: body {body!r} gives its joint {joint!r} (degree of freedom {d}) "
-                f"no inertia about {fraction[where]:.2g} dt after the last finite state (its pivot falls to "
-                f"{ratio[where, d]:.2g} of its value at the start: the joints' axes line up there, or the joint moves "
-                "nothing with mass); give the body inertia about that joint or armature, or other joints (a ball "
-                "joint has no singular configuration)")
-    return diagnose
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -423,7 +166,7 @@ class Scene:
         whose mass-matrix pivot vanished at a state (Multibody.check_pivots)."""
         model = self.native()
         if model.diagnose is None and getattr(type(self), "multibody", None) is not None:
-            model = dataclasses.replace(model, diagnose=singular_pivot_diagnosis(self.multibody))
+            model = dataclasses.replace(model, diagnose=self.multibody.diagnosis())
         return model
 
     def run_events(self, t_end: float, sample_dt: float | None):
@@ -735,7 +478,7 @@ class TreeScene(Scene):
             if name not in joints:
                 raise ValueError(f"the backend reported no history for joint {name!r}")
             position, velocity = (np.asarray(a, dtype=np.float64).reshape(count, -1) for a in joints[name])
-            nq_j, nv_j = {"hinge": (1, 1), "slide": (1, 1), "roll": (1, 1), "ball": (4, 3), "free": (7, 6)}[kind]
+            nq_j, nv_j = JOINTS[kind].nq, JOINTS[kind].nv
             qpos[:, qa:qa + nq_j], qvel[:, da:da + nv_j] = position, velocity
         data = {"qpos": qpos, "qvel": qvel,
                 "energy": model.kinetic_energy(qpos, qvel) + model.potential_energy(qpos)}

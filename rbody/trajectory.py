@@ -15,7 +15,7 @@ from typing import Any, Callable, Iterator, Mapping
 
 import numpy as np
 
-from rbody._files import atomic_path
+from rbody.files import atomic_path
 
 
 class Observables(Mapping):

@@ -82,7 +82,7 @@ OK, REGRESSION, INPUT_PROBLEM = 0, 1, 2
 
 def main(argv: list[str] | None = None) -> int:
     """The command line; returns the exit status (OK, REGRESSION, INPUT_PROBLEM)."""
-    from rbody._files import UnwritableFolder, check_writable_folder
+    from rbody.files import UnwritableFolder, check_writable_folder
     from validation.baselines import BaselineError
 
     args = _parser().parse_args(argv)
@@ -156,7 +156,7 @@ def run_all(out: Path, *, quick: bool, update: bool, backends: tuple[str, ...] |
     measure without a baseline (BaselineError, before any run, for a broken baseline file).
     Each (case, backend) is one task (validation.cluster.run_tasks): here in order, or on the cluster of
     `client` (a dask.distributed.Client); the rows and report are the same either way."""
-    from rbody._files import replaced_folder
+    from rbody.files import replaced_folder
     from validation import baselines, report
     from validation.backends import BACKENDS
     from validation.cases import default_cases

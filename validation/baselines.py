@@ -23,7 +23,7 @@ from typing import Iterable
 
 import numpy as np
 
-from rbody._files import write_atomic
+from rbody.files import write_atomic
 
 BASELINE_DIR = Path(__file__).parent / "baselines"
 

@@ -38,8 +38,8 @@ from typing import Any, Callable, Iterable, Mapping, Sequence
 import numpy as np
 
 import rbody
-from rbody._checks import run_times
-from rbody._files import atomic_path, write_atomic
+from rbody.checks import run_times
+from rbody.files import atomic_path, write_atomic
 from rbody.scene import Scene
 from rbody.trajectory import Trajectory
 from validation import baselines
@@ -342,24 +342,14 @@ def _run_task(scene: Scene, engine: str, dt: float, t_end: float, method: str | 
 
 
 def _within_limits(scene: Scene, trajectory: Trajectory, engine: str) -> None:
-    """Raise SimulationError when a hinge or slide of the model leaves its declared range (an MJCF joint limit,
-    scene.limits): no engine here models limits, so such a run is not the model's motion."""
-    limits = getattr(scene, "limits", None)
-    if not limits or "qpos" not in trajectory:
+    """Raise SimulationError when a coordinate of the model leaves its declared range (an MJCF joint limit:
+    rbody.mjcf.MJCFScene.limit_violation): no engine here models limits, so such a run is not the model's motion."""
+    check = getattr(scene, "limit_violation", None)
+    if check is None or not scene.limits or "qpos" not in trajectory:
         return
-    arrays = scene.multibody.arrays
-    qpos = np.asarray(trajectory["qpos"])
-    for name, (low, high) in limits.items():
-        j = list(arrays.joint_names).index(name)
-        if arrays.joint_kinds[j] not in ("hinge", "slide"):
-            continue
-        value = qpos[:, int(arrays.qposadr[j])]
-        outside = (value < low) | (value > high)
-        if np.any(outside):
-            k = int(np.argmax(outside))
-            raise rbody.SimulationError(
-                f"{engine}: joint {name!r} left its range [{low:.6g}, {high:.6g}] at t={trajectory.t[k]:.6g} s (value "
-                f"{value[k]:.6g}); no engine here models joint limits")
+    violation = check(trajectory.t, trajectory["qpos"])
+    if violation:
+        raise rbody.SimulationError(f"{engine}: {violation}; no engine here models joint limits")
 
 
 def _engine_names(engines: Iterable[str] | None) -> tuple[str, ...]:

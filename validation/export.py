@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 import rbody
-from rbody._files import write_atomic
+from rbody.files import write_atomic
 from validation.cases import default_cases
 
 

@@ -11,7 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from rbody._files import atomic_path, write_atomic  # noqa: E402
+from rbody.files import atomic_path, write_atomic  # noqa: E402
 from rbody.trajectory import Trajectory  # noqa: E402
 
 COLOURS = {"exact": "black", "rbody": "tab:blue", "mujoco": "tab:orange", "pymunk": "tab:green"}

@@ -30,9 +30,11 @@ from typing import Any
 
 import numpy as np
 
-from rbody._checks import whole_number
+from rbody.checks import whole_number
+from rbody.engine.methods import method as method_record
+from rbody.engine.runner import integrate_model
 from rbody.errors import SimulationError
-from rbody.scene import NativeModel, Scene
+from rbody.engine.native import Experiment, NativeModel
 
 # A chunk of rows is at least this many batch elements (unless the batch is smaller): below it the cost
 # of a task (sending the states back, about a millisecond of scheduling) is no longer small.
@@ -72,7 +74,7 @@ def check_client(client: Any) -> int:
     return threads
 
 
-def integrate_on_cluster(client: Any, scene: Scene, model: NativeModel, method: str, dt: float, nsteps: int,
+def integrate_on_cluster(client: Any, scene: Experiment, model: NativeModel, method: str, dt: float, nsteps: int,
                          save_every: int, out: np.ndarray, chunk: int | None = None) -> np.ndarray:
     """Integrate the rows of `model` (scene.native_model) on the cluster of `client` into out
     (nsteps // save_every + 1, B, n), in place; returns failed (B,) int64, the first non-finite step of each
@@ -124,15 +126,12 @@ def integrate_on_cluster(client: Any, scene: Scene, model: NativeModel, method: 
             future.cancel()
 
 
-def integrate_rows(scene: Scene, start: int, stop: int, method: str, dt: float, nsteps: int,
+def integrate_rows(scene: Experiment, start: int, stop: int, method: str, dt: float, nsteps: int,
                    save_every: int) -> tuple[np.ndarray, np.ndarray]:
     """The task of one chunk, run on a worker: rows [start, stop) of scene.native_model integrated as a
     serial run would; returns states (nsteps // save_every + 1, stop - start, n) and failed (stop - start,).
     numba's threads are limited to the worker's threads, so that a worker per core does not oversubscribe."""
     import numba
-
-    from rbody.engine.methods import method as method_record
-    from rbody.engine.simulate import integrate_model
 
     model = scene.native_model  # built once per worker: the scattered scene is one object there
     rows = dataclasses.replace(model, y0=np.ascontiguousarray(model.y0[start:stop]),
@@ -147,7 +146,7 @@ def integrate_rows(scene: Scene, start: int, stop: int, method: str, dt: float, 
     return out, failed
 
 
-def portable(scene: Scene) -> Scene:
+def portable(scene: Experiment) -> Experiment:
     """A shallow copy of `scene` without its cached values (the native model holds compiled functions and
     closures, and the batch's states): what is sent to the workers, who build their own."""
     bare = copy.copy(scene)

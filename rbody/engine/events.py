@@ -80,7 +80,7 @@ import numpy as np
 from numba import njit
 from numpy.typing import ArrayLike
 
-from rbody._checks import finite_array
+from rbody.checks import finite_array
 from rbody.errors import SimulationError
 
 

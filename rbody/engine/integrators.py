@@ -36,16 +36,6 @@ from numba import carray, cfunc, get_num_threads, njit, prange, types
 from numba.extending import intrinsic
 
 
-def __getattr__(name: str):
-    """METHODS, METHOD_ORDER, SYMPLECTIC, SYMMETRIC: derived from the method records (rbody.engine.methods),
-    read from there lazily (that module imports this one)."""
-    if name in ("METHODS", "METHOD_ORDER", "SYMPLECTIC", "SYMMETRIC"):
-        from rbody.engine import methods
-
-        return getattr(methods, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
 # Yoshida (1990), 6th order, solution A: weights w3 w2 w1 w0 w1 w2 w3 of the symmetric base step.
 _W1, _W2, _W3 = -1.17767998417887, 0.235573213359357, 0.784513610477560
 YOSHIDA6 = np.array([_W3, _W2, _W1, 1.0 - 2.0 * (_W1 + _W2 + _W3), _W1, _W2, _W3])

@@ -12,8 +12,8 @@ scenes read (no parallel tables):
                 "yoshida6" composes its exact sub-rotations): that flow is then what runs.
     symplectic, symmetric, explicit
     interval    beta: the method keeps an oscillation y' = i w y bounded while dt w < beta (the imaginary
-                axis; rbody.stability takes every |eigenvalue| of the Jacobian as such a rate):
-                  euler             0 (none: |1 + i dt w| > 1; rbody.stability limits its growth instead)
+                axis; rbody.engine.stability takes every |eigenvalue| of the Jacobian as such a rate):
+                  euler             0 (none: |1 + i dt w| > 1; rbody.engine.stability limits its growth instead)
                   symplectic_euler  2 (trace of the step matrix 2 - (dt w)^2 must stay in [-2, 2])
                   verlet            2 (the same trace)
                   rk4               2 sqrt(2) (|1 + z + z^2/2 + z^3/6 + z^4/24| <= 1 at z = i dt w)

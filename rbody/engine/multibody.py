@@ -60,15 +60,17 @@ import numpy as np
 from numba import carray, njit
 
 from rbody.engine.memory import address, stack_floats
+from rbody.layout import JOINTS, WORLD, coordinate_addresses, joint_order, tree_order
 from rbody.engine.spatial import (cross3, dexp_inverse, dot6, force_cross, inertia_apply, inertia_in_world,
                                   inertia_matrix, motion_cross, quat_axis_angle, quat_exp, quat_multiply,
                                   quat_rotate, quat_to_matrix, symmetric_apply)
 
-HINGE, SLIDE, BALL, FREE, ROLL = 0, 1, 2, 3, 4
-KIND_CODE = {"hinge": HINGE, "slide": SLIDE, "ball": BALL, "free": FREE, "roll": ROLL}
-NQ = {HINGE: 1, SLIDE: 1, BALL: 4, FREE: 7, ROLL: 1}
-NV = {HINGE: 1, SLIDE: 1, BALL: 3, FREE: 6, ROLL: 1}
-SCALAR_KINDS = (HINGE, SLIDE, ROLL)  # one coordinate, displacement q - ref
+# Joint codes, sizes and which kinds are scalar: the one joint table (rbody.layout.JOINTS), as numba constants.
+HINGE, SLIDE, BALL, FREE, ROLL = (JOINTS[k].code for k in ("hinge", "slide", "ball", "free", "roll"))
+KIND_CODE = {kind.name: kind.code for kind in JOINTS.values()}
+NQ = {kind.code: kind.nq for kind in JOINTS.values()}
+NV = {kind.code: kind.nv for kind in JOINTS.values()}
+SCALAR_KINDS = tuple(kind.code for kind in JOINTS.values() if kind.scalar)  # one coordinate, displacement q - ref
 
 # Header of the params row.
 H_BODIES, H_JOINTS, H_DOFS, H_NQ, H_ROT, H_GRAVITY, H_BODY, H_JOINT, H_DOF = range(9)
@@ -89,6 +91,8 @@ D_JOINT, D_INDEX, D_GROUP, D_DAMPING, D_ARMATURE, D_PARENT = 0, 1, 2, 3, 4, 5
 DOF_SIZE = 6
 
 PIVOT_RTOL = 1e-12  # a pivot D of the ABA below this fraction of its scale leaves M singular
+NEARLY_SINGULAR = 1e-6  # a pivot below this fraction of its value at the start: the mass matrix is (nearly) singular
+PATH_SAMPLES = 97       # states sampled on the failing step's path, up to 1.5 dt from its start
 
 
 # ----- the model row --------------------------------------------------------------------------------------
@@ -724,37 +728,6 @@ def _body_states_batch(p, Q, V, com, quat, velocity, omega):
 
 # ----- building the model from a Layout -------------------------------------------------------------------
 
-def tree_order(layout) -> tuple:
-    """Bodies depth first from the world, children in layout order (MuJoCo's body ids 1, 2, ...); raises
-    ValueError for a parent that is no body, a body called "world", repeated names, or a cycle."""
-    from rbody.scene import WORLD
-
-    names = [body.name for body in layout.bodies]
-    if WORLD in names:
-        raise ValueError(f"a body is called {WORLD!r}: that name is the fixed world")
-    seen = set()
-    for name in names:
-        if name in seen:
-            raise ValueError(f"two bodies are called {name!r}: body names must be unique")
-        seen.add(name)
-    children: dict[str, list] = {}
-    for body in layout.bodies:
-        if body.parent != WORLD and body.parent not in seen:
-            raise ValueError(f"body {body.name!r}: parent={body.parent!r} is neither {WORLD!r} nor a body of the "
-                             "layout")
-        children.setdefault(body.parent, []).append(body)
-    order: list = []
-    stack = list(reversed(children.get(WORLD, [])))
-    while stack:
-        body = stack.pop()
-        order.append(body)
-        stack.extend(reversed(children.get(body.name, [])))
-    if len(order) != len(names):
-        lost = sorted(seen - {b.name for b in order})
-        raise ValueError(f"bodies {lost} are not reached from the world: their parents form a cycle")
-    return tuple(order)
-
-
 def _number(value, what: str) -> float:
     array = np.asarray(value, dtype=np.float64)
     if array.shape != () or not np.isfinite(array):
@@ -773,7 +746,7 @@ def _vector(value, what: str, size: int) -> np.ndarray:
 
 
 def initial_coordinates(layout, order, joints) -> tuple[np.ndarray, np.ndarray]:
-    """MuJoCo's qpos (nq,) and qvel (nv,) from the joints' qpos0/qvel0 (rbody.scene.Joint conventions)."""
+    """MuJoCo's qpos (nq,) and qvel (nv,) from the joints' qpos0/qvel0 (rbody.layout.Joint conventions)."""
     from rbody.motion import quat_to_matrix as rotation_of
 
     bodies = {body.name: body for body in order}
@@ -807,7 +780,6 @@ def initial_coordinates(layout, order, joints) -> tuple[np.ndarray, np.ndarray]:
 def build_tree(layout, gravity: float) -> tuple[TreeArrays, np.ndarray, np.ndarray]:
     """The params row of `layout` and its initial qpos, qvel; ValueError for what cannot be a tree."""
     from rbody.motion import quat_normalize
-    from rbody.scene import WORLD
 
     gravity = _number(gravity, "gravity")
     order = tree_order(layout)
@@ -830,9 +802,9 @@ def build_tree(layout, gravity: float) -> tuple[TreeArrays, np.ndarray, np.ndarr
                              "modelled (MuJoCo's quaternion spring); use stiffness only on hinge and slide joints")
         _vector(joint.axis, f"joint {joint.name!r}: axis", 3)
         _vector(joint.anchor, f"joint {joint.name!r}: anchor", 3)
-    joints = []
+    joints = list(joint_order(layout))
     for body in order:
-        own = [j for j in layout.joints if j.body == body.name]
+        own = [j for j in joints if j.body == body.name]
         kinds = [j.kind for j in own]
         if "free" in kinds:
             if body.parent != WORLD:
@@ -846,19 +818,13 @@ def build_tree(layout, gravity: float) -> tuple[TreeArrays, np.ndarray, np.ndarr
                              f"{body.name!r} (its rotations are about the body's final axes)")
         for b_field, size in (("pos", 3), ("quat", 4)):
             _vector(getattr(body, b_field), f"body {body.name!r}: {b_field}", size)
-        joints.extend(own)
 
     nb, nj = len(order), len(joints)
-    qposadr, dofadr, rotslot = [], [], []
-    nq = nv = nrot = 0
+    qposadr, dofadr, nq, nv = coordinate_addresses(tuple(joints))
+    rotslot, nrot = [], 0
     for joint in joints:
-        code = KIND_CODE[joint.kind]
-        qposadr.append(nq)
-        dofadr.append(nv)
-        rotslot.append(nrot if code in (BALL, FREE) else -1)
-        nrot += code in (BALL, FREE)
-        nq += NQ[code]
-        nv += NV[code]
+        rotslot.append(nrot if joint.kind in ("ball", "free") else -1)
+        nrot += joint.kind in ("ball", "free")
     body_offset_ = HEADER
     joint_offset = body_offset_ + nb * BODY_SIZE
     dof_offset = joint_offset + nj * JOINT_SIZE
@@ -891,7 +857,7 @@ def build_tree(layout, gravity: float) -> tuple[TreeArrays, np.ndarray, np.ndarr
             row[r + J_ANCHOR:r + J_ANCHOR + 3] = (_vector(joint.anchor, "anchor", 3) if code != FREE else 0.0)
             row[r + J_QADR], row[r + J_DADR] = qposadr[j], dofadr[j]
             row[r + J_REF] = getattr(joint, "ref", 0.0) if code in SCALAR_KINDS else 0.0
-            if code == ROLL:  # the rolling line l = axis x normal (rbody.scene.Joint.line)
+            if code == ROLL:  # the rolling line l = axis x normal (rbody.layout.Joint.line)
                 row[r + J_RADIUS] = _number(joint.radius, f"joint {joint.name!r}: radius")
                 row[r + J_LINE:r + J_LINE + 3] = joint.line
             row[r + J_STIFF] = getattr(joint, "stiffness", 0.0)
@@ -961,7 +927,7 @@ class Multibody:
                 for a in arrays]
         return shape, flat
 
-    def _pivots(self, q) -> tuple[np.ndarray, np.ndarray]:
+    def pivots(self, q) -> tuple[np.ndarray, np.ndarray]:
         """(pivots (B, nv), bad (B,)): the ABA's pivot D of every degree of freedom at each q (..., nq) flattened
         to B states, armature included, and the first dof of each state whose pivot is not positive (-1: none)."""
         _, (Q,) = self._batch((q, self.nq, "q"))
@@ -973,7 +939,7 @@ class Multibody:
 
     def check_pivots(self, q) -> None:
         """Raise ValueError naming the body and joint when M(q) is singular (an ABA pivot <= 0)."""
-        _, bad = self._pivots(q)
+        _, bad = self.pivots(q)
         if np.any(bad >= 0):
             d = int(bad[bad >= 0][0])
             body = self.body_names[self.arrays.dof_body[d]]
@@ -983,6 +949,39 @@ class Multibody:
                 "inertia (the joint moves nothing with mass or moment about its axis: e.g. a point mass turning "
                 "about an axis through it, or a massless end); give the body inertia about that joint, armature, "
                 "or remove the joint")
+
+    def diagnosis(self):
+        """diagnose(y, y0, dt) -> str for a NativeModel whose states start with this tree's (qpos (nq), qvel (nv)):
+        at the last finite state y of a failed run started from y0, the body and joint whose mass-matrix pivot
+        vanishes there (the ValueError of check_pivots) or on the path of the failing step, the hinge, slide and
+        roll coordinates moved on at their rates for up to 1.5 dt (where a stage of the step may have met a
+        singular configuration that no whole step reached); "" when neither."""
+        nq = self.nq
+        moving = [(int(qa), int(da)) for kind, qa, da in zip(self.arrays.joint_kinds, self.arrays.qposadr,
+                                                             self.arrays.dofadr) if JOINTS[kind].scalar]
+
+        def diagnose(y: np.ndarray, y0: np.ndarray, dt: float) -> str:
+            y, y0 = np.asarray(y, dtype=np.float64), np.asarray(y0, dtype=np.float64)
+            try:
+                self.check_pivots(y[:nq])
+            except ValueError as error:
+                return str(error)
+            fraction = np.linspace(0.0, 1.5, PATH_SAMPLES)
+            path = np.repeat(y[None, :nq], PATH_SAMPLES, axis=0)
+            for qa, da in moving:
+                path[:, qa] += fraction * dt * y[nq + da]
+            ratio = self.pivots(path)[0] / self.pivots(y0[:nq])[0]
+            where, d = np.unravel_index(int(np.argmin(ratio)), ratio.shape)
+            if not ratio[where, d] < NEARLY_SINGULAR:
+                return ""
+            body = self.body_names[self.arrays.dof_body[d]]
+            joint = self.joint_names[self.arrays.dof_joint[d]]
+            return (f"the mass matrix became singular: body {body!r} gives its joint {joint!r} (degree of freedom "
+                    f"{d}) no inertia about {fraction[where]:.2g} dt after the last finite state (its pivot falls to "
+                    f"{ratio[where, d]:.2g} of its value at the start: the joints' axes line up there, or the joint "
+                    "moves nothing with mass); give the body inertia about that joint or armature, or other joints (a "
+                    "ball joint has no singular configuration)")
+        return diagnose
 
     # ----- the algorithms ----------------------------------------------------------------------------
 

@@ -1,6 +1,6 @@
 """Scene -> MJCF text: the MuJoCo model of a scene, holding only what the scene uses.
 
-``to_mjcf(scene)`` writes the scene's layout (rbody.scene.Layout) as one MJCF document:
+``to_mjcf(scene)`` writes the scene's layout (rbody.layout.Layout) as one MJCF document:
 
 - the joints the scene uses (hinge, slide, ball, free, roll), bodies nested along ``Body.parent``, each body at
   its reference pose (every hinge and slide coordinate zero, as in rbody);
@@ -55,7 +55,7 @@ Contacts (defaults; every one can be overridden):
   elliptic and impratio 100 (soft friction trades force for slip; impratio makes it stiffer).
 - Scenes without impacts default to the RK4 integrator.
 
-Roll joints (rolling without slipping, one coordinate q: rbody.scene.Joint). MuJoCo has no joint that
+Roll joints (rolling without slipping, one coordinate q: rbody.layout.Joint). MuJoCo has no joint that
 ties a translation to a rotation, so a roll joint of radius a, axis w and surface normal e is written as
 two joints, in this order, and a joint equality between them:
 
@@ -83,10 +83,11 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from rbody._checks import finite_array, in_interval, one_of, positive
+from rbody.checks import finite_array, in_interval, one_of, positive
 from rbody.inertia import Inertia
 from rbody.motion import quat_from_matrix, quat_normalize, quat_to_matrix
-from rbody.scene import WORLD, Body, Contact, Joint, Layout, Scene, Shape, already_unit
+from rbody.layout import WORLD, depth_first, joint_order, Body, Contact, Joint, Layout, Shape, already_unit
+from rbody.scene import Scene
 
 DEFAULT_TIMESTEP = 0.002            # MuJoCo's own default step [s], used when dt is not given
 MUJOCO_MIN_MOMENT = 1e-14           # MuJoCo refuses a fullinertia whose smallest eigenvalue is below (mjEPS)
@@ -303,24 +304,8 @@ def has_impacts(layout: Layout) -> bool:
 # ----- structure ---------------------------------------------------------------------------------------
 
 def body_order(layout: Layout) -> tuple[Body, ...]:
-    """Bodies in MuJoCo's order: depth first from the world, children in layout order (ids 1, 2, ...)."""
-    children: dict[str, list[Body]] = {}
-    for body in layout.bodies:
-        children.setdefault(body.parent, []).append(body)
-    order: list[Body] = []
-
-    def visit(name: str) -> None:
-        for child in children.get(name, ()):
-            order.append(child)
-            visit(child.name)
-
-    visit(WORLD)
-    return tuple(order)
-
-
-def joint_order(layout: Layout) -> tuple[Joint, ...]:
-    """Joints in MuJoCo's order (qpos and qvel addresses): by body order, then layout order."""
-    return tuple(j for body in body_order(layout) for j in layout.joints if j.body == body.name)
+    """Bodies in MuJoCo's order: rbody.layout.depth_first (the one tree order)."""
+    return depth_first(layout)
 
 
 def initial_state(layout: Layout) -> tuple[np.ndarray, np.ndarray]:
@@ -359,7 +344,7 @@ def initial_state(layout: Layout) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _unit_quat(quat) -> np.ndarray:
-    """(4,) the quaternion, normalised only when it is not already unit to 2 eps (rbody.scene.already_unit)."""
+    """(4,) the quaternion, normalised only when it is not already unit to 2 eps (rbody.layout.already_unit)."""
     quat = np.asarray(quat, dtype=float)
     return quat if already_unit(quat) else quat_normalize(quat)
 

@@ -86,7 +86,9 @@ from rbody.mjcf.document import (Element, MJCFError, boolean, choice, expand_inc
 from rbody.mjcf.frames import MJ_EPS, frame_to_quat, normalize, quat_matrix, quat_product, z_to_quat
 from rbody.mjcf.geoms import (MESH_INERTIA_MODES, GeomMass, MeshMass, mesh_mass, mujoco_principal, primitive_moments,
                               primitive_volume, principal_tensor, sum_geoms)
-from rbody.scene import WORLD, Body, Joint, Layout, NativeModel, Shape, TreeScene
+from rbody.layout import WORLD, Body, Joint, Layout, Shape
+from rbody.engine.native import NativeModel
+from rbody.scene import TreeScene
 
 DEFAULT_T_END = 1.0        # [s] duration of a scene read from MJCF when t_end is not given
 OVERLAP_CHOICES = ("refuse", "sum")
@@ -1178,34 +1180,39 @@ class MJCFScene(TreeScene):
 
     limits: Mapping[str, tuple[float, float]] = field(default_factory=dict)
 
+    def limit_violation(self, t: np.ndarray, qpos: np.ndarray) -> str:
+        """The first place a run leaves a declared range: qpos (T, ..., nq) at times t (T,) [s] from any engine;
+        a message naming the joint, its range, the time and the value, or "" when every coordinate stays inside
+        (ball joints: the rotation angle 2 atan2(|v|, |w|) of their quaternion)."""
+        arrays = self.multibody.arrays
+        qpos = np.asarray(qpos)
+        for name, (low, high) in self.limits.items():
+            j = arrays.joint_names.index(name)
+            address = int(arrays.qposadr[j])
+            if arrays.joint_kinds[j] == "ball":
+                quat = qpos[..., address:address + 4]
+                value = 2 * np.arctan2(np.linalg.norm(quat[..., 1:], axis=-1), np.abs(quat[..., 0]))
+            else:
+                value = qpos[..., address]
+            outside = (value < low) | (value > high)
+            if np.any(outside):
+                step = int(np.argmax(np.any(outside.reshape(len(t), -1), axis=1)))
+                found = float(np.ravel(value[step])[np.argmax(np.ravel(outside[step]))])
+                return (f"joint {name!r} left its range [{low:.6g}, {high:.6g}] at t={t[step]:.6g} s (value "
+                        f"{found:.6g})")
+        return ""
+
     def native(self) -> NativeModel:
         model = super().native()
         if not self.limits:
             return model
-        arrays = self.multibody.arrays
-        checks = []
-        for name, (low, high) in self.limits.items():
-            j = arrays.joint_names.index(name)
-            checks.append((name, arrays.joint_kinds[j], int(arrays.qposadr[j]), low, high))
         observe = model.observe
 
         def observe_within_limits(t: np.ndarray, y: np.ndarray) -> dict:
             data = observe(t, y)
-            qpos = np.asarray(data["qpos"])          # (T, B, nq)
-            for name, kind, address, low, high in checks:
-                if kind == "ball":
-                    quat = qpos[..., address:address + 4]
-                    value = 2 * np.arctan2(np.linalg.norm(quat[..., 1:], axis=-1), np.abs(quat[..., 0]))
-                else:
-                    value = qpos[..., address]
-                outside = (value < low) | (value > high)
-                if np.any(outside):
-                    step = int(np.argmax(np.any(outside.reshape(len(t), -1), axis=1)))
-                    found = float(np.ravel(value[step])[np.argmax(np.ravel(outside[step]))])
-                    raise SimulationError(
-                        f"scene {self.name!r}: joint {name!r} left its range [{low:.6g}, {high:.6g}] at "
-                        f"t={t[step]:.6g} s (value {found:.6g}); rbody does not model joint limits: remove the "
-                        "range, or shorten the run (t_end)")
+            violation = self.limit_violation(t, data["qpos"])
+            if violation:
+                raise SimulationError(f"scene {self.name!r}: {violation}; rbody does not model joint limits: remove "
+                                      "the range, or shorten the run (t_end)")
             return data
-
         return dataclasses.replace(model, observe=observe_within_limits)

@@ -47,9 +47,11 @@ from typing import Any, ClassVar, Sequence
 import numpy as np
 from numba import njit
 
-from rbody._checks import finite_array, positive, representable, scene_arguments
+from rbody.checks import finite_array, positive, representable, scene_arguments
 from rbody.inertia import Inertia
-from rbody.scene import Body, Joint, Layout, NativeModel, Scene, Shape
+from rbody.layout import Body, Joint, Layout, Shape
+from rbody.engine.native import NativeModel
+from rbody.scene import Scene
 
 # native() runs the hand-written chain_rhs for chains of at most this many rods, the general engine on the
 # Layout for longer ones (0: always the engine). With the engine's planar path (rbody.engine.planar) the engine is

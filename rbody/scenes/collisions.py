@@ -34,11 +34,13 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike
 
-from rbody._checks import finite_array, in_interval, nonnegative, one_of, positive, representable, scene_arguments
+from rbody.checks import finite_array, in_interval, nonnegative, one_of, positive, representable, scene_arguments
 from rbody.engine.events import DONE, TOO_MANY, Line, LineRun, exact_line, sample_times
 from rbody.errors import SimulationError
 from rbody.inertia import Inertia
-from rbody.scene import Body, Contact, Joint, Layout, Scene, Shape
+from rbody.layout import Body, Contact, Joint, Layout, Shape
+from rbody.optional import optional
+from rbody.scene import Scene
 from rbody.trajectory import Trajectory
 
 # Radius [m] given in the layout to a ball of radius 0 (MuJoCo and pymunk need a size); the layout
@@ -433,7 +435,7 @@ class PiCollisions(LineCollisions):
         """The exact count of the convention: floor(pi 10^N) (galperin), or p(N), the smallest n with
         cos(n theta) < 0, theta = 2 arctan(sqrt(x)), x = 1/(16 100^N) (chapter) — in exact integer and
         high-precision arithmetic (mpmath), not with float pi."""
-        import mpmath
+        mpmath = optional("mpmath", "exact", "the exact collision counts (high-precision arithmetic)")
 
         n = self.digits
         with mpmath.workdps(n + 40):
@@ -447,7 +449,7 @@ class PiCollisions(LineCollisions):
         """Exact counts for the simulated masses, from the unfolded wedge of angle
         alpha = arctan(sqrt(m/M)): total #{k >= 1: k alpha < pi}, ball (odd k), wall (even k), and
         turn, the first ball-ball impact n with cos(2 n alpha) < 0 (the heavy ball turns round)."""
-        import mpmath
+        mpmath = optional("mpmath", "exact", "the exact collision counts (high-precision arithmetic)")
 
         with mpmath.workdps(self.digits + 40):
             alpha = mpmath.atan(mpmath.sqrt(mpmath.mpf(self.masses[self.light]) / mpmath.mpf(self.masses[self.heavy])))
@@ -483,7 +485,7 @@ class PiCollisions(LineCollisions):
         """Time of the last impact [s], exact (mpmath), from the unfolded billiard (see exact()): the K-th
         impact, K = exact_counts["total"], is where the straight line P(t) = P0 + W t reaches the polar
         angle K alpha: (P0 + W t) x d = 0 with d = (cos K alpha, sin K alpha), t = (d x P0) / (W x d)."""
-        import mpmath
+        mpmath = optional("mpmath", "exact", "the exact collision counts (high-precision arithmetic)")
 
         with mpmath.workdps(self.digits + 30):
             sm, sM, alpha, a0, b0, va0, ub0 = self._wedge()
@@ -496,7 +498,7 @@ class PiCollisions(LineCollisions):
     def _wedge(self):
         """sqrt(m), sqrt(M), alpha = atan(sqrt(m/M)), and the light (a) and heavy (b) balls' distances from first
         contact and velocities a0, b0, va0, ub0, in the frame with the wall on the left (mpmath)."""
-        import mpmath
+        mpmath = optional("mpmath", "exact", "the exact collision counts (high-precision arithmetic)")
 
         sign = 1.0 if self.convention == "galperin" else -1.0   # mirror the chapter's frame
         w, r = self.walls[0], self.radius
@@ -532,7 +534,7 @@ class PiCollisions(LineCollisions):
         wall), and folding back rotates by -k alpha (k even) or reflects onto (k+1) alpha - phi (k odd).
         collisions counts the impacts before t (a sample at an impact time shows the motion before it).
         """
-        import mpmath
+        mpmath = optional("mpmath", "exact", "the exact collision counts (high-precision arithmetic)")
 
         t = finite_array(t, "t").reshape(-1)
         sign = 1.0 if self.convention == "galperin" else -1.0   # mirror the chapter's frame

@@ -79,11 +79,13 @@ from numba import njit
 from scipy.special import elliprf, elliprj
 
 from rbody.elliptic import jacobi
-from rbody._checks import finite_array, representable, scene_arguments
+from rbody.checks import finite_array, representable, scene_arguments
 from rbody.engine import integrators, spatial
 from rbody.inertia import Inertia
 from rbody.motion import quat_conjugate, quat_exp, quat_from_matrix, quat_multiply, quat_to_matrix
-from rbody.scene import Body, BodyStates, Joint, Layout, NativeModel, Scene, Shape
+from rbody.layout import Body, Joint, Layout, Shape
+from rbody.engine.native import NativeModel
+from rbody.scene import BodyStates, Scene
 
 # Principal moments closer than this fraction of the largest are one repeated moment: eigh returns
 # them only to ~1e-16 of the largest, so a smaller difference is not a property of the body.
@@ -593,7 +595,7 @@ def _qx(angle: np.ndarray) -> np.ndarray:
     return np.stack([np.cos(angle / 2), np.sin(angle / 2), zero, zero], axis=-1)
 
 
-# ----- the stability rate (rbody.stability reads it through NativeModel.rate) -----------------------------
+# ----- the stability rate (rbody.engine.stability reads it through NativeModel.rate) -----------------------------
 
 ROTATION_SAMPLES = 65  # samples of the exact motion over one period (or the run) for the fastest rate
 

@@ -46,9 +46,11 @@ from typing import ClassVar
 import numpy as np
 from numba import njit
 
-from rbody._checks import finite_array, one_of, positive, representable, scene_arguments
+from rbody.checks import finite_array, one_of, positive, representable, scene_arguments
 from rbody.particles import Particles
-from rbody.scene import Layout, NativeModel, Scene
+from rbody.layout import Layout
+from rbody.engine.native import NativeModel
+from rbody.scene import Scene
 
 FORCE_KINDS = ("central", "noncentral")
 PARTICLE_METHODS = ("euler", "symplectic_euler", "verlet", "rk4", "yoshida6", "gauss6", "reference")

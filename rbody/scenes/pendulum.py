@@ -42,10 +42,12 @@ from numba import njit
 from scipy.special import ellipkm1, elliprf
 
 from rbody.elliptic import jacobi
-from rbody._checks import finite_array, positive, representable, scene_arguments
+from rbody.checks import finite_array, positive, representable, scene_arguments
 from rbody.inertia import Inertia, AxisLike, unit_axis
 from rbody.motion import quat_from_matrix
-from rbody.scene import Body, Joint, Layout, NativeModel, Scene, Shape
+from rbody.layout import Body, Joint, Layout, Shape
+from rbody.engine.native import NativeModel
+from rbody.scene import Scene
 
 # y = (theta, omega); params = (w0^2, I [kg m^2], M g d [N m])
 

@@ -61,10 +61,12 @@ from typing import Any, ClassVar, Sequence
 import numpy as np
 from numba import njit
 
-from rbody._checks import finite_array, in_interval, nonnegative, positive, representable, scene_arguments
+from rbody.checks import finite_array, in_interval, nonnegative, positive, representable, scene_arguments
 from rbody.inertia import Inertia
 from rbody.motion import quat_to_matrix
-from rbody.scene import Body, BodyStates, Contact, Joint, Layout, NativeModel, Scene, Shape
+from rbody.layout import Body, Contact, Joint, Layout, Shape
+from rbody.engine.native import NativeModel
+from rbody.scene import BodyStates, Scene
 from rbody.trajectory import Trajectory
 
 # k = I / (M a^2) of the named bodies, about the rolling axis through the centre.
@@ -360,7 +362,7 @@ class Rolling(Scene):
         return Layout(bodies=(body,), joints=joints, fixed=(incline_shape,), contacts=(contact,))
 
     def rolling_tree(self) -> Layout:
-        """The reduced description (unbatched scenes): the body on one roll joint "roll" (rbody.scene.Joint),
+        """The reduced description (unbatched scenes): the body on one roll joint "roll" (rbody.layout.Joint),
         the rolling constraint held by the coordinate; the incline drawn but touching nothing (no contacts).
         Valid while the body rolls (self.rolls); `layout` is the contact model every simulator can run."""
         self.require_single("the rolling tree")
@@ -662,7 +664,7 @@ class RollingRace(Scene):
         return Layout(bodies=tuple(parts), joints=tuple(joints), fixed=(self._incline(),), contacts=tuple(contacts))
 
     def rolling_tree(self) -> Layout:
-        """The reduced description: body_i on roll joint "roll_i" (rbody.scene.Joint), side by side as in the
+        """The reduced description: body_i on roll joint "roll_i" (rbody.layout.Joint), side by side as in the
         layout, the incline drawn but touching nothing. Valid for the bodies that roll (self.rolls); `layout`
         is the contact model every simulator can run."""
         parts, joints = [], []

@@ -53,11 +53,12 @@ from typing import Any, ClassVar
 import numpy as np
 from numpy.typing import ArrayLike
 
-from rbody._checks import finite_array, nonnegative, positive, single_number, representable, scene_arguments
+from rbody.checks import finite_array, nonnegative, positive, single_number, representable, scene_arguments
 from rbody.engine.events import DONE, TOO_MANY, Line, LineRun, sample_times
 from rbody.errors import SimulationError
 from rbody.inertia import Inertia
-from rbody.scene import Body, Contact, Joint, Layout, Scene, Shape
+from rbody.layout import Body, Contact, Joint, Layout, Shape
+from rbody.scene import Scene
 from rbody.trajectory import Trajectory
 
 # Event kinds in Trajectory.events["kind"].

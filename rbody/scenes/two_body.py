@@ -51,10 +51,12 @@ from typing import Any, ClassVar
 import numpy as np
 from numba import njit
 
-from rbody._checks import describe_values, finite_array, positive, representable, scene_arguments
+from rbody.checks import describe_values, finite_array, positive, representable, scene_arguments
 from rbody.inertia import Inertia
 from rbody.particles import reduced_mass
-from rbody.scene import Body, Joint, Layout, NativeModel, Scene, Shape
+from rbody.layout import Body, Joint, Layout, Shape
+from rbody.engine.native import NativeModel
+from rbody.scene import Scene
 
 # False: native() always runs the hand kernel two_body_rhs / two_body_accel: the general engine holds no pair
 # force (module docstring). There is no engine path to measure (benchmarks/fast_paths.py times the kernel alone).

@@ -63,9 +63,11 @@ from typing import Any, ClassVar
 import numpy as np
 from numba import njit
 
-from rbody._checks import describe_values, finite_array, nonnegative, positive, representable, scene_arguments
+from rbody.checks import describe_values, finite_array, nonnegative, positive, representable, scene_arguments
 from rbody.inertia import Inertia
-from rbody.scene import Body, Joint, Layout, NativeModel, Scene, Shape
+from rbody.layout import Body, Joint, Layout, Shape
+from rbody.engine.native import NativeModel
+from rbody.scene import Scene
 
 VARIABLE_MASS_METHODS = ("rk4", "euler", "gauss6", "reference")  # rk4 first: simulate's default
 

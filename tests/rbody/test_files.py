@@ -1,4 +1,4 @@
-"""rbody._files: nothing half written — a failed write leaves the old file, a report folder is all old or all new."""
+"""rbody.files: nothing half written — a failed write leaves the old file, a report folder is all old or all new."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import os
 import numpy as np
 import pytest
 
-from rbody._files import UnwritableFolder, atomic_open, atomic_path, check_writable_folder, replaced_folder, write_atomic
+from rbody.files import UnwritableFolder, atomic_open, atomic_path, check_writable_folder, replaced_folder, write_atomic
 
 
 def test_write_atomic_replaces_text_and_bytes(tmp_path):

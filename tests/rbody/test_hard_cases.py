@@ -230,7 +230,7 @@ def test_extreme_bodies_in_free_rotation_are_finite_and_right(body, method):
 
 def test_needle_splitting_limit_is_where_its_error_grows():
     """The splitting's error on a tumbling needle is 0.0165 (I3/I1) (dt |omega|)^2 over 2 s (measured): at its
-    estimated limit that is ~1 % of omega, at 1e-3 s (beyond it) 20 %; rbody.stability refuses 1e-3 s."""
+    estimated limit that is ~1 % of omega, at 1e-3 s (beyond it) 20 %; rbody.engine.stability refuses 1e-3 s."""
     scene = free_rotation(NEEDLE, omega0=(1.0, 0.1, 0.0), t_end=2.0)
     limit = stability.stability_limit(scene, "splitting")
     assert limit < 1e-3
@@ -301,13 +301,12 @@ def test_rolling_at_the_friction_limit(body, factor, rolls):
 def raw_run(scene, method: str, dt: float, t_end: float | None = None) -> dict:
     """The method's compiled loop on the scene's native model, without simulate's checks: (T, B, n) states and
     the observables, for tests that must step beyond a limit on purpose. Raises SimulationError on a failed step."""
-    import importlib
 
-    engine = importlib.import_module("rbody.engine.simulate")
+    from rbody.engine import runner
     model = scene.native()
-    steps = engine._steps(scene.t_end if t_end is None else t_end, dt, 1)
+    steps = runner.step_count(scene.t_end if t_end is None else t_end, dt, 1)
     out = np.empty((steps + 1,) + model.y0.shape)
-    failed = engine._integrate(model, method, dt, steps, 1, out)
+    failed = runner._integrate(model, method, dt, steps, 1, out)
     if np.any(failed >= 0):
         raise SimulationError(f"{method} failed at step {int(np.max(failed))}")
     return model.observe(np.arange(steps + 1) * dt, out)

@@ -2,7 +2,7 @@
 
 import pytest
 
-from rbody.scene import Joint
+from rbody.layout import Joint
 
 
 def test_roll_joint_keeps_its_radius_and_unit_normal():
@@ -34,7 +34,8 @@ def _disc_on_incline(com_offset: float):
     import numpy as np
 
     from rbody.inertia import Inertia
-    from rbody.scene import Body, Layout, Scene
+    from rbody.layout import Body, Layout
+    from rbody.scene import Scene
 
     alpha, radius, mass = 0.4, 0.3, 2.0
     normal = (np.sin(alpha), 0.0, np.cos(alpha))
@@ -49,7 +50,7 @@ def test_a_centred_rolling_disc_takes_the_symplectic_methods_and_verlet_is_exact
     """Constant acceleration g sin(alpha) / (1 + k) (the chapter's rolling disc, k = 1/2): verlet is exact for it."""
     import numpy as np
 
-    from rbody.engine.simulate import simulate
+    from rbody.simulation import simulate
 
     scene, alpha, radius = _disc_on_incline(0.0)
     assert scene.symplectic_applies == ""

@@ -15,7 +15,6 @@ import pytest
 import trimesh
 
 from rbody import Inertia
-from rbody.mesh import inertia_from_mesh
 from rbody.motion import quat_to_matrix
 
 
@@ -285,7 +284,7 @@ def test_mesh_file_path_loads(tmp_path):
     trimesh.creation.box(extents=(1.0, 2.0, 3.0)).export(path)
     body = Inertia.from_mesh(path, mass=2.0)
     assert np.allclose(body.tensor, Inertia.box(2.0, (1.0, 2.0, 3.0)).tensor, rtol=0, atol=1e-6)  # STL: float32
-    assert np.allclose(inertia_from_mesh(str(path), mass=2.0).tensor, body.tensor, rtol=0, atol=0)
+    assert np.allclose(Inertia.from_mesh(str(path), mass=2.0).tensor, body.tensor, rtol=0, atol=0)
 
 
 # ----- bad meshes and bad input -------------------------------------------------------------------------

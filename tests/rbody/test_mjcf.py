@@ -495,7 +495,7 @@ def test_roll_joint_is_a_slide_along_l_and_a_hinge_tied_by_a_stiff_equality():
 
 def test_roll_joint_initial_state_and_ref_place_the_body_as_rbody_does():
     """slide = a q0 and hinge = q0 in the keyframe, refs a ref and ref: MuJoCo then puts the centre at
-    a (q0 - ref) l from its reference place, turned by q0 - ref about y (rbody.scene.Joint's roll)."""
+    a (q0 - ref) l from its reference place, turned by q0 - ref about y (rbody.layout.Joint's roll)."""
     radius, incline, q0, rate, ref = 0.2, 0.4, 1.3, -0.7, 0.25
     scene = rolling_tree_scene(radius=radius, incline=incline, qpos0=q0, qvel0=rate, ref=ref)
     model = compile_scene(scene, dt=1e-3)

@@ -14,7 +14,7 @@ mujoco = pytest.importorskip("mujoco")
 
 from rbody import Scene, to_mjcf  # noqa: E402
 from rbody.mjcf import MJCFError, layout_from_mjcf  # noqa: E402
-from rbody.scene import Layout  # noqa: E402
+from rbody.layout import Layout
 
 RTOL = 1e-12
 OFF = '<option><flag contact="disable"/></option>'

@@ -87,7 +87,7 @@ def test_one_zero_quaternion_among_many_is_named_briefly():
 
 
 def test_non_finite_values_in_a_large_array_are_named_briefly():
-    from rbody._checks import finite_array
+    from rbody.checks import finite_array
 
     values = np.zeros((100_000, 3))
     values[777, 2] = np.nan
@@ -117,7 +117,7 @@ def test_save_every_beyond_the_run_is_an_error_not_a_round_up():
 def test_a_batch_beyond_the_memory_is_refused_with_the_estimate(monkeypatch):
     import importlib
 
-    module = importlib.import_module("rbody.engine.simulate")  # the module, not the function of that name
+    module = importlib.import_module("rbody.simulation")  # the module, not the function of that name
     monkeypatch.setattr(module, "available_memory", lambda: 10**9)  # 1 GB free
     batch = swinging_rod(np.ones(1000), theta0=1.0, t_end=1.0)      # 1001 x 1000 x 2 x 8 B = 16 MB
     assert simulate(batch, dt=1e-3).t.size == 1001
@@ -128,7 +128,7 @@ def test_a_batch_beyond_the_memory_is_refused_with_the_estimate(monkeypatch):
 
 
 def test_estimate_counts_steps_samples_and_bytes():
-    from rbody.engine.simulate import estimate_work
+    from rbody.simulation import estimate_work
 
     work = estimate_work(swinging_rod(np.ones(4), theta0=1.0, t_end=1.0), 1e-3, 1.0, 10)
     assert work == {"steps": 1000.0, "batch": 4.0, "samples": 101.0, "bytes": 8.0 * 101 * 4 * 2, "impacts": 0.0}

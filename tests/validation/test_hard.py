@@ -134,7 +134,7 @@ def test_cli_writes_the_report(tmp_path):
 
 
 # Reasons an rbody row may FAIL until the changes the suite asks of rbody are made (see the xfail tests of
-# tests/rbody/test_hard_cases.py): simulate does not call rbody.stability.check_step yet, and the exact swing
+# tests/rbody/test_hard_cases.py): simulate does not call rbody.engine.stability.check_step yet, and the exact swing
 # near the top forms u0 from fl(pi/2).
 PENDING = ("should refuse", "does not name the estimated limit", "not a SimulationError", "silently wrong",
            "instead of refusing", "u0 = F(phi0 | m)")

@@ -371,7 +371,7 @@ def test_each_pair_gets_its_own_restitution():
 def test_wall_from_a_rounded_quaternion_still_faces_along_the_line():
     # A plane turned by 90 deg about y has normal (1, 0, 2.2e-16) from the quaternion; circles on a
     # line amplify any sideways kick at each impact, so the backend rounds that to (1, 0, 0).
-    from rbody.scene import Shape
+    from rbody.layout import Shape
     from rbody.scenes.collisions import PiCollisions, pi_collisions
 
     @dataclasses.dataclass(frozen=True, kw_only=True)

@@ -51,9 +51,10 @@ import mujoco
 import numpy as np
 from mujoco import rollout as mj_rollout
 
-from rbody._checks import run_times, whole_number
+from rbody.checks import run_times, whole_number
 from rbody.errors import SimulationError
 from rbody.mjcf import INITIAL_KEY, ROLL_SLIDE_SUFFIX, has_impacts, to_mjcf
+from rbody.layout import JOINTS
 from rbody.scene import BodyStates, Scene
 from rbody.trajectory import Trajectory
 
@@ -172,11 +173,11 @@ def run(scene: Scene, dt: float, t_end: float | None = None, *, integrator: str 
         if joint.kind == "roll":  # MuJoCo's hinge <name> holds q; its slide should hold a q (the equality)
             joints[joint.name] = (qpos[:, qa].copy(), qvel[:, da].copy())
             roll_slip[joint.name] = _roll_slip(model, joint, qpos, qvel)
-        elif joint.kind in ("hinge", "slide"):
+        elif JOINTS[joint.kind].scalar:
             joints[joint.name] = (qpos[:, qa].copy(), qvel[:, da].copy())
         else:  # ball (T, 4), (T, 3); free (T, 7), (T, 6): MuJoCo's qpos and qvel (body-frame angular velocity)
-            nq_j, nv_j = (4, 3) if joint.kind == "ball" else (7, 6)
-            joints[joint.name] = (qpos[:, qa:qa + nq_j].copy(), qvel[:, da:da + nv_j].copy())
+            size = JOINTS[joint.kind]
+            joints[joint.name] = (qpos[:, qa:qa + size.nq].copy(), qvel[:, da:da + size.nv].copy())
     observables = dict(scene.observe(t, bodies, joints))
     if has_impacts(layout):
         observables["collisions"] = run_.collisions

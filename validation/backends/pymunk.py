@@ -68,10 +68,11 @@ from dataclasses import dataclass, field
 import numpy as np
 import pymunk
 
-from rbody._checks import nonnegative, run_times, whole_number
+from rbody.checks import nonnegative, run_times, whole_number
 from rbody.errors import SimulationError
 from rbody.motion import quat_from_axis_angle, quat_from_matrix, quat_multiply, quat_to_matrix
-from rbody.scene import WORLD, Body, BodyStates, Joint, Layout, Scene, Shape, TreeScene
+from rbody.layout import WORLD, tree_order, Body, Joint, Layout, Shape
+from rbody.scene import BodyStates, Scene, TreeScene
 from rbody.trajectory import Trajectory
 
 name = "pymunk"
@@ -225,22 +226,6 @@ def _drive_plan(scene: Scene, plan: "_Plan") -> list[str]:
         raise NotImplementedError(f"scene {scene.name!r}: a pair force acts between two bodies; the layout has "
                                   f"{len(moving)} moving bodies")
     return hooks
-
-
-def _order(layout: Layout) -> list[Body]:
-    """Bodies with every parent before its children."""
-    if len({b.name for b in layout.bodies}) != len(layout.bodies):
-        raise ValueError("layout has two bodies of the same name: body names must be unique")
-    ordered, placed, pending = [], {WORLD}, list(layout.bodies)
-    while pending:
-        ready = [b for b in pending if b.parent in placed]
-        if not ready:
-            raise ValueError(f"bodies {[b.name for b in pending]} hang from {sorted({b.parent for b in pending})}: "
-                             "every parent must be 'world' or a body of the layout, without cycles")
-        ordered += ready
-        placed.update(b.name for b in ready)
-        pending = [b for b in pending if b.name not in placed]
-    return ordered
 
 
 def _joint_plan(joint: Joint, rot0: np.ndarray, origin0: np.ndarray) -> _JointPlan:
@@ -436,7 +421,7 @@ def _plan(scene: Scene) -> _Plan:
     bodies: dict[str, _BodyPlan] = {}
     shapes: list[_ShapePlan] = []
     in_contact = {n for c in layout.contacts for n in (c.shape_a, c.shape_b)}
-    for body in _order(layout):
+    for body in tree_order(layout):
         parent = bodies.get(body.parent)
         rot_p = np.eye(3) if parent is None else parent.rot0
         origin_p = np.zeros(3) if parent is None else parent.origin0

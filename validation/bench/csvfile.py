@@ -7,7 +7,7 @@ import math
 from pathlib import Path
 from typing import Iterable, Mapping
 
-from rbody._files import atomic_open
+from rbody.files import atomic_open
 
 
 # ----- the CSV ------------------------------------------------------------------------------------------

@@ -30,7 +30,7 @@ import mujoco
 import numpy as np
 from mujoco import rollout as mj_rollout
 
-from rbody._checks import run_times, whole_number
+from rbody.checks import run_times, whole_number
 from rbody.errors import SimulationError
 from rbody.mjcf import to_mjcf
 from rbody.scene import Scene

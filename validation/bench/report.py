@@ -13,7 +13,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-from rbody._files import write_atomic  # noqa: E402
+from rbody.files import write_atomic  # noqa: E402
 from validation.bench.scenes import REDUCED_LABEL  # noqa: E402
 from validation.report import save_figure  # noqa: E402
 

@@ -9,7 +9,7 @@ from dataclasses import asdict
 from pathlib import Path
 from typing import Iterable
 
-from rbody._files import replaced_folder
+from rbody.files import replaced_folder
 from validation.bench import batch, growth, report
 from validation.bench.csvfile import header_lines, write_csv
 from validation.bench.scenes import bench_scenes

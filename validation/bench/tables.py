@@ -27,7 +27,7 @@ import shutil
 import sys
 from pathlib import Path
 
-from rbody._files import atomic_path, write_atomic
+from rbody.files import atomic_path, write_atomic
 from validation.bench.report import GOAL_RATIO, LEVELS, column, level_table
 from validation.bench.sweep import Point, read_points
 

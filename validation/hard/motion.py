@@ -11,7 +11,7 @@ import numpy as np
 import rbody
 import validation
 from rbody import stability
-from rbody.engine.integrators import SYMPLECTIC
+from rbody.engine.methods import SYMPLECTIC
 from rbody.scenes import free_rotation, swinging_rod
 from validation.hard.kit import EPS, energy_bounded, envelope, mean_period, rbody_verdict, run_backend
 from validation.hard.rows import CaseResult, HardRow, attempt, error_outcome, short

@@ -9,7 +9,7 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from rbody._files import replaced_folder, write_atomic
+from rbody.files import replaced_folder, write_atomic
 from validation.hard import chains, contact, motion, shapes, steps
 from validation.hard.rows import CaseResult, HardRow, timed
 

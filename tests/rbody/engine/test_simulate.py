@@ -14,7 +14,8 @@ from rbody import MethodNotApplicable, SimulationError, Trajectory, simulate
 from rbody.scenes import pendulum_chain, rocket, rolling, swinging_rod, two_body
 
 
-engine = importlib.import_module("rbody.engine.simulate")  # the module (rbody.engine.simulate is the function)
+engine = importlib.import_module("rbody.simulation")  # the module (rbody.simulate is the function)
+from rbody.engine import runner  # noqa: E402
 
 
 @pytest.fixture
@@ -85,7 +86,7 @@ def test_default_method_is_verlet_where_it_applies(rod):
 
 
 def test_step_beyond_the_stability_limit_is_refused_before_any_step():
-    """rk4 keeps an oscillation bounded while dt w0 < 2 sqrt(2) (rbody.stability): at dt = 1 s on the rod
+    """rk4 keeps an oscillation bounded while dt w0 < 2 sqrt(2) (rbody.engine.stability): at dt = 1 s on the rod
     (w0 = 3.84 rad/s) simulate refuses, naming the limit it estimated, instead of returning a wrong run."""
     rod = swinging_rod(1.0, theta0=1.0, t_end=10.0)
     with pytest.raises(SimulationError, match=r"stability limit 0\.737\d* s") as error:
@@ -123,7 +124,7 @@ def test_gauss6_reports_stage_equations_it_cannot_solve():
         simulate(whirling, dt=1.0, method="gauss6")
     model = whirling.native()
     out = np.empty((11,) + model.y0.shape)
-    failed = engine._integrate(model, "gauss6", 1.0, 10, 1, out)
+    failed = runner._integrate(model, "gauss6", 1.0, 10, 1, out)
     assert failed[0] >= 1
     # at dt = 0.01 it converges and the run is accurate
     run = simulate(whirling, dt=1e-2, method="gauss6", t_end=1.0)
@@ -262,7 +263,7 @@ def test_a_non_finite_state_of_a_tree_far_from_any_singular_pose_says_only_what_
     out = np.empty((2,) + y.shape)
     out[0] = y
     out[1] = np.nan
-    error = engine._failure(scene, model, record, 0.01, 1, out, np.array([1]))
+    error = runner.failure(scene.describe(), model, record, 0.01, 1, out, np.array([1]))
     assert "non-finite" in str(error) and "singular" not in str(error)
 
 

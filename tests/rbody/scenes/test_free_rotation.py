@@ -8,7 +8,7 @@ import pytest
 from hypothesis import assume, example, given, settings, strategies as st
 
 from rbody import Inertia, MethodNotApplicable, simulate
-from rbody.engine import integrators
+from rbody.engine import integrators, methods
 from rbody.motion import quat_conjugate, quat_from_axis_angle, quat_multiply, quat_rotate, quat_to_matrix
 from rbody.scene import BodyStates
 from rbody.scenes import free_rotation
@@ -219,7 +219,7 @@ CASE = free_rotation(TILTED, omega0=W_AXIS3, t_end=2.0)  # the order test's case
     ("euler", 2.5e-3, 1), ("rk4", 0.05, 4), ("splitting", 0.05, 2), ("yoshida6", 0.1, 6), ("gauss6", 0.2, 6),
 ])
 def test_observed_order_of_accuracy(method, dt, order):
-    assert integrators.METHOD_ORDER[method] == order
+    assert methods.METHOD_ORDER[method] == order
     errors = []
     for step in (dt, dt / 2):
         trajectory = simulate(CASE, dt=step, method=method)

@@ -12,18 +12,18 @@ only sets where the trajectory is sampled.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 from typing import Any
 
 import numpy as np
 
-from rbody._checks import run_times, whole_number
-from rbody.engine.methods import BY_NAME, RECORDS, Method, method as method_record
+from rbody.checks import run_times, whole_number
+from rbody.engine.methods import BY_NAME, Method, method as method_record
+from rbody.engine.runner import crosses_break, failure, integrate_model, step_count
+from rbody.engine.stability import check_step
 from rbody.errors import MethodNotApplicable, SimulationError
 from rbody.scene import Scene
-from rbody.stability import check_step
 from rbody.trajectory import Trajectory
 
 EVENT_METHOD = "events"
@@ -51,7 +51,7 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
     Returns a Trajectory whose observables have shape (T, *scene.batch_shape, ...).
     Raises ValueError for bad arguments, a run too large to start (above), a closed client or a chunk
     without a client; MethodNotApplicable when the method cannot run the scene; SimulationError, before
-    any step, when dt is beyond the method's estimated stability limit on the scene (rbody.stability)
+    any step, when dt is beyond the method's estimated stability limit on the scene (rbody.engine.stability)
     and, after, when a step gives a non-finite state (never a trajectory holding NaN, except where an
     observable means "not yet": a race's arrival time), or when a task lost its worker more often than
     Dask retries it.
@@ -71,7 +71,7 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
     check_step(scene, method, dt, t_end)  # beyond the method's stability limit: refuse before any step
 
     model = scene.native_model  # built once per scene
-    nsteps = _steps(t_end, dt, save_every)
+    nsteps = step_count(t_end, dt, save_every)
     if model.break_time is not None and 0 < model.break_time < dt:
         raise SimulationError(
             f"scene {scene.describe()}: its right-hand side jumps at t = {model.break_time:.6g} s (e.g. a "
@@ -85,7 +85,7 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
     else:
         failed = integrate_model(model, record, dt, nsteps, save_every, out)
     if failed.size and failed.max() >= 0:
-        raise _failure(scene, model, record, dt, save_every, out, failed)
+        raise failure(scene.describe(), model, record, dt, save_every, out, failed)
     t = np.arange(out.shape[0]) * (dt * save_every)
     try:  # every state is finite here; one the observables cannot take (a quaternion of zero length) is a failure
         data = model.observe(t, out)
@@ -129,45 +129,6 @@ def _choose_method(scene: Scene, method: str | None) -> Method | None:
         raise MethodNotApplicable(f"method={record.name!r} cannot run scene {scene.describe()}: {why}; methods that "
                                   f"apply: {', '.join(scene.methods)}")
     return record
-
-
-def _failure(scene: Scene, model, record: Method, dt: float, save_every: int, out: np.ndarray,
-             failed: np.ndarray) -> SimulationError:
-    """The SimulationError of a run whose element failed: the scene, method, dt, time, batch element, and what the
-    model diagnoses at the last finite state before the failure (a tree: the body and joint whose mass matrix
-    became singular)."""
-    b = int(np.argmax(failed >= 0))
-    step = int(failed[b])
-    cause = ""
-    if model.diagnose is not None and model.break_time is None and step >= 1:
-        last = _last_finite_state(model, record, dt, save_every, out, b, step)
-        if last is not None:
-            cause = model.diagnose(last, np.asarray(model.y0)[b], dt)
-    higher = [m.name for m in RECORDS if m.order is not None and m.order >= 4 and m.applies(model)]
-    advice = "a smaller dt" + ("" if record.name in higher or not higher else
-                               f" or a method of higher order ({', '.join(higher)})")
-    where = f" at t={step * dt:.6g} s (batch element {b} of {failed.size})"
-    if cause:
-        return SimulationError(f"scene {scene.describe()}: method {record.name!r} with dt={dt} failed{where}: {cause}")
-    return SimulationError(f"scene {scene.describe()}: method {record.name!r} with dt={dt} gave {record.failure}"
-                           f"{where}; try {advice}")
-
-
-def _last_finite_state(model, record: Method, dt: float, save_every: int, out: np.ndarray, b: int,
-                       step: int) -> np.ndarray | None:
-    """(n,) state of element b at step `step` - 1, the last before its failure: from the saved samples, re-run
-    from the last one before it (at most save_every - 1 steps, element b alone)."""
-    saved = (step - 1) // save_every
-    start = out[saved, b]
-    if not np.all(np.isfinite(start)):
-        return None
-    remaining = step - 1 - saved * save_every
-    if remaining == 0:
-        return start.copy()
-    one = dataclasses.replace(model, y0=start[None, :], params=np.asarray(model.params)[b:b + 1])
-    buffer = np.empty((remaining + 1, 1, start.size))
-    record.integrate(one, one.y0, np.ascontiguousarray(one.params, dtype=np.float64), dt, remaining, 1, buffer)
-    return buffer[-1, 0] if np.all(np.isfinite(buffer[-1, 0])) else None
 
 
 # ----- the work of a run, estimated before it starts ------------------------------------------------
@@ -245,68 +206,3 @@ def refuse_large(work: dict[str, float], allow_large: bool = False) -> None:
                          + ". Pass allow_large=True to run it anyway.")
 
 
-def _steps(t_end: float, dt: float, save_every: int) -> int:
-    """Number of steps: t_end/dt rounded up (to round-off), then up to a multiple of save_every."""
-    nsteps = max(1, math.ceil(t_end / dt * (1 - 1e-12)))
-    return -(-nsteps // save_every) * save_every
-
-
-def crosses_break(model, nsteps: int, dt: float) -> bool:
-    """Whether a run of nsteps steps of dt passes model.break_time (then the straddling step is cut there)."""
-    return model.break_time is not None and 0 < model.break_time < nsteps * dt
-
-
-def integrate_model(model, method: Method | str, dt: float, nsteps: int, save_every: int,
-                    out: np.ndarray) -> np.ndarray:
-    """The compiled run of `model` (a whole batch or some of its rows): cut at its break time where the run
-    crosses it, else in one loop. method: its record or name. out (nsteps // save_every + 1, B, n) filled;
-    returns failed (B,)."""
-    method = method_record(method) if isinstance(method, str) else method
-    if crosses_break(model, nsteps, dt):
-        return _integrate_across_break(model, method, dt, nsteps, save_every, out)
-    return _integrate(model, method, dt, nsteps, save_every, out)
-
-
-def _integrate_across_break(model, method: Method, dt: float, nsteps: int, save_every: int,
-                            out: np.ndarray) -> np.ndarray:
-    """The run on the same grid, with the step that straddles model.break_time t_b split there:
-    n_b = floor(t_b/dt) steps on the first side, then h1 = t_b - n_b dt on the first side and dt - h1
-    on the second, then the rest on the second side; rhs is told its side through break_column, so
-    no stage ever evaluates across the jump and each method keeps its order."""
-    every = np.empty((nsteps + 1,) + model.y0.shape)
-    before, after = np.array(model.params, dtype=np.float64), np.array(model.params, dtype=np.float64)
-    before[:, model.break_column], after[:, model.break_column] = 1.0, 0.0
-    n_b = int(np.floor(model.break_time / dt))
-    h1 = model.break_time - n_b * dt
-    every[0] = model.y0
-    failed = np.full(model.y0.shape[0], -1, dtype=np.int64)
-
-    def leg(params, start, steps, h, into):
-        """`steps` steps of h from `start` (B, n), states written to into[1:]; returns the end state."""
-        buffer = np.empty((steps + 1,) + model.y0.shape)
-        bad = _integrate(dataclasses.replace(model, y0=start, params=params), method, h, steps, 1, buffer)
-        failed[(failed < 0) & (bad >= 0)] = n_b  # the step near which it failed (for the message)
-        if into is not None:
-            into[:] = buffer[1:]
-        return buffer[-1]
-
-    state = every[0]
-    if n_b > 0:
-        state = leg(before, state, n_b, dt, every[1:n_b + 1])
-    if h1 > 0:  # the straddling step, cut at the break
-        state = leg(before, state, 1, h1, None)
-        state = leg(after, state, 1, dt - h1, every[n_b + 1:n_b + 2])
-        n_done = n_b + 1
-    else:
-        n_done = n_b
-    if nsteps > n_done:
-        leg(after, every[n_done], nsteps - n_done, dt, every[n_done + 1:])
-    out[:] = every[::save_every]
-    return failed
-
-
-def _integrate(model, method: Method | str, dt: float, nsteps: int, save_every: int, out: np.ndarray) -> np.ndarray:
-    """The method's compiled loop on the whole of `model` (its record, or name, says how: rbody.engine.methods)."""
-    method = method_record(method) if isinstance(method, str) else method
-    y0, p = np.ascontiguousarray(model.y0, dtype=np.float64), np.ascontiguousarray(model.params, dtype=np.float64)
-    return method.integrate(model, y0, p, dt, nsteps, save_every, out)

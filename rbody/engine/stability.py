@@ -46,7 +46,7 @@ from numba import njit, prange
 from rbody.engine import integrators
 from rbody.engine.methods import method as method_record, yoshida6_interval
 from rbody.errors import SimulationError
-from rbody.scene import NativeModel, Scene
+from rbody.engine.native import Experiment, NativeModel
 
 EPS = float(np.finfo(np.float64).eps)
 # Euler's method: the amplitude growth over the run that its limit allows.
@@ -66,7 +66,7 @@ def stability_interval(method: str) -> float:
 
 # ----- the fastest rate of a scene ------------------------------------------------------------------
 
-def fastest_rate(scene: Scene, method: str | None = None) -> np.ndarray:
+def fastest_rate(scene: Experiment, method: str | None = None) -> np.ndarray:
     """(B,) largest |eigenvalue| of df/dy along the motion of each batch element [1/s], from the scene's native
     model (model_rate): the scene's own estimate (model.rate), else the Jacobian of its rhs, else 0.
 
@@ -85,7 +85,7 @@ def fastest_rate(scene: Scene, method: str | None = None) -> np.ndarray:
     return cache[method]
 
 
-def _largest_rate(scene: Scene, method: str | None) -> float:
+def _largest_rate(scene: Experiment, method: str | None) -> float:
     """max over the batch of fastest_rate(scene, method), kept beside it."""
     cache = scene.__dict__.setdefault("_largest_rate", {})
     if method not in cache:
@@ -162,7 +162,7 @@ def _jacobians(rhs, y, params, relative, out):
 
 # ----- the limit and the check --------------------------------------------------------------------
 
-def stability_limit(scene: Scene, method: str, t_end: float | None = None) -> float:
+def stability_limit(scene: Experiment, method: str, t_end: float | None = None) -> float:
     """Largest time step [s] at which `method` stays stable on every batch element of `scene`:
     stability_interval(method) / fastest_rate(scene); for euler, the step whose amplitude growth over
     t_end [s] (default scene.t_end) is EULER_GROWTH; inf where the scene has no rate (rolling) or the
@@ -181,7 +181,7 @@ def stability_limit(scene: Scene, method: str, t_end: float | None = None) -> fl
     return beta / rate
 
 
-def resolution_problem(scene: Scene, dt: float | None = None, t_end: float | None = None) -> str | None:
+def resolution_problem(scene: Experiment, dt: float | None = None, t_end: float | None = None) -> str | None:
     """Why float64 time stepping cannot resolve `scene` over t_end [s] at step dt [s] (str), or None.
 
     Pendulums near the top only: 1 - k^2 is carried at the bottom of the swing only to ~eps (module
@@ -209,7 +209,7 @@ def resolution_problem(scene: Scene, dt: float | None = None, t_end: float | Non
             "the motion from the complement 1 - k^2")
 
 
-def _separatrix_margin(scene: Scene) -> np.ndarray | None:
+def _separatrix_margin(scene: Experiment) -> np.ndarray | None:
     """(B,) |1 - k^2| of a motion carried in its state only to ~eps (model.separatrix_margin), or None; kept in
     the scene's __dict__ like its rate (simulate asks on every call)."""
     cache = scene.__dict__
@@ -226,7 +226,7 @@ def _separatrix_margin(scene: Scene) -> np.ndarray | None:
     return cache["_separatrix_margin"]
 
 
-def check_step(scene: Scene, method: str, dt: float, t_end: float | None = None) -> None:
+def check_step(scene: Experiment, method: str, dt: float, t_end: float | None = None) -> None:
     """Raise SimulationError, before any step, when dt [s] is beyond stability_limit(scene, method, t_end)
     or the scene is beyond float64's resolution (resolution_problem); return None otherwise."""
     if scene.event_driven or stability_interval(method) == math.inf:  # an adaptive solver: no step to check

@@ -1,0 +1,282 @@
+"""The description of a model: shapes, bodies, joints, contacts, and the Layout that holds them.
+
+This is the floor every other layer reads: the engine compiles a Layout (rbody.engine.multibody), the MJCF
+exporter writes one (rbody.mjcf), the backends build one in MuJoCo and pymunk (validation.backends). Two
+facts live here once, so that no layer computes them again:
+
+- JOINTS, the one joint table: each kind's code in the compiled model, its qpos and qvel sizes (MuJoCo's
+  nq and nv per joint) and its MJCF name;
+- tree_order, the one body order: depth first from the world, children in the order the Layout lists them
+  (MuJoCo's body ids 1, 2, ...); joint_order and coordinate addresses follow from it.
+
+Units are SI; positions and axes of a body's parts are in its own frame; quaternions are (w, x, y, z).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from rbody.checks import finite_array, in_interval, nonnegative
+from rbody.inertia import Inertia, unit_axis
+
+WORLD = "world"
+
+SHAPE_KINDS = ("sphere", "cylinder", "box", "capsule", "plane", "mesh")
+
+
+@dataclass(frozen=True)
+class Shape:
+    """Collision and drawing geometry, in the frame of the body that carries it (or the world).
+
+    kind:   one of SHAPE_KINDS
+    size:   sphere (radius,); cylinder and capsule (radius, half_length) along the local z;
+            box (half sizes x, y, z); plane (half sizes x, y, or 0 for infinite); mesh: ()
+    pos:    (3,) centre of the shape [m]; quat: (4,) its orientation (w, x, y, z)
+    mesh:   path of the mesh file for kind="mesh" (vertices in the body frame)
+    """
+
+    name: str
+    kind: str
+    size: tuple[float, ...] = ()
+    pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    quat: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+    mesh: str | None = None
+
+    def __post_init__(self) -> None:
+        if self.kind not in SHAPE_KINDS:
+            raise ValueError(f"shape {self.name!r}: kind={self.kind!r}, expected one of {SHAPE_KINDS}")
+        object.__setattr__(self, "size", tuple(float(s) for s in nonnegative(np.atleast_1d(self.size), "size")))
+        object.__setattr__(self, "pos", tuple(finite_array(self.pos, "pos", shape=(3,)).tolist()))
+        quat = finite_array(self.quat, "quat", shape=(4,))
+        if np.linalg.norm(quat) == 0:
+            raise ValueError(f"shape {self.name!r}: quat={quat.tolist()} must be non-zero")
+        object.__setattr__(self, "quat", tuple((quat if already_unit(quat) else quat / np.linalg.norm(quat)).tolist()))
+
+
+@dataclass(frozen=True)
+class Body:
+    """A rigid body: its mass properties (body frame), its shapes, its parent and where it starts.
+
+    pos (3,) [m] and quat (4,) place the body frame in the parent's frame in the reference pose,
+    where every hinge and slide coordinate is zero (as MJCF's body pos/quat); the joints' qpos0 then
+    set the initial state. A free body starts at pos/quat.
+    """
+
+    name: str
+    inertia: Inertia
+    shapes: tuple[Shape, ...] = ()
+    parent: str = WORLD
+    pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    quat: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+
+
+def already_unit(vector: np.ndarray) -> bool:
+    """True when |vector| is 1 to 2 eps, its squared norm summed exactly (math.fsum): such a vector is kept
+    as given, since dividing it by a norm whose last bit depends on the CPU's SIMD kernels would change it,
+    and every model exported from it, from one machine to another."""
+    return abs(math.sqrt(math.fsum(float(v) * float(v) for v in vector)) - 1.0) <= 2 * np.finfo(float).eps
+
+
+def _direction(axis) -> np.ndarray:
+    """(3,) unit joint axis: unit_axis, except that an axis already unit is kept as given (already_unit)."""
+    if not isinstance(axis, str):
+        vector = finite_array(axis, "axis", shape=(3,))
+        if already_unit(vector):
+            return vector
+    return unit_axis(axis, "axis")
+
+
+@dataclass(frozen=True)
+class JointKind:
+    """One row of the joint table: a kind's code in the compiled model, its sizes and its MJCF name.
+
+    nq: coordinates in qpos (hinge, slide, roll 1; ball 4, a quaternion; free 7, position and quaternion)
+    nv: degrees of freedom in qvel (ball 3, free 6)
+    scalar: one coordinate whose displacement is q - ref (hinge, slide, roll)
+    mjcf: the element's type in MJCF, or None where rbody writes the kind as several MJCF joints (a roll
+          joint: a slide and a hinge tied by a joint equality, rbody.mjcf.export)
+    """
+
+    name: str
+    code: int
+    nq: int
+    nv: int
+    scalar: bool
+    mjcf: str | None
+
+
+JOINTS: dict[str, JointKind] = {kind.name: kind for kind in (
+    JointKind("hinge", 0, 1, 1, True, "hinge"),
+    JointKind("slide", 1, 1, 1, True, "slide"),
+    JointKind("ball", 2, 4, 3, False, "ball"),
+    JointKind("free", 3, 7, 6, False, "free"),
+    JointKind("roll", 4, 1, 1, True, None),
+)}
+JOINT_KINDS = tuple(JOINTS)
+ROLL_PERPENDICULAR_TOL = 1e-9  # |axis . normal| of a roll joint above this: the two are not perpendicular
+
+
+@dataclass(frozen=True)
+class Joint:
+    """A joint between `body` and its parent.
+
+    kind:   "hinge" (angle about axis through anchor), "slide" (distance along axis), "ball" (any
+            rotation about anchor), "free", "roll" (a round body of radius `radius` rolling without slipping
+            on a line: one coordinate, the angle turned about `axis` through anchor, the body's centre)
+    axis:   (3,) direction in the body frame; anchor: (3,) point in the body frame [m]
+    qpos0, qvel0: initial coordinate [rad or m] and rate [rad/s or m/s] (hinge and slide);
+            ball: qpos0 a quaternion (w, x, y, z) (0.0: identity), qvel0 (3,) the angular velocity in
+            the BODY frame [rad/s] (MuJoCo's ball qvel; 0.0: at rest);
+            free joints start from the body's pos/quat with qvel0 = (v (3,) of the body-frame origin,
+            omega (3,)), both in the world frame.
+    damping [N m s/rad or N s/m], stiffness [N m/rad or N/m], springref [rad or m], armature
+    [kg m^2 or kg], ref [rad or m]: MJCF's joint attributes of the same names. Passive force
+    -stiffness (q - springref) - damping qvel (stiffness on hinge and slide only); armature adds to the
+    diagonal of the mass matrix; ref is the coordinate at which the body sits at its reference pose
+    (the displacement applied is q - ref).
+    A hinge turns the body by +angle about `axis` (right-handed); a slide moves it by +distance along
+    `axis`; several joints on one body compose in the order given (as MJCF). Backends report hinge,
+    slide and roll joints as (qpos (T,), qvel (T,)) under the joint's name.
+    roll:   radius a [m] > 0 and normal e (3,), the unit normal of the surface rolled on, pointing from the
+            contact point to the centre, body frame, perpendicular to `axis`. The body first slides by
+            a (q - ref) along l = axis x normal, then turns by q - ref about `axis` through anchor: the
+            contact point anchor - a e is at rest (v_centre = a q' l). Exported to MJCF as a slide and a
+            hinge tied by a joint equality.
+    """
+
+    name: str
+    kind: str
+    body: str
+    axis: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    anchor: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    qpos0: Any = 0.0
+    qvel0: Any = 0.0
+    damping: float = 0.0
+    stiffness: float = 0.0
+    springref: float = 0.0
+    armature: float = 0.0
+    ref: float = 0.0
+    radius: float = 0.0
+    normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
+
+    def __post_init__(self) -> None:
+        if self.kind not in JOINT_KINDS:
+            raise ValueError(f"joint {self.name!r}: kind={self.kind!r}, expected one of {JOINT_KINDS}")
+        object.__setattr__(self, "axis", tuple(_direction(self.axis).tolist()))
+        object.__setattr__(self, "normal", tuple(_direction(self.normal).tolist()))
+        radius = float(finite_array(self.radius, f"joint {self.name!r}: radius", shape=()))
+        object.__setattr__(self, "radius", radius)
+        if self.kind == "roll":
+            if not radius > 0:
+                raise ValueError(f"joint {self.name!r}: radius={self.radius!r}: a roll joint needs a rolling radius > 0 [m]")
+            if abs(float(np.dot(self.axis, self.normal))) > ROLL_PERPENDICULAR_TOL:
+                raise ValueError(f"joint {self.name!r}: axis={self.axis!r} and normal={self.normal!r} are not "
+                                 "perpendicular: a roll joint turns about an axis lying in the surface it rolls on")
+        elif radius != 0.0:
+            raise ValueError(f"joint {self.name!r}: radius={self.radius!r} is only for roll joints (kind={self.kind!r})")
+        for name in ("damping", "stiffness", "armature"):
+            value = finite_array(getattr(self, name), f"joint {self.name!r}: {name}", shape=())
+            object.__setattr__(self, name, float(nonnegative(value, f"joint {self.name!r}: {name}")))
+        for name in ("springref", "ref"):
+            object.__setattr__(self, name, float(finite_array(getattr(self, name), f"joint {self.name!r}: {name}",
+                                                              shape=())))
+
+    @property
+    def line(self) -> np.ndarray:
+        """(3,) unit l = axis x normal, body frame: the direction a roll joint's centre moves for q' > 0 (roll
+        joints only: their axis and normal are perpendicular)."""
+        line = np.cross(self.axis, self.normal)
+        return line / np.linalg.norm(line)
+
+
+@dataclass(frozen=True)
+class Contact:
+    """Two pieces of geometry that may touch: shape names (world shapes or body shapes).
+
+    friction [-] is the Coulomb coefficient of the pair; restitution in [0, 1] the coefficient of
+    restitution of the pair (1 elastic). Pairs not listed never collide.
+    """
+
+    shape_a: str
+    shape_b: str
+    friction: float = 0.0
+    restitution: float = 1.0
+
+    def __post_init__(self) -> None:
+        nonnegative(self.friction, "friction")
+        in_interval(self.restitution, "restitution", 0.0, 1.0, closed=True)
+
+
+@dataclass(frozen=True)
+class Layout:
+    """The physical model of an unbatched scene: what MuJoCo, pymunk and the MJCF exporter build."""
+
+    bodies: tuple[Body, ...]
+    joints: tuple[Joint, ...]
+    fixed: tuple[Shape, ...] = ()
+    contacts: tuple[Contact, ...] = ()
+
+
+# ----- the one tree order ------------------------------------------------------------------------------
+
+def depth_first(layout: Layout) -> tuple[Body, ...]:
+    """The bodies reached from the world, depth first, children in layout order (MuJoCo's body ids 1, 2, ...),
+    without checks: a body whose parent is missing, or that sits on a cycle, is simply not reached."""
+    children: dict[str, list[Body]] = {}
+    for body in layout.bodies:
+        children.setdefault(body.parent, []).append(body)
+    order: list[Body] = []
+    stack = list(reversed(children.get(WORLD, [])))
+    while stack:
+        body = stack.pop()
+        order.append(body)
+        stack.extend(reversed(children.get(body.name, [])))
+    return tuple(order)
+
+
+def tree_order(layout: Layout) -> tuple[Body, ...]:
+    """Bodies depth first from the world, children in layout order (MuJoCo's body ids 1, 2, ...): the order of
+    the engine's bodies, of the exported MJCF and of every backend. Raises ValueError for a body called "world",
+    repeated names, a parent that is no body, or a cycle."""
+    names = [body.name for body in layout.bodies]
+    if WORLD in names:
+        raise ValueError(f"a body is called {WORLD!r}: that name is the fixed world")
+    seen: set[str] = set()
+    for name in names:
+        if name in seen:
+            raise ValueError(f"two bodies are called {name!r}: body names must be unique")
+        seen.add(name)
+    for body in layout.bodies:
+        if body.parent != WORLD and body.parent not in seen:
+            raise ValueError(f"body {body.name!r}: parent={body.parent!r} is neither {WORLD!r} nor a body of the "
+                             "layout")
+    order = depth_first(layout)
+    if len(order) != len(names):
+        lost = sorted(seen - {b.name for b in order})
+        raise ValueError(f"bodies {lost} are not reached from the world: their parents form a cycle")
+    return order
+
+
+def joint_order(layout: Layout) -> tuple[Joint, ...]:
+    """Joints in MuJoCo's order (their qpos and qvel addresses follow it): by body in tree order, then in the
+    order the layout lists a body's joints."""
+    by_body: dict[str, list[Joint]] = {}
+    for joint in layout.joints:
+        by_body.setdefault(joint.body, []).append(joint)
+    return tuple(j for body in depth_first(layout) for j in by_body.get(body.name, ()))
+
+
+def coordinate_addresses(joints: tuple[Joint, ...]) -> tuple[tuple[int, ...], tuple[int, ...], int, int]:
+    """(qposadr, dofadr, nq, nv) of joints in joint_order: where each joint's coordinates start in qpos and in
+    qvel, and the totals (the JOINTS table's sizes, summed in order)."""
+    qposadr, dofadr, nq, nv = [], [], 0, 0
+    for joint in joints:
+        qposadr.append(nq)
+        dofadr.append(nv)
+        nq += JOINTS[joint.kind].nq
+        nv += JOINTS[joint.kind].nv
+    return tuple(qposadr), tuple(dofadr), nq, nv
