@@ -12,7 +12,7 @@ from rbody.scene import Scene
 from rbody.trajectory import Trajectory
 from rbody.errors import MethodNotApplicable, SimulationError
 from rbody.engine import METHODS, METHOD_ORDER, stability
-from rbody.simulation import simulate
+from rbody.simulation import PreparedRun, prepare, simulate
 from rbody.engine.multibody import Multibody
 from rbody.mjcf import from_mjcf, to_mjcf
 from rbody import scenes
@@ -20,6 +20,6 @@ from rbody import scenes
 __all__ = [
     "Inertia", "RigidMotion", "point_velocity", "Particles", "reduced_mass", "two_body",
     "Body", "Contact", "Joint", "Layout", "Scene", "Shape", "Trajectory",
-    "SimulationError", "MethodNotApplicable", "METHODS", "METHOD_ORDER", "simulate", "scenes",
+    "SimulationError", "MethodNotApplicable", "METHODS", "METHOD_ORDER", "simulate", "prepare", "PreparedRun", "scenes",
     "to_mjcf", "from_mjcf", "Multibody", "stability",
 ]

@@ -25,7 +25,7 @@ from typing import Any, ClassVar, Iterable, Mapping
 import numpy as np
 
 from rbody.checks import finite_array, nonnegative
-from rbody.engine.native import NativeModel
+from rbody.engine.native import NativeModel, any_batch
 from rbody.layout import JOINTS, Layout
 
 
@@ -252,8 +252,18 @@ class TreeScene(Scene):
         if not isinstance(self.tree, Layout):
             raise ValueError(f"layout={self.tree!r}: expected an rbody.Layout")
         model = self.multibody  # validates the tree (ValueError before any work)
-        for field_name, size, default in (("qpos0", model.nq, model.qpos0), ("qvel0", model.nv, model.qvel0)):
-            value = getattr(self, field_name)
+        qpos0, qvel0 = self._checked_state(self.qpos0, self.qvel0, model.qpos0, model.qvel0)
+        object.__setattr__(self, "qpos0", qpos0)
+        object.__setattr__(self, "qvel0", qvel0)
+
+    def _checked_state(self, qpos0: Any, qvel0: Any, qpos_default: np.ndarray,
+                       qvel_default: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """qpos0 (..., nq) and qvel0 (..., nv) as read-only float64 arrays (None: the default), checked: shapes
+        that broadcast to one batch, finite numbers, unit quaternions, a mass matrix regular there."""
+        model = self.multibody
+        arrays = []
+        for field_name, value, size, default in (("qpos0", qpos0, model.nq, qpos_default),
+                                                 ("qvel0", qvel0, model.nv, qvel_default)):
             array = default.copy() if value is None else np.array(value, dtype=np.float64)
             if array.ndim == 0 or array.shape[-1] != size:
                 raise ValueError(f"{field_name} has shape {array.shape}: expected (..., {size}) for this tree "
@@ -261,19 +271,21 @@ class TreeScene(Scene):
             if not np.all(np.isfinite(array)):
                 raise ValueError(f"{field_name} holds NaN or inf: expected finite numbers")
             array.setflags(write=False)
-            object.__setattr__(self, field_name, array)
+            arrays.append(array)
+        qpos0, qvel0 = arrays
         try:
-            np.broadcast_shapes(self.qpos0.shape[:-1], self.qvel0.shape[:-1])
+            np.broadcast_shapes(qpos0.shape[:-1], qvel0.shape[:-1])
         except ValueError:
-            raise ValueError(f"qpos0 of shape {self.qpos0.shape} and qvel0 of shape {self.qvel0.shape} do not "
+            raise ValueError(f"qpos0 of shape {qpos0.shape} and qvel0 of shape {qvel0.shape} do not "
                              "broadcast to one batch") from None
         quats = self._quaternion_columns()
         if quats:
-            norms = np.stack([np.linalg.norm(self.qpos0[..., c:c + 4], axis=-1) for c in quats])
+            norms = np.stack([np.linalg.norm(qpos0[..., c:c + 4], axis=-1) for c in quats])
             if np.any(np.abs(norms - 1.0) > 1e-9):
                 raise ValueError(f"qpos0: the quaternions at qpos columns {quats} have lengths "
                                  f"{np.unique(np.round(norms, 12)).tolist()}: expected unit quaternions")
-        model.check_pivots(self.qpos0)
+        model.check_pivots(qpos0)
+        return qpos0, qvel0
 
     @cached_property
     def multibody(self):
@@ -303,6 +315,29 @@ class TreeScene(Scene):
         model = self.multibody
         return (np.broadcast_to(self.qpos0, self.batch_shape + (model.nq,)).reshape(-1, model.nq),
                 np.broadcast_to(self.qvel0, self.batch_shape + (model.nv,)).reshape(-1, model.nv))
+
+    def native_start(self, qpos0: Any = None, qvel0: Any = None) -> np.ndarray:
+        """y0 (B, n) of the native model from qpos0 (..., nq) and qvel0 (..., nv) (None: the scene's own), checked
+        as the scene's own are; its batch is their broadcast shape flattened (rbody.simulation.PreparedRun.run)."""
+        qpos0, qvel0 = self._checked_state(qpos0, qvel0, self.qpos0, self.qvel0)
+        shape = np.broadcast_shapes(qpos0.shape[:-1], qvel0.shape[:-1])
+        qpos = np.broadcast_to(qpos0, shape + qpos0.shape[-1:]).reshape(-1, qpos0.shape[-1])
+        qvel = np.broadcast_to(qvel0, shape + qvel0.shape[-1:]).reshape(-1, qvel0.shape[-1])
+        return self._native_state(qpos, qvel)
+
+    def _native_state(self, qpos: np.ndarray, qvel: np.ndarray) -> np.ndarray:
+        """y (B, n) from qpos (B, nq), qvel (B, nv): (qpos, qvel) on the planar path, (qpos, qvel, phi = 0) on the
+        3-D engine's (a rotation vector per ball or free joint)."""
+        if self._planar is not None:
+            return np.concatenate([qpos, qvel], axis=1)
+        return np.concatenate([qpos, qvel, np.zeros((qpos.shape[0], 3 * self.multibody.nrot))], axis=1)
+
+    @cached_property
+    def _planar(self):
+        """The planar kernels' model of the tree (rbody.engine.planar.planar_model), or None when it is 3-D."""
+        from rbody.engine.planar import planar_model
+
+        return planar_model(self.multibody)
 
     def item(self, index: int | tuple = ()) -> "TreeScene":
         if not self.batch_shape:
@@ -415,25 +450,26 @@ class TreeScene(Scene):
         algebra) when the tree is planar, decided from its structure, else the 3-D engine's. Observables and
         energies use the 3-D Multibody either way (once per saved sample, not per evaluation)."""
         from rbody.engine import multibody as mb
-        from rbody.engine.planar import planar_accel, planar_model, planar_rhs
+        from rbody.engine.planar import planar_accel, planar_rhs
 
         model = self.multibody
         qpos0, qvel0 = self._state0()
-        planar = planar_model(model)
+        y0 = self._native_state(qpos0, qvel0)
+        planar = self._planar
         if planar is not None:
             nv = model.nv
 
+            @any_batch
             def observe_planar(t, y):
                 return self._observables(y[..., :nv], y[..., nv:])
 
-            return NativeModel(y0=np.concatenate([qpos0, qvel0], axis=1),
-                               params=np.tile(planar.row, (qpos0.shape[0], 1)), rhs=planar_rhs,
+            return NativeModel(y0=y0, params=np.tile(planar.row, (qpos0.shape[0], 1)), rhs=planar_rhs,
                                observe=observe_planar, accel=None if self.symplectic_applies else planar_accel,
                                rate_from_jacobian=True)
-        y0 = np.concatenate([qpos0, qvel0, np.zeros((qpos0.shape[0], 3 * model.nrot))], axis=1)
         params = np.tile(np.asarray(model.params), (qpos0.shape[0], 1))
         nq, nv = model.nq, model.nv
 
+        @any_batch
         def observe(t, y):
             return self._observables(y[..., :nq], y[..., nq:nq + nv])
 

@@ -12,6 +12,7 @@ only sets where the trajectory is sampled.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 from typing import Any
@@ -19,9 +20,10 @@ from typing import Any
 import numpy as np
 
 from rbody.checks import run_times, whole_number
+from rbody.engine.distributed import PREPARED_KEY, integrate_on_cluster
 from rbody.engine.methods import BY_NAME, Method, method as method_record
 from rbody.engine.runner import crosses_break, failure, integrate_model, step_count
-from rbody.engine.stability import check_step
+from rbody.engine.stability import check_state, check_step
 from rbody.errors import MethodNotApplicable, SimulationError
 from rbody.scene import Scene
 from rbody.trajectory import Trajectory
@@ -55,45 +57,149 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
     and, after, when a step gives a non-finite state (never a trajectory holding NaN, except where an
     observable means "not yet": a race's arrival time), or when a task lost its worker more often than
     Dask retries it.
+
+    Without a client this is prepare(scene, ...).run(): the checks, the model and the bound loop are made on the
+    first call with these arguments and kept with the scene, so a repeated call costs the run alone.
+    """
+    if chunk is not None and client is None:
+        raise ValueError(f"chunk={chunk!r}: rows per task of a Dask client; give client= too, or leave chunk out")
+    prepared = prepare(scene, dt=dt, method=method, t_end=t_end, save_every=save_every, allow_large=allow_large)
+    if client is None:
+        return prepared.run()
+    return prepared.run_on_cluster(client, chunk)
+
+
+def prepare(scene: Scene, *, dt: float, method: str | None = None, t_end: float | None = None,
+            save_every: int = 1, allow_large: bool = False) -> "PreparedRun":
+    """Everything of a run that depends only on (scene, dt, method, t_end, save_every), done once: the arguments
+    checked, the method chosen, the work estimated and refused if too large, the stability and resolution checks,
+    the native model built and the method's compiled loop bound to it. Arguments and errors as simulate's.
+
+    The result is kept with the scene (a frozen scene never changes), so prepare, and simulate, called again
+    with the same arguments return it at once. PreparedRun.run() then costs what the integration costs.
     """
     if not isinstance(scene, Scene):
         raise ValueError(f"scene={scene!r}: expected an rbody.Scene (see rbody.scenes)")
-    dt, t_end = run_times(scene.t_end, dt, t_end)
-    whole_number(save_every, "save_every")
-    record = _choose_method(scene, method)
-    method = record.name if record is not None else EVENT_METHOD
-    if chunk is not None and client is None:
-        raise ValueError(f"chunk={chunk!r}: rows per task of a Dask client; give client= too, or leave chunk out")
-    refuse_large(estimate_work(scene, dt, t_end, save_every), allow_large)
+    key = (dt, method, t_end, save_every, allow_large)
+    kept = scene.__dict__.setdefault(PREPARED_KEY, {})  # frozen: no setattr, but __dict__ is writable
+    try:
+        found = kept.get(key)
+    except TypeError:  # an unhashable argument (an array): checked, and refused, below
+        key, found = None, None
+    if found is not None and all(type(a) is type(b) for a, b in zip(key, found.arguments)):
+        return found
+    prepared = PreparedRun(scene, dt=dt, method=method, t_end=t_end, save_every=save_every, allow_large=allow_large)
+    if key is not None:
+        kept[key] = prepared
+    return prepared
 
-    if scene.event_driven:
-        return scene.run_events(t_end, dt * save_every)
-    check_step(scene, method, dt, t_end)  # beyond the method's stability limit: refuse before any step
 
-    model = scene.native_model  # built once per scene
-    nsteps = step_count(t_end, dt, save_every)
-    if model.break_time is not None and 0 < model.break_time < dt:
-        raise SimulationError(
-            f"scene {scene.describe()}: its right-hand side jumps at t = {model.break_time:.6g} s (e.g. a "
-            f"rocket's burn-out), inside the first step dt={dt}: the whole phase before it would be one step of "
-            f"{model.break_time:.3g} s, integrated with no step inside it; use dt <= {model.break_time / 10:.3g} s "
-            "(ten steps or more before the jump)")
-    out = np.empty((nsteps // save_every + 1,) + model.y0.shape)
-    if client is not None:  # the batch's rows as tasks on a Dask cluster, each as below
-        from rbody.engine.distributed import integrate_on_cluster
-        failed = integrate_on_cluster(client, scene, model, method, dt, nsteps, save_every, out, chunk)
-    else:
-        failed = integrate_model(model, record, dt, nsteps, save_every, out)
-    if failed.size and failed.max() >= 0:
-        raise failure(scene.describe(), model, record, dt, save_every, out, failed)
-    t = np.arange(out.shape[0]) * (dt * save_every)
-    try:  # every state is finite here; one the observables cannot take (a quaternion of zero length) is a failure
-        data = model.observe(t, out)
-    except (ValueError, FloatingPointError) as error:
-        raise SimulationError(f"scene {scene.describe()}: method {method!r} with dt={dt} gave states whose "
-                              f"observables cannot be formed ({error}); try a smaller dt") from None
-    data = {name: _shaped(value, (t.size,) + scene.batch_shape) for name, value in data.items()}
-    return Trajectory(t, data, meta={"scene": scene.name, "backend": "rbody", "method": method, "dt": dt})
+class PreparedRun:
+    """A run of one scene with (dt, method, t_end, save_every) fixed and checked (rbody.prepare).
+
+    run(qpos0=None, qvel0=None) -> Trajectory: the scene from its own initial state, or (trees) from qpos0
+    (*batch, nq) and qvel0 (*batch, nv) of the scene's batch shape, which are checked as the scene checks its
+    own (shapes, finite numbers, unit quaternions) and for the stability of the step at that state.
+    Attributes: scene, method (its name), dt [s], t_end [s], save_every, nsteps, t (T,) [s] the saved times.
+    """
+
+    def __init__(self, scene: Scene, *, dt: float, method: str | None, t_end: float | None, save_every: int,
+                 allow_large: bool) -> None:
+        self.arguments = (dt, method, t_end, save_every, allow_large)
+        self.dt, self.t_end = run_times(scene.t_end, dt, t_end)
+        self.save_every = whole_number(save_every, "save_every")
+        self.scene = scene
+        self.record = _choose_method(scene, method)
+        self.method = self.record.name if self.record is not None else EVENT_METHOD
+        self.work = estimate_work(scene, self.dt, self.t_end, self.save_every)
+        self.allow_large = allow_large
+        refuse_large(self.work, allow_large)
+        if scene.event_driven:
+            return
+        check_step(scene, self.method, self.dt, self.t_end)  # beyond the method's stability limit: refuse now
+        self.model = model = scene.native_model  # built once per scene
+        self.nsteps = step_count(self.t_end, self.dt, self.save_every)
+        if model.break_time is not None and 0 < model.break_time < self.dt:
+            raise SimulationError(
+                f"scene {scene.describe()}: its right-hand side jumps at t = {model.break_time:.6g} s (e.g. a "
+                f"rocket's burn-out), inside the first step dt={self.dt}: the whole phase before it would be one step "
+                f"of {model.break_time:.3g} s, integrated with no step inside it; use dt <= "
+                f"{model.break_time / 10:.3g} s (ten steps or more before the jump)")
+        self.y0 = np.array(model.y0, dtype=np.float64, order="C")         # the loops' own writable copies
+        self.params = np.array(model.params, dtype=np.float64, order="C")
+        self.t = np.arange(self.nsteps // self.save_every + 1) * (self.dt * self.save_every)
+        self.t.setflags(write=False)
+        self.leading = (self.t.size,) + scene.batch_shape
+        self.meta = {"scene": scene.name, "backend": "rbody", "method": self.method, "dt": self.dt}
+        self._runner = (None if crosses_break(model, self.nsteps, self.dt)
+                        else self.record.bound(model, self.y0.shape[0], self.dt, self.nsteps, self.save_every))
+
+    def run(self, *, qpos0: Any = None, qvel0: Any = None) -> Trajectory:
+        """The run, from the scene's initial state or (trees) from qpos0/qvel0; a Trajectory as simulate's."""
+        scene = self.scene
+        if scene.event_driven:
+            if qpos0 is not None or qvel0 is not None:
+                raise ValueError(f"scene {scene.name!r} is event-driven: it starts from its own state (qpos0 and "
+                                 "qvel0 are for trees of bodies and joints)")
+            if self.work["bytes"] > MEMORY_CHECKED_ABOVE:
+                refuse_large(self.work, self.allow_large)
+            return scene.run_events(self.t_end, self.dt * self.save_every)
+        y0 = self.y0 if qpos0 is None and qvel0 is None else self._start(qpos0, qvel0)
+        if self.work["bytes"] > MEMORY_CHECKED_ABOVE:  # the memory available may have changed since prepare
+            refuse_large(self.work, self.allow_large)
+        out = np.empty((self.t.size,) + y0.shape)
+        if self._runner is None:  # the run crosses a break in the rhs: cut there (integrate_model)
+            failed = integrate_model(self.model if y0 is self.y0 else dataclasses.replace(self.model, y0=y0),
+                                     self.record, self.dt, self.nsteps, self.save_every, out)
+        else:
+            failed = self._runner(y0, self.params, out)
+        return self._trajectory(y0, out, failed)
+
+    def run_on_cluster(self, client: Any, chunk: int | None = None) -> Trajectory:
+        """The batch's rows as tasks on the Dask cluster of `client` (simulate's client=, chunk=)."""
+        if self.scene.event_driven:
+            return self.run()
+        out = np.empty((self.t.size,) + self.y0.shape)
+        failed = integrate_on_cluster(client, self.scene, self.model, self.method, self.dt, self.nsteps,
+                                      self.save_every, out, chunk)
+        return self._trajectory(self.y0, out, failed)
+
+    def _start(self, qpos0: Any, qvel0: Any) -> np.ndarray:
+        """y0 (B, n) of a tree from qpos0 and qvel0 (the scene's own where one is None), checked; SimulationError
+        when the step is beyond the stability limit at that state."""
+        start = getattr(self.scene, "native_start", None)
+        if start is None:
+            raise ValueError(f"scene {self.scene.describe()}: qpos0 and qvel0 are for trees of bodies and joints "
+                             "(Scene.from_layout, from_mjcf); a family scene takes its initial state as parameters")
+        y0 = np.array(start(qpos0, qvel0), dtype=np.float64, order="C")
+        if y0.shape != self.y0.shape:
+            raise ValueError(f"qpos0/qvel0 give a batch of {y0.shape[0]} states: this run was prepared for "
+                             f"{self.y0.shape[0]} (the scene's batch shape {self.scene.batch_shape}); prepare the "
+                             "scene with that batch")
+        check_state(dataclasses.replace(self.model, y0=y0), self.scene.describe(), self.method, self.dt,
+                    self.t_end)
+        return y0
+
+    def _trajectory(self, y0: np.ndarray, out: np.ndarray, failed: np.ndarray) -> Trajectory:
+        model = self.model if y0 is self.y0 else dataclasses.replace(self.model, y0=y0)
+        if (failed[0] >= 0) if failed.size == 1 else (failed.size and failed.max() >= 0):  # one element: no reduction
+            raise failure(self.scene.describe(), model, self.record, self.dt, self.save_every, out, failed)
+        try:  # every state is finite here; one the observables cannot take (a zero quaternion) is a failure
+            if getattr(model.observe, "any_batch", False):
+                data = model.observe(self.t, out.reshape(self.leading + out.shape[2:]))
+            else:
+                data = {name: _shaped(value, self.leading) for name, value in model.observe(self.t, out).items()}
+        except (ValueError, FloatingPointError) as error:
+            raise SimulationError(f"scene {self.scene.describe()}: method {self.method!r} with dt={self.dt} gave "
+                                  f"states whose observables cannot be formed ({error}); try a smaller dt") from None
+        return Trajectory(self.t, data, meta=dict(self.meta))
+
+    def __call__(self, *, qpos0: Any = None, qvel0: Any = None) -> Trajectory:
+        return self.run(qpos0=qpos0, qvel0=qvel0)
+
+    def __repr__(self) -> str:
+        return (f"PreparedRun({self.scene.describe()}, method={self.method!r}, dt={self.dt:g}, t_end={self.t_end:g}, "
+                f"save_every={self.save_every})")
 
 
 def _shaped(value, leading: tuple[int, ...]):

@@ -31,7 +31,8 @@ class Observables(Mapping):
                 self._check(name, value)
 
     def _check(self, name: str, value: Any) -> None:
-        if np.shape(value)[:1] != (self._length,):
+        shape = value.shape if isinstance(value, np.ndarray) else np.shape(value)
+        if shape[:1] != (self._length,):
             raise ValueError(f"observable {name!r} has shape {np.shape(value)}: must start with T={self._length}")
 
     def __getitem__(self, name: str) -> np.ndarray:

@@ -41,6 +41,8 @@ from rbody.engine.native import Experiment, NativeModel
 MIN_CHUNK = 4096
 # Chunks per worker thread: several, so that a slow worker, or one that dies, delays only a small part.
 CHUNKS_PER_THREAD = 4
+# Where a scene keeps its prepared runs (rbody.simulation.prepare): never shipped to a worker.
+PREPARED_KEY = "_prepared"
 # How long a cluster without workers is waited for before giving up [s].
 WORKER_WAIT_SECONDS = 30.0
 
@@ -148,11 +150,12 @@ def integrate_rows(scene: Experiment, start: int, stop: int, method: str, dt: fl
 
 def portable(scene: Experiment) -> Experiment:
     """A shallow copy of `scene` without its cached values (the native model holds compiled functions and
-    closures, and the batch's states): what is sent to the workers, who build their own."""
+    closures, and the batch's states) and without its prepared runs (rbody.simulation.prepare keeps them in
+    PREPARED_KEY, each holding the model): what is sent to the workers, who build their own."""
     bare = copy.copy(scene)
     state = vars(bare)
     for name in list(state):
-        if isinstance(getattr(type(scene), name, None), cached_property):
+        if name == PREPARED_KEY or isinstance(getattr(type(scene), name, None), cached_property):
             del state[name]
     return bare
 

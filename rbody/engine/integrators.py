@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 from numba import carray, cfunc, get_num_threads, njit, prange, types
+from numba.core import cgutils
 from numba.extending import intrinsic
 
 
@@ -67,9 +68,35 @@ FINISH_SIGNATURE = types.void(_F64P, _F64P, types.intp, types.intp)
 _POINTER_FUNCTIONS: dict[tuple[int, str], tuple[Any, Any]] = {}
 
 
-def pointer_function(function, kind: str = "rhs"):
-    """The scene's jitted function(y, p, out) ("rhs", also accel) or step(y, p, h) ("step") behind a
-    C function pointer taking (address, address, address or h, len(y), len(p)); made once per function."""
+def _function_at(function_type):
+    """An intrinsic turning an address (int) into a callable of `function_type`: the loops take the scene's C
+    function pointers as plain integers, because a C callback object passed as an argument is unboxed by numba at
+    every call (~2.5 us each, most of the fixed cost of a one-step run) where an integer costs nothing."""
+    @intrinsic
+    def function_at(typingctx, address):
+        if not isinstance(address, types.Integer):
+            return None
+
+        def codegen(context, builder, signature, args):
+            function = cgutils.create_struct_proxy(function_type)(context, builder)
+            void_pointer = context.get_value_type(types.voidptr)
+            function.c_addr = builder.inttoptr(args[0], void_pointer)
+            function.py_addr = context.get_constant_null(types.voidptr)
+            function.jit_addr = context.get_constant_null(types.voidptr)
+            return function._getvalue()
+        return function_type(address), codegen
+    return function_at
+
+
+_rhs_at = _function_at(types.FunctionType(RHS_SIGNATURE))
+_step_at = _function_at(types.FunctionType(STEP_SIGNATURE))
+_finish_at = _function_at(types.FunctionType(FINISH_SIGNATURE))
+
+
+def pointer_function(function, kind: str = "rhs") -> int:
+    """The address of the scene's jitted function(y, p, out) ("rhs", also accel) or step(y, p, h) ("step") behind a
+    C function pointer taking (address, address, address or h, len(y), len(p)); made once per function and kept
+    alive here, so that the address stays valid."""
     key = (id(function), kind)
     if key not in _POINTER_FUNCTIONS:
         if kind == "rhs":
@@ -87,7 +114,7 @@ def pointer_function(function, kind: str = "rhs"):
         else:
             raise ValueError(f"kind={kind!r}: expected 'rhs', 'step' or 'finish'")
         _POINTER_FUNCTIONS[key] = (function, wrapper)  # holding the function keeps its id unique
-    return _POINTER_FUNCTIONS[key][1]
+    return _POINTER_FUNCTIONS[key][1].address
 
 
 @njit(cache=True)
@@ -143,7 +170,8 @@ def chunk_size(batch: int) -> int:
 
 
 @njit(cache=True, parallel=True)
-def _euler_loop(rhs, finish, finishing, y0, params, dt, nsteps, save_every, out, size):
+def _euler_loop(rhs_address, finish_address, finishing, y0, params, dt, nsteps, save_every, out, size):
+    rhs, finish = _rhs_at(rhs_address), _finish_at(finish_address)
     batch, n = y0.shape
     m = params.shape[1]
     failed = np.full(batch, -1, dtype=np.int64)
@@ -176,7 +204,8 @@ def _euler_loop(rhs, finish, finishing, y0, params, dt, nsteps, save_every, out,
 
 
 @njit(cache=True, parallel=True)
-def _rk4_loop(rhs, finish, finishing, y0, params, dt, nsteps, save_every, out, size):
+def _rk4_loop(rhs_address, finish_address, finishing, y0, params, dt, nsteps, save_every, out, size):
+    rhs, finish = _rhs_at(rhs_address), _finish_at(finish_address)
     batch, n = y0.shape
     m = params.shape[1]
     failed = np.full(batch, -1, dtype=np.int64)
@@ -226,7 +255,8 @@ def _rk4_loop(rhs, finish, finishing, y0, params, dt, nsteps, save_every, out, s
 
 
 @njit(cache=True, parallel=True)
-def _symplectic_euler_loop(accel, y0, params, dt, nsteps, save_every, out, size):
+def _symplectic_euler_loop(accel_address, y0, params, dt, nsteps, save_every, out, size):
+    accel = _rhs_at(accel_address)
     batch, n = y0.shape
     half = n // 2
     m = params.shape[1]
@@ -259,7 +289,8 @@ def _symplectic_euler_loop(accel, y0, params, dt, nsteps, save_every, out, size)
 
 
 @njit(cache=True, parallel=True)
-def _composed_verlet_loop(accel, weights, y0, params, dt, nsteps, save_every, out, size):
+def _composed_verlet_loop(accel_address, weights, y0, params, dt, nsteps, save_every, out, size):
+    accel = _rhs_at(accel_address)
     batch, n = y0.shape
     half = n // 2
     m = params.shape[1]
@@ -298,7 +329,8 @@ def _composed_verlet_loop(accel, weights, y0, params, dt, nsteps, save_every, ou
 
 
 @njit(cache=True, parallel=True)
-def _gauss_loop(rhs, finish, finishing, A, weights, second, later, y0, params, dt, nsteps, save_every, out, size):
+def _gauss_loop(rhs_address, finish_address, finishing, A, weights, second, later, y0, params, dt, nsteps, save_every, out, size):
+    rhs, finish = _rhs_at(rhs_address), _finish_at(finish_address)
     """second, later (s, 2s): the starting guess of step 2, and of every later step i, from the slopes of
     steps i-2 and i-1 (see run_gauss6)."""
     batch, n = y0.shape
@@ -391,7 +423,8 @@ def _gauss_loop(rhs, finish, finishing, A, weights, second, later, y0, params, d
 
 
 @njit(cache=True, parallel=True)
-def _composed_flow_loop(step, weights, y0, params, dt, nsteps, save_every, out, size):
+def _composed_flow_loop(step_address, weights, y0, params, dt, nsteps, save_every, out, size):
+    step = _step_at(step_address)
     batch, n = y0.shape
     m = params.shape[1]
     failed = np.full(batch, -1, dtype=np.int64)
@@ -482,41 +515,57 @@ def _c(array: np.ndarray) -> np.ndarray:
 # The compiled loops take the same, the functions as pointers, and last the chunk size.
 
 
-def run_euler(rhs, y0, params, dt, nsteps, save_every, out, finish=None):
+class Bound:
+    """loop(*head, y0, params, dt, nsteps, save_every, out, size) with all but (y0, params, out) fixed.
+
+    launch(y0, params, out) types the arguments every time (_launch: any arrays); call(y0, params, out) keeps the
+    compiled entry point of its first call and calls it directly after that, for a caller that always passes
+    arrays of the kinds of its first call (C-contiguous, writable float64: a prepared run's own copies, and a new
+    out), so that a short run costs what its loop costs."""
+
+    __slots__ = ("loop", "head", "dt", "nsteps", "save_every", "size", "entry")
+
+    def __init__(self, loop, head: tuple, dt: float, nsteps: int, save_every: int, batch: int) -> None:
+        self.size = chunk_size(batch)
+        self.loop = _pick(loop, batch, self.size)
+        self.head, self.dt, self.nsteps, self.save_every = head, float(dt), int(nsteps), int(save_every)
+        self.entry = None
+
+    def launch(self, y0: np.ndarray, params: np.ndarray, out: np.ndarray) -> np.ndarray:
+        return _launch(self.loop, *self.head, y0, params, self.dt, self.nsteps, self.save_every, out, self.size)
+
+    def __call__(self, y0: np.ndarray, params: np.ndarray, out: np.ndarray) -> np.ndarray:
+        if self.entry is not None:
+            return self.entry(*self.head, y0, params, self.dt, self.nsteps, self.save_every, out, self.size)
+        failed = self.launch(y0, params, out)
+        args = self.head + (y0, params, self.dt, self.nsteps, self.save_every, out, self.size)
+        self.entry = _ENTRY_POINTS.get((self.loop,) + tuple(_argument_kind(a) for a in args))
+        return failed
+
+
+def bind_euler(rhs, batch, dt, nsteps, save_every, finish=None) -> Bound:
     """y += dt f(y); then finish(y, p) when the scene has one (every method below: after each whole step)."""
-    y0, params = _c(y0), _c(params)
-    size = chunk_size(y0.shape[0])
-    loop = _pick(_euler_loop, y0.shape[0], size)
-    return _launch(loop, pointer_function(rhs), *finish_pointer(finish), y0, params, dt, nsteps, save_every, out, size)
+    return Bound(_euler_loop, (pointer_function(rhs), *finish_pointer(finish)), dt, nsteps, save_every, batch)
 
 
-def run_rk4(rhs, y0, params, dt, nsteps, save_every, out, finish=None):
+def bind_rk4(rhs, batch, dt, nsteps, save_every, finish=None) -> Bound:
     """Classical Runge-Kutta."""
-    y0, params = _c(y0), _c(params)
-    size = chunk_size(y0.shape[0])
-    loop = _pick(_rk4_loop, y0.shape[0], size)
-    return _launch(loop, pointer_function(rhs), *finish_pointer(finish), y0, params, dt, nsteps, save_every, out, size)
+    return Bound(_rk4_loop, (pointer_function(rhs), *finish_pointer(finish)), dt, nsteps, save_every, batch)
 
 
-def run_symplectic_euler(accel, y0, params, dt, nsteps, save_every, out):
+def bind_symplectic_euler(accel, batch, dt, nsteps, save_every) -> Bound:
     """v += dt a(q); q += dt v."""
-    y0, params = _c(y0), _c(params)
-    size = chunk_size(y0.shape[0])
-    loop = _pick(_symplectic_euler_loop, y0.shape[0], size)
-    return _launch(loop, pointer_function(accel), y0, params, dt, nsteps, save_every, out, size)
+    return Bound(_symplectic_euler_loop, (pointer_function(accel),), dt, nsteps, save_every, batch)
 
 
-def run_composed_verlet(accel, weights, y0, params, dt, nsteps, save_every, out):
+def bind_composed_verlet(accel, weights, batch, dt, nsteps, save_every) -> Bound:
     """Velocity Verlet with step weights (weights = [1.0] is verlet itself; YOSHIDA6 its 6th-order
     composition). The acceleration at the end of one sub-step is reused at the start of the next."""
     weights = np.ascontiguousarray(weights, dtype=np.float64)
-    y0, params = _c(y0), _c(params)
-    size = chunk_size(y0.shape[0])
-    loop = _pick(_composed_verlet_loop, y0.shape[0], size)
-    return _launch(loop, pointer_function(accel), weights, y0, params, dt, nsteps, save_every, out, size)
+    return Bound(_composed_verlet_loop, (pointer_function(accel), weights), dt, nsteps, save_every, batch)
 
 
-def run_gauss6(rhs, A, weights, y0, params, dt, nsteps, save_every, out, finish=None):
+def bind_gauss6(rhs, A, weights, batch, dt, nsteps, save_every, finish=None) -> Bound:
     """Gauss-Legendre collocation with tableau A (s, s) and weights (s,) (GAUSS6_A, GAUSS6_B).
 
     Stage slopes K_s = f(y + dt sum_r A_sr K_r) by fixed-point iteration, started from the last two
@@ -526,11 +575,45 @@ def run_gauss6(rhs, A, weights, y0, params, dt, nsteps, save_every, out, finish=
     A = np.ascontiguousarray(A, dtype=np.float64)
     weights = np.ascontiguousarray(weights, dtype=np.float64)
     second, later = gauss_starting_guess(A)
+    return Bound(_gauss_loop, (pointer_function(rhs), *finish_pointer(finish), A, weights, second, later), dt,
+                 nsteps, save_every, batch)
+
+
+def bind_composed_flow(step, weights, batch, dt, nsteps, save_every) -> Bound:
+    """A scene's own symmetric one-step map step(y, p, h) composed with the given weights
+    (weights = [1.0]: the map itself; YOSHIDA6: its 6th-order composition)."""
+    weights = np.ascontiguousarray(weights, dtype=np.float64)
+    return Bound(_composed_flow_loop, (pointer_function(step, "step"), weights), dt, nsteps, save_every, batch)
+
+
+def run_euler(rhs, y0, params, dt, nsteps, save_every, out, finish=None):
     y0, params = _c(y0), _c(params)
-    size = chunk_size(y0.shape[0])
-    loop = _pick(_gauss_loop, y0.shape[0], size)
-    return _launch(loop, pointer_function(rhs), *finish_pointer(finish), A, weights, second, later, y0, params, dt, nsteps,
-                save_every, out, size)
+    return bind_euler(rhs, y0.shape[0], dt, nsteps, save_every, finish).launch(y0, params, out)
+
+
+def run_rk4(rhs, y0, params, dt, nsteps, save_every, out, finish=None):
+    y0, params = _c(y0), _c(params)
+    return bind_rk4(rhs, y0.shape[0], dt, nsteps, save_every, finish).launch(y0, params, out)
+
+
+def run_symplectic_euler(accel, y0, params, dt, nsteps, save_every, out):
+    y0, params = _c(y0), _c(params)
+    return bind_symplectic_euler(accel, y0.shape[0], dt, nsteps, save_every).launch(y0, params, out)
+
+
+def run_composed_verlet(accel, weights, y0, params, dt, nsteps, save_every, out):
+    y0, params = _c(y0), _c(params)
+    return bind_composed_verlet(accel, weights, y0.shape[0], dt, nsteps, save_every).launch(y0, params, out)
+
+
+def run_gauss6(rhs, A, weights, y0, params, dt, nsteps, save_every, out, finish=None):
+    y0, params = _c(y0), _c(params)
+    return bind_gauss6(rhs, A, weights, y0.shape[0], dt, nsteps, save_every, finish).launch(y0, params, out)
+
+
+def run_composed_flow(step, weights, y0, params, dt, nsteps, save_every, out):
+    y0, params = _c(y0), _c(params)
+    return bind_composed_flow(step, weights, y0.shape[0], dt, nsteps, save_every).launch(y0, params, out)
 
 
 def gauss_starting_guess(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -553,16 +636,6 @@ def _lagrange(nodes: np.ndarray, targets: np.ndarray) -> np.ndarray:
     """E (targets, nodes): the polynomial through values at `nodes` evaluated at `targets` is E @ values."""
     return np.array([[np.prod([(x - nodes[q]) / (nodes[r] - nodes[q]) for q in range(nodes.size) if q != r])
                       for r in range(nodes.size)] for x in targets])
-
-
-def run_composed_flow(step, weights, y0, params, dt, nsteps, save_every, out):
-    """A scene's own symmetric one-step map step(y, p, h) composed with the given weights
-    (weights = [1.0]: the map itself; YOSHIDA6: its 6th-order composition)."""
-    weights = np.ascontiguousarray(weights, dtype=np.float64)
-    y0, params = _c(y0), _c(params)
-    size = chunk_size(y0.shape[0])
-    loop = _pick(_composed_flow_loop, y0.shape[0], size)
-    return _launch(loop, pointer_function(step, "step"), weights, y0, params, dt, nsteps, save_every, out, size)
 
 
 def run_reference(rhs, y0: np.ndarray, params: np.ndarray, dt: float, nsteps: int, save_every: int,

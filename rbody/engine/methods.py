@@ -23,8 +23,9 @@ scenes read (no parallel tables):
                   splitting         2, a second-order symmetric splitting's (the yoshida6 composition of a
                                     scene's flow takes yoshida6's)
                   reference         inf (scipy's DOP853 at rtol 1e-13, adaptive)
-    run         run(model, flow, y0, params, dt, nsteps, save_every, out) -> failed (B,): the compiled loop
-                (rbody.engine.integrators); flow is the scene's own (step, weights) for this method, or None
+    bind        bind(model, flow, batch, dt, nsteps, save_every) -> runner(y0, params, out) -> failed (B,): the
+                compiled loop with all but the states fixed (rbody.engine.integrators.Bound); flow is the
+                scene's own (step, weights) for this method, or None
 
 METHODS (the names, in this order), METHOD_ORDER, SYMPLECTIC and SYMMETRIC are derived from the records.
 """
@@ -56,7 +57,7 @@ class Method:
     symmetric: bool
     explicit: bool
     beta: Callable[[], float]
-    run: Callable[..., np.ndarray]
+    bind: Callable[..., Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]]
     summary: str
     failure: str = "a non-finite state"  # what a failed step means, for simulate's message
 
@@ -87,53 +88,65 @@ class Method:
         """Whether `model` (a NativeModel) provides what this method needs."""
         return not self.missing(model)
 
+    def bound(self, model, batch: int, dt: float, nsteps: int, save_every: int):
+        """runner(y0 (B, n), params (B, p), out) -> failed (B,): this method's loop on `model` with everything but the
+        states fixed (a prepared run calls it again and again; rbody.engine.integrators.Bound)."""
+        return self.bind(model, self.flow(model), batch, dt, nsteps, save_every)
+
     def integrate(self, model, y0: np.ndarray, params: np.ndarray, dt: float, nsteps: int, save_every: int,
                   out: np.ndarray) -> np.ndarray:
-        """Run the compiled loop on (y0 (B, n), params (B, p)); out (nsteps // save_every + 1, B, n) filled;
-        returns failed (B,): the first failed step of each element, or -1."""
-        return self.run(model, self.flow(model), y0, params, dt, nsteps, save_every, out)
+        """Run the compiled loop on (y0 (B, n), params (B, p)) of any layout; out (nsteps // save_every + 1, B, n)
+        filled; returns failed (B,): the first failed step of each element, or -1."""
+        y0 = np.ascontiguousarray(y0, dtype=np.float64)
+        params = np.ascontiguousarray(params, dtype=np.float64)
+        runner = self.bound(model, y0.shape[0], dt, nsteps, save_every)
+        return getattr(runner, "launch", runner)(y0, params, out)
 
 
 # ----- how each method runs (the loops are in rbody.engine.integrators) ------------------------------------
+# bind(model, flow, batch, dt, nsteps, save_every) -> runner(y0, params, out) -> failed: everything but the states
+# fixed once (integrators.Bound: its compiled entry found on the first call); run follows from bind.
 
-def _run_flow(flow, y0, params, dt, nsteps, save_every, out):
+def _bind_flow(flow, batch, dt, nsteps, save_every):
     step, weights = flow
-    return integrators.run_composed_flow(step, weights, y0, params, dt, nsteps, save_every, out)
+    return integrators.bind_composed_flow(step, weights, batch, dt, nsteps, save_every)
 
 
-def _euler(model, flow, y0, params, dt, nsteps, save_every, out):
-    return integrators.run_euler(model.rhs, y0, params, dt, nsteps, save_every, out, finish=model.finish)
+def _bind_euler(model, flow, batch, dt, nsteps, save_every):
+    return integrators.bind_euler(model.rhs, batch, dt, nsteps, save_every, finish=model.finish)
 
 
-def _rk4(model, flow, y0, params, dt, nsteps, save_every, out):
-    return integrators.run_rk4(model.rhs, y0, params, dt, nsteps, save_every, out, finish=model.finish)
+def _bind_rk4(model, flow, batch, dt, nsteps, save_every):
+    return integrators.bind_rk4(model.rhs, batch, dt, nsteps, save_every, finish=model.finish)
 
 
-def _gauss6(model, flow, y0, params, dt, nsteps, save_every, out):
-    return integrators.run_gauss6(model.rhs, integrators.GAUSS6_A, integrators.GAUSS6_B, y0, params, dt, nsteps,
-                                  save_every, out, finish=model.finish)
+def _bind_gauss6(model, flow, batch, dt, nsteps, save_every):
+    return integrators.bind_gauss6(model.rhs, integrators.GAUSS6_A, integrators.GAUSS6_B, batch, dt, nsteps,
+                                   save_every, finish=model.finish)
 
 
-def _reference(model, flow, y0, params, dt, nsteps, save_every, out):
-    return integrators.run_reference(model.rhs, y0, params, dt, nsteps, save_every, out, finish=model.finish)
+def _bind_reference(model, flow, batch, dt, nsteps, save_every):
+    def runner(y0, params, out):
+        return integrators.run_reference(model.rhs, y0, params, dt, nsteps, save_every, out, finish=model.finish)
+    return runner
 
 
-def _symplectic_euler(model, flow, y0, params, dt, nsteps, save_every, out):
+def _bind_symplectic_euler(model, flow, batch, dt, nsteps, save_every):
     if flow is not None:
-        return _run_flow(flow, y0, params, dt, nsteps, save_every, out)
-    return integrators.run_symplectic_euler(model.accel, y0, params, dt, nsteps, save_every, out)
+        return _bind_flow(flow, batch, dt, nsteps, save_every)
+    return integrators.bind_symplectic_euler(model.accel, batch, dt, nsteps, save_every)
 
 
-def _composed_verlet(weights):
-    def run(model, flow, y0, params, dt, nsteps, save_every, out):
+def _bind_composed_verlet(weights):
+    def bind(model, flow, batch, dt, nsteps, save_every):
         if flow is not None:  # the scene's own flow under this name (free rotation: yoshida6 of its rotations)
-            return _run_flow(flow, y0, params, dt, nsteps, save_every, out)
-        return integrators.run_composed_verlet(model.accel, weights, y0, params, dt, nsteps, save_every, out)
-    return run
+            return _bind_flow(flow, batch, dt, nsteps, save_every)
+        return integrators.bind_composed_verlet(model.accel, weights, batch, dt, nsteps, save_every)
+    return bind
 
 
-def _splitting(model, flow, y0, params, dt, nsteps, save_every, out):
-    return _run_flow(flow, y0, params, dt, nsteps, save_every, out)
+def _bind_splitting(model, flow, batch, dt, nsteps, save_every):
+    return _bind_flow(flow, batch, dt, nsteps, save_every)
 
 
 # ----- the stability intervals that need a computation ----------------------------------------------------
@@ -171,25 +184,25 @@ def gauss6_interval() -> float:
 # ----- the records --------------------------------------------------------------------------------------
 
 RECORDS: tuple[Method, ...] = (
-    Method("euler", 1, "rhs", symplectic=False, symmetric=False, explicit=True, beta=lambda: 0.0, run=_euler,
+    Method("euler", 1, "rhs", symplectic=False, symmetric=False, explicit=True, beta=lambda: 0.0, bind=_bind_euler,
            summary="y += dt f(y)"),
     Method("symplectic_euler", 1, "accel", symplectic=True, symmetric=False, explicit=True, beta=lambda: 2.0,
-           run=_symplectic_euler, summary="v += dt a(q); q += dt v"),
+           bind=_bind_symplectic_euler, summary="v += dt a(q); q += dt v"),
     Method("verlet", 2, "accel", symplectic=True, symmetric=True, explicit=True, beta=lambda: 2.0,
-           run=_composed_verlet(np.ones(1)), summary="velocity Verlet (kick-drift-kick)"),
+           bind=_bind_composed_verlet(np.ones(1)), summary="velocity Verlet (kick-drift-kick)"),
     Method("rk4", 4, "rhs", symplectic=False, symmetric=False, explicit=True, beta=lambda: 2.0 * math.sqrt(2.0),
-           run=_rk4, summary="classical Runge-Kutta"),
+           bind=_bind_rk4, summary="classical Runge-Kutta"),
     Method("yoshida6", 6, "accel", symplectic=True, symmetric=True, explicit=True, beta=yoshida6_interval,
-           run=_composed_verlet(integrators.YOSHIDA6),
+           bind=_bind_composed_verlet(integrators.YOSHIDA6),
            summary="Yoshida's 7-stage symmetric composition of verlet (solution A), or of the scene's own flow"),
-    Method("gauss6", 6, "rhs", symplectic=True, symmetric=True, explicit=False, beta=gauss6_interval, run=_gauss6,
+    Method("gauss6", 6, "rhs", symplectic=True, symmetric=True, explicit=False, beta=gauss6_interval, bind=_bind_gauss6,
            summary="3-stage Gauss-Legendre collocation, stage equations by fixed-point iteration",
            failure="a non-finite state or stage equations that fixed-point iteration could not solve "
                    "(dt |df/dy| too large)"),
     Method("splitting", 2, "split", symplectic=True, symmetric=True, explicit=True, beta=lambda: 2.0,
-           run=_splitting, summary="the scene's own symmetric splitting into exact flows"),
+           bind=_bind_splitting, summary="the scene's own symmetric splitting into exact flows"),
     Method("reference", None, "rhs", symplectic=False, symmetric=False, explicit=True, beta=lambda: math.inf,
-           run=_reference, summary="scipy DOP853 at rtol 1e-13: for checks only, never for speed",
+           bind=_bind_reference, summary="scipy DOP853 at rtol 1e-13: for checks only, never for speed",
            failure="a failed solve (scipy's DOP853 could not reach its tolerance)"),
 )
 

@@ -25,7 +25,10 @@ class NativeModel:
                composition weights (free rotation: "splitting" and its 6th-order "yoshida6")
     rhs, accel and step must be numba @njit functions over C-contiguous float64 arrays: the engine
     calls them through C function pointers (see rbody/engine/integrators.py)
-    observe:   function (t (T,), y (T, B, n)) -> dict of observables (T, B, ...)
+    observe:   function (t (T,), y (T, B, n)) -> dict of observables (T, B, ...); an observe marked by
+               any_batch (below) takes states of any leading axes (T, *batch, n) and keeps them (T, *batch, ...),
+               so simulate reshapes the states once instead of every observable (a mark on the function itself:
+               a model whose observe is replaced loses it)
     """
 
     y0: np.ndarray
@@ -80,3 +83,9 @@ class Experiment(Protocol):
     def native_model(self) -> NativeModel: ...
 
     def describe(self) -> str: ...
+
+
+def any_batch(observe: Any) -> Any:
+    """Mark `observe` (NativeModel.observe) as taking states of any leading axes (T, *batch, n); returns it."""
+    observe.any_batch = True
+    return observe

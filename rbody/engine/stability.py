@@ -137,8 +137,9 @@ JACOBIAN_CHUNK = 256    # elements per thread's task in the compiled loop
 
 
 @njit(cache=True, parallel=True)
-def _jacobians(rhs, y, params, relative, out):
+def _jacobians(rhs_address, y, params, relative, out):
     """out[b] (n, n) = df/dy at y[b], by central differences (step relative * max(1, |y_j|))."""
+    rhs = integrators._rhs_at(rhs_address)
     batch, n = y.shape
     m = params.shape[1]
     for c in prange(-(-batch // JACOBIAN_CHUNK)):
@@ -226,6 +227,23 @@ def _separatrix_margin(scene: Experiment) -> np.ndarray | None:
     return cache["_separatrix_margin"]
 
 
+def check_state(model: NativeModel, description: str, method: str, dt: float, t_end: float) -> None:
+    """Raise SimulationError when dt [s] is beyond `method`'s stability limit at the initial states of `model` (a
+    NativeModel whose y0 a prepared run replaced: rbody.simulation.PreparedRun.run(qpos0=...)), from model_rate,
+    as check_step does for a scene's own states."""
+    beta = stability_interval(method)
+    if beta == math.inf:
+        return
+    rate = float(np.max(model_rate(model, method)))
+    if rate == 0.0:
+        return
+    limit = 2.0 * math.log(EULER_GROWTH) / (rate**2 * t_end) if beta == 0.0 else beta / rate
+    if dt > limit:
+        raise SimulationError(f"scene {description}: method {method!r}: dt={dt:g} s is beyond its estimated stability "
+                              f"limit {limit:.6g} s at the initial state given (w = {rate:.6g} rad/s, the fastest rate "
+                              f"of the linearised motion there); use dt <= {limit:.6g} s")
+
+
 def check_step(scene: Experiment, method: str, dt: float, t_end: float | None = None) -> None:
     """Raise SimulationError, before any step, when dt [s] is beyond stability_limit(scene, method, t_end)
     or the scene is beyond float64's resolution (resolution_problem); return None otherwise."""
@@ -249,4 +267,4 @@ def check_step(scene: Experiment, method: str, dt: float, t_end: float | None = 
 
 
 __all__ = ["stability_interval", "yoshida6_interval", "fastest_rate", "model_rate", "jacobian_rate", "stability_limit", "resolution_problem",
-           "check_step", "EULER_GROWTH", "RESOLUTION_FACTOR"]
+           "check_step", "check_state", "EULER_GROWTH", "RESOLUTION_FACTOR"]

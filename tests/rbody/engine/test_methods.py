@@ -83,7 +83,7 @@ def test_unknown_method_and_unknown_need_are_value_errors():
         methods.method("rk5")
     with pytest.raises(ValueError, match="needs='jerk'"):
         methods.Method("x", 1, "jerk", symplectic=False, symmetric=False, explicit=True, beta=lambda: 1.0,
-                       run=lambda *a: None, summary="")
+                       bind=lambda *a: None, summary="")
 
 
 # ----- each record's facts against its loop -------------------------------------------------------------------
