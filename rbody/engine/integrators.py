@@ -146,6 +146,14 @@ def _row(typingctx, array, index):
 
 
 @njit(cache=True, inline="always")
+def _save(out, sample, row, y, b):
+    """out[sample, row] = y[b], element by element: an array assignment would compile numba's broadcast checks and
+    their error messages into every loop (over a second of a first run's compilation per loop)."""
+    for j in range(y.shape[1]):
+        out[sample, row, j] = y[b, j]
+
+
+@njit(cache=True, inline="always")
 def _finite_row(y, b):
     for j in range(y.shape[1]):
         if not np.isfinite(y[b, j]):
@@ -182,7 +190,7 @@ def _euler_loop(rhs_address, finish_address, finishing, y0, params, dt, nsteps, 
         k = np.empty((width, n))
         running = width
         for b in range(width):
-            out[0, lo + b] = y[b]
+            _save(out, 0, lo + b, y, b)
         for i in range(1, nsteps + 1):
             for b in range(width):
                 if failed[lo + b] >= 0:
@@ -199,7 +207,7 @@ def _euler_loop(rhs_address, finish_address, finishing, y0, params, dt, nsteps, 
                 break
             if i % save_every == 0:
                 for b in range(width):
-                    out[i // save_every, lo + b] = y[b]
+                    _save(out, i // save_every, lo + b, y, b)
     return failed
 
 
@@ -217,7 +225,7 @@ def _rk4_loop(rhs_address, finish_address, finishing, y0, params, dt, nsteps, sa
         tmp = np.empty((width, n))
         running = width
         for b in range(width):
-            out[0, lo + b] = y[b]
+            _save(out, 0, lo + b, y, b)
         for i in range(1, nsteps + 1):
             for b in range(width):
                 if failed[lo + b] < 0:
@@ -250,7 +258,7 @@ def _rk4_loop(rhs_address, finish_address, finishing, y0, params, dt, nsteps, sa
                 break
             if i % save_every == 0:
                 for b in range(width):
-                    out[i // save_every, lo + b] = y[b]
+                    _save(out, i // save_every, lo + b, y, b)
     return failed
 
 
@@ -268,7 +276,7 @@ def _symplectic_euler_loop(accel_address, y0, params, dt, nsteps, save_every, ou
         a = np.empty((width, half))
         running = width
         for b in range(width):
-            out[0, lo + b] = y[b]
+            _save(out, 0, lo + b, y, b)
         for i in range(1, nsteps + 1):
             for b in range(width):
                 if failed[lo + b] >= 0:
@@ -284,7 +292,7 @@ def _symplectic_euler_loop(accel_address, y0, params, dt, nsteps, save_every, ou
                 break
             if i % save_every == 0:
                 for b in range(width):
-                    out[i // save_every, lo + b] = y[b]
+                    _save(out, i // save_every, lo + b, y, b)
     return failed
 
 
@@ -303,7 +311,7 @@ def _composed_verlet_loop(accel_address, weights, y0, params, dt, nsteps, save_e
         running = width
         for b in range(width):
             accel(_row(y, b), _row(params, lo + b), _row(a, b), half, m)  # reads q = y[:half]
-            out[0, lo + b] = y[b]
+            _save(out, 0, lo + b, y, b)
         for i in range(1, nsteps + 1):
             for w in weights:
                 h = w * dt
@@ -324,7 +332,7 @@ def _composed_verlet_loop(accel_address, weights, y0, params, dt, nsteps, save_e
                 break
             if i % save_every == 0:
                 for b in range(width):
-                    out[i // save_every, lo + b] = y[b]
+                    _save(out, i // save_every, lo + b, y, b)
     return failed
 
 
@@ -350,7 +358,7 @@ def _gauss_loop(rhs_address, finish_address, finishing, A, weights, second, late
         state = np.empty(width, dtype=np.int64)  # 0 iterating, 1 converged, 2 failed to converge
         running = width
         for b in range(width):
-            out[0, lo + b] = y[b]
+            _save(out, 0, lo + b, y, b)
             rhs(_row(y, b), _row(params, lo + b), _row(tmp, b), n, m)
             for s in range(stages):
                 K[b, s] = tmp[b]
@@ -418,7 +426,7 @@ def _gauss_loop(rhs_address, finish_address, finishing, A, weights, second, late
                 break
             if i % save_every == 0:
                 for b in range(width):
-                    out[i // save_every, lo + b] = y[b]
+                    _save(out, i // save_every, lo + b, y, b)
     return failed
 
 
@@ -434,7 +442,7 @@ def _composed_flow_loop(step_address, weights, y0, params, dt, nsteps, save_ever
         y = y0[lo:lo + width].copy()
         running = width
         for b in range(width):
-            out[0, lo + b] = y[b]
+            _save(out, 0, lo + b, y, b)
         for i in range(1, nsteps + 1):
             for w in weights:
                 for b in range(width):
@@ -448,7 +456,7 @@ def _composed_flow_loop(step_address, weights, y0, params, dt, nsteps, save_ever
                 break
             if i % save_every == 0:
                 for b in range(width):
-                    out[i // save_every, lo + b] = y[b]
+                    _save(out, i // save_every, lo + b, y, b)
     return failed
 
 

@@ -923,7 +923,9 @@ class Multibody:
     def _batch(self, *pairs) -> tuple[tuple[int, ...], list[np.ndarray]]:
         arrays = [self._state(value, size, what) for value, size, what in pairs]
         shape = np.broadcast_shapes(*(a.shape[:-1] for a in arrays))
-        flat = [np.ascontiguousarray(np.broadcast_to(a, shape + a.shape[-1:]).reshape(-1, a.shape[-1]))
+        # writable C arrays, as the integrators pass: a read-only state (a broadcast view) is another numba type,
+        # which would compile every algorithm a second time (seconds on a first run)
+        flat = [np.require(np.broadcast_to(a, shape + a.shape[-1:]).reshape(-1, a.shape[-1]), np.float64, ["C", "W"])
                 for a in arrays]
         return shape, flat
 
