@@ -18,8 +18,8 @@ along l = axis x normal followed by a hinge by q - ref about the axis through th
 the contact point anchor - a normal at rest.
 
 Algorithms (Featherstone, Rigid Body Dynamics Algorithms, 2008), all with spatial vectors
-(rbody.engine.spatial) written in one frame, the world's axes about the world origin ("ground
-coordinates", RBDA sec. 7.3 remark): a joint's motion subspace S is then a world-frame 6-vector computed
+(rbody.engine.spatial) written in one frame, the world's axes about the origin of the body's tree ("ground
+coordinates", RBDA sec. 7.3 remark; "Precision" below): a joint's motion subspace S is then a world-frame 6-vector computed
 from the body's pose exactly as MuJoCo computes its cdof, several joints on one body are a chain of
 massless virtual links with no transform between them, and nothing is ever moved between body frames:
 
@@ -46,9 +46,12 @@ calls pass a few pointers. Only small spatial functions are inlined; each algori
 first compilation of a minute, cached on disk after it). numba's cache does not follow imports: after
 editing spatial.py, delete rbody/engine/__pycache__/multibody*.nb[ci].
 
-Precision: spatial quantities about the world origin lose digits in proportion to a body's distance
-from it (|x| / size of the tree); MuJoCo works about each tree's centre of mass instead. Within a
-tree of metre scale near the origin the two agree to ~1e-13.
+Precision: spatial quantities about a point lose digits in proportion to a body's distance from it
+(|x| / size of the tree), so each tree (the bodies below one child of the world) is written about its own
+origin: the world placement of its root body, or its free joint's position (kinematics: xorigin). The trees of
+a model never exchange a force, so each tree's algebra may use its own point; only the outputs that need world
+coordinates (centres of mass, potential energy) add the origin back. A tree a million metres from the world
+origin then computes as it does at it (MuJoCo works about each tree's centre of mass, to the same effect).
 """
 
 from __future__ import annotations
@@ -129,10 +132,15 @@ def _is_identity(p, at):
 @njit(cache=True)
 def kinematics(p, q, w):
     """World poses of every body from qpos q (nq,), as MuJoCo's mj_kinematics, into the workspace w (_views):
-    xpos (nb, 3) body-frame origins [m], xquat (nb, 4), xmat (nb, 3, 3); per joint its world axis and anchor
-    (nj, 3) [m] (a roll joint's anchor after its slide) and a roll joint's world rolling line l (nj, 3)."""
+    xpos (nb, 3) body-frame origins [m] relative to the origin of their tree, xorigin (nb, 3) that origin (the
+    world placement of the tree's root body, or its free joint's position), xquat (nb, 4), xmat (nb, 3, 3); per
+    joint its world axis and anchor (nj, 3) [m] relative to the tree's origin (a roll joint's anchor after its
+    slide) and a roll joint's world rolling line l (nj, 3).
+
+    Positions relative to each tree's own origin: the spatial algebra of a tree is written about that point
+    (module docstring, "Precision"), so a tree a million metres from the world origin computes as it would at it."""
     ws = _views(p, w)
-    xpos, xquat, xmat, scratch = ws.xpos, ws.xquat, ws.xmat, ws.scratch
+    xpos, xquat, xmat, scratch, xorigin = ws.xpos, ws.xquat, ws.xmat, ws.scratch, ws.xorigin
     xaxis, xanchor, xline = ws.xaxis, ws.xanchor, ws.xline
     nb = int(p[H_BODIES])
     bo, jo = int(p[H_BODY]), int(p[H_JOINT])
@@ -143,15 +151,17 @@ def kinematics(p, q, w):
         j0, nj = int(p[b + B_JNT0]), int(p[b + B_NJNT])
         if nj == 1 and int(p[jo + j0 * JOINT_SIZE + J_KIND]) == FREE:
             qa = int(p[jo + j0 * JOINT_SIZE + J_QADR])
-            for a in range(3):
-                xpos[i, a] = q[qa + a]
-                xanchor[j0, a] = q[qa + a]
+            for a in range(3):  # a free joint's body is a child of the world: the origin of its own tree
+                xorigin[i, a] = q[qa + a]
+                xpos[i, a] = 0.0
+                xanchor[j0, a] = 0.0
                 xaxis[j0, a] = p[jo + j0 * JOINT_SIZE + J_AXIS + a]
             for a in range(4):
                 quat[a] = q[qa + 3 + a]
         else:
             if parent >= 0:
                 for a in range(3):
+                    xorigin[i, a] = xorigin[parent, a]
                     xpos[i, a] = xpos[parent, a] + (xmat[parent, a, 0] * p[b + B_POS] + xmat[parent, a, 1]
                                                     * p[b + B_POS + 1] + xmat[parent, a, 2] * p[b + B_POS + 2])
                 if _is_identity(p, b + B_QUAT):  # the common case: the body's axes are its parent's
@@ -159,9 +169,10 @@ def kinematics(p, q, w):
                         quat[a] = xquat[parent, a]
                 else:
                     quat_multiply(xquat[parent], p[b + B_QUAT:b + B_QUAT + 4], quat)
-            else:
+            else:  # a child of the world: the origin of its own tree
                 for a in range(3):
-                    xpos[i, a] = p[b + B_POS + a]
+                    xorigin[i, a] = p[b + B_POS + a]
+                    xpos[i, a] = 0.0
                 for a in range(4):
                     quat[a] = p[b + B_QUAT + a]
             for j in range(j0, j0 + nj):
@@ -322,20 +333,26 @@ STACK_FLOATS = 16384  # workspaces up to this size (128 kB, ~570 bodies) live on
 SCRATCH = 32  # floats of small temporaries (quaternions, 3- and 6-vectors) at the end of the workspace
 
 
-# The arrays of one evaluation (_views): per body xpos (nb, 3), xquat (nb, 4), xmat (nb, 3, 3), spatial velocity
+# The arrays of one evaluation (_views): per body xpos (nb, 3) relative to its tree's origin xorigin (nb, 3), xquat (nb, 4), xmat (nb, 3, 3), spatial velocity
 # vel, articulated bias force pA, acceleration acc, force (nb, 6), inertia about the origin h (nb, 3),
 # Ibar (nb, 3, 3), articulated inertia IA (nb, 6, 6), mass (nb,); per joint xaxis, xanchor, xline (nj, 3); per
 # dof S, bias, U (nv, 6), u (nv,), tau, pivots, zero (nv,); q (nq,); scratch (SCRATCH,).
 Workspace = namedtuple("Workspace", ["xpos", "xquat", "xmat", "xaxis", "xanchor", "xline", "S", "bias", "vel", "h",
                                      "Ibar", "IA", "pA", "U", "u", "acc", "force", "mass", "q", "tau", "pivots",
-                                     "zero", "scratch"])
+                                     "zero", "scratch", "xorigin"])
+
+
+# Floats of the workspace per body, joint and degree of freedom: _views cuts exactly these (a test checks it).
+BODY_FLOATS = 4 * 6 + 3 * 3 + 2 * 9 + 36 + 4 + 1  # vel pA acc force; xpos h xorigin; xmat Ibar; IA; xquat; mass
+JOINT_FLOATS = 3 * 3                                # xaxis xanchor xline
+DOF_FLOATS = 3 * 6 + 4                              # S bias U; u tau pivots zero
 
 
 @njit(cache=True)
 def workspace_size(p) -> int:
     """Floats of the workspace of one evaluation (see _views)."""
     nb, nj, nv, nq = int(p[H_BODIES]), int(p[H_JOINTS]), int(p[H_DOFS]), int(p[H_NQ])
-    return 91 * nb + 9 * nj + 22 * nv + nq + SCRATCH
+    return BODY_FLOATS * nb + JOINT_FLOATS * nj + DOF_FLOATS * nv + nq + SCRATCH
 
 
 @njit(cache=True, inline="always")
@@ -356,8 +373,8 @@ def _views(p, w):
     vel, pA = _rows(w, at, nb, 6), _rows(w, at + 6 * nb, nb, 6)
     acc, force = _rows(w, at + 12 * nb, nb, 6), _rows(w, at + 18 * nb, nb, 6)
     at += 24 * nb
-    xpos, h = _rows(w, at, nb, 3), _rows(w, at + 3 * nb, nb, 3)
-    at += 6 * nb
+    xpos, h, xorigin = _rows(w, at, nb, 3), _rows(w, at + 3 * nb, nb, 3), _rows(w, at + 6 * nb, nb, 3)
+    at += 9 * nb
     xaxis, xanchor, xline = _rows(w, at, nj, 3), _rows(w, at + 3 * nj, nj, 3), _rows(w, at + 6 * nj, nj, 3)
     at += 9 * nj
     xmat, Ibar = carray(address(w, at), (nb, 3, 3)), carray(address(w, at + 9 * nb), (nb, 3, 3))
@@ -372,7 +389,7 @@ def _views(p, w):
     pivots, zero = carray(address(w, at + nq + nv), nv), carray(address(w, at + nq + 2 * nv), nv)
     scratch = carray(address(w, at + nq + 3 * nv), SCRATCH)
     return Workspace(xpos, xquat, xmat, xaxis, xanchor, xline, S, bias, vel, h, Ibar, IA, pA, U, u, acc, force, mass,
-                     q, tau, pivots, zero, scratch)
+                     q, tau, pivots, zero, scratch, xorigin)
 
 
 @njit(cache=True)
@@ -559,7 +576,7 @@ def energies_one(p, q, v, w):
         mass = p[bo + i * BODY_SIZE + B_MASS]
         inertia_apply(mass, h[i], Ibar[i], vel[i], tmp)
         kinetic += 0.5 * dot6(vel[i], tmp)
-        potential += p[H_GRAVITY] * h[i, 2]
+        potential += p[H_GRAVITY] * (h[i, 2] + mass * ws.xorigin[i, 2])  # m g z_com, z in the world
     for j in range(nj):
         r = jo + j * JOINT_SIZE
         x = q[int(p[r + J_QADR])] - p[r + J_SPRINGREF]
@@ -573,20 +590,21 @@ def body_states_one(p, q, v, com, quat, velocity, omega, w):
     angular velocity (nb, 3) [rad/s] of every body."""
     _frames(p, q, v, w)
     ws = _views(p, w)
-    xquat, vel, h = ws.xquat, ws.vel, ws.h
+    xquat, vel, h, xorigin, c = ws.xquat, ws.vel, ws.h, ws.xorigin, ws.scratch[0:3]
     nb = int(p[H_BODIES])
     bo = int(p[H_BODY])
     for i in range(nb):
         mass = p[bo + i * BODY_SIZE + B_MASS]
         for a in range(3):
-            com[i, a] = h[i, a] / mass
+            c[a] = h[i, a] / mass  # the com relative to the tree's origin
+            com[i, a] = xorigin[i, a] + c[a]
             omega[i, a] = vel[i, a]
         for a in range(4):
             quat[i, a] = xquat[i, a]
         # velocity of the point at the com: v_O + omega x c
-        velocity[i, 0] = vel[i, 3] + vel[i, 1] * com[i, 2] - vel[i, 2] * com[i, 1]
-        velocity[i, 1] = vel[i, 4] + vel[i, 2] * com[i, 0] - vel[i, 0] * com[i, 2]
-        velocity[i, 2] = vel[i, 5] + vel[i, 0] * com[i, 1] - vel[i, 1] * com[i, 0]
+        velocity[i, 0] = vel[i, 3] + vel[i, 1] * c[2] - vel[i, 2] * c[1]
+        velocity[i, 1] = vel[i, 4] + vel[i, 2] * c[0] - vel[i, 0] * c[2]
+        velocity[i, 2] = vel[i, 5] + vel[i, 0] * c[1] - vel[i, 1] * c[0]
 
 
 # ----- the native state of a TreeScene: y = (qpos, qvel, phi) ---------------------------------------------

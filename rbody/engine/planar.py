@@ -7,7 +7,7 @@ RBDA 2008, ch. 7) then runs in 3-component spatial vectors and 3x3 inertias inst
 
 Plane coordinates: an orthonormal right-handed frame (e1, e2, n) of the world; e2 is the in-plane
 direction of world up z when n is not vertical (e2 = z when n is horizontal). Everything is written in
-the world's axes about the world origin projected on the plane ("ground coordinates", as
+the world's axes about the origin of each tree (its root body's placement) projected on the plane ("ground coordinates", as
 rbody.engine.multibody):
 
     motion  m = (omega, vx, vy): angular velocity about n, velocity of the body point at the origin
@@ -389,7 +389,10 @@ class PlanarModel:
 
 
 def _rotations(row: np.ndarray, nb: int) -> tuple[np.ndarray, np.ndarray]:
-    """World position (nb, 3) and rotation (nb, 3, 3) of every body frame at the reference pose (all q = ref)."""
+    """Position (nb, 3) relative to the origin of its tree (its root body's placement in the world) and world
+    rotation (nb, 3, 3) of every body frame at the reference pose (all q = ref). Each tree is written about its
+    own origin, as in the 3-D engine (rbody.engine.multibody, "Precision"): far from the world origin the nodes
+    keep every digit."""
     from rbody.motion import quat_to_matrix
 
     bo = int(row[mb.H_BODY])
@@ -403,7 +406,7 @@ def _rotations(row: np.ndarray, nb: int) -> tuple[np.ndarray, np.ndarray]:
             pos[i] = pos[parent] + rot[parent] @ offset
             rot[i] = rot[parent] @ local
         else:
-            pos[i], rot[i] = offset, local
+            pos[i], rot[i] = 0.0, local
     return pos, rot
 
 
