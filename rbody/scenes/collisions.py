@@ -38,6 +38,7 @@ from rbody._checks import finite_array, in_interval, nonnegative, one_of, positi
 from rbody.engine.events import DONE, TOO_MANY, Line, LineRun, exact_line, sample_times
 from rbody.errors import SimulationError
 from rbody.inertia import Inertia
+from rbody.poses import observed
 from rbody.scene import Body, Contact, Joint, Layout, Scene, Shape
 from rbody.trajectory import Trajectory
 
@@ -302,6 +303,11 @@ class LineCollisions(Scene):
 
     def _observed(self, positions: np.ndarray, velocities: np.ndarray) -> dict[str, np.ndarray]:
         return {"positions": positions, "velocities": velocities, "energy": self.energy_of(velocities)}
+
+    def joint_coordinates(self, trajectory) -> dict[str, np.ndarray]:
+        """Slide "x_<i>" is ball i's displacement from its start: positions (T, n) - positions at t = 0."""
+        moved = observed(self, trajectory, "positions", (self.n,)) - np.asarray(self.positions, dtype=np.float64)
+        return {f"x_{i}": moved[:, i] for i in range(self.n)}
 
     def describe(self) -> str:
         return (f"{self.name}(n={self.n}, masses={list(self.masses)}, e={self.restitution:g}, "
