@@ -14,10 +14,11 @@ from rbody.engine import METHODS, METHOD_ORDER, simulate
 from rbody.engine.multibody import Multibody
 from rbody.mjcf import from_mjcf, to_mjcf
 from rbody import scenes
+from rbody.animation import Animation, animate
 
 __all__ = [
     "Inertia", "RigidMotion", "point_velocity", "Particles", "reduced_mass", "two_body",
     "Body", "Contact", "Joint", "Layout", "Scene", "Shape", "Trajectory",
     "SimulationError", "MethodNotApplicable", "METHODS", "METHOD_ORDER", "simulate", "scenes",
-    "to_mjcf", "from_mjcf", "Multibody",
+    "to_mjcf", "from_mjcf", "Multibody", "animate", "Animation",
 ]
