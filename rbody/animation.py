@@ -145,7 +145,8 @@ def animate(scene, trajectory, path: str | os.PathLike, *, arrangement: str = "s
             speed: float = 1.0, fps: float = 25.0, max_bytes: int = DEFAULT_MAX_BYTES, max_frames: int = 2000,
             size: tuple[int, int] = (480, 360), body_frames: bool = False, shaded: bool = True,
             show: Sequence[str] = (), colours: Mapping[str, str] | None = None,
-            legend: Mapping[str, str] | bool | None = None, progress: bool | Callable[[str], None] | None = None) -> Animation:
+            legend: Mapping[str, str] | bool | None = None,
+            progress: bool | Callable[[str], None] | None = None) -> Animation:
     """Write an animation of the bodies of `scene` over one or several of its runs to `path`.
 
     scene:       an rbody Scene (unbatched) whose bodies can be placed from its observables (Scene.body_poses)
@@ -153,8 +154,8 @@ def animate(scene, trajectory, path: str | os.PathLike, *, arrangement: str = "s
                  panels) or a sequence (titled by each run's meta["backend"]), from any engine
     path:        the file; its suffix picks the format: .gif, .webp (animated WebP), .mp4 (needs ffmpeg)
     arrangement: "side": a panel per run, side by side, bodies in their own colours; "overlay": one panel,
-                 each run in its own colour (rbody blue, MuJoCo orange, pymunk green; where runs coincide,
-                 the last one listed is seen)
+                 each run in its own colour (rbody blue, MuJoCo orange, pymunk green; where runs coincide, to
+                 within about a body's size, the last one listed is drawn over the others)
     view:        "auto" (side view for motion in the x-z plane, else 3-D), "planar" (orthographic), "3d"
     azimuth, elevation: camera direction [deg] (default -60, 25 in 3-D; -90, 0 in the side view: from -y);
                  distance: from the target [m] (default: fitted so that the whole motion of every run fits)
@@ -417,8 +418,9 @@ def _sample_indices(t: np.ndarray, times: np.ndarray) -> np.ndarray:
 
 def _every_other(timing: _Timing, keep: int) -> _Timing:
     """Every `keep`-th frame of `timing` (stride and interval `keep` times larger)."""
-    return _Timing(timing.times[::keep], timing.interval * keep, None if timing.stride is None else timing.stride * keep,
-                   timing.speed, {name: index[::keep] for name, index in timing.indices.items()})
+    stride = None if timing.stride is None else timing.stride * keep
+    return _Timing(timing.times[::keep], timing.interval * keep, stride, timing.speed,
+                   {name: index[::keep] for name, index in timing.indices.items()})
 
 
 def _durations(count: int, interval: float, speed: float, step_ms: int) -> list[int]:
@@ -458,12 +460,8 @@ def _planar(view: str, poses, points: np.ndarray) -> bool:
     ys = np.concatenate([pose.com[:, 1] for run in poses.values() for pose in run.values()])
     if np.ptp(ys) > tolerance:
         return False
-    for run in poses.values():
-        for pose in run.values():
-            quat = pose.quat
-            if np.max(np.abs(quat[:, 1])) > PLANAR_TOLERANCE ** 0.5 or np.max(np.abs(quat[:, 3])) > PLANAR_TOLERANCE ** 0.5:
-                return False
-    return True
+    off_axis = PLANAR_TOLERANCE ** 0.5  # quaternion x and z: a turn about an axis off y
+    return all(np.max(np.abs(pose.quat[:, [1, 3]])) <= off_axis for run in poses.values() for pose in run.values())
 
 
 def _marker(radius: float) -> Polygons:
@@ -535,6 +533,7 @@ class _Painter:
         self.static_fixed = visible_faces(camera, fixed, np.tile(colour_of[(None, "fixed")], (len(fixed.points), 1)),
                                           shaded) if len(fixed.points) else _empty()
         self.reach = {name: max(p.reach, 1e-3 * scale) for name, p in bodies.items()}
+        self.largest_reach = max(self.reach.values(), default=0.0)
 
     def _colour(self, run: str, body: str) -> np.ndarray:
         return self.colour_of.get((run, None), self.colour_of.get((None, body)))
@@ -545,7 +544,9 @@ class _Painter:
             stage_parts, solid_parts, segments, colours = [self.static_stage], [self.static_fixed], [], []
             for order, run in enumerate(names):
                 k = int(timing.indices[run][frame])
-                bias = 1e-6 * self.scale * order  # a later run drawn over an earlier one it coincides with
+                # a later run's bodies are brought forward by twice the largest body's reach, so that where runs
+                # (nearly) coincide the later one is drawn whole over the earlier, not face by face through it
+                bias = 2.0 * self.largest_reach * order
                 for body, polygons in self.bodies.items():
                     pose = self.poses[run][body]
                     rotation = quat_to_matrix(pose.quat[k])
