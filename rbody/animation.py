@@ -124,8 +124,12 @@ class Animation:
 
     def summary(self) -> str:
         """One line: file, frames, the interval and stride chosen, size, cost per frame."""
-        stride = (f"every {_ordinal(self.stride)} of {self.samples} saved samples" if self.stride is not None
-                  else f"{self.samples} saved samples, unevenly spaced")
+        if self.samples == 1:
+            stride = "a single saved sample"
+        elif self.stride is not None:
+            stride = f"every {_ordinal(self.stride)} of {self.samples} saved samples"
+        else:
+            stride = f"{self.samples} saved samples, unevenly spaced"
         return (f"{self.path.name}: {self.frames} frames of {self.width}x{self.height} px, one every "
                 f"{self.interval:.4g} s of simulated time ({stride}), {self.fps:.3g} frames/s at {self.speed:g}x "
                 f"real time; {self.bytes / 1e6:.2f} MB; {1e3 * self.seconds_per_frame:.0f} ms per frame")

@@ -423,13 +423,5 @@ class Canvas:
         self.agg.draw()
         return np.asarray(self.agg.buffer_rgba())[..., :3].copy()
 
-    def pixels(self, screen: np.ndarray, panel: int = 0) -> np.ndarray:
-        """(..., 2) screen coordinates of `panel` -> (..., 2) pixel coordinates (column, row from the top) of the
-        rendered frame."""
-        screen = np.asarray(screen, dtype=float)
-        column = panel * self.width + (screen[..., 0] + self.aspect) / (2 * self.aspect) * self.width
-        row = (1.0 - screen[..., 1]) / 2 * self.height
-        return np.stack([column, row], axis=-1)
-
     def close(self) -> None:
         self.figure.clear()

@@ -34,8 +34,8 @@ if TYPE_CHECKING:  # pragma: no cover
     from rbody.scene import Scene
     from rbody.trajectory import Trajectory
 
-# qpos size of each joint kind (the one table is rbody.engine.multibody's; these are its MuJoCo sizes)
-_QPOS_SIZE = {"hinge": 1, "slide": 1, "roll": 1, "ball": 4, "free": 7}
+# qpos columns of each joint kind (MuJoCo's sizes, as rbody.Multibody lays qpos out)
+QPOS_SIZE = {"hinge": 1, "slide": 1, "roll": 1, "ball": 4, "free": 7}
 
 
 @dataclass(frozen=True)
@@ -158,7 +158,7 @@ def layout_qpos(model, coordinates: Mapping[str, np.ndarray], count: int) -> np.
             raise ValueError(f"joint_coordinates names {name!r}, which is no joint of the layout "
                              f"({', '.join(joints)})")
         kind, address = joints[name]
-        size = _QPOS_SIZE[kind]
+        size = QPOS_SIZE[kind]
         value = np.asarray(value, dtype=np.float64)
         if value.shape not in ((count, size), (count,) if size == 1 else ()):
             raise ValueError(f"joint {name!r} ({kind}): expected ({count},{'' if size == 1 else f' {size}'}) "

@@ -761,12 +761,11 @@ class TreeScene(Scene):
 
     def joint_coordinates(self, trajectory) -> dict[str, np.ndarray]:
         """Each joint's columns of the run's qpos (T, nq)."""
-        from rbody.poses import observed
+        from rbody.poses import QPOS_SIZE, observed
 
         model = self.multibody
         qpos = observed(self, trajectory, "qpos", (model.nq,))
-        sizes = {"hinge": 1, "slide": 1, "roll": 1, "ball": 4, "free": 7}
-        return {name: qpos[:, int(a):int(a) + sizes[kind]] for name, kind, a in
+        return {name: qpos[:, int(a):int(a) + QPOS_SIZE[kind]] for name, kind, a in
                 zip(model.joint_names, model.arrays.joint_kinds, model.arrays.qposadr)}
 
     def describe(self) -> str:

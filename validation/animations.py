@@ -9,7 +9,7 @@ of the README (docs/make_animations.py), drawn by rbody.animate.
 
 The main command passes its own runs (case name -> (case, {engine: Trajectory})); the rod near the top, which
 the main command does not run, is run here at the rod case's settings (validation/cases.py), in every engine
-asked for. Each animation keeps within its size budget (README_MAX_BYTES: the four stay under 10 MB).
+the main command ran. Each animation keeps within its size budget (README_MAX_BYTES: the four stay under 10 MB).
 """
 
 from __future__ import annotations
@@ -82,19 +82,23 @@ def chapter_animations(out: Path, runs: Mapping[str, tuple[Any, Mapping[str, Any
                        say: Callable[[str], None] | None = None) -> list[tuple[str, str]]:
     """Write the MOVIES into folder `out`; returns (caption, file name) of each written.
 
-    runs:  the main command's runs, case name -> (case, {engine: Trajectory}); the cases missing from it are
-           run here (validation.cases, in `engines`); quick: the main command's quick cases, small pictures
+    runs:  the main command's runs, case name -> (case, {engine: Trajectory}): the MOVIES of the cases it ran
+           (the rod near the top where it ran the swinging rod, which is run here at its start); None: every case
+           is run here (validation.cases, in `engines`); quick: the main command's quick cases, small pictures
     say:   called with one line per animation (its summary: frames, stride, size, cost per frame)
     """
     from rbody import animate
     from validation.cases import default_cases
 
+    given = runs is not None
     runs = dict(runs or {})
     cases = None
     written = []
     for movie in MOVIES:
         if movie.case in runs:
             case, by_engine = runs[movie.case]
+        elif given and not (movie.case == "swinging_rod_near_top" and "swinging_rod" in runs):
+            continue  # the main command did not run this case
         else:
             if movie.case == "swinging_rod_near_top":
                 case = rod_near_top_case(quick)

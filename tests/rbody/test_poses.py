@@ -34,6 +34,11 @@ def test_a_tree_places_its_bodies_where_the_engine_reports_their_centres_of_mass
     offset = np.einsum("tab,b->ta", quat_to_matrix(lower_pose.quat), [0.05, 0.0, -0.5])
     np.testing.assert_allclose(lower_pose.pos + offset, lower_pose.com, atol=1e-12)
     assert np.min(np.linalg.norm(lower_pose.pos - lower_pose.com, axis=1)) > 0.4
+    # a run that kept only qpos is placed from it by the layout's kinematics: the same poses
+    from_qpos = arm.body_poses(Trajectory(run.t, {"qpos": run["qpos"]}))
+    for name in ("upper", "lower"):
+        np.testing.assert_allclose(from_qpos[name].com, run[f"{name}.com"], atol=1e-12)
+        np.testing.assert_allclose(from_qpos[name].pos, poses[name].pos, atol=1e-12)
 
 
 @pytest.mark.crosssim
