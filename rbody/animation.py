@@ -32,8 +32,9 @@ part of rbody's install, so a fresh machine renders. Considered and not chosen: 
 where libEGL is installed) and draws only MuJoCo models; trimesh's scene renderer needs pyglet and a display;
 matplotlib's mplot3d (Poly3DCollection) sorts faces the same way but costs more per frame and does not expose
 its projection, which the tests use to check that each body is drawn where its centre of mass is
-(Animation.project). Cost: about 10 to 40 ms per frame at 480 x 360 pixels a panel, mostly Agg's filling of
-the polygons (Animation.seconds_per_frame measures it; docs/make_animations.py prints it with the file sizes).
+(Animation.project). Cost per frame, mostly Agg filling the polygons: 5 to 8 ms for one panel of 480 x 360
+pixels, 11 to 34 ms for three panels of 300 x 300 to 400 x 300 (Intel Xeon, 2 cores shared;
+Animation.seconds_per_frame measures it, docs/make_animations.py prints it with the file sizes).
 
 Frames are kept in memory as palette images (one fixed palette: the drawn colours and their shades, so that
 colours do not flicker between frames), compressed; GIF and WebP are written by Pillow (GIF frame durations
@@ -86,7 +87,8 @@ TIME_FORMAT = "t = {:.3f} s"
 class Animation:
     """What animate() wrote.
 
-    path: the file; frames: frame count; times: (frames,) simulated time of each frame [s]; interval: simulated
+    path: the file; frames: frames drawn (a GIF shows a frame equal to the one before it as one longer frame);
+    times: (frames,) simulated time of each frame [s]; interval: simulated
     time between frames [s]; stride: saved samples of the first run per frame (None where its samples are not
     evenly spaced); samples: saved samples of the first run; speed: simulated seconds per second of playback;
     fps: frames per second of playback; width, height: pixels of the whole picture; panels: the panels' titles
@@ -187,8 +189,10 @@ def animate(scene, trajectory, path: str | os.PathLike, *, arrangement: str = "s
     poses = {name: scene.body_poses(run) for name, run in runs.items()}  # ValueError for a run of another scene
     shown = _checked_show(show, runs)
     layout = scene.layout
-    timing = _timing(runs, speed, fps, max_frames)
+    timing = _timing(runs, options["speed"], options["fps"], max_frames)
     colour_of = _colours(colours, layout, runs, arrangement)
+    legend_entries = _legend(legend, colour_of, layout, runs, arrangement)
+    report = _progress(progress)
 
     bodies = {body.name: Polygons.join([placed(s) for s in body.shapes if s.kind != "plane"])
               for body in layout.bodies}
@@ -211,7 +215,7 @@ def animate(scene, trajectory, path: str | os.PathLike, *, arrangement: str = "s
                         (PLANAR_AZIMUTH if planar else DEFAULT_AZIMUTH),
                         elevation=options["elevation"] if options["elevation"] is not None else
                         (PLANAR_ELEVATION if planar else DEFAULT_ELEVATION),
-                        distance=distance, orthographic=planar, aspect=width / height)
+                        distance=options["distance"], orthographic=planar, aspect=width / height)
     view_size = camera.distance / camera.focal  # half the view's height at the target [m]
     stage_extent = 3.0 * max(view_size * width / height, float(np.max(np.ptp(extent_points, axis=0))))
     thickness = 0.02 * view_size
@@ -226,9 +230,8 @@ def animate(scene, trajectory, path: str | os.PathLike, *, arrangement: str = "s
         titles = ("",)  # one run with no name
     painter = _Painter(camera, bodies, planes, fixed, stage, poses, runs, panel_runs, colour_of, shaded,
                        body_frames, shown, scale)
-    canvas = Canvas(len(panel_runs), width, height, titles, _legend(legend, colour_of, layout, runs, arrangement))
+    canvas = Canvas(len(panel_runs), width, height, titles, legend_entries)
     palette = _palette(colour_of, shaded)
-    report = _progress(progress)
     try:
         timing = _fit_budget(timing, painter, canvas, palette, path.suffix, options["max_bytes"], report)
         frames, seconds = _render(timing, painter, canvas, palette, report, path.name)

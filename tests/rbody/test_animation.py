@@ -243,7 +243,8 @@ def test_bad_input_is_refused_before_any_rendering(tmp_path, monkeypatch):
     for options, message in (({"speed": 0.0}, "speed"), ({"fps": 100}, "fps"), ({"size": (10, 10)}, "size"),
                              ({"arrangement": "grid"}, "arrangement"), ({"view": "top"}, "view"),
                              ({"show": ("nope",)}, "show='nope'"), ({"colours": {"ghost": "red"}}, "ghost"),
-                             ({"max_frames": 0}, "max_frames"), ({"elevation": 95}, "elevation")):
+                             ({"max_frames": 0}, "max_frames"), ({"elevation": 95}, "elevation"),
+                             ({"progress": "loud"}, "progress"), ({"legend": {"ghost": "x"}}, "legend names")):
         with pytest.raises(ValueError, match=message):
             animate(rod, run, tmp_path / "rod.gif", **options)
     with pytest.raises(ValueError, match="expected an rbody.Trajectory"):
