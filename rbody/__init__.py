@@ -16,10 +16,11 @@ from rbody.simulation import PreparedRun, prepare, simulate
 from rbody.engine.multibody import Multibody
 from rbody.mjcf import from_mjcf, to_mjcf
 from rbody import scenes
+from rbody.animation import Animation, animate
 
 __all__ = [
     "Inertia", "RigidMotion", "point_velocity", "Particles", "reduced_mass", "two_body",
     "Body", "Contact", "Joint", "Layout", "Scene", "Shape", "Trajectory",
     "SimulationError", "MethodNotApplicable", "METHODS", "METHOD_ORDER", "simulate", "prepare", "PreparedRun", "scenes",
-    "to_mjcf", "from_mjcf", "Multibody", "stability",
+    "to_mjcf", "from_mjcf", "Multibody", "stability", "animate", "Animation",
 ]

@@ -158,6 +158,20 @@ class Scene:
         """The minimal-coordinate model rbody integrates (continuous scenes)."""
         raise NotImplementedError(f"{type(self).__name__} has no time-stepped native model")
 
+    def joint_coordinates(self, trajectory) -> dict[str, np.ndarray]:
+        """The inverse of observe(): joint name of `layout` -> its coordinates (T,) (ball (T, 4), free (T, 7),
+        MuJoCo's qpos) at every saved time of a run of this scene, from the run's observables; joints not named
+        stay at their initial coordinates (rbody.poses). ValueError for a run of another scene."""
+        raise NotImplementedError(f"{type(self).__name__} does not place its bodies from its observables")
+
+    def body_poses(self, trajectory) -> dict:
+        """Body name -> rbody.poses.BodyPose (frame origin pos (T, 3) [m], quat (T, 4), centre of mass com
+        (T, 3) [m], world frame) of every body of `layout` over a run of this scene, from any engine
+        (rbody.poses). ValueError, before any work, for a batch or a trajectory of another scene."""
+        from rbody.poses import body_poses
+
+        return body_poses(self, trajectory)
+
     @cached_property
     def native_model(self) -> NativeModel:
         """self.native(), built once per scene (a scene is frozen, so its model never changes); simulate
@@ -523,6 +537,15 @@ class TreeScene(Scene):
             data.update({f"{body}.com": states.com, f"{body}.quat": states.quat,
                          f"{body}.velocity": states.velocity, f"{body}.omega": states.omega})
         return data
+
+    def joint_coordinates(self, trajectory) -> dict[str, np.ndarray]:
+        """Each joint's columns of the run's qpos (T, nq)."""
+        from rbody.poses import observed
+
+        model = self.multibody
+        qpos = observed(self, trajectory, "qpos", (model.nq,))
+        return {name: qpos[:, int(a):int(a) + JOINTS[kind].nq] for name, kind, a in
+                zip(model.joint_names, model.arrays.joint_kinds, model.arrays.qposadr)}
 
     def describe(self) -> str:
         model = self.multibody

@@ -62,6 +62,9 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument("--out", type=Path, default=Path("report/compare"), help="folder (default: report/compare/)")
     compare.add_argument("--baseline", type=Path, metavar="DIR", help="check the divergences against this folder")
     compare.add_argument("--update-baseline", action="store_true", help="record this run's divergences in --baseline")
+    compare.add_argument("--animate", action="store_true",
+                         help="also write the animation of every engine's run, side by side, into the report "
+                              "(DIR/<model>_motion.gif, rbody.animate)")
     for p in (parser, run, bench, hard, compare):
         _cluster_options(p)
     return parser
@@ -158,6 +161,7 @@ def run_all(out: Path, *, quick: bool, update: bool, backends: tuple[str, ...] |
     `client` (a dask.distributed.Client); the rows and report are the same either way."""
     from rbody.files import replaced_folder
     from validation import baselines, report
+    from validation.animations import chapter_animations
     from validation.backends import BACKENDS
     from validation.cases import default_cases
     from validation.cluster import run_tasks
@@ -189,7 +193,9 @@ def run_all(out: Path, *, quick: bool, update: bool, backends: tuple[str, ...] |
     header = _header(quick, time.perf_counter() - started)
     with replaced_folder(out) as staging:  # the report and its figures: all old or all new
         figures = make_figures(runs, staging)
-        report.write(staging, rows, figures, header, found + missing)
+        animations = chapter_animations(staging, runs, engines=chosen, quick=quick,
+                                        say=lambda line: print(f"animation: {line}", file=sys.stderr, flush=True))
+        report.write(staging, rows, figures, header, found + missing, animations)
     print(f"\nreport: {out / 'report.md'}", file=sys.stderr)
     for message in found:
         print(f"REGRESSION {message}", file=sys.stderr)

@@ -175,9 +175,11 @@ class Comparison:
                  for e, r in self.runs.items()]
         return _format(header, lines, markdown)
 
-    def to_markdown(self, figure: str | None = None, regressions: Sequence[str] | None = None) -> str:
-        """A Markdown report: the model and settings, the runs, the divergence table, the figure (a file
-        name relative to the report) and, when given, the regressions against a baseline."""
+    def to_markdown(self, figure: str | None = None, regressions: Sequence[str] | None = None,
+                    animation: str | None = None) -> str:
+        """A Markdown report: the model and settings, the runs, the divergence table, the figure and the
+        animation of the runs (file names relative to the report) and, when given, the regressions against a
+        baseline."""
         from validation.baselines import versions
         from validation.machine import describe_machine
 
@@ -197,6 +199,10 @@ class Comparison:
             parts += ["## Import notes", ""] + [f"- {n}" for n in notes] + [""]
         if figure:
             parts += ["## Divergence against time", "", f"![Divergence against time]({figure})", ""]
+        if animation:
+            ran = ", ".join(self.trajectories)
+            parts += ["## The runs in motion", "", f"Each engine's run side by side ({ran}), drawn by rbody.animate.",
+                      "", f"![The runs in motion]({animation})", ""]
         if regressions is not None:
             parts += ["## Regressions against the baseline", ""] + ([f"- {m}" for m in regressions] or ["none"])
             parts.append("")
@@ -630,16 +636,34 @@ def _format(header: Sequence[str], lines: list[Sequence[str]], markdown: bool) -
                      + [fmt.format(*map(str, line)) for line in lines])
 
 
-def write_report(comparison: Comparison, out: str | Path, regressions: Sequence[str] | None = None) -> Path:
-    """out/<model>.md with the tables, and its figure out/<model>_divergence.png; both written to a
-    temporary name and renamed into place. Returns the report's path."""
+def write_report(comparison: Comparison, out: str | Path, regressions: Sequence[str] | None = None, *,
+                 animate: bool = False, say: Callable[[str], None] | None = None) -> Path:
+    """out/<model>.md with the tables, and its figure out/<model>_divergence.png; with animate, also the
+    animation of every engine's run side by side, out/<model>_motion.gif (rbody.animate; `say` gets its summary:
+    frames, stride, size). Every file written to a temporary name and renamed into place. Returns the report's
+    path."""
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
     stem = "".join(c if c.isalnum() or c in "-_." else "_" for c in comparison.scene.name)
     figure = None
     if comparison.rows:
         figure = comparison.save_figure(out / f"{stem}_divergence.png").name
-    text = comparison.to_markdown(figure, regressions)
+    motion = None
+    if animate:
+        drawable = {}
+        for engine, trajectory in comparison.trajectories.items():
+            try:
+                comparison.scene.body_poses(trajectory)
+                drawable[engine] = trajectory
+            except ValueError as error:  # e.g. a run that blew up: its bodies have no place to be drawn
+                if say is not None:
+                    say(f"animation: {engine}'s run not drawn: {error}")
+        if drawable:
+            animation = rbody.animate(comparison.scene, drawable, out / f"{stem}_motion.gif")
+            motion = animation.path.name
+            if say is not None:
+                say(f"animation: {animation.summary()}")
+    text = comparison.to_markdown(figure, regressions, motion)
     path = out / f"{stem}.md"
     write_atomic(path, text)
     return path
@@ -663,6 +687,10 @@ def main(args) -> int:
         if args.baseline is not None and not args.update_baseline and not Path(args.baseline).is_dir():
             raise ValueError(f"--baseline {str(args.baseline)!r}: no such folder (record one with --update-baseline)")
         scene = load_model(args.model, t_end=args.t_end)
+        if getattr(args, "animate", False):
+            from rbody.animation import check_animatable
+
+            check_animatable(scene)  # before any run
         if args.baseline is not None and not args.update_baseline and not _recorded(Path(args.baseline), scene.name):
             # every file read and checked before the run (BaselineError names a broken one)
             raise ValueError(f"baseline {str(args.baseline)!r} holds no divergences of model {scene.name!r} "
@@ -683,7 +711,12 @@ def main(args) -> int:
     if args.update_baseline:
         for path in save_baseline(comparison, args.baseline):
             say(f"baseline written: {path}")
-    path = write_report(comparison, args.out, None if found is None else found + missing)
+    try:
+        path = write_report(comparison, args.out, None if found is None else found + missing,
+                            animate=getattr(args, "animate", False), say=say)
+    except ValueError as error:  # the runs cannot be drawn (found after them: e.g. a run that blew up)
+        say(f"error: {error}")
+        return 2
     say(f"report: {path}")
     for message in found or ():
         say(f"REGRESSION {message}")

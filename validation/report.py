@@ -164,8 +164,10 @@ def figure_orbit(runs: Mapping[str, Trajectory], exact_of, out: Path) -> str:
     return save_figure(figure, out, "two_body.png")
 
 
-def write(out: Path, rows: list, figures: list[tuple[str, str]], header: str, regressions: list[str]) -> Path:
-    """report.md with the header, the table, the notes, the figures and the regressions."""
+def write(out: Path, rows: list, figures: list[tuple[str, str]], header: str, regressions: list[str],
+          animations: list[tuple[str, str]] = ()) -> Path:
+    """report.md with the header, the table, the notes, the figures, the animations (caption, file name) and
+    the regressions."""
     parts = [header, "## Results", "", table(rows, markdown=True), "",
              "A verdict `ok` means the value is within the tolerance of validation/tolerances.py (its reason "
              "is in the notes); `FINDING` means it is outside: a disagreement with the closed form, "
@@ -173,6 +175,11 @@ def write(out: Path, rows: list, figures: list[tuple[str, str]], header: str, re
              "`-` means the value is reported without a bound.", "", "## Notes", "", notes(rows), ""]
     for caption, name in figures:
         parts += [f"### {caption}", "", f"![{caption}]({name})", ""]
+    if animations:
+        parts += ["## The scenes in motion", "",
+                  "Each engine's run of the scene side by side (validation/animations.py, drawn by rbody.animate).", ""]
+        for caption, name in animations:
+            parts += [f"### {caption}", "", f"![{caption}]({name})", ""]
     parts += ["## Regressions against baselines", ""]
     parts += [f"- {message}" for message in regressions] or ["none"]
     path = out / "report.md"

@@ -51,6 +51,7 @@ from rbody.checks import finite_array, positive, representable, scene_arguments
 from rbody.inertia import Inertia
 from rbody.layout import Body, Joint, Layout, Shape
 from rbody.engine.native import NativeModel
+from rbody.poses import observed
 from rbody.scene import Scene
 
 # native() runs the hand-written chain_rhs for chains of at most this many rods, the general engine on the
@@ -339,6 +340,11 @@ class PendulumChain(Scene):
         rates = np.stack([np.asarray(joints[f"hinge_{i}"][1], dtype=np.float64) for i in range(self.n)], axis=-1)
         theta, omega = np.cumsum(relative, axis=-1), np.cumsum(rates, axis=-1)
         return {"theta": theta, "omega": omega, "energy": self.energy_of(theta, omega)}
+
+    def joint_coordinates(self, trajectory) -> dict[str, np.ndarray]:
+        """Each hinge turns its rod from its parent's: the differences of the absolute angles theta (T, n)."""
+        relative = np.diff(observed(self, trajectory, "theta", (self.n,)), axis=1, prepend=0.0)
+        return {f"hinge_{i}": relative[:, i] for i in range(self.n)}
 
     def describe(self) -> str:
         return (f"{self.name}(n={self.n}, L={self.lengths.tolist()} m, m={self.masses.tolist()} kg, "

@@ -40,6 +40,7 @@ from rbody.errors import SimulationError
 from rbody.inertia import Inertia
 from rbody.layout import Body, Contact, Joint, Layout, Shape
 from rbody.optional import optional
+from rbody.poses import observed
 from rbody.scene import Scene
 from rbody.trajectory import Trajectory
 
@@ -304,6 +305,11 @@ class LineCollisions(Scene):
 
     def _observed(self, positions: np.ndarray, velocities: np.ndarray) -> dict[str, np.ndarray]:
         return {"positions": positions, "velocities": velocities, "energy": self.energy_of(velocities)}
+
+    def joint_coordinates(self, trajectory) -> dict[str, np.ndarray]:
+        """Slide "x_<i>" is ball i's displacement from its start: positions (T, n) - positions at t = 0."""
+        moved = observed(self, trajectory, "positions", (self.n,)) - np.asarray(self.positions, dtype=np.float64)
+        return {f"x_{i}": moved[:, i] for i in range(self.n)}
 
     def describe(self) -> str:
         return (f"{self.name}(n={self.n}, masses={list(self.masses)}, e={self.restitution:g}, "

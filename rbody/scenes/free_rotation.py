@@ -85,6 +85,7 @@ from rbody.inertia import Inertia
 from rbody.motion import quat_conjugate, quat_exp, quat_from_matrix, quat_multiply, quat_to_matrix
 from rbody.layout import Body, Joint, Layout, Shape
 from rbody.engine.native import NativeModel
+from rbody.poses import observed
 from rbody.scene import BodyStates, Scene
 
 # Principal moments closer than this fraction of the largest are one repeated moment: eigh returns
@@ -391,6 +392,14 @@ class FreeRotation(Scene):
                 "L_world": np.einsum("tab,tb->ta", rotation, momentum_body),
                 "energy": 0.5 * np.sum(omega_body * momentum_body, axis=-1),
                 "quaternion": quat}
+
+    def joint_coordinates(self, trajectory) -> dict[str, np.ndarray]:
+        """The free joint's (position, quaternion) (T, 7): the body turns by `quaternion` about its centre of
+        mass, which stays where it starts (at inertia.com, the body frame starting at the origin)."""
+        quat = observed(self, trajectory, "quaternion", (4,))
+        com = np.asarray(self.inertia.com, dtype=np.float64)
+        origin = com - np.einsum("tab,b->ta", quat_to_matrix(quat), com)
+        return {"free": np.concatenate([origin, quat], axis=1)}
 
     def describe(self) -> str:
         moments = ", ".join(f"{m:.6g}" for m in self._principal[0])

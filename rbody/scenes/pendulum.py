@@ -47,6 +47,7 @@ from rbody.inertia import Inertia, AxisLike, unit_axis
 from rbody.motion import quat_from_matrix
 from rbody.layout import Body, Joint, Layout, Shape
 from rbody.engine.native import NativeModel
+from rbody.poses import observed
 from rbody.scene import Scene
 
 # y = (theta, omega); params = (w0^2, I [kg m^2], M g d [N m])
@@ -242,6 +243,10 @@ class Pendulum(Scene):
     def observe(self, t, bodies, joints) -> dict[str, np.ndarray]:
         theta, omega = joints["hinge"]
         return {"theta": theta, "omega": omega, "energy": self.energy_of(theta, omega)}
+
+    def joint_coordinates(self, trajectory) -> dict[str, np.ndarray]:
+        """The hinge's angle is theta."""
+        return {"hinge": observed(self, trajectory, "theta")}
 
 
 ENERGY_BLOCK = 1 << 18  # elements per block of the energy: its temporaries stay a few MB

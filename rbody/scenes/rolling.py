@@ -66,6 +66,7 @@ from rbody.inertia import Inertia
 from rbody.motion import quat_to_matrix
 from rbody.layout import Body, Contact, Joint, Layout, Shape
 from rbody.engine.native import NativeModel
+from rbody.poses import integrated, observed
 from rbody.scene import BodyStates, Scene
 from rbody.trajectory import Trajectory
 
@@ -177,6 +178,13 @@ def _incline_shape(incline: float, travel: float, half_width: float, radius: flo
     return Shape("incline", "plane", (travel / 2 + 4 * radius, half_width),
                  pos=tuple((travel / 2 * down).tolist()),
                  quat=(float(np.cos(incline / 2)), 0.0, float(np.sin(incline / 2)), 0.0))
+
+
+def rolled_angle(t: np.ndarray, distance: np.ndarray, slip: np.ndarray, radius: float) -> np.ndarray:
+    """(T, ...) spin angle phi [rad] from the start, (distance - integral of slip) / radius, with distance and
+    slip (T, ...) [m, m/s] of a run at times t (T,) [s]: x' - a phi' = slip. Exact where the body rolls (slip 0)
+    and where slip is linear in time (sliding from rest): the trapezoid rule integrates it."""
+    return (distance - distance[:1] - integrated(t, slip)) / radius
 
 
 def _accelerations(ratio, mass, radius, incline, friction, gravity):
@@ -379,6 +387,12 @@ class Rolling(Scene):
         inertia = _body_inertia(self.body, float(self.mass), radius)
         energy = _energy_from_states(bodies["body"], inertia, radius * np.cos(incline), self.gravity)
         return {"distance": x, "speed": speed, "spin": spin, "slip": speed - radius * spin, "energy": energy}
+
+    def joint_coordinates(self, trajectory) -> dict[str, np.ndarray]:
+        """Slide "x" = distance, hinge "phi" = the spin angle (rolled_angle); slide "z" stays 0."""
+        distance = observed(self, trajectory, "distance")
+        return {"x": distance, "phi": rolled_angle(trajectory.t, distance, observed(self, trajectory, "slip"),
+                                                    float(self.radius))}
 
     def describe(self) -> str:
         return (f"{self.name}({_label(self.body)}, radius={self.radius!r} m, mass={self.mass!r} kg, "
@@ -687,6 +701,16 @@ class RollingRace(Scene):
         arrival = np.broadcast_to(_arrival(t, x, speed, self.length), x.shape).copy()
         return {"distance": x, "speed": speed, "spin": spin, "slip": speed - self.radius * spin,
                 "energy": energy, "arrival_time": arrival}
+
+    def joint_coordinates(self, trajectory) -> dict[str, np.ndarray]:
+        """Slides "x_<i>" = distance[:, i], hinges "phi_<i>" = each spin angle (rolled_angle); "z_<i>" stay 0."""
+        n = len(self.bodies)
+        distance = observed(self, trajectory, "distance", (n,))
+        angle = rolled_angle(trajectory.t, distance, observed(self, trajectory, "slip", (n,)), self.radius)
+        out = {}
+        for i in range(n):
+            out[f"x_{i}"], out[f"phi_{i}"] = distance[:, i], angle[:, i]
+        return out
 
     def describe(self) -> str:
         return (f"{self.name}({', '.join(self.labels)}; radius={self.radius!r} m, incline={self.incline!r} rad, "

@@ -45,6 +45,7 @@ from rbody.engine.events import DONE, TOO_MANY, Discs, sample_times
 from rbody.errors import SimulationError
 from rbody.inertia import Inertia
 from rbody.layout import Body, Contact, Joint, Layout, Shape
+from rbody.poses import observed
 from rbody.scene import Scene
 from rbody.trajectory import Trajectory
 
@@ -224,6 +225,15 @@ class Scattering(Scene):
 
         (x1, v1), (x2, v2) = disc(0), disc(1)
         return self._observed(x1, x2, v1, v2)
+
+    def joint_coordinates(self, trajectory) -> dict[str, np.ndarray]:
+        """Slides "x_<i>", "z_<i>": disc i's position_<i> (T, 2) (world x, z) less its start."""
+        x0, _ = self._initial()
+        out = {}
+        for i in range(2):
+            moved = observed(self, trajectory, f"position_{i + 1}", (2,)) - x0[i]
+            out[f"x_{i + 1}"], out[f"z_{i + 1}"] = moved[:, 0], moved[:, 1]
+        return out
 
     def describe(self) -> str:
         return (f"{self.name}(b={self.impact_parameter:g} m, r={self.radius:g} m, u={self.speed:g} m/s, "

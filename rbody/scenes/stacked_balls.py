@@ -58,6 +58,7 @@ from rbody.engine.events import DONE, TOO_MANY, Line, LineRun, sample_times
 from rbody.errors import SimulationError
 from rbody.inertia import Inertia
 from rbody.layout import Body, Contact, Joint, Layout, Shape
+from rbody.poses import observed
 from rbody.scene import Scene
 from rbody.trajectory import Trajectory
 
@@ -348,6 +349,11 @@ class StackedBalls(Scene):
         q = np.stack([np.asarray(joints[f"z_{n}"][0], dtype=float) for n in ("large", "small")], axis=-1)
         qd = np.stack([np.asarray(joints[f"z_{n}"][1], dtype=float) for n in ("large", "small")], axis=-1)
         return self._observed(q + self.start_heights, qd)
+
+    def joint_coordinates(self, trajectory) -> dict[str, np.ndarray]:
+        """Slides "z_large", "z_small": each ball's height above its start."""
+        return {f"z_{name}": observed(self, trajectory, f"{name}_height") - start
+                for name, start in zip(("large", "small"), self.start_heights)}
 
     def describe(self) -> str:
         return (f"{self.name}(M={self.large_mass:g} kg, m={self.small_mass:g} kg, h={self.drop_height:g} m, "

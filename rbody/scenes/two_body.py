@@ -53,6 +53,7 @@ from numba import njit
 
 from rbody.checks import describe_values, finite_array, positive, representable, scene_arguments
 from rbody.inertia import Inertia
+from rbody.poses import observed
 from rbody.particles import reduced_mass
 from rbody.layout import Body, Joint, Layout, Shape
 from rbody.engine.native import NativeModel
@@ -334,6 +335,14 @@ class TwoBody(Scene):
 
         (x1, v1), (x2, v2) = planar("body1"), planar("body2")
         return {name: value[:, 0] for name, value in self.observe_states(x1, x2, v1, v2).items()}
+
+    def joint_coordinates(self, trajectory) -> dict[str, np.ndarray]:
+        """Slides "body<i>_x", "body<i>_z": the world x and z of r<i> (T, 3) (reference pose at the origin)."""
+        out = {}
+        for i in (1, 2):
+            r = observed(self, trajectory, f"r{i}", (3,))
+            out[f"body{i}_x"], out[f"body{i}_z"] = r[:, 0], r[:, 2]
+        return out
 
     def describe(self) -> str:
         return (f"{self.name}(m1={self.m1!r} kg, m2={self.m2!r} kg, G={self.G!r}, separation="

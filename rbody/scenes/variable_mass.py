@@ -67,6 +67,7 @@ from rbody.checks import describe_values, finite_array, nonnegative, positive, r
 from rbody.inertia import Inertia
 from rbody.layout import Body, Joint, Layout, Shape
 from rbody.engine.native import NativeModel
+from rbody.poses import observed
 from rbody.scene import Scene
 
 VARIABLE_MASS_METHODS = ("rk4", "euler", "gauss6", "reference")  # rk4 first: simulate's default
@@ -253,6 +254,10 @@ class Rocket(Scene):
         x, v = (np.asarray(value, dtype=float) for value in joints["slide"])
         return {"distance": x, "speed": v, "mass": self.body_mass(t)}
 
+    def joint_coordinates(self, trajectory) -> dict[str, np.ndarray]:
+        """The slide's coordinate is the distance."""
+        return {"slide": observed(self, trajectory, "distance")}
+
     def describe(self) -> str:
         return (f"{self.name}(m0={self.m0!r} kg, burn_rate={self.burn_rate!r} kg/s, exhaust_speed="
                 f"{self.exhaust_speed!r} m/s, dry_mass={self.dry_mass!r} kg, drag={self.drag!r} kg/s, "
@@ -395,6 +400,10 @@ class Avalanche(Scene):
     def observe(self, t, bodies, joints) -> dict[str, np.ndarray]:
         x, v = (np.asarray(value, dtype=float) for value in joints["slide"])
         return {"distance": x, "speed": v, "mass": self.body_mass(t, x)}
+
+    def joint_coordinates(self, trajectory) -> dict[str, np.ndarray]:
+        """The slide's coordinate is the distance down the slope (the slab drawn at its starting size)."""
+        return {"slide": observed(self, trajectory, "distance")}
 
     def describe(self) -> str:
         return (f"{self.name}(slope={self.slope!r} rad, snow_density={self.snow_density!r} kg/m^3, "

@@ -23,6 +23,14 @@ def test_quick_run_writes_table_report_and_figures(tmp_path, capsys):
     for name in pictures:
         assert f"({name})" in report
         assert (tmp_path / name).stat().st_size > 10_000
+    # the chapter's scenes in motion, every engine side by side (validation/animations.py)
+    from validation.animations import MOVIES
+
+    movies = sorted(p.name for p in tmp_path.glob("*_motion.gif"))
+    assert movies == sorted(f"{movie.name}.gif" for movie in MOVIES)
+    assert "## The scenes in motion" in report
+    for name in movies:
+        assert f"({name})" in report
     assert status == 0, "a metric is worse than its recorded baseline: see the REGRESSION lines"
 
 
