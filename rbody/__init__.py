@@ -15,11 +15,12 @@ from rbody.engine import METHODS, METHOD_ORDER, stability
 from rbody.simulation import simulate
 from rbody.engine.multibody import Multibody
 from rbody.mjcf import from_mjcf, to_mjcf
+from rbody.urdf import from_urdf
 from rbody import scenes
 
 __all__ = [
     "Inertia", "RigidMotion", "point_velocity", "Particles", "reduced_mass", "two_body",
     "Body", "Contact", "Joint", "Layout", "Scene", "Shape", "Trajectory",
     "SimulationError", "MethodNotApplicable", "METHODS", "METHOD_ORDER", "simulate", "scenes",
-    "to_mjcf", "from_mjcf", "Multibody", "stability",
+    "to_mjcf", "from_mjcf", "from_urdf", "Multibody", "stability",
 ]
