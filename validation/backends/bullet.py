@@ -179,6 +179,7 @@ class _Built:
         self.bodies: dict[str, tuple] = {}    # rbody body -> (multibody id, link index or -1, com in body frame, quat)
         self.joints: dict[str, tuple] = {}    # rbody joint -> (multibody id, joint index, kind)
         self.shapes: dict[str, tuple] = {}    # shape name -> (multibody id, link index)
+        self.members: dict[str, list] = {}    # URDF: body -> [(Bullet link, its mass)] merged into it
         if _from_file(scene):
             self._load(scene)
         else:
@@ -187,14 +188,17 @@ class _Built:
 
     def _load(self, scene) -> None:
         client = self.client
-        flags = pb.URDF_USE_INERTIA_FROM_FILE | pb.URDF_MERGE_FIXED_LINKS | pb.URDF_MAINTAIN_LINK_ORDER
-        uid = pb.loadURDF(scene.source, useFixedBase=not scene.floating_base, flags=flags, physicsClientId=client)
+        flags = pb.URDF_USE_INERTIA_FROM_FILE | pb.URDF_MAINTAIN_LINK_ORDER
+        with _quiet():  # Bullet's URDF importer prints its progress on the process's stdout
+            uid = pb.loadURDF(scene.source, useFixedBase=not scene.floating_base, flags=flags, physicsClientId=client)
         self.ids = [uid]
-        links = {}
+        links, fixed_children = {}, {}
         for j in range(pb.getNumJoints(uid, physicsClientId=client)):
             info = pb.getJointInfo(uid, j, physicsClientId=client)
             joint_name, link_name = info[1].decode(), info[12].decode()
             links[link_name] = j
+            if info[2] == pb.JOINT_FIXED:
+                fixed_children.setdefault(info[16], []).append(j)
             if info[2] in (pb.JOINT_REVOLUTE, pb.JOINT_PRISMATIC, pb.JOINT_SPHERICAL):
                 self.joints[joint_name] = (uid, j, info[2])
         for body in self.layout.bodies:
@@ -206,6 +210,12 @@ class _Built:
                 raise NotImplementedError(f"the root link {body.name!r} has mass 0 in Bullet's reading of the file: "
                                           "Bullet makes a massless base static even with a floating base")
             self.bodies[body.name] = (uid, link, None, None)
+            members, stack = [], [link]
+            while stack:  # the links Bullet keeps apart that rbody merged into this body (fixed joints)
+                member = stack.pop()
+                members.append((member, pb.getDynamicsInfo(uid, member, physicsClientId=client)[0]))
+                stack += fixed_children.get(member, [])
+            self.members[body.name] = members
         missing = [j.name for j in self.layout.joints if j.kind != "free" and j.name not in self.joints]
         if missing:
             raise NotImplementedError(f"Bullet's model of {scene.source} has no moving joints {missing}")
@@ -424,6 +434,20 @@ class _Built:
                 state = pb.getLinkState(uid, link, computeLinkVelocity=1, computeForwardKinematics=1,
                                         physicsClientId=client)
                 bodies[body] = (np.asarray(state[0]), _wxyz(state[5]), np.asarray(state[6]), np.asarray(state[7]))
+            members = self.members.get(body, ())
+            if len(members) > 1:  # the centre of mass and its velocity of the links merged into the body
+                com, velocity, total = np.zeros(3), np.zeros(3), 0.0
+                for member, mass in members:
+                    if member == -1:
+                        pos, _ = pb.getBasePositionAndOrientation(uid, physicsClientId=client)
+                        vel, _ = pb.getBaseVelocity(uid, physicsClientId=client)
+                    else:
+                        state = pb.getLinkState(uid, member, computeLinkVelocity=1, computeForwardKinematics=1,
+                                                physicsClientId=client)
+                        pos, vel = state[0], state[6]
+                    com, velocity, total = com + mass * np.asarray(pos), velocity + mass * np.asarray(vel), total + mass
+                _, quat, _, omega = bodies[body]
+                bodies[body] = (com / total, quat, velocity / total, omega)
         joints = {}
         for joint in self.layout.joints:
             if joint.kind == "free":
@@ -450,6 +474,26 @@ class _Built:
         client = self.client
         return np.array([len(pb.getContactPoints(a[0], b[0], a[1], b[1], physicsClientId=client)) > 0
                          for a, b in self.pairs], dtype=bool)
+
+
+class _quiet:
+    """Redirect the process's stdout (file descriptor 1, where Bullet's C++ code prints) to /dev/null."""
+
+    def __enter__(self):
+        import os
+        import sys
+
+        sys.stdout.flush()
+        self.saved = os.dup(1)
+        self.null = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(self.null, 1)
+
+    def __exit__(self, *exc):
+        import os
+
+        os.dup2(self.saved, 1)
+        os.close(self.saved)
+        os.close(self.null)
 
 
 def _conj(quat) -> np.ndarray:
