@@ -28,7 +28,12 @@ Bullet's traps, each undone here (and stated in the design notes):
 - loadURDF recomputes each link's inertia from its collision shapes unless URDF_USE_INERTIA_FROM_FILE; and a
   base link of mass 0 in a URDF makes Bullet's base static even with useFixedBase=False (the floating base then
   does not move): refused here (its rbody model has a free base of the merged mass);
-- fixed joints are kept as links unless URDF_MERGE_FIXED_LINKS (then merged as rbody and Pinocchio merge them);
+- URDF_MERGE_FIXED_LINKS merges fixed links' inertias and centres of mass wrongly (measured: a 0.8 kg link with a
+  0.2 kg tool 0.3 m below got principal moments (0.034, 0.035, 0.011) for (0.011, 0.025, 0.026) kg m^2 and its
+  centre of mass 0.13 m off): not used; fixed links stay Bullet links and the observables merge them;
+- a URDF joint axis that is not unit: Bullet's stepping uses it as written (calculateMassMatrix normalises it),
+  so the joint's acceleration is wrong (measured 2 % on a (0.2, 1, 0) hinge, a 7.7e-3 rad offset after 0.5 s
+  that does not shrink with dt); named in meta["notes"];
 - restitution needs restitutionVelocityThreshold lowered (default 0.2 m/s: slower impacts are inelastic) and
   ERP-based position correction (default on: penetration recovery adds energy): here splitImpulse on with
   the threshold at 1e-6 m/s.
@@ -180,6 +185,7 @@ class _Built:
         self.joints: dict[str, tuple] = {}    # rbody joint -> (multibody id, joint index, kind)
         self.shapes: dict[str, tuple] = {}    # shape name -> (multibody id, link index)
         self.members: dict[str, list] = {}    # URDF: body -> [(Bullet link, its mass)] merged into it
+        self.notes: list[str] = []
         if _from_file(scene):
             self._load(scene)
         else:
@@ -201,6 +207,11 @@ class _Built:
                 fixed_children.setdefault(info[16], []).append(j)
             if info[2] in (pb.JOINT_REVOLUTE, pb.JOINT_PRISMATIC, pb.JOINT_SPHERICAL):
                 self.joints[joint_name] = (uid, j, info[2])
+                length = float(np.linalg.norm(info[13]))
+                if info[2] != pb.JOINT_SPHERICAL and abs(length - 1) > 1e-9:
+                    self.notes.append(f"joint {joint_name!r}: the file's axis has length {length:.6g}; Bullet steps "
+                                      "with it as written (its mass matrix API normalises it, its forward dynamics "
+                                      "do not), so its accelerations differ from the normalised joint's")
         for body in self.layout.bodies:
             link = -1 if body.name == scene.root else links.get(body.name)
             if link is None:
@@ -595,5 +606,6 @@ def run(scene: Scene, dt: float, t_end: float | None = None, *, solver_iteration
             "settings": {"solver_iterations": solver_iterations, "erp": erp,
                          "restitution_threshold": restitution_threshold, "model": "file" if _from_file(scene) else
                          "layout"},
-            "pybullet_api": pb.getAPIVersion(), "step_seconds": stepping, "run_seconds": run_seconds}
+            "pybullet_api": pb.getAPIVersion(), "step_seconds": stepping, "run_seconds": run_seconds,
+            "notes": list(built.notes)}
     return Trajectory(t, observables, meta=meta)

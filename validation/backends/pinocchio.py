@@ -34,8 +34,9 @@ Integration ("rk4", the default, or "euler"): classical Runge-Kutta on (q_pin, v
 derivative of each joint in its embedding (unit quaternions and (cos, sin) as vectors, q' = 1/2 q (x) omega, the
 position's derivative R v) and v' = aba at the configuration made unit: a smooth extension of the dynamics off
 the manifold, so the method keeps its order; unit parts are renormalised after every step. On hinges and slides
-alone this is exactly rbody's rk4; with free or ball joints both are fourth order (rbody's is
-Runge-Kutta-Munthe-Kaas) and differ at the truncation error.
+alone this is exactly rbody's rk4; with continuous joints ((cos, sin) embedded), free or ball joints both are
+fourth order (rbody's is Runge-Kutta-Munthe-Kaas on rotations, an angle on a continuous joint) and differ at the
+truncation error (measured 3.6e-11 in qvel after 0.5 s at dt = 1e-3 on a three-joint arm).
 
 Observables: every body's centre of mass, orientation, centre-of-mass velocity and angular velocity from
 Pinocchio's own kinematics (forwardKinematics, the frames' placements and velocities), the joints' histories in
