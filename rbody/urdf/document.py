@@ -84,13 +84,17 @@ class Element:
 
 
 def parse_text(text: str, file: str) -> Element:
-    """Elements of one XML document, each with its line (expat); comments and text are dropped."""
+    """Elements of one XML document, each with its line (expat); comments and text are dropped. Blank lines before
+    an XML declaration are skipped, as urdfdom's TinyXML skips them (expat refuses them); lines keep their numbers."""
+    stripped = text.lstrip()
+    offset = text[:len(text) - len(stripped)].count("\n") if stripped.startswith("<?xml") else 0
+    text = stripped if offset or stripped.startswith("<?xml") else text
     root: list[Element] = []
     stack: list[Element] = []
     parser = xml.parsers.expat.ParserCreate()
 
     def start(tag, attrib):
-        element = Element(tag, dict(attrib), file, parser.CurrentLineNumber)
+        element = Element(tag, dict(attrib), file, parser.CurrentLineNumber + offset)
         (stack[-1].children if stack else root).append(element)
         stack.append(element)
 
@@ -102,7 +106,7 @@ def parse_text(text: str, file: str) -> Element:
     try:
         parser.Parse(text, True)
     except xml.parsers.expat.ExpatError as error:
-        raise URDFError(f"{file}, line {error.lineno}, column {error.offset}: malformed XML "
+        raise URDFError(f"{file}, line {error.lineno + offset}, column {error.offset}: malformed XML "
                         f"({xml.parsers.expat.ErrorString(error.code)})") from None
     return root[0]
 

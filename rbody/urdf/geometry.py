@@ -48,7 +48,7 @@ def resolve_mesh(element: Element, filename: str, folder: Path | None, package_d
     from the URDF's folder (the working folder for an XML string). URDFError naming the element and the places
     looked in when no file is there."""
     if filename.startswith("package://"):
-        rest = filename[len("package://"):]
+        rest = filename[len("package://"):].lstrip("/")  # package:///NAME/... is read as package://NAME/...
         package, _, inside = rest.partition("/")
         if not package or not inside:
             raise element.error(f"filename={filename!r}: expected package://PACKAGE/PATH")
@@ -79,10 +79,9 @@ def resolve_mesh(element: Element, filename: str, folder: Path | None, package_d
 def read_geometry(element: Element, name: str, collision: bool, folder: Path | None, package_dirs,
                   notes: list[str]) -> Geometry:
     """The Shape of one <visual> or <collision> (named `name`), in its link's frame."""
-    known = {"origin": None, "geometry": None, "material": None if collision else "visual materials ignored "
-             "(appearance only)"}
+    known = {"origin": None, "geometry": None, "material": "visual and collision materials ignored (appearance only)"}
     if collision:
-        known.pop("material")
+        known["verbose"] = "collisions' <verbose> ignored (a planner's display flag)"
     element.check_children(known, notes)
     origin = element.one("origin")
     pos = origin.numbers("xyz", 3, (0.0, 0.0, 0.0)) if origin is not None else np.zeros(3)
@@ -115,5 +114,5 @@ def read_geometry(element: Element, name: str, collision: bool, folder: Path | N
             if note not in notes:
                 notes.append(note)
     if np.any(size <= 0):
-        raise primitive.error(f"a {kind} needs sizes > 0 (got {' '.join(f'{v:g}' for v in primitive.attrib.values())})")
+        raise primitive.error(f"a {kind} needs sizes > 0 (got {' '.join(f'{k}={v!r}' for k, v in primitive.attrib.items())})")
     return Geometry(Shape(name, kind, tuple(size.tolist()), **common), collision, element)

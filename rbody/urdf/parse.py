@@ -60,7 +60,8 @@ environment variable ROS_PACKAGE_PATH, file://, or relative to the URDF's folder
 Mesh scale is noted (no mass comes from meshes). Shapes are named "<link>_collision_<i>" / "<link>_visual_<i>".
 
 Ignored with a note: <material>, <transmission>, <gazebo>, <ros2_control>, <mujoco> (MuJoCo's own compiler
-options), joints' <calibration> and <safety_controller>, links' <contact> (Bullet's). Refused (URDFError):
+options), <sensor>, joints' <calibration> and <safety_controller>, links' <contact> (Bullet's), <self_filter>,
+<collision_checking>, <kinematic> and a stray <origin>, collisions' <material> and <verbose>. Refused (URDFError):
 anything else, unknown joint types, a link with two parents (a loop), several root links, a joint naming a
 missing link, repeated names, malformed numbers or XML, a missing mesh, mass < 0, a mass of 0 with moments.
 """
@@ -91,6 +92,15 @@ IGNORED_ROBOT_ELEMENTS = {
     "gazebo": "<gazebo> ignored (Gazebo's simulator settings)",
     "ros2_control": "<ros2_control> ignored (controller settings)",
     "mujoco": "<mujoco> ignored (MuJoCo's own compiler options for its URDF loader)",
+    "sensor": "<sensor> ignored (sensor descriptions measure, they add no mass or joint)",
+}
+# Annotations of planners and simulators found in published links: no mass, joint or shape of their own.
+IGNORED_LINK_ELEMENTS = {
+    "contact": "links' <contact> ignored (Bullet's contact parameters; contacts are not modelled)",
+    "self_filter": "links' <self_filter> ignored (a perception filter's padding)",
+    "collision_checking": "links' <collision_checking> ignored (a planner's collision shapes)",
+    "kinematic": "links' <kinematic> ignored (a simulator's flag)",
+    "origin": "an <origin> directly in a <link> ignored (URDF gives it no meaning; urdfdom ignores it)",
 }
 _IDENTITY = np.array([1.0, 0.0, 0.0, 0.0])
 
@@ -103,6 +113,7 @@ class _Link:
     com: np.ndarray = field(default_factory=lambda: np.zeros(3))
     tensor: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))   # about com, link axes
     geometries: list = field(default_factory=list)
+    unmassed: Element | None = None   # an <inertial> with moments but mass 0 (refused if the link moves)
 
 
 @dataclass
@@ -183,9 +194,8 @@ class _Reader:
     # ----- links -----
 
     def read_link(self, element: Element) -> _Link:
-        element.check_children({"inertial": None, "visual": None, "collision": None,
-                                "contact": "links' <contact> ignored (Bullet's contact parameters; contacts are "
-                                           "not modelled)"}, self.notes)
+        element.check_children({"inertial": None, "visual": None, "collision": None, **IGNORED_LINK_ELEMENTS},
+                               self.notes)
         link = _Link(element, element.text_attribute("name"))
         inertial = element.one("inertial")
         if inertial is not None:
@@ -209,8 +219,7 @@ class _Reader:
         if mass < 0:
             raise inertial.error(f"mass={mass!r}: a mass must be >= 0 [kg]")
         if mass == 0 and np.any(given != 0):
-            raise inertial.error("mass 0 with non-zero moments: rbody's bodies need a mass > 0 for moments of "
-                                 "inertia (give the mass, or zero moments for a massless link)")
+            link.unmassed = inertial  # moments without mass: added to a moving body that has mass, else refused
         tensor = given if np.array_equal(rotation, np.eye(3)) else rotation @ given @ rotation.T
         link.mass, link.com, link.tensor = float(mass), com, tensor
         if mass > 0:
@@ -409,8 +418,14 @@ class _Reader:
             raise links[lost[0]].element.error(f"links {lost} are not reached from the root link {root!r}: their "
                                                "joints form a loop")
         carriers = self.fold_massless(carriers)
+        if not carriers:
+            raise links[root].element.error("nothing moves: the robot's links are all welded to the world (no moving "
+                                            "joint); floating_base=True makes the root link a free body")
+        for link in links.values():
+            if link.unmassed is not None and not any(link is part for c in carriers for part, _, _ in c.parts):
+                self.note(f"link {link.name!r} (welded to the world) has mass 0 and non-zero moments: not simulated")
         layout, visuals = self.layout(world, carriers)
-        qpos, qvel = _initial_state(layout, qpos0, qvel0)
+        qpos, qvel = _initial_state(layout, qpos0, qvel0, self.root.file)
         return URDFModel(layout=layout, name=self.name, root=root, floating_base=self.floating_base, qpos0=qpos,
                          qvel0=qvel, limits=self.limits, effort_limits=self.effort, velocity_limits=self.velocity,
                          joint_friction=self.friction, mimics=self.mimics, visuals=visuals, notes=tuple(self.notes),
@@ -431,6 +446,10 @@ class _Reader:
             if body.mass > 0:
                 k += 1
                 continue
+            for link, _, _ in body.parts:
+                if link.unmassed is not None:
+                    raise link.unmassed.error(f"link {link.name!r} moves, with mass 0 and non-zero moments: rbody's "
+                                              "bodies need a mass > 0 for moments of inertia")
             below = [c for c in out if c.parent == body.name]
             kinds = [j.kind for j in body.joints]
             if len(below) != 1:
@@ -498,13 +517,17 @@ class _Reader:
 
     def inertia(self, carrier: _Carrier) -> Inertia:
         """The merged mass properties of a body's links, in its frame (parallel-axis theorem)."""
-        parts = [(link, pos, quat) for link, pos, quat in carrier.parts if link.mass > 0]
+        parts = [(link, pos, quat) for link, pos, quat in carrier.parts if link.mass > 0 or link.unmassed is not None]
         mass = math.fsum(link.mass for link, _, _ in parts)
+        unmassed = [link.name for link, _, _ in parts if link.unmassed is not None]
+        if unmassed:
+            self.note(f"body {carrier.name!r}: links {unmassed} have moments of inertia but mass 0: their moments are "
+                      "added (as Pinocchio adds them)")
         if len(parts) == 1 and not np.any(parts[0][1]) and np.array_equal(parts[0][2], _IDENTITY):
             com, tensor = parts[0][0].com, parts[0][0].tensor  # the link's own frame: its numbers as given
         else:
             coms = [pos + quat_matrix(quat) @ link.com for link, pos, quat in parts]
-            com = sum(link.mass * c for (link, _, _), c in zip(parts, coms)) / mass
+            com = sum(link.mass * c for (link, _, _), c in zip(parts, coms)) / mass if mass > 0 else np.zeros(3)
             tensor = np.zeros((3, 3))
             for (link, pos, quat), c in zip(parts, coms):
                 rotation = quat_matrix(quat)
@@ -541,19 +564,20 @@ def _violation(tensor: np.ndarray) -> str:
         parts.append(f"a negative principal moment {a:.6g} kg m^2")
     if a + b < c - 1e-12 * scale:
         gap = c - a - b
+        relative = f" ({100 * gap / c:.3g} % of C)" if c > 0 else ""
         parts.append(f"principal moments {a:.6g}, {b:.6g}, {c:.6g} break the triangle inequality A + B >= C by "
-                     f"{gap:.3g} kg m^2 ({100 * gap / c:.3g} % of C)")
+                     f"{gap:.3g} kg m^2{relative}")
     return "; ".join(parts)
 
 
-def _initial_state(layout: Layout, qpos0, qvel0) -> tuple[np.ndarray, np.ndarray]:
+def _initial_state(layout: Layout, qpos0, qvel0, file: str) -> tuple[np.ndarray, np.ndarray]:
     """qpos0 (nq,), qvel0 (nv,) in MuJoCo's layout: the arguments, or the reference pose at rest."""
     from rbody.engine.multibody import Multibody
 
     try:
         model = Multibody(layout)
     except ValueError as error:
-        raise URDFError(f"the robot's tree cannot be built: {error}") from None
+        raise URDFError(f"{file}: the robot's tree cannot be built: {error}") from None
     out = []
     for value, default, what in ((qpos0, model.qpos0, "qpos0"), (qvel0, model.qvel0, "qvel0")):
         if value is None:
