@@ -15,6 +15,7 @@ from rbody.engine import METHODS, METHOD_ORDER, stability
 from rbody.simulation import PreparedRun, prepare, simulate
 from rbody.engine.multibody import Multibody
 from rbody.mjcf import from_mjcf, to_mjcf
+from rbody.urdf import from_urdf
 from rbody import scenes
 from rbody.animation import Animation, animate
 
@@ -22,5 +23,5 @@ __all__ = [
     "Inertia", "RigidMotion", "point_velocity", "Particles", "reduced_mass", "two_body",
     "Body", "Contact", "Joint", "Layout", "Scene", "Shape", "Trajectory",
     "SimulationError", "MethodNotApplicable", "METHODS", "METHOD_ORDER", "simulate", "prepare", "PreparedRun", "scenes",
-    "to_mjcf", "from_mjcf", "Multibody", "stability", "animate", "Animation",
+    "to_mjcf", "from_mjcf", "from_urdf", "Multibody", "stability", "animate", "Animation",
 ]

@@ -141,6 +141,26 @@ class Inertia:
         object.__setattr__(self, "com", _readonly(com))
         object.__setattr__(self, "tensor", _readonly(tensor))
 
+    @classmethod
+    def as_given(cls, mass: float, com: Iterable[float], tensor: np.ndarray) -> "Inertia":
+        """Mass properties exactly as a model file gives them, even when no body has them: every check of
+        Inertia(...) (mass > 0, finite, symmetric, no subnormal or overflowing entry) except the two physical
+        ones, a positive semi-definite tensor and the triangle inequality A + B >= C. For importers that load a
+        file's dynamics as written (rbody.urdf names each such body and the size of its violation); such an
+        Inertia must not be passed to operations that build a new one (rotated, __add__), which check again."""
+        tensor = finite_array(tensor, "tensor", shape=(3, 3))
+        scale = max(float(np.max(np.abs(tensor))), np.finfo(float).tiny)
+        if 0 < float(np.max(np.abs(tensor))) < SMALLEST_CARRIED or scale > LARGEST_MOMENT:
+            raise ValueError(f"tensor={tensor.tolist()}: its largest entry {scale:.3g} kg m^2 is outside "
+                             f"[{SMALLEST_CARRIED:.3g}, {LARGEST_MOMENT:g}], where float64 cannot carry its sums")
+        asymmetry = float(np.max(np.abs(tensor - tensor.T)))
+        if asymmetry > STRUCTURE_RTOL * scale:
+            raise ValueError(f"tensor={tensor.tolist()}: an inertia tensor must be symmetric (largest |I - I^T| is "
+                             f"{asymmetry:.3g})")
+        inertia = cls(mass, com, np.zeros((3, 3)))  # every other check
+        object.__setattr__(inertia, "tensor", _readonly(0.5 * (tensor + tensor.T)))
+        return inertia
+
     # ----- constructors: uniform bodies centred on the origin -----------------------------------
 
     @classmethod

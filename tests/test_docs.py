@@ -32,6 +32,23 @@ ARM_XML = """<mujoco model="arm">
 """
 
 
+# The URDF arm of the README's robot example: two links on revolute joints about y.
+ARM_URDF = """<robot name="arm">
+  <link name="base"/>
+  <link name="upper">
+    <inertial><origin xyz="0 0 -0.4"/><mass value="1"/><inertia ixx="0.054" iyy="0.054" izz="0.0005" ixy="0" ixz="0" iyz="0"/></inertial>
+  </link>
+  <link name="lower">
+    <inertial><origin xyz="0 0 -0.25"/><mass value="0.5"/><inertia ixx="0.0105" iyy="0.0105" izz="0.0002" ixy="0" ixz="0" iyz="0"/></inertial>
+  </link>
+  <joint name="shoulder" type="revolute"><parent link="base"/><child link="upper"/><axis xyz="0 1 0"/>
+    <limit lower="-3" upper="3" effort="10" velocity="5"/></joint>
+  <joint name="elbow" type="continuous"><parent link="upper"/><child link="lower"/><origin xyz="0 0 -0.8"/>
+    <axis xyz="0 1 0"/><dynamics damping="0.01"/></joint>
+</robot>
+"""
+
+
 def readme_examples() -> list[str]:
     return FENCE.findall((ROOT / "README.md").read_text())
 
@@ -41,11 +58,12 @@ def test_the_readme_has_python_examples():
 
 
 def test_every_readme_example_runs(tmp_path, monkeypatch):
-    """The examples in README order, in one namespace, in a folder holding the arm.xml they read. A block that
+    """The examples in README order, in one namespace, in a folder holding the arm.xml and arm.urdf they read. A block that
     defines test functions (the regression-test example) has them called, after recording the baseline the
     example's comment says how to record."""
     monkeypatch.chdir(tmp_path)
     (tmp_path / "arm.xml").write_text(ARM_XML)
+    (tmp_path / "arm.urdf").write_text(ARM_URDF)
     namespace: dict = {"__name__": "readme", "__file__": str(tmp_path / "test_readme.py")}
     for number, code in enumerate(readme_examples(), 1):
         before = set(namespace)

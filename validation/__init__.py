@@ -4,12 +4,12 @@ from __future__ import annotations
 
 from rbody.scene import Scene
 from rbody.trajectory import Trajectory
-from validation.backends import BACKENDS, get, supports
+from validation.backends import BACKENDS, ENGINES, PEERS, get, supports
 from validation.comparison import Comparison, Divergence, check_baseline, compare, save_baseline
 
 
 def run(scene: Scene, backend: str, *, dt: float, t_end: float | None = None, **settings) -> Trajectory:
-    """Run `scene` in `backend` ("rbody", "mujoco" or "pymunk") with step dt [s].
+    """Run `scene` in `backend` (one of ENGINES: "rbody", "mujoco", "pymunk", "pinocchio", "bullet") with step dt [s].
 
     Returns a Trajectory with the same observable names as the native run. Raises ValueError for
     an unknown backend (listing the valid ones) and NotImplementedError when the backend cannot
@@ -20,4 +20,4 @@ def run(scene: Scene, backend: str, *, dt: float, t_end: float | None = None, **
     return module.run(scene, dt, t_end, **settings)
 
 
-__all__ = ["BACKENDS", "Comparison", "Divergence", "check_baseline", "compare", "run", "save_baseline", "supports"]
+__all__ = ["BACKENDS", "ENGINES", "PEERS", "Comparison", "Divergence", "check_baseline", "compare", "run", "save_baseline", "supports"]

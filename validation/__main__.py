@@ -53,12 +53,14 @@ def _parser() -> argparse.ArgumentParser:
     compare = commands.add_parser(
         "compare", prog="python -m validation compare", usage="%(prog)s MODEL [options]",
         help="one model in every engine that can express it: where they diverge (validation/comparison.py)")
-    compare.add_argument("model", help="an MJCF file, or 'module:name' / 'file.py:name' naming an rbody Scene")
+    compare.add_argument("model", help="an MJCF file, a URDF file, or 'module:name' / 'file.py:name' naming an rbody "
+                                       "Scene")
     compare.add_argument("--t-end", type=float, metavar="S", help="duration [s] (default: the model's)")
     compare.add_argument("--dt", type=float, metavar="S", help="time step [s] (default: the model's timestep, else 1e-3)")
     compare.add_argument("--method", metavar="M", help="rbody's method (default: rk4 where it applies, MuJoCo's scheme)")
-    compare.add_argument("--engines", default=",".join(("rbody", "mujoco", "pymunk")),
-                         help="comma-separated engines (default: rbody,mujoco,pymunk)")
+    compare.add_argument("--engines", default=None,
+                         help="comma-separated engines of rbody,mujoco,pymunk,pinocchio,bullet, or 'all' (default: "
+                              "rbody,mujoco,pymunk; every engine for a URDF file)")
     compare.add_argument("--out", type=Path, default=Path("report/compare"), help="folder (default: report/compare/)")
     compare.add_argument("--baseline", type=Path, metavar="DIR", help="check the divergences against this folder")
     compare.add_argument("--update-baseline", action="store_true", help="record this run's divergences in --baseline")

@@ -43,11 +43,12 @@ from rbody.files import atomic_path, write_atomic
 from rbody.scene import Scene
 from rbody.trajectory import Trajectory
 from validation import baselines
-from validation.backends import BACKENDS, get, supports
+from validation.backends import BACKENDS, ENGINES, get, supports
 
 EXACT = "exact"
 DEFAULT_DT = 1e-3
 MJCF_SUFFIXES = (".xml", ".mjcf")
+URDF_SUFFIXES = (".urdf",)
 
 
 # ----- what a comparison holds ----------------------------------------------------------------------------
@@ -275,8 +276,8 @@ def compare(model: Scene | str | Path, engines: Iterable[str] | None = None, *, 
     Raises ValueError for bad input (a missing file, an unknown engine, dt <= 0, a batched scene, a method
     that does not apply), before any run.
     """
-    engines = _engine_names(engines)
     scene = load_model(model, t_end=t_end) if not isinstance(model, Scene) else model
+    engines = _engine_names(engines, scene)
     if scene.batch_shape:
         raise ValueError(f"scene {scene.name!r} is a batch of shape {scene.batch_shape}: compare runs one model "
                          "in several engines; pick one with scene.item(i)")
@@ -307,6 +308,10 @@ def _settings_of(scene: Scene, engine: str, method: str | None) -> dict:
     user runs it, else the backend's default (RK4 without impacts); pymunk: its defaults."""
     if engine == "rbody":
         return {"method": method}
+    if engine == "pinocchio":  # the same scheme as rbody's where Pinocchio's backend has it
+        from validation.backends.pinocchio import METHODS
+
+        return {"method": method if method in METHODS else "rk4"}
     if engine == "mujoco" and getattr(scene, "integrator", None):
         return {"integrator": scene.integrator}
     return {}
@@ -358,16 +363,20 @@ def _within_limits(scene: Scene, trajectory: Trajectory, engine: str) -> None:
         raise rbody.SimulationError(f"{engine}: {violation}; no engine here models joint limits")
 
 
-def _engine_names(engines: Iterable[str] | None) -> tuple[str, ...]:
+def _engine_names(engines: Iterable[str] | str | None, scene: Scene | None = None) -> tuple[str, ...]:
+    """The engines asked for: None is BACKENDS (rbody, MuJoCo, pymunk: the main command's), or every engine
+    (ENGINES: with Pinocchio and Bullet) for a model read from URDF; "all" is every engine."""
     if engines is None:
-        return BACKENDS
+        return ENGINES if getattr(scene, "floating_base", None) is not None else BACKENDS
+    if isinstance(engines, str) and engines.strip() == "all":
+        return ENGINES
     names = tuple(engines.split(",")) if isinstance(engines, str) else tuple(engines)
     names = tuple(n.strip() for n in names)
     for n in names:
-        if n not in BACKENDS:
-            raise ValueError(f"engine {n!r}: expected one of {', '.join(map(repr, BACKENDS))}")
+        if n not in ENGINES:
+            raise ValueError(f"engine {n!r}: expected one of {', '.join(map(repr, ENGINES))} or 'all'")
     if not names or len(set(names)) != len(names):
-        raise ValueError(f"engines={list(names)}: expected one or more distinct engines of {list(BACKENDS)}")
+        raise ValueError(f"engines={list(names)}: expected one or more distinct engines of {list(ENGINES)}")
     return names
 
 
@@ -405,6 +414,10 @@ def load_model(source: str | Path, *, t_end: float | None = None) -> Scene:
         raise ValueError(f"model={source!r}: expected a Scene, a path to an MJCF file or 'module:name'")
     text = str(source)
     path = Path(text)
+    if path.suffix.lower() in URDF_SUFFIXES:
+        if not path.is_file():
+            raise ValueError(f"model {text!r}: no such file")
+        return rbody.from_urdf(path, **({} if t_end is None else {"t_end": t_end}))
     if path.suffix.lower() in MJCF_SUFFIXES or (path.exists() and path.suffix.lower() != ".py"):
         if not path.is_file():
             raise ValueError(f"model {text!r}: no such file")
@@ -414,7 +427,8 @@ def load_model(source: str | Path, *, t_end: float | None = None) -> Scene:
                              "Scene instead")
         return from_mjcf(path, **({} if t_end is None else {"t_end": t_end}))
     if ":" not in text:
-        raise ValueError(f"model {text!r}: expected an MJCF file ({'/'.join(MJCF_SUFFIXES)}) or 'module:name' / "
+        raise ValueError(f"model {text!r}: expected an MJCF file ({'/'.join(MJCF_SUFFIXES)}), a URDF file (.urdf) or "
+                         "'module:name' / "
                          "'file.py:name' naming a Scene")
     where, attribute = text.rsplit(":", 1)
     if where.endswith(".py"):
@@ -683,10 +697,10 @@ def main(args) -> int:
     try:
         if args.update_baseline and args.baseline is None:
             raise ValueError("--update-baseline needs --baseline DIR: the folder to record the divergences in")
-        engines = _engine_names(args.engines)
         if args.baseline is not None and not args.update_baseline and not Path(args.baseline).is_dir():
             raise ValueError(f"--baseline {str(args.baseline)!r}: no such folder (record one with --update-baseline)")
         scene = load_model(args.model, t_end=args.t_end)
+        engines = _engine_names(args.engines, scene)
         if getattr(args, "animate", False):
             from rbody.animation import check_animatable
 

@@ -50,4 +50,4 @@ def test_unknown_backend_lists_the_valid_ones():
     from rbody import scenes
 
     with pytest.raises(ValueError, match="'rbody', 'mujoco', 'pymunk'"):
-        validation.run(scenes.swinging_rod(1.0, theta0=0.5, t_end=0.1), "bullet", dt=1e-3)
+        validation.run(scenes.swinging_rod(1.0, theta0=0.5, t_end=0.1), "drake", dt=1e-3)

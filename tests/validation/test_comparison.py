@@ -128,8 +128,8 @@ def test_orientation_divergence_is_the_rotation_angle():
 
 def test_bad_input_raises_before_any_run(tmp_path):
     rod = swinging_rod(1.0, theta0=1.0, t_end=1.0)
-    with pytest.raises(ValueError, match="bullet"):
-        compare(rod, engines=["rbody", "bullet"])
+    with pytest.raises(ValueError, match="drake"):
+        compare(rod, engines=["rbody", "drake"])
     with pytest.raises(ValueError, match="dt"):
         compare(rod, dt=0.0)
     with pytest.raises(ValueError, match="dt"):
@@ -246,7 +246,7 @@ def test_save_baseline_then_check_through_the_api(tmp_path):
 
 @pytest.mark.parametrize("arguments, message", [
     (["/nonexistent/model.xml"], "no such file"),
-    (["MODEL:rod", "--engines", "rbody,bullet"], "bullet"),
+    (["MODEL:rod", "--engines", "rbody,drake"], "drake"),
     (["MODEL:rod", "--dt", "0"], "dt=0.0"),
     (["MODEL:rod", "--dt=-1e-3"], "dt=-0.001"),
     (["MODEL:rod", "--t-end=-1"], "t_end"),

@@ -274,7 +274,7 @@ def test_refusals_name_the_reason():
     ok, reason = supports(thin, "mujoco")
     assert not ok and "principal moments" in reason
     with pytest.raises(ValueError, match="expected one of"):
-        supports(bead, "bullet")
+        supports(bead, "drake")
 
 
 def _with_joint(scene: PlanarTree, index: int, **changes) -> PlanarTree:

@@ -11,16 +11,26 @@ from __future__ import annotations
 import importlib
 from types import ModuleType
 
+# The main command's engines (its scene table and baselines), and the peers that compare, and a URDF file, add.
 BACKENDS = ("rbody", "mujoco", "pymunk")
+PEERS = ("pinocchio", "bullet")
+ENGINES = BACKENDS + PEERS
 _MODULES = {"rbody": "validation.backends.native", "mujoco": "validation.backends.mujoco",
-            "pymunk": "validation.backends.pymunk"}
+            "pymunk": "validation.backends.pymunk", "pinocchio": "validation.backends.pinocchio",
+            "bullet": "validation.backends.bullet"}
 
 
 def get(name: str) -> ModuleType:
-    """The backend module called `name` (one of BACKENDS)."""
+    """The backend module called `name` (one of ENGINES). Raises ValueError for an unknown name, and
+    NotImplementedError naming the package to install when the engine's package is missing (pinocchio: pin;
+    bullet: pybullet, the extra rbody[bullet])."""
     if name not in _MODULES:
-        raise ValueError(f"backend={name!r}: expected one of {', '.join(map(repr, BACKENDS))}")
-    return importlib.import_module(_MODULES[name])
+        raise ValueError(f"backend={name!r}: expected one of {', '.join(map(repr, ENGINES))}")
+    try:
+        return importlib.import_module(_MODULES[name])
+    except ImportError as error:
+        extra = {"bullet": "pip install 'rbody[bullet]' (pybullet)", "pinocchio": "pip install pin"}.get(name, "")
+        raise NotImplementedError(f"engine {name!r} is not installed ({error}): {extra}") from None
 
 
 def supports(scene, name: str) -> tuple[bool, str]:
@@ -30,7 +40,12 @@ def supports(scene, name: str) -> tuple[bool, str]:
     an unknown backend or a `scene` that is not an rbody Scene."""
     from rbody.scene import Scene
 
-    module = get(name)
+    if not isinstance(scene, Scene):
+        raise ValueError(f"scene={scene!r}: expected an rbody.Scene (see rbody.scenes)")
+    try:
+        module = get(name)
+    except NotImplementedError as reason:
+        return False, str(reason)
     if not isinstance(scene, Scene):
         raise ValueError(f"scene={scene!r}: expected an rbody.Scene (see rbody.scenes)")
     try:
