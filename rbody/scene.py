@@ -417,6 +417,10 @@ class TreeScene(Scene):
         from rbody.engine import multibody as mb
         from rbody.engine.planar import planar_accel, planar_model, planar_rhs
 
+        if self.tree.constrained:
+            from rbody.errors import SimulationError
+            raise SimulationError(f"scene {self.describe()}: its joints' ranges or frictionloss, or its equalities, "
+                                  "need the constraint layer, which does not run yet")
         model = self.multibody
         qpos0, qvel0 = self._state0()
         planar = planar_model(model)
