@@ -327,6 +327,8 @@ class TreeScene(Scene):
     @property
     def observables(self) -> tuple[str, ...]:  # type: ignore[override]
         names = ["qpos", "qvel", "energy"]
+        if self.tree.constrained:
+            names += ["constraint_force", "constraint_error", "active_limits", "sticking", "dissipated"]
         for body in self.multibody.body_names:
             names += [f"{body}.com", f"{body}.quat", f"{body}.velocity", f"{body}.omega"]
         return tuple(names)
@@ -417,11 +419,9 @@ class TreeScene(Scene):
         from rbody.engine import multibody as mb
         from rbody.engine.planar import planar_accel, planar_model, planar_rhs
 
-        if self.tree.constrained:
-            from rbody.errors import SimulationError
-            raise SimulationError(f"scene {self.describe()}: its joints' ranges or frictionloss, or its equalities, "
-                                  "need the constraint layer, which does not run yet")
         model = self.multibody
+        if self.tree.constrained:
+            return self._constrained_native()
         qpos0, qvel0 = self._state0()
         planar = planar_model(model)
         if planar is not None:
@@ -444,6 +444,31 @@ class TreeScene(Scene):
         return NativeModel(y0=y0, params=params, rhs=mb.tree_rhs, observe=observe,
                            accel=None if self.symplectic_applies else mb.tree_accel,
                            finish=mb.tree_finish if model.nrot else None, rate_from_jacobian=True)
+
+    @cached_property
+    def constraint_table(self):
+        """The compiled constraints of the tree (rbody.engine.constraints.table), or None when it has none."""
+        from rbody.engine.constraints.table import build_table
+
+        return build_table(self.tree, self.multibody) if self.tree.constrained else None
+
+    def _constrained_native(self) -> NativeModel:
+        """The tree with its limits, dry friction and equalities: state (qpos, qvel, phi, dissipated), params the
+        tree's row and the constraint table, run by the constraint layer (rbody.engine.constraints)."""
+        from rbody.engine.constraints.dynamics import constrained_rhs
+
+        model, table = self.multibody, self.constraint_table
+        qpos0, qvel0 = self._state0()
+        count = qpos0.shape[0]
+        y0 = np.concatenate([qpos0, qvel0, np.zeros((count, 3 * model.nrot + 1))], axis=1)
+        params = np.tile(table.row(model.params), (count, 1))
+        nq, nv = model.nq, model.nv
+
+        def observe(t, y):
+            return self._observables(y[..., :nq], y[..., nq:nq + nv])
+
+        return NativeModel(y0=y0, params=params, rhs=constrained_rhs, observe=observe, rate_from_jacobian=True,
+                           constraints=table)
 
     # ----- what other simulators build -----------------------------------------------------------------
 

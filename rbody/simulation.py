@@ -72,6 +72,12 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
 
     model = scene.native_model  # built once per scene
     nsteps = step_count(t_end, dt, save_every)
+    if model.constraints is not None:  # limits, dry friction, equalities: the constraint layer's own schemes
+        from rbody.engine.constraints.runner import run_constrained
+        t, data, events, meta = run_constrained(scene.describe(), model, method, dt, nsteps, save_every)
+        data = {name: _shaped(value, (t.size,) + scene.batch_shape) for name, value in data.items()}
+        return Trajectory(t, data, events=events, meta={"scene": scene.name, "backend": "rbody", "method": method,
+                                                         "dt": dt, **meta})
     if model.break_time is not None and 0 < model.break_time < dt:
         raise SimulationError(
             f"scene {scene.describe()}: its right-hand side jumps at t = {model.break_time:.6g} s (e.g. a "

@@ -42,7 +42,8 @@ from rbody.engine import integrators
 
 NEEDS = {"rhs": "y' = f(y) (the model's rhs)",
          "accel": "q'' = a(q) with y = (q, q'), a separable Hamiltonian (the model's accel)",
-         "split": "the scene's own symmetric one-step map (the model's split flows)"}
+         "split": "the scene's own symmetric one-step map (the model's split flows)",
+         "constraints": "a constrained tree (the model's constraint table: rbody.engine.constraints)"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -75,6 +76,12 @@ class Method:
 
     def missing(self, model) -> str:
         """"" when `model` (a NativeModel) provides what this method needs, else what it lacks."""
+        table = getattr(model, "constraints", None)
+        if table is not None and self.name not in table.methods:  # the constraint layer runs its own schemes
+            return (f"{self.name!r} does not run a constrained tree (limits, dry friction, equalities): the constraint "
+                    f"layer runs {', '.join(table.methods)} (rbody.engine.constraints)")
+        if self.needs == "constraints":
+            return "" if table is not None else f"{self.name!r} needs {NEEDS['constraints']}"
         if self.flow(model) is not None:
             return ""
         if self.needs == "rhs" and model.rhs is not None:
@@ -136,6 +143,11 @@ def _splitting(model, flow, y0, params, dt, nsteps, save_every, out):
     return _run_flow(flow, y0, params, dt, nsteps, save_every, out)
 
 
+def _constrained(model, flow, y0, params, dt, nsteps, save_every, out):
+    raise NotImplementedError("a constrained tree runs through rbody.engine.constraints.runner (simulate routes it "
+                              "there), never through a fixed-step loop")
+
+
 # ----- the stability intervals that need a computation ----------------------------------------------------
 
 @lru_cache(maxsize=None)
@@ -188,6 +200,9 @@ RECORDS: tuple[Method, ...] = (
                    "(dt |df/dy| too large)"),
     Method("splitting", 2, "split", symplectic=True, symmetric=True, explicit=True, beta=lambda: 2.0,
            run=_splitting, summary="the scene's own symmetric splitting into exact flows"),
+    Method("moreau", 1, "constraints", symplectic=False, symmetric=False, explicit=True, beta=lambda: 2.0,
+           run=_constrained, summary="Moreau-Jean time-stepping of a constrained tree: impulses at the velocity level, "
+           "a complementarity problem per step (rbody.engine.constraints.stepping)"),
     Method("reference", None, "rhs", symplectic=False, symmetric=False, explicit=True, beta=lambda: math.inf,
            run=_reference, summary="scipy DOP853 at rtol 1e-13: for checks only, never for speed",
            failure="a failed solve (scipy's DOP853 could not reach its tolerance)"),

@@ -491,8 +491,10 @@ def test_declared_limit_is_the_joints_range():
     scene = from_mjcf(xml, t_end=0.5)
     assert scene.limits == {"j": pytest.approx((math.radians(-10), math.radians(20)), rel=1e-15)}
     assert [j.range for j in scene.tree.joints] == [scene.limits["j"]]
-    with pytest.raises(SimulationError, match=r"constraint layer"):
-        simulate(scene, dt=1e-3, method="rk4")
+    run = simulate(scene, dt=1e-3, method="rk4")  # the rod (along +x) falls onto its stop at +20 degrees, stays
+    assert run.meta["impacts"] == 1 and run.events["constraints"][0] == "j.upper"
+    assert run["qpos"][:, 0].max() <= math.radians(20) + 1e-15 and run["active_limits"][-1].tolist() == [False, True]
+    assert "joint 'j' left its range" in scene.limit_violation(run.t, run["qpos"] + 1e-9)  # passing it is named
 
 
 @pytest.mark.parametrize("pos, verdict", [("0 0 0.25", None), ("0.25 0 0", "overlap"),
