@@ -8,6 +8,9 @@ scenes read (no parallel tables):
                   "rhs"    y' = f(y)                              (every general method)
                   "accel"  q'' = a(q), y = (q, q'): a separable Hamiltonian  (the explicit symplectic ones)
                   "split"  the scene's own symmetric one-step map under this method's name (model.split)
+                  "constraints"  a constrained tree (model.constraints): the constraint layer's time-stepping
+                A constrained tree (limits, dry friction, equalities) takes only the methods its constraint table
+                names (rk4: event-driven, rk4 between events; moreau: time-stepping): rbody.engine.constraints.
                 A scene may also supply its own flow under any method's name in model.split (a free rotation's
                 "yoshida6" composes its exact sub-rotations): that flow is then what runs.
     symplectic, symmetric, explicit
@@ -22,6 +25,7 @@ scenes read (no parallel tables):
                                     fixed-point iteration, which contracts by dt w rho(A) per sweep
                   splitting         2, a second-order symmetric splitting's (the yoshida6 composition of a
                                     scene's flow takes yoshida6's)
+                  moreau            2, as symplectic Euler (its free motion between impulses)
                   reference         inf (scipy's DOP853 at rtol 1e-13, adaptive)
     run         run(model, flow, y0, params, dt, nsteps, save_every, out) -> failed (B,): the compiled loop
                 (rbody.engine.integrators); flow is the scene's own (step, weights) for this method, or None
