@@ -16,7 +16,8 @@ caller reports (SimulationError). Cost: O(nv^3 + m^3) per evaluation, dense: fit
 freedom, which is what the event-driven scheme is for.
 
 The native state of a constrained tree is the tree's (qpos, qvel, phi) and one more entry, the energy dissipated
-so far by dry friction and impacts [J] (its rate here: the power of the sliding friction, frictionloss sign v).
+so far by dry friction, impacts and the joints' dampers [J] (its rate here: the power of the sliding friction,
+frictionloss s v, and of the dampers, damping v^2).
 """
 
 from __future__ import annotations
@@ -24,7 +25,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from rbody.engine.multibody import (FREE, H_BODIES, H_DOFS, H_JOINT, H_JOINTS, H_NQ, H_ROT, HINGE, J_DADR, J_KIND, J_QADR,
+from rbody.engine.multibody import (D_DAMPING, DOF_SIZE, FREE, H_BODIES, H_DOF, H_DOFS, H_JOINT, H_JOINTS, H_NQ, H_ROT, HINGE, J_DADR, J_KIND, J_QADR,
                                     J_ROT, JOINT_SIZE, ROLL, SLIDE, _effective_qpos, inverse_one, mass_matrix_one,
                                     passive, tree_finish, workspace_size)
 from rbody.engine.spatial import dexp_inverse, quat_exp, quat_multiply
@@ -73,9 +74,47 @@ def add_sliding_friction(p, f):
 
 
 @njit(cache=True)
+def _limit_held_on(p, dof):
+    """Whether a LOWER or UPPER unit on dof `dof` is held in the mode written in p."""
+    modes = mode_at(p)
+    for k in range(unit_count(p)):
+        u = unit_at(p, k)
+        kind = int(p[u + U_KIND])
+        if (kind == LOWER or kind == UPPER) and int(p[u + U_DOF]) == dof and p[modes + k] == 1.0:
+            return True
+    return False
+
+
+@njit(cache=True)
+def sticking_friction_on(p, dof):
+    """The frictionloss of dof `dof` when its friction sticks in the mode written in p, else 0."""
+    modes = mode_at(p)
+    for k in range(unit_count(p)):
+        u = unit_at(p, k)
+        if int(p[u + U_KIND]) == FRICTION and int(p[u + U_DOF]) == dof and p[modes + k] == 0.0:
+            return p[u + U_BOUND]
+    return 0.0
+
+
+@njit(cache=True)
+def _ball_locked(p, dof):
+    """Whether the three dofs dof..dof+2 of a ball all have sticking friction in the mode written in p."""
+    modes = mode_at(p)
+    count = 0
+    for k in range(unit_count(p)):
+        u = unit_at(p, k)
+        d = int(p[u + U_DOF])
+        if int(p[u + U_KIND]) == FRICTION and dof <= d < dof + 3 and p[modes + k] == 0.0:
+            count += 1
+    return count == 3
+
+
+@njit(cache=True)
 def held_rows(p, rows_held):
     """rows_held (rows,) = 1 where the mode holds the row (equalities, limits held, sticking dofs), else 0; returns
-    their count."""
+    their count. Two held rows that would say the same thing are held once, so that each force is defined: a
+    sticking dof whose stop is held (the stop carries the load; the dof's friction then does nothing), and a ball's
+    cone when all three of its dofs stick (the ball is locked by its friction)."""
     modes = mode_at(p)
     count = 0
     for k in range(unit_count(p)):
@@ -83,7 +122,9 @@ def held_rows(p, rows_held):
         kind = int(p[u + U_KIND])
         mode = p[modes + k]
         on = (kind == CONNECT or kind == WELD or kind == COUPLING or
-              ((kind == LOWER or kind == UPPER or kind == CONE) and mode == 1.0) or (kind == FRICTION and mode == 0.0))
+              ((kind == LOWER or kind == UPPER) and mode == 1.0) or
+              (kind == CONE and mode == 1.0 and not _ball_locked(p, int(p[u + U_DOF]))) or
+              (kind == FRICTION and mode == 0.0 and not _limit_held_on(p, int(p[u + U_DOF]))))
         r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])
         for a in range(r0, r0 + r):
             rows_held[a] = 1.0 if on else 0.0
@@ -202,10 +243,20 @@ def friction_power(p, v):
 
 
 @njit(cache=True)
+def damping_power(p, v):
+    """Power [W] the joints' dampers take: sum of damping v^2 over the dofs."""
+    power = 0.0
+    do = int(p[H_DOF])
+    for d in range(int(p[H_DOFS])):
+        power += p[do + d * DOF_SIZE + D_DAMPING] * v[d] * v[d]
+    return power
+
+
+@njit(cache=True)
 def constrained_rhs(y, p, out):
     """y' for y = (qpos (nq), qvel (nv), phi (3 per ball/free joint), dissipated (1)) in the mode written in p: as
     the tree's right-hand side (rbody.engine.multibody.tree_rhs) with qvel' the constrained accelerations
-    (mode_accel), and dissipated' the sliding friction's power."""
+    (mode_accel), and dissipated' the power the sliding friction and the dampers take."""
     nj, nq, nv = int(p[H_JOINTS]), int(p[H_NQ]), int(p[H_DOFS])
     jo = int(p[H_JOINT])
     n = y.shape[0]
@@ -232,7 +283,7 @@ def constrained_rhs(y, p, out):
             out[base + a] = 0.0
         at = nq + nv + 3 * int(p[r + J_ROT])
         dexp_inverse(y[at:at + 3], y[nq + da:nq + da + 3], out[at:at + 3])
-    out[n - 1] = friction_power(p, y[nq:nq + nv])
+    out[n - 1] = friction_power(p, y[nq:nq + nv]) + damping_power(p, y[nq:nq + nv])
 
 
 @njit(cache=True)
@@ -346,7 +397,9 @@ def guards(p, y, out):
         kind = int(p[u + U_KIND])
         row = int(p[u + U_ROW0])
         mode = p[modes + k]
-        if kind == LOWER or kind == UPPER or kind == CONE:
+        if kind == LOWER or kind == UPPER:  # a held stop with friction on its dof: friction can pull up to F too
+            out[k] = lam[row] + sticking_friction_on(p, int(p[u + U_DOF])) if mode == 1.0 else g[row]
+        elif kind == CONE:
             out[k] = lam[row] if mode == 1.0 else g[row]
         elif kind == FRICTION:
             out[k] = p[u + U_BOUND] - abs(lam[row]) if mode == 0.0 else mode * y[nq + int(p[u + U_DOF])]

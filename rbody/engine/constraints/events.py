@@ -33,7 +33,7 @@ from scipy.optimize import brentq
 from rbody.errors import SimulationError
 from rbody.engine.constraints import dynamics as dyn
 from rbody.engine.constraints.solver import mlcp_exact, natural_residual, UNBOUNDED
-from rbody.engine.constraints.table import (C_HEADER, EQUALITY_KINDS, FRICTION, U_BOUND, U_DOF, U_RESTITUTION,
+from rbody.engine.constraints.table import (C_HEADER, EQUALITY_KINDS, FRICTION, LOWER, U_BOUND, UPPER, U_DOF, U_RESTITUTION,
                                             UNILATERAL, UNIT_SIZE, ConstraintTable)
 
 TOUCH_TOLERANCE = 1e-10   # [m or rad] a limit this close to its stop at an event touches it (projected onto it)
@@ -44,6 +44,9 @@ FORCE_RTOL = 1e-9         # held rows' forces: |W lambda - r| above this fractio
 FORCE_ATOL = 1e-9
 MLCP_RTOL = 1e-10         # an event's complementarity problem solved to this fraction of its scale
 GUARD_RTOL = 1e-9         # after an event every guard is >= -this (relative to the largest): else no consistent mode
+GUARD_DISTANCE = 1e-14    # [m or rad] a free stop passed by more than this is an event (the root is then located)
+GUARD_SPEED = 1e-13       # [m/s or rad/s] a sliding dof's velocity past 0 by more than this is an event
+GUARD_FORCE_RTOL = 1e-10  # a held force past its bound by more than this fraction of the forces in play is an event
 
 
 @dataclass
@@ -159,7 +162,7 @@ class EventRun:
                 if not np.all(np.isfinite(y1)):
                     raise self.fail(t, f"a step of {h:.3g} s gave a non-finite state; try a smaller dt")
                 g1 = self.guards(y1, target)
-                crossing = np.flatnonzero(g1 < 0.0)
+                crossing = np.flatnonzero(g1 < -self.guard_tolerance(g0, g1))
                 if crossing.size == 0:
                     y, t, g0 = y1, target, g1
                     break
@@ -179,6 +182,21 @@ class EventRun:
                 modes[k // save_every] = self.mode
         return samples, modes
 
+    def guard_tolerance(self, g0: np.ndarray, g1: np.ndarray) -> np.ndarray:
+        """(units,) how far below 0 a guard must fall before it is an event: round-off of its kind (a distance
+        GUARD_DISTANCE, a speed GUARD_SPEED, a force GUARD_FORCE_RTOL of the largest force or frictionloss in play),
+        so that a guard that sits at 0 (a stop left with no force, a dof at rest on the verge of slipping) does not
+        fire again and again at one instant."""
+        mode = self.mode
+        force = np.array([(self.codes[k] in UNILATERAL and mode[k] == 1.0) or (self.codes[k] == FRICTION and mode[k] == 0.0)
+                          for k in range(len(self.units))])
+        bounds = [self.p[self._record(k) + U_BOUND] for k in range(len(self.units)) if self.codes[k] == FRICTION]
+        scale = max([1.0, *bounds, *np.abs(g0[force]), *np.abs(g1[force])])
+        out = np.where(force, GUARD_FORCE_RTOL * scale, GUARD_DISTANCE)
+        sliding = np.array([self.codes[k] == FRICTION and mode[k] != 0.0 for k in range(len(self.units))])
+        out[sliding] = GUARD_SPEED
+        return out
+
     def locate(self, y: np.ndarray, h: float, crossing: np.ndarray, g0: np.ndarray) -> tuple[float, list[int]]:
         """The earliest root h* in [0, h] of the guards that turned negative over the step from y, and the units
         whose guards cross there (to round-off of t)."""
@@ -186,10 +204,13 @@ class EventRun:
         for k in crossing:
             def guard(s, k=k):
                 return self.guards(self.step(y, s), math.nan)[k] if s > 0 else g0[k]
-            if g0[k] <= 0.0:
-                roots[int(k)] = 0.0
-                continue
-            roots[int(k)] = brentq(guard, 0.0, h, xtol=4 * np.finfo(float).eps * h, rtol=4 * np.finfo(float).eps,
+            start = 0.0
+            if g0[k] <= 0.0:  # at 0 after the last event (a stop just left): is it positive just after?
+                start = next((s for s in h * 0.5 ** np.arange(1, 40) if guard(s) > 0.0), None)
+                if start is None:
+                    roots[int(k)] = 0.0
+                    continue
+            roots[int(k)] = brentq(guard, start, h, xtol=4 * np.finfo(float).eps * h, rtol=4 * np.finfo(float).eps,
                                    maxiter=200)
         earliest = min(roots.values())
         # Brent returns a point within xtol of the root; take the side where the guard has crossed
@@ -246,7 +267,17 @@ class EventRun:
                 speed = v[int(self.p[self._record(k) + U_DOF])]
                 mode[k] = 0.0 if abs(speed) <= REST_SPEED else math.copysign(1.0, speed)
         self.set_mode(mode)
-        mode = self.select_mode(y, t, resting)
+        # the velocities of the resting rows exactly 0 (changes below REST_SPEED), so that a dof that starts to slide
+        # or a stop that is left moves away from rest in the direction its acceleration says
+        at_rest = np.zeros(self.rows)
+        for k, unit in enumerate(self.units):
+            if self.codes[k] in EQUALITY_KINDS or k in resting or (self.codes[k] == FRICTION and mode[k] == 0.0):
+                at_rest[unit.row0:unit.row0 + unit.rows] = 1.0
+        dyn.project(self.p, y, np.zeros(self.rows), at_rest)
+        v = y[nq:nq + nv]
+        breaking = [k for k in triggered if self.codes[k] == FRICTION and before[k] == 0.0]
+        releasing = [k for k in triggered if self.codes[k] in UNILATERAL and before[k] == 1.0]
+        mode = self.select_mode(y, t, resting, breaking, releasing)
         self.set_mode(mode)
         held = self.held()
         dyn.project(self.p, y, np.zeros(self.rows), held)
@@ -315,18 +346,34 @@ class EventRun:
         lost = kinetic - 0.5 * v @ M @ v
         return y, float(lost), tuple(float(lam[i]) for i in impulses_of)
 
-    def select_mode(self, y: np.ndarray, t: float, resting) -> np.ndarray:
-        """The mode at state y (module docstring, step 2): the complementarity problem at the acceleration level."""
+    def select_mode(self, y: np.ndarray, t: float, resting, breaking=(), releasing=()) -> np.ndarray:
+        """The mode at state y (module docstring, step 2): the complementarity problem at the acceleration level.
+
+        A stop at rest on a dof with dry friction is one row with the force on the dof from both: the stop pushes
+        any amount, friction pulls up to frictionloss F (bounds [-F, inf) on the stop's row, which holds the dof
+        inside them and lets it slide away from the stop at -F). breaking: sticking dofs whose friction force has
+        just grown to frictionloss (the event that located them); releasing: held stops whose force has just fallen
+        to its bound. At the boundary itself the problem is degenerate (the force exactly at its bound, the
+        acceleration 0), and the event's direction decides: they slide, or leave the stop."""
         mode = self.mode.copy()
         M, f, J, jdot, g = self.state_rows(y)  # f includes the sliding friction of the mode set by the caller
+        friction_of = {int(self.p[self._record(k) + U_DOF]): k for k in range(len(self.units))
+                       if self.codes[k] == FRICTION}
+        merged = {}  # stop unit -> the friction unit of its dof, both at rest
         rows, lo, hi, units = [], [], [], []
+        for k in resting:
+            if self.codes[k] in (LOWER, UPPER):
+                j = friction_of.get(int(self.p[self._record(k) + U_DOF]))
+                if j is not None and mode[j] == 0.0:
+                    merged[k] = j
         for k, unit in enumerate(self.units):
             if self.codes[k] in EQUALITY_KINDS:
                 for a in range(unit.row0, unit.row0 + unit.rows):
                     rows.append(a), lo.append(-np.inf), hi.append(np.inf), units.append(k)
             elif k in resting:
-                rows.append(unit.row0), lo.append(0.0), hi.append(np.inf), units.append(k)
-            elif self.codes[k] == FRICTION and mode[k] == 0.0:
+                bound = self.p[self._record(merged[k]) + U_BOUND] if k in merged else 0.0
+                rows.append(unit.row0), lo.append(-bound), hi.append(np.inf), units.append(k)
+            elif self.codes[k] == FRICTION and mode[k] == 0.0 and k not in merged.values():
                 bound = self.p[self._record(k) + U_BOUND]
                 rows.append(unit.row0), lo.append(-bound), hi.append(bound), units.append(k)
         if not rows:
@@ -350,10 +397,17 @@ class EventRun:
         w = W @ lam + b
         tolerance = 1e-12 * scale + 1e-14
         for i, k in enumerate(units):
-            if self.codes[k] in UNILATERAL:
-                mode[k] = 1.0 if w[i] <= tolerance else 0.0
-            elif self.codes[k] == FRICTION:
+            code = self.codes[k]
+            if code in UNILATERAL:
+                at_bound = lam[i] <= lo[i] + tolerance + 1e-9 * abs(lo[i])
+                leaves = w[i] > tolerance or (at_bound and k in releasing)
+                mode[k] = 0.0 if leaves else 1.0
+                if k in merged:  # the dof sticks at the stop, or slides away from it
+                    mode[merged[k]] = (1.0 if code == LOWER else -1.0) if leaves and lo[i] < 0.0 else 0.0
+            elif code == FRICTION:
                 mode[k] = 0.0 if abs(w[i]) <= tolerance else math.copysign(1.0, w[i])
+                if k in breaking and abs(lam[i]) >= (1 - 1e-9) * hi[i]:
+                    mode[k] = -math.copysign(1.0, lam[i])
         return mode
 
 

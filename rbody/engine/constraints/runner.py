@@ -8,8 +8,8 @@ meta["constraint_rows"] as (kind, name, component)), constraint_error (T, *batch
 each saved state (an equality's residual [m or rad]: a loop's closure error; a limit's overshoot past its stop,
 min(g, 0); 0 for friction), active_limits (T, *batch, limits) 1 where a limit holds the
 joint at its stop (columns meta["limits"]), sticking (T, *batch, frictions) 1 where a dof with dry friction sticks
-(columns meta["frictions"]), dissipated (T, *batch) [J] the energy dry friction and impacts have taken so far (the
-energy observable plus dissipated is constant where nothing else loses energy). The events of element b are in
+(columns meta["frictions"]), dissipated (T, *batch) [J] the energy dry friction, impacts and the joints' dampers have taken so far (the
+energy observable plus dissipated is constant: the integrator's error aside, nothing else loses energy). The events of element b are in
 trajectory.events (time, element, what, constraints, energy_lost) and meta["events"] counts them.
 """
 

@@ -37,10 +37,11 @@ from rbody.engine.constraints.table import (C_HEADER, CONE, CONNECT, COUPLING, F
                                             U_RESTITUTION, U_ROW0, U_ROWS, UPPER, WELD, ConstraintTable)
 from rbody.errors import SimulationError
 
-EXACT_ROWS = 24          # a step's problem with at most this many rows is solved exactly
+EXACT_ROWS = 64          # a step's problem with at most this many rows is solved exactly
 STEP_TOLERANCE = 1e-10   # natural residual of PGS, relative to max(|b|, 1) [m/s or rad/s]
 PGS_SWEEPS = 2000
 TOUCH_TOLERANCE = 1e-10  # [m or rad]
+PROJECTION_ROUNDS = 6    # projections after a step, each with the stops the last one pushed past
 
 
 @njit(cache=True)
@@ -89,6 +90,7 @@ def moreau_step(p, y, h, P):
             bound = p[u + U_BOUND] * h
             index[m], lo[m], hi[m], b[m] = r0, -bound, bound, jfree[r0]
             m += 1
+    previous = P.copy()  # the last step's impulses: the warm start of Gauss-Seidel
     for a in range(rows):
         P[a] = 0.0
     status = 0
@@ -98,8 +100,10 @@ def moreau_step(p, y, h, P):
         for c in range(m):
             A[:, c] = dyn.lower_solve(L, J[index[c]])
         W = A.T @ A
-        lam = np.zeros(m)
         bb, ll, hh = b[:m].copy(), lo[:m].copy(), hi[:m].copy()
+        lam = np.empty(m)
+        for c in range(m):
+            lam[c] = min(max(previous[index[c]], ll[c]), hh[c])
         scale = 1.0
         for c in range(m):
             scale = max(scale, abs(bb[c]))
@@ -127,25 +131,34 @@ def moreau_step(p, y, h, P):
     else:
         for d in range(nv):
             v[d] = vfree[d]
+    y[n - 1] += h * dyn.damping_power(p, v)
     delta = np.empty(nv)
     for d in range(nv):
         delta[d] = h * v[d]
     dyn.displace(p, y, delta)
-    # positions onto the equalities and any stop passed; velocities onto the equalities
+    # positions onto the equalities and onto every stop passed or touched (a projection in the metric of M moves
+    # every dof: a stop it pushes past joins the set, and the projection is repeated), velocities onto the equalities
     position_rows = np.zeros(rows)
     velocity_rows = np.zeros(rows)
-    dyn.state_rows(p, y, M, f, J, jdot, g)
-    for k in range(unit_count(p)):
-        u = unit_at(p, k)
-        kind = int(p[u + U_KIND])
-        r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])
-        if kind == CONNECT or kind == WELD or kind == COUPLING:
-            for a in range(r0, r0 + r):
-                position_rows[a] = 1.0
-                velocity_rows[a] = 1.0
-        elif (kind == LOWER or kind == UPPER or kind == CONE) and g[r0] < 0.0:
-            position_rows[r0] = 1.0
-    worst, _speed = dyn.project(p, y, position_rows, velocity_rows)
+    worst = 0.0
+    for _round in range(PROJECTION_ROUNDS):
+        dyn.state_rows(p, y, M, f, J, jdot, g)
+        grown = _round == 0
+        for k in range(unit_count(p)):
+            u = unit_at(p, k)
+            kind = int(p[u + U_KIND])
+            r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])
+            if kind == CONNECT or kind == WELD or kind == COUPLING:
+                for a in range(r0, r0 + r):
+                    position_rows[a] = 1.0
+                    velocity_rows[a] = 1.0
+            elif (kind == LOWER or kind == UPPER or kind == CONE) and g[r0] <= TOUCH_TOLERANCE * 1e-3 \
+                    and position_rows[r0] == 0.0 and (g[r0] < 0.0 or P[r0] > 0.0):
+                position_rows[r0] = 1.0
+                grown = True
+        if not grown:
+            break
+        worst, _speed = dyn.project(p, y, position_rows, velocity_rows)
     if worst > 1e3 * dyn.PROJECTION_TOLERANCE:
         return 2, worst, m
     return 0, residual, m
