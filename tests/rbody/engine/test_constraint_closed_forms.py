@@ -242,40 +242,7 @@ def test_two_hinges_coupled_one_to_one_swing_as_one_body_with_the_summed_inertia
 
 # ----- a humanoid-like tree outside its ranges at its reference pose --------------------------------------------
 
-HUMANOID = """<mujoco model="limbs">
-  <compiler angle="degree"/>
-  <option timestep="0.002"><flag contact="disable"/></option>
-  <default><joint damping="0.2" frictionloss="0.05"/><geom type="capsule" size="0.04" density="1000"/></default>
-  <worldbody>
-    <body name="torso" pos="0 0 1.4">
-      <geom fromto="0 0 0 0 0 -0.5" size="0.1"/>
-      <body name="head" pos="0 0 0.1"><joint name="neck" type="ball" range="0 40"/>
-        <geom type="sphere" pos="0 0 0.1" size="0.09"/></body>
-      <body name="upper_arm_r" pos="0 -0.2 0" euler="60 0 0"><joint name="shoulder_r" type="ball" range="0 45"/>
-        <geom fromto="0 0 0 0 0 -0.3"/>
-        <body name="forearm_r" pos="0 0 -0.3"><joint name="elbow_r" axis="0 1 0" range="10 150"/>
-          <geom fromto="0 0 0 0 0 -0.25" size="0.035"/></body></body>
-      <body name="upper_arm_l" pos="0 0.2 0"><joint name="shoulder_l" type="ball" range="0 90"/>
-        <geom fromto="0 0 0 0 0 -0.3"/>
-        <body name="forearm_l" pos="0 0 -0.3"><joint name="elbow_l" axis="0 1 0" range="10 150"/>
-          <geom fromto="0 0 0 0 0 -0.25" size="0.035"/></body></body>
-      <body name="thigh_r" pos="0 -0.1 -0.5"><joint name="hip_r_y" axis="0 1 0" range="-120 20"/>
-        <joint name="hip_r_x" axis="1 0 0" range="-30 30"/>
-        <geom fromto="0 0 0 0 0 -0.4" size="0.06"/>
-        <body name="shin_r" pos="0 0 -0.4"><joint name="knee_r" axis="0 1 0" range="5 150"/>
-          <geom fromto="0 0 0 0 0 -0.4" size="0.05"/>
-          <body name="foot_r" pos="0 0 -0.4"><joint name="ankle_r" axis="0 1 0" range="-50 -10"/>
-            <geom fromto="-0.03 0 0 0.15 0 0" size="0.03"/></body></body></body>
-      <body name="thigh_l" pos="0 0.1 -0.5"><joint name="hip_l_y" axis="0 1 0" range="-120 20"/>
-        <joint name="hip_l_x" axis="1 0 0" range="-30 30"/>
-        <geom fromto="0 0 0 0 0 -0.4" size="0.06"/>
-        <body name="shin_l" pos="0 0 -0.4"><joint name="knee_l" axis="0 1 0" range="5 150"/>
-          <geom fromto="0 0 0 0 0 -0.4" size="0.05"/>
-          <body name="foot_l" pos="0 0 -0.4"><joint name="ankle_l" axis="0 1 0" range="-50 -10"/>
-            <geom fromto="-0.03 0 0 0.15 0 0" size="0.03"/></body></body></body>
-    </body>
-  </worldbody>
-</mujoco>"""
+from validation.hard.constraints import LIMBS as HUMANOID  # noqa: E402
 
 
 def test_humanoid_starts_outside_its_ranges_and_the_limits_put_it_back_at_once():
