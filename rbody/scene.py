@@ -274,6 +274,7 @@ class TreeScene(Scene):
                 raise ValueError(f"qpos0: the quaternions at qpos columns {quats} have lengths "
                                  f"{np.unique(np.round(norms, 12)).tolist()}: expected unit quaternions")
         model.check_pivots(self.qpos0)
+        _ = self.constraint_table  # validates the limits, friction and equalities (ValueError before any work)
 
     @cached_property
     def multibody(self):

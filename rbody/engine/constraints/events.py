@@ -40,6 +40,7 @@ TOUCH_TOLERANCE = 1e-10   # [m or rad] a limit this close to its stop at an even
 REST_SPEED = 1e-9         # [m/s or rad/s] a dof with friction this slow at an event is at rest (it may stick)
 ZENO_RATIO = 1e-6         # an impact slower than this fraction of the fastest on its unit is plastic
 MAX_EVENTS_PER_STEP = 200
+PROJECTION_ROUNDS = 6     # projections at an event, each with the stops the last one pushed past
 FORCE_RTOL = 1e-9         # held rows' forces: |W lambda - r| above this fraction of |r| (and ABS) is inconsistent
 FORCE_ATOL = 1e-9
 MLCP_RTOL = 1e-10         # an event's complementarity problem solved to this fraction of its scale
@@ -238,7 +239,18 @@ class EventRun:
             if self.codes[k] in EQUALITY_KINDS or k in touching:
                 position_rows[unit.row0:unit.row0 + unit.rows] = 1.0
         moved = y[:nq].copy()
-        worst, _ = dyn.project(self.p, y, position_rows, np.zeros(self.rows))
+        worst = 0.0
+        for _round in range(PROJECTION_ROUNDS):  # a stop that the projection pushes past joins the set
+            worst, _ = dyn.project(self.p, y, position_rows, np.zeros(self.rows))
+            _M, _f, _J, _jdot, g = self.state_rows(y)
+            grown = False
+            for k, unit in enumerate(self.units):
+                if self.codes[k] in UNILATERAL and g[unit.row0] < -TOUCH_TOLERANCE and not position_rows[unit.row0]:
+                    position_rows[unit.row0] = 1.0
+                    touching.append(k)
+                    grown = True
+            if not grown:
+                break
         if worst > max(1e3 * dyn.PROJECTION_TOLERANCE, 1e-9):
             bad = [k for k in range(len(self.units)) if position_rows[self.units[k].row0]]
             raise self.fail(t, "no configuration satisfies these constraints together (projection stalled):",
@@ -391,8 +403,8 @@ class EventRun:
         scale = np.abs(b).max() + np.abs(W).max() * np.abs(lam).max(initial=0.0)
         if status != 0 or residual > MLCP_RTOL * scale + 1e-14:
             bad = sorted(set(units))
-            what = ("the equalities contradict each other (no force makes them hold):" if status == UNBOUNDED
-                    else "no consistent constraint force exists (complementarity problem unsolved):")
+            what = ("no consistent force exists (the held rows' accelerations contradict each other):"
+                    if status == UNBOUNDED else "no consistent force exists (complementarity problem unsolved):")
             raise self.fail(t, what, bad, residual)
         w = W @ lam + b
         tolerance = 1e-12 * scale + 1e-14

@@ -45,11 +45,13 @@ PROJECTION_ROUNDS = 6    # projections after a step, each with the stops the las
 
 
 @njit(cache=True)
-def moreau_step(p, y, h, P):
+def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance):
     """One step of the scheme (module docstring) of the state y (n,) (phi all zero) in place, h [s]. P (rows,)
     gets every row's impulse [N s or N m s] (0 for rows not in the problem). Returns (status, residual, rows in
     the problem): status 0 done, 1 the complementarity problem left a residual above the tolerance, 2 the
-    configuration could not be projected onto the equalities, UNBOUNDED (-1) the equalities contradict."""
+    configuration could not be projected onto the equalities, UNBOUNDED (-1) the equalities contradict. The budget:
+    exactly when it has at most exact_rows rows, else at most `sweeps` Gauss-Seidel sweeps to `tolerance` (relative to
+    max(|b|, 1))."""
     nq, nv, n = dyn.sizes(p)
     rows = row_count(p)
     M = np.empty((nv, nv))
@@ -107,14 +109,14 @@ def moreau_step(p, y, h, P):
         scale = 1.0
         for c in range(m):
             scale = max(scale, abs(bb[c]))
-        if m <= EXACT_ROWS:
+        if m <= exact_rows:
             status, _steps = mlcp_exact(W, bb, ll, hh, lam)
             residual = natural_residual(W, bb, ll, hh, lam)
-            if status == 0 and residual > STEP_TOLERANCE * scale:
+            if status == 0 and residual > tolerance * scale:
                 status = 1
         else:
-            _sweeps, residual = mlcp_pgs(W, bb, ll, hh, lam, STEP_TOLERANCE * scale, PGS_SWEEPS)
-            status = 0 if residual <= STEP_TOLERANCE * scale else 1
+            _sweeps, residual = mlcp_pgs(W, bb, ll, hh, lam, tolerance * scale, sweeps)
+            status = 0 if residual <= tolerance * scale else 1
         if status != 0:
             return status, residual, m
         x = dyn.upper_solve(L, A @ lam)
@@ -165,7 +167,7 @@ def moreau_step(p, y, h, P):
 
 
 @njit(cache=True)
-def moreau_loop(p, y0, h, nsteps, save_every, out, impulses):
+def moreau_loop(p, y0, h, nsteps, save_every, out, impulses, exact_rows, sweeps, tolerance):
     """nsteps steps from y0 (n,); out (S, n) every save_every-th state (out[0] = y0), impulses (S, rows) the impulses
     of the step that ended at each saved state. Returns (failed step or -1, its status, its residual, its rows)."""
     y = y0.copy()
@@ -174,7 +176,7 @@ def moreau_loop(p, y0, h, nsteps, save_every, out, impulses):
     out[0] = y
     impulses[0] = 0.0
     for k in range(1, nsteps + 1):
-        status, residual, m = moreau_step(p, y, h, P)
+        status, residual, m = moreau_step(p, y, h, P, exact_rows, sweeps, tolerance)
         if status != 0:
             return k, status, residual, m
         for a in range(y.shape[0]):
@@ -207,7 +209,7 @@ class MoreauRun:
         out = np.empty((count, len(y0)))
         impulses = np.empty((count, self.table.rows))
         failed, status, residual, m = moreau_loop(self.p, np.array(y0, dtype=np.float64), dt, nsteps, save_every,
-                                                  out, impulses)
+                                                  out, impulses, EXACT_ROWS, PGS_SWEEPS, STEP_TOLERANCE)
         if failed >= 0:
             what = {1: f"the step's complementarity problem ({m} rows) was left with a residual above "
                        f"{STEP_TOLERANCE:g} of its scale (solver budget: exact up to {EXACT_ROWS} rows, else "
