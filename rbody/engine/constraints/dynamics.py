@@ -29,7 +29,7 @@ from rbody.engine.multibody import (D_DAMPING, DOF_SIZE, FREE, H_BODIES, H_DOF, 
                                     J_ROT, JOINT_SIZE, ROLL, SLIDE, _effective_qpos, inverse_one, mass_matrix_one,
                                     passive, tree_finish, workspace_size)
 from rbody.engine.spatial import dexp_inverse, quat_exp, quat_multiply
-from rbody.engine.constraints.jacobians import (all_rows, bias_accelerations, mode_at, row_count, unit_at,
+from rbody.engine.constraints.jacobians import (all_rows, bias_accelerations, some_rows, mode_at, row_count, unit_at,
                                                 unit_count)
 from rbody.engine.constraints.solver import symmetric_solve
 from rbody.engine.constraints.table import (CONE, CONNECT, COUPLING, FRICTION, LOWER, U_BOUND, U_DOF, U_KIND,
@@ -47,16 +47,19 @@ def sizes(p):
 
 
 @njit(cache=True)
-def snapshot(p, q, v, M, f, J, jdot, g, w, acc):
+def snapshot(p, q, v, M, f, J, jdot, g, w, acc, rows_wanted=None):
     """At qpos q (nq,) and qvel v (nv,): M (nv, nv); f (nv,) = passive - bias (gravity included); every unit's rows
-    J (rows, nv), jdot (rows,) and g (rows,) (rbody.engine.constraints.jacobians). w: the tree's workspace;
-    acc (nb, 6) scratch."""
+    J (rows, nv), jdot (rows,) and g (rows,) (rbody.engine.constraints.jacobians), or only the units with a row
+    flagged in rows_wanted (rows,). w: the tree's workspace; acc (nb, 6) scratch."""
     nv = int(p[H_DOFS])
     mass_matrix_one(p, q, M, w)
     zero = np.zeros(nv)
     inverse_one(p, q, v, zero, True, f, w)  # f = bias, and the workspace's frames at (q, v)
     bias_accelerations(p, w, acc)
-    all_rows(p, q, v, w, acc, J, jdot, g)
+    if rows_wanted is None:
+        all_rows(p, q, v, w, acc, J, jdot, g)
+    else:
+        some_rows(p, q, v, w, acc, J, jdot, g, rows_wanted)
     held = np.empty(nv)
     passive(p, q, v, held)
     for d in range(nv):
@@ -74,39 +77,28 @@ def add_sliding_friction(p, f):
 
 
 @njit(cache=True)
-def _limit_held_on(p, dof):
-    """Whether a LOWER or UPPER unit on dof `dof` is held in the mode written in p."""
+def dof_states(p):
+    """(stop_held (nv,), sticking (nv,)): per dof, 1 where a LOWER or UPPER unit on it is held, and its frictionloss
+    where its friction sticks (0 elsewhere), in the mode written in p."""
+    nv = int(p[H_DOFS])
+    stop_held = np.zeros(nv)
+    sticking = np.zeros(nv)
     modes = mode_at(p)
     for k in range(unit_count(p)):
         u = unit_at(p, k)
         kind = int(p[u + U_KIND])
-        if (kind == LOWER or kind == UPPER) and int(p[u + U_DOF]) == dof and p[modes + k] == 1.0:
-            return True
-    return False
+        d = int(p[u + U_DOF])
+        if (kind == LOWER or kind == UPPER) and p[modes + k] == 1.0:
+            stop_held[d] = 1.0
+        elif kind == FRICTION and p[modes + k] == 0.0:
+            sticking[d] = p[u + U_BOUND]
+    return stop_held, sticking
 
 
 @njit(cache=True)
 def sticking_friction_on(p, dof):
     """The frictionloss of dof `dof` when its friction sticks in the mode written in p, else 0."""
-    modes = mode_at(p)
-    for k in range(unit_count(p)):
-        u = unit_at(p, k)
-        if int(p[u + U_KIND]) == FRICTION and int(p[u + U_DOF]) == dof and p[modes + k] == 0.0:
-            return p[u + U_BOUND]
-    return 0.0
-
-
-@njit(cache=True)
-def _ball_locked(p, dof):
-    """Whether the three dofs dof..dof+2 of a ball all have sticking friction in the mode written in p."""
-    modes = mode_at(p)
-    count = 0
-    for k in range(unit_count(p)):
-        u = unit_at(p, k)
-        d = int(p[u + U_DOF])
-        if int(p[u + U_KIND]) == FRICTION and dof <= d < dof + 3 and p[modes + k] == 0.0:
-            count += 1
-    return count == 3
+    return dof_states(p)[1][dof]
 
 
 @njit(cache=True)
@@ -115,16 +107,19 @@ def held_rows(p, rows_held):
     their count. Two held rows that would say the same thing are held once, so that each force is defined: a
     sticking dof whose stop is held (the stop carries the load; the dof's friction then does nothing), and a ball's
     cone when all three of its dofs stick (the ball is locked by its friction)."""
+    stop_held, sticking = dof_states(p)
     modes = mode_at(p)
     count = 0
     for k in range(unit_count(p)):
         u = unit_at(p, k)
         kind = int(p[u + U_KIND])
         mode = p[modes + k]
+        d = int(p[u + U_DOF])
         on = (kind == CONNECT or kind == WELD or kind == COUPLING or
               ((kind == LOWER or kind == UPPER) and mode == 1.0) or
-              (kind == CONE and mode == 1.0 and not _ball_locked(p, int(p[u + U_DOF]))) or
-              (kind == FRICTION and mode == 0.0 and not _limit_held_on(p, int(p[u + U_DOF]))))
+              (kind == CONE and mode == 1.0 and not (sticking[d] > 0.0 and sticking[d + 1] > 0.0
+                                                     and sticking[d + 2] > 0.0)) or
+              (kind == FRICTION and mode == 0.0 and stop_held[d] == 0.0))
         r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])
         for a in range(r0, r0 + r):
             rows_held[a] = 1.0 if on else 0.0
@@ -160,6 +155,31 @@ def upper_solve(L, b):
 
 
 @njit(cache=True)
+def definite_solve(W, r, x):
+    """x = W^-1 r by Cholesky when W (m, m) is positive definite beyond round-off (every pivot above 1e-10 of its
+    diagonal entry), returning True; False (x untouched) when it is not: the caller then takes the minimum-norm
+    solution (redundant rows)."""
+    m = r.shape[0]
+    L = np.zeros((m, m))
+    for i in range(m):
+        for j in range(i + 1):
+            acc = W[i, j]
+            for k in range(j):
+                acc -= L[i, k] * L[j, k]
+            if i == j:
+                if not acc > 1e-10 * W[i, i]:
+                    return False
+                L[i, i] = np.sqrt(acc)
+            else:
+                L[i, j] = acc / L[j, j]
+    z = lower_solve(L, r)
+    out = upper_solve(L, z)
+    for i in range(m):
+        x[i] = out[i]
+    return True
+
+
+@njit(cache=True)
 def held_solve(L, J, held, r, correction, lam_rows):
     """The minimum-norm lambda of the held rows with W lambda = r (W = J_h M^-1 J_h^T, M = L L^T, r (rows,) read on
     the held rows), and correction (nv,) = M^-1 J_h^T lambda; lam_rows (rows,) gets lambda on the held rows, 0
@@ -184,7 +204,10 @@ def held_solve(L, J, held, r, correction, lam_rows):
     for c in range(m):
         rhs[c] = r[index[c]]
     lam = np.empty(m)
-    residual = symmetric_solve(W, rhs, lam)
+    if definite_solve(W, rhs, lam):
+        residual = 0.0
+    else:
+        residual = symmetric_solve(W, rhs, lam)
     for c in range(m):
         lam_rows[index[c]] = lam[c]
     z = A @ lam
@@ -195,25 +218,35 @@ def held_solve(L, J, held, r, correction, lam_rows):
 
 
 @njit(cache=True)
-def mode_accel(p, q, v, qacc, lam_rows, g):
+def mode_accel(p, q, v, qacc, lam_rows, g, every_row=True):
     """qacc (nv,) and the force of every row lam_rows (rows,) (held rows: their lambda; sliding friction: -F s;
-    others 0) in the mode written in p, at the effective qpos q and qvel v; g (rows,) gets every row's residual.
-    Returns (residual, scale): |W lambda - r|_inf of the held rows and |r|_inf (the caller judges consistency)."""
+    others 0) in the mode written in p, at the effective qpos q and qvel v; g (rows,) gets every row's residual
+    (every_row False: only the held rows' are formed, the others left as they were: the right-hand side needs no
+    more). Returns (residual, scale): |W lambda - r|_inf of the held rows and |r|_inf (the caller judges it)."""
     nv = int(p[H_DOFS])
     rows = row_count(p)
     w = np.empty(workspace_size(p))
     M = np.empty((nv, nv))
     f = np.empty(nv)
-    J = np.empty((rows, nv))
-    jdot = np.empty(rows)
+    J = np.zeros((rows, nv))
+    jdot = np.zeros(rows)
     acc = np.empty((int(p[H_BODIES]), 6))
-    snapshot(p, q, v, M, f, J, jdot, g, w, acc)
+    held = np.empty(rows)
+    held_rows(p, held)
+    if every_row:
+        snapshot(p, q, v, M, f, J, jdot, g, w, acc)
+    else:
+        snapshot(p, q, v, M, f, J, jdot, g, w, acc, held)
     add_sliding_friction(p, f)
     L = np.linalg.cholesky(M)
     a0 = upper_solve(L, lower_solve(L, f))
-    held = np.empty(rows)
-    held_rows(p, held)
-    r = -(J @ a0 + jdot)
+    r = np.zeros(rows)
+    for a in range(rows):
+        if held[a] != 0.0:
+            acc_r = jdot[a]
+            for d in range(nv):
+                acc_r += J[a, d] * a0[d]
+            r[a] = -acc_r
     scale = 0.0
     for a in range(rows):
         if held[a] != 0.0:
@@ -265,8 +298,8 @@ def constrained_rhs(y, p, out):
     _effective_qpos(p, y, q, turn)
     rows = row_count(p)
     lam = np.empty(rows)
-    g = np.empty(rows)
-    mode_accel(p, q, y[nq:nq + nv], out[nq:nq + nv], lam, g)
+    g = np.zeros(rows)
+    mode_accel(p, q, y[nq:nq + nv], out[nq:nq + nv], lam, g, False)
     for j in range(nj):
         r = jo + j * JOINT_SIZE
         kind = int(p[r + J_KIND])
@@ -392,13 +425,14 @@ def guards(p, y, out):
     qacc = np.empty(nv)
     residual, scale = mode_accel(p, q, y[nq:nq + nv], qacc, lam, g)
     modes = mode_at(p)
+    _stop_held, sticking = dof_states(p)
     for k in range(unit_count(p)):
         u = unit_at(p, k)
         kind = int(p[u + U_KIND])
         row = int(p[u + U_ROW0])
         mode = p[modes + k]
         if kind == LOWER or kind == UPPER:  # a held stop with friction on its dof: friction can pull up to F too
-            out[k] = lam[row] + sticking_friction_on(p, int(p[u + U_DOF])) if mode == 1.0 else g[row]
+            out[k] = lam[row] + sticking[int(p[u + U_DOF])] if mode == 1.0 else g[row]
         elif kind == CONE:
             out[k] = lam[row] if mode == 1.0 else g[row]
         elif kind == FRICTION:

@@ -87,6 +87,11 @@ class EventRun:
         self.row_unit = np.concatenate([[k] * u.rows for k, u in enumerate(table.units)]).astype(int)
         self.restitution = np.array([self.p[self._record(k) + U_RESTITUTION] for k in range(len(self.units))])
         self.fastest = np.zeros(len(self.units))
+        self.is_limit = np.isin(self.codes, UNILATERAL)
+        self.is_friction = self.codes == FRICTION
+        self.largest_bound = max([0.0] + [float(self.p[self._record(k) + U_BOUND])
+                                          for k in np.flatnonzero(self.is_friction)])
+        self.has_position = (self.codes[self.row_unit] != FRICTION).astype(float)
         self.log = EventLog()
 
     # ----- small helpers ------------------------------------------------------------------------------
@@ -96,7 +101,7 @@ class EventRun:
 
     @property
     def mode(self) -> np.ndarray:
-        return self.p[self.modes]
+        return self.p[self.modes]  # a view: the mode written in the params row
 
     def set_mode(self, mode: np.ndarray) -> None:
         self.p[self.modes] = mode
@@ -126,12 +131,8 @@ class EventRun:
         out = np.empty_like(y)
         dyn.rk4_step(y, self.p, h, out)
         held = self.held()
-        dyn.project(self.p, out, held * self._position_rows(), held)
+        dyn.project(self.p, out, held * self.has_position, held)
         return out
-
-    def _position_rows(self) -> np.ndarray:
-        """1 on rows that have a position (all but friction rows)."""
-        return (self.codes[self.row_unit] != FRICTION).astype(float)
 
     def guards(self, y: np.ndarray, t: float) -> np.ndarray:
         out = np.empty(len(self.units))
@@ -189,13 +190,13 @@ class EventRun:
         so that a guard that sits at 0 (a stop left with no force, a dof at rest on the verge of slipping) does not
         fire again and again at one instant."""
         mode = self.mode
-        force = np.array([(self.codes[k] in UNILATERAL and mode[k] == 1.0) or (self.codes[k] == FRICTION and mode[k] == 0.0)
-                          for k in range(len(self.units))])
-        bounds = [self.p[self._record(k) + U_BOUND] for k in range(len(self.units)) if self.codes[k] == FRICTION]
-        scale = max([1.0, *bounds, *np.abs(g0[force]), *np.abs(g1[force])])
+        held_stop = self.is_limit & (mode == 1.0)
+        sticking = self.is_friction & (mode == 0.0)
+        force = held_stop | sticking
+        scale = max(1.0, self.largest_bound, float(np.abs(g0[force]).max(initial=0.0)),
+                    float(np.abs(g1[force]).max(initial=0.0)))
         out = np.where(force, GUARD_FORCE_RTOL * scale, GUARD_DISTANCE)
-        sliding = np.array([self.codes[k] == FRICTION and mode[k] != 0.0 for k in range(len(self.units))])
-        out[sliding] = GUARD_SPEED
+        out[self.is_friction & (mode != 0.0)] = GUARD_SPEED
         return out
 
     def locate(self, y: np.ndarray, h: float, crossing: np.ndarray, g0: np.ndarray) -> tuple[float, list[int]]:

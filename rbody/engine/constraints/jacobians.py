@@ -249,5 +249,15 @@ def all_rows(p, q, v, w, acc, J, jdot, g):
         row += unit_rows(p, k, q, v, w, acc, J, jdot, g, row)
 
 
+@njit(cache=True)
+def some_rows(p, q, v, w, acc, J, jdot, g, rows_wanted):
+    """As all_rows for the units with a row flagged in rows_wanted (rows,); the other rows are left as they were."""
+    for k in range(unit_count(p)):
+        u = unit_at(p, k)
+        row = int(p[u + U_ROW0])
+        if rows_wanted[row] != 0.0:
+            unit_rows(p, k, q, v, w, acc, J, jdot, g, row)
+
+
 __all__ = ["block_offset", "unit_count", "row_count", "unit_at", "mode_at", "bias_accelerations", "unit_rows",
-           "all_rows", "rotation_vector", "C_MODE"]
+           "all_rows", "some_rows", "rotation_vector", "C_MODE"]
