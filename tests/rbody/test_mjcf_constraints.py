@@ -160,3 +160,35 @@ def test_tendon_equality_is_refused_unless_inactive():
         layout_from_mjcf(xml.format(""))
     read = layout_from_mjcf(xml.format("active='false'"))
     assert read.layout.equalities == () and any("tendon" in note for note in read.notes)
+
+
+def test_to_mjcf_writes_the_constraints_and_reads_them_back():
+    """rbody.to_mjcf writes ranges, frictionloss, restitution (the custom numeric) and equalities (connect and weld
+    by sites at the points rbody joins, joint couplings as they are); MuJoCo compiles them, its equality holds at the
+    state written, and from_mjcf reads back the same constraints."""
+    from rbody import Body, Inertia, Layout, Scene, from_mjcf, to_mjcf
+
+    rod = Inertia(1.0, (0, 0, -0.5), np.diag([1 / 12, 1 / 12, 1e-6]))
+    bodies = (Body("a", rod), Body("b", rod, pos=(0.4, 0, 0)), Body("c", rod, parent="a", pos=(0, 0, -1)))
+    joints = (Joint("qa", "hinge", "a", axis=(0, 1, 0), range=(-1, 1), frictionloss=0.2, restitution=0.5),
+              Joint("qb", "hinge", "b", axis=(0, 1, 0)), Joint("qc", "ball", "c", range=(0, 1.0)))
+    equalities = (Equality("tie", "joint", joint1="qb", joint2="qa", polycoef=(0, 0.5, 0, 0, 0)),
+                  Equality("pin", "connect", body1="c", body2="b", anchor=(0.4, 0, -0.2)),
+                  Equality("off", "weld", body1="b", active=False))
+    scene = Scene.from_layout(Layout(bodies=bodies, joints=joints, equalities=equalities), t_end=1.0)
+    xml = to_mjcf(scene)
+    model = mujoco.MjModel.from_xml_string(xml)
+    assert model.jnt_limited[0] and tuple(model.jnt_range[0]) == (-1.0, 1.0) and model.dof_frictionloss[0] == 0.2
+    assert model.neq == 3 and list(model.eq_active0) == [1, 1, 0]
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    pin1, pin2 = data.site("pin_site1").xpos, data.site("pin_site2").xpos
+    np.testing.assert_allclose(pin1, pin2, rtol=0, atol=1e-15)  # completed where rbody completes it
+    back = from_mjcf(xml)
+    read = {j.name: j for j in back.tree.joints}
+    assert [read[j.name].range for j in joints] == [j.range for j in joints]
+    assert [read[j.name].restitution for j in joints] == [0.5, 0.0, 0.0]
+    names = [(e.name, e.kind, e.active) for e in back.tree.equalities]
+    assert names == [("tie", "joint", True), ("pin", "connect", True), ("off", "weld", False)]
+    np.testing.assert_allclose(back.tree.equalities[1].anchor2, scene.constraint_table.equalities[1].anchor2,
+                               rtol=0, atol=1e-15)

@@ -295,16 +295,11 @@ def test_a_run_that_leaves_a_declared_joint_limit_is_a_failure_in_every_engine()
     """A model's declared range (an MJCF limit, scene.limits) that a run leaves: no engine here models limits,
     so the run is reported failed with the joint and the time, and assert_agree names it."""
     import dataclasses
-    from typing import Mapping
 
-    from rbody.scene import TreeScene
-
-    @dataclasses.dataclass(frozen=True, kw_only=True, eq=False)
-    class Limited(TreeScene):
-        limits: Mapping = dataclasses.field(default_factory=dict)
+    from rbody.mjcf import MJCFScene
 
     layout = pendulum_chain(2, theta0=[0.5, 0.3], t_end=1.0).layout
-    scene = Limited(name="limited", t_end=1.0, tree=layout, limits={"hinge_1": (-0.35, 0.35)})
+    scene = MJCFScene(name="limited", t_end=1.0, tree=layout, limits={"hinge_1": (-0.35, 0.35)})
     c = compare(scene, dt=1e-3)
     for engine in ("rbody", "mujoco", "pymunk"):
         run = c.runs[engine]

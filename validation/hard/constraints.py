@@ -280,12 +280,12 @@ LIMBS = """<mujoco model="limbs">
 </mujoco>"""
 
 
-def _excursions(t, qpos, xml: str) -> np.ndarray:
+def _excursions(t, qpos, xml) -> np.ndarray:
     """(T,) the largest distance [rad] any joint of the file lies past its range at each sample (ball joints: their
     rotation angle past the cone's)."""
     from rbody import from_mjcf
 
-    scene = from_mjcf(xml)
+    scene = from_mjcf(xml, overlapping_geoms="sum")
     worst = np.zeros(len(t))
     for name, (low, high) in scene.limits.items():
         j = scene.multibody.joint_names.index(name)
@@ -331,13 +331,15 @@ INITIAL = {"limit_pendulum": [THETA0], "elastic_limit": [THETA0], "friction_osci
 
 # ----- the runs ----------------------------------------------------------------------------------------------------
 
-def run_mujoco(xml: str, qpos0, t_end: float, dt: float, integrator: str = "RK4") -> tuple[np.ndarray, ...]:
-    """(t (T,), qpos (T, nq), sites (T, nsite, 3), seconds of stepping) of MuJoCo on the file at step dt."""
+def run_mujoco(xml, qpos0, t_end: float, dt: float, integrator: str = "RK4") -> tuple[np.ndarray, ...]:
+    """(t (T,), qpos (T, nq), sites (T, nsite, 3), seconds of stepping) of MuJoCo on the file (an XML string, or a
+    pathlib.Path whose includes are relative to it) at step dt."""
     import time
+    from pathlib import Path
 
     import mujoco
 
-    model = mujoco.MjModel.from_xml_string(xml)
+    model = (mujoco.MjModel.from_xml_path(str(xml)) if isinstance(xml, Path) else mujoco.MjModel.from_xml_string(xml))
     model.opt.timestep = dt
     model.opt.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{integrator.upper()}")
     data = mujoco.MjData(model)

@@ -23,6 +23,7 @@ mode, per unit: limits and cones 1 active (held as an equality, lambda >= 0), 0 
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -73,6 +74,7 @@ class ConstraintTable:
     offset: int
     mode0: np.ndarray
     methods: tuple[str, ...] = ("rk4", "moreau")
+    equalities: tuple = ()  # every equality but tendons, each made explicit (a connect's anchor2, a weld's relpose)
 
     @property
     def rows(self) -> int:
@@ -176,14 +178,16 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
             for k in range(count):
                 add(FRICTION, name if count == 1 else f"{name}[{k}]", U_DOF=da + k, U_BOUND=joint.frictionloss)
 
-    active = [e for e in layout.equalities if e.active]
     names = [e.name for e in layout.equalities]
     repeated = sorted({n for n in names if names.count(n) > 1})
     if repeated:
         raise ValueError(f"two equalities are called {repeated[0]!r}: equality names must be unique")
     frames = None
-    for equality in active:
+    resolved = []
+    for equality in layout.equalities:  # inactive ones are checked and made explicit too (exported as declared)
         what = f"equality {equality.name!r}"
+        if equality.kind == "tendon" and not equality.active:
+            continue
         if equality.kind == "tendon":
             raise NotImplementedError(f"{what}: tendon equalities need tendons, which rbody does not model yet; "
                                       "remove it or set active=False")
@@ -205,7 +209,9 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
                           U_POLY=equality.polycoef)
             if j2 >= 0:
                 fields.update(U_DOF2=arrays.dofadr[j2], U_QADR2=arrays.qposadr[j2], U_REF2=joints[equality.joint2].ref)
-            add(COUPLING, equality.name, **fields)
+            if equality.active:
+                add(COUPLING, equality.name, **fields)
+            resolved.append(equality)
             continue
         for field_name in ("body1", "body2"):
             body = getattr(equality, field_name)
@@ -221,7 +227,9 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
         if equality.kind == "connect":
             anchor2 = (np.asarray(equality.anchor2) if equality.anchor2 is not None
                        else R2.T @ (x1 + R1 @ np.asarray(equality.anchor) - x2))
-            add(CONNECT, equality.name, U_BODY1=b1, U_BODY2=b2, U_A1=equality.anchor, U_A2=anchor2)
+            if equality.active:
+                add(CONNECT, equality.name, U_BODY1=b1, U_BODY2=b2, U_A1=equality.anchor, U_A2=anchor2)
+            resolved.append(dataclasses.replace(equality, anchor2=tuple(np.asarray(anchor2, dtype=float).tolist())))
         else:  # weld: body1's point relpos on body2's anchor, q1 relquat = q2
             anchor = np.asarray(equality.anchor)
             if equality.relpose is not None:
@@ -229,8 +237,10 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
             else:
                 relpos = R1.T @ (x2 + R2 @ anchor - x1)
                 relquat = _quat_product(_quat_conjugate(q1), q2)
-            add(WELD, equality.name, U_BODY1=b1, U_BODY2=b2, U_A1=relpos, U_A2=anchor,
-                U_QUAT=relquat / np.linalg.norm(relquat))
+            relquat = relquat / np.linalg.norm(relquat)
+            if equality.active:
+                add(WELD, equality.name, U_BODY1=b1, U_BODY2=b2, U_A1=relpos, U_A2=anchor, U_QUAT=relquat)
+            resolved.append(dataclasses.replace(equality, relpose=tuple(np.concatenate([relpos, relquat]).tolist())))
     if not units:
         return None
     offset = int(np.asarray(multibody.params).size)
@@ -242,4 +252,4 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
     block[C_HEADER + UNIT_SIZE * count:] = mode0
     block.setflags(write=False)
     mode0.setflags(write=False)
-    return ConstraintTable(units=tuple(units), block=block, offset=offset, mode0=mode0)
+    return ConstraintTable(units=tuple(units), block=block, offset=offset, mode0=mode0, equalities=tuple(resolved))
