@@ -47,7 +47,8 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
     client:     a dask.distributed.Client: the batch's rows run as tasks on its cluster, `chunk` rows each
                 (default: about 4 tasks per worker thread, at least a few thousand rows; see
                 rbody.engine.distributed); the result equals the serial run's bit for bit. Event-driven
-                scenes run here. None (default): everything runs here and Dask is not imported.
+                scenes and constrained trees (limits, dry friction, equalities: rbody.engine.constraints) run
+                here, element by element. None (default): everything runs here and Dask is not imported.
     Returns a Trajectory whose observables have shape (T, *scene.batch_shape, ...).
     Raises ValueError for bad arguments, a run too large to start (above), a closed client or a chunk
     without a client; MethodNotApplicable when the method cannot run the scene; SimulationError, before

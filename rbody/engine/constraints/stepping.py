@@ -45,9 +45,10 @@ PROJECTION_ROUNDS = 6    # projections after a step, each with the stops the las
 
 
 @njit(cache=True)
-def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance):
+def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included):
     """One step of the scheme (module docstring) of the state y (n,) (phi all zero) in place, h [s]. P (rows,)
-    gets every row's impulse [N s or N m s] (0 for rows not in the problem). Returns (status, residual, rows in
+    gets every row's impulse [N s or N m s] (0 for rows not in the problem), included (rows,) 1 on the rows of the
+    step's problem. Returns (status, residual, rows in
     the problem): status 0 done, 1 the complementarity problem left a residual above the tolerance, 2 the
     configuration could not be projected onto the equalities, UNBOUNDED (-1) the equalities contradict. The budget:
     exactly when it has at most exact_rows rows, else at most `sweeps` Gauss-Seidel sweeps to `tolerance` (relative to
@@ -95,6 +96,9 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance):
     previous = P.copy()  # the last step's impulses: the warm start of Gauss-Seidel
     for a in range(rows):
         P[a] = 0.0
+        included[a] = 0.0
+    for c in range(m):
+        included[index[c]] = 1.0
     status = 0
     residual = 0.0
     if m > 0:
@@ -167,7 +171,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance):
 
 
 @njit(cache=True)
-def moreau_loop(p, y0, h, nsteps, save_every, out, impulses, exact_rows, sweeps, tolerance):
+def moreau_loop(p, y0, h, nsteps, save_every, out, impulses, exact_rows, sweeps, tolerance, included):
     """nsteps steps from y0 (n,); out (S, n) every save_every-th state (out[0] = y0), impulses (S, rows) the impulses
     of the step that ended at each saved state. Returns (failed step or -1, its status, its residual, its rows)."""
     y = y0.copy()
@@ -176,7 +180,7 @@ def moreau_loop(p, y0, h, nsteps, save_every, out, impulses, exact_rows, sweeps,
     out[0] = y
     impulses[0] = 0.0
     for k in range(1, nsteps + 1):
-        status, residual, m = moreau_step(p, y, h, P, exact_rows, sweeps, tolerance)
+        status, residual, m = moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included)
         if status != 0:
             return k, status, residual, m
         for a in range(y.shape[0]):
@@ -208,8 +212,9 @@ class MoreauRun:
         count = nsteps // save_every + 1
         out = np.empty((count, len(y0)))
         impulses = np.empty((count, self.table.rows))
+        included = np.zeros(self.table.rows)
         failed, status, residual, m = moreau_loop(self.p, np.array(y0, dtype=np.float64), dt, nsteps, save_every,
-                                                  out, impulses, EXACT_ROWS, PGS_SWEEPS, STEP_TOLERANCE)
+                                                  out, impulses, EXACT_ROWS, PGS_SWEEPS, STEP_TOLERANCE, included)
         if failed >= 0:
             what = {1: f"the step's complementarity problem ({m} rows) was left with a residual above "
                        f"{STEP_TOLERANCE:g} of its scale (solver budget: exact up to {EXACT_ROWS} rows, else "
@@ -218,7 +223,8 @@ class MoreauRun:
                        "or the loop cannot close)",
                     -1: "the equalities contradict each other (no impulse makes them hold)",
                     3: "a non-finite state; try a smaller dt"}[status]
-            names = ", ".join(repr(u.name) for u in self.table.units)
+            named = [u for u in self.table.units if included[u.row0]] or list(self.table.units)
+            names = ", ".join(repr(u.name) for u in named)
             raise SimulationError(f"scene {self.description}: method 'moreau' with dt={dt}: at t={failed * dt:.9g} s, "
                                   f"constraints {names}: {what}; residual {residual:.3g}")
         self.forces = impulses / dt
