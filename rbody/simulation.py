@@ -36,7 +36,10 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
 
     dt:         time step [s] (event-driven scenes: the sampling interval of the trajectory only)
     method:     one of rbody.METHODS; default "verlet" where it applies, else the scene's first
-                method; "events" (the only choice) for event-driven scenes
+                method; "events" (the only choice) for event-driven scenes; a tree with limits, dry friction
+                or equalities takes "rk4" (event-driven: rk4 between events located exactly, the default) or
+                "moreau" (time-stepping), and reports its events in trajectory.events and meta["events"]
+                (rbody.engine.constraints)
     t_end:      duration [s], default scene.t_end
     save_every: keep every n-th step (1 <= n <= ceil(t_end/dt)); the run takes ceil(t_end/dt) steps
                 rounded up to a multiple of save_every, so the last saved time is t_end or up to
