@@ -7,7 +7,7 @@ centre of mass with products of inertia carrying the minus sign (I_ab = sum m (|
 from rbody.inertia import Inertia
 from rbody.motion import RigidMotion, point_velocity
 from rbody.particles import Particles, reduced_mass, two_body
-from rbody.layout import Body, Contact, Joint, Layout, Shape
+from rbody.layout import Body, Contact, Equality, Joint, Layout, Shape
 from rbody.scene import Scene
 from rbody.trajectory import Trajectory
 from rbody.errors import MethodNotApplicable, SimulationError
@@ -21,7 +21,7 @@ from rbody.animation import Animation, animate
 
 __all__ = [
     "Inertia", "RigidMotion", "point_velocity", "Particles", "reduced_mass", "two_body",
-    "Body", "Contact", "Joint", "Layout", "Scene", "Shape", "Trajectory",
+    "Body", "Contact", "Equality", "Joint", "Layout", "Scene", "Shape", "Trajectory",
     "SimulationError", "MethodNotApplicable", "METHODS", "METHOD_ORDER", "simulate", "prepare", "PreparedRun", "scenes",
     "to_mjcf", "from_mjcf", "from_urdf", "Multibody", "stability", "animate", "Animation",
 ]

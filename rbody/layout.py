@@ -146,6 +146,17 @@ class Joint:
             a (q - ref) along l = axis x normal, then turns by q - ref about `axis` through anchor: the
             contact point anchor - a e is at rest (v_centre = a q' l). Exported to MJCF as a slide and a
             hinge tied by a joint equality.
+    Constraints (rbody.engine.constraints; rigid: they hold to round-off, MuJoCo's solref/solimp do not apply):
+    range:  None (no limit), or (lo, hi) with lo < hi: hinge, slide and roll keep lo <= qpos <= hi [rad or m]
+            (qpos itself, not q - ref, as MJCF's range); ball: (0, theta_max), the rotation angle of the joint's
+            quaternion stays <= theta_max [rad], 0 < theta_max <= pi (MJCF's ball range, whose first number is
+            ignored). A free joint has no range.
+    frictionloss: dry friction of each degree of freedom [N m or N], MJCF's frictionloss: a degree of freedom
+            at rest sticks while the force needed to hold it stays within frictionloss, else slides against a
+            force of exactly frictionloss (Coulomb's law per degree of freedom, no smoothing).
+    restitution: Newton's coefficient e in [0, 1] of an impact on the joint's limit: the joint leaves its stop
+            at e times the speed it hit it with (0: it stays at the stop, the rigid limit of MuJoCo's critically
+            damped limit; 1: elastic).
     """
 
     name: str
@@ -162,10 +173,14 @@ class Joint:
     ref: float = 0.0
     radius: float = 0.0
     normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    range: tuple[float, float] | None = None
+    frictionloss: float = 0.0
+    restitution: float = 0.0
 
     def __post_init__(self) -> None:
         if self.kind not in JOINT_KINDS:
             raise ValueError(f"joint {self.name!r}: kind={self.kind!r}, expected one of {JOINT_KINDS}")
+        self._check_constraints()
         object.__setattr__(self, "axis", tuple(_direction(self.axis).tolist()))
         object.__setattr__(self, "normal", tuple(_direction(self.normal).tolist()))
         radius = float(finite_array(self.radius, f"joint {self.name!r}: radius", shape=()))
@@ -184,6 +199,27 @@ class Joint:
         for name in ("springref", "ref"):
             object.__setattr__(self, name, float(finite_array(getattr(self, name), f"joint {self.name!r}: {name}",
                                                               shape=())))
+
+    def _check_constraints(self) -> None:
+        """range, frictionloss and restitution (the class docstring), each checked and stored as plain floats."""
+        what = f"joint {self.name!r}"
+        if self.range is not None:
+            bounds = finite_array(self.range, f"{what}: range", shape=(2,))
+            low, high = float(bounds[0]), float(bounds[1])
+            if self.kind == "free":
+                raise ValueError(f"{what}: range={self.range!r}: a free joint has no range (MuJoCo's rule)")
+            if self.kind == "ball":
+                if low != 0.0 or not 0.0 < high <= math.pi:
+                    raise ValueError(f"{what}: range={self.range!r}: a ball joint's range is (0, theta_max) with 0 < "
+                                     "theta_max <= pi, the largest rotation angle [rad]")
+            elif not low < high:
+                raise ValueError(f"{what}: range={self.range!r}: expected (lo, hi) with lo < hi")
+            object.__setattr__(self, "range", (low, high))
+        friction = finite_array(self.frictionloss, f"{what}: frictionloss", shape=())
+        object.__setattr__(self, "frictionloss", float(nonnegative(friction, f"{what}: frictionloss")))
+        restitution = finite_array(self.restitution, f"{what}: restitution", shape=())
+        object.__setattr__(self, "restitution", float(in_interval(restitution, f"{what}: restitution", 0.0, 1.0,
+                                                                  closed=True)))
 
     @property
     def line(self) -> np.ndarray:
@@ -211,14 +247,93 @@ class Contact:
         in_interval(self.restitution, "restitution", 0.0, 1.0, closed=True)
 
 
+EQUALITY_KINDS = ("connect", "weld", "joint", "tendon")
+
+
+@dataclass(frozen=True)
+class Equality:
+    """An equality constraint (MJCF's <equality>), held rigidly: to round-off, never by a spring.
+
+    kind "connect": a point of body1 stays on a point of body2 (a ball joint closing a loop). anchor (3,) the
+            point in body1's frame [m]; anchor2 (3,) the same point in body2's frame, or None: where `anchor`
+            sits at the reference pose (every scalar joint at its ref, balls at identity, free bodies at their
+            pos/quat: MuJoCo's qpos0), as MuJoCo computes it.
+    kind "weld": body1 is fixed to body2 (position and orientation). anchor (3,) a point of body2, its frame
+            [m] (MuJoCo's weld anchor); relpose None (the relative pose at the reference pose) or (x, y, z, w, qx,
+            qy, qz): the anchor's position in body1's frame [m] and body2's orientation relative to body1's
+            (q1 (x) quat = q2), MuJoCo's relpose.
+    kind "joint": qpos[joint1] - ref1 = c0 + c1 d + c2 d^2 + c3 d^3 + c4 d^4, d = qpos[joint2] - ref2, with
+            polycoef (c0, ..., c4) [m or rad, then per unit]; joint2 None: qpos[joint1] - ref1 = c0. Hinge,
+            slide and roll joints (ref: the joint's ref, MuJoCo's qpos0).
+    kind "tendon": two tendons' lengths by the same polynomial (tendon1, tendon2): rbody models no tendons
+            yet, so compiling one raises NotImplementedError.
+    body2 defaults to the world. active False: the constraint is declared but does nothing (MJCF's active).
+    Constraint forces are reported per equality (rbody.engine.constraints): connect 3 rows (force on body1,
+    world frame [N]), weld 6 (force [N], then moment [N m], world frame), joint 1 (generalised force on joint1).
+    """
+
+    name: str
+    kind: str
+    body1: str | None = None
+    body2: str = WORLD
+    anchor: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    anchor2: tuple[float, float, float] | None = None
+    relpose: tuple[float, ...] | None = None
+    joint1: str | None = None
+    joint2: str | None = None
+    tendon1: str | None = None
+    tendon2: str | None = None
+    polycoef: tuple[float, float, float, float, float] = (0.0, 1.0, 0.0, 0.0, 0.0)
+    active: bool = True
+
+    def __post_init__(self) -> None:
+        what = f"equality {self.name!r}"
+        if not isinstance(self.name, str) or not self.name:
+            raise ValueError(f"equality name={self.name!r}: expected a non-empty string")
+        if self.kind not in EQUALITY_KINDS:
+            raise ValueError(f"{what}: kind={self.kind!r}, expected one of {EQUALITY_KINDS}")
+        object.__setattr__(self, "anchor", tuple(finite_array(self.anchor, f"{what}: anchor", shape=(3,)).tolist()))
+        if self.anchor2 is not None:
+            object.__setattr__(self, "anchor2", tuple(finite_array(self.anchor2, f"{what}: anchor2",
+                                                                   shape=(3,)).tolist()))
+        if self.relpose is not None:
+            pose = finite_array(self.relpose, f"{what}: relpose", shape=(7,))
+            if np.linalg.norm(pose[3:]) == 0:
+                raise ValueError(f"{what}: relpose={self.relpose!r}: its quaternion (last four numbers) is zero")
+            pose[3:] = pose[3:] / np.linalg.norm(pose[3:])
+            object.__setattr__(self, "relpose", tuple(pose.tolist()))
+        coefficients = finite_array(self.polycoef, f"{what}: polycoef", shape=(5,))
+        object.__setattr__(self, "polycoef", tuple(coefficients.tolist()))
+        object.__setattr__(self, "active", bool(self.active))
+        needs = {"connect": ("body1",), "weld": ("body1",), "joint": ("joint1",), "tendon": ("tendon1",)}[self.kind]
+        for field_name in needs:
+            if not getattr(self, field_name):
+                raise ValueError(f"{what}: a {self.kind} equality needs {field_name}")
+        if self.kind in ("connect", "weld") and self.body1 == self.body2:
+            raise ValueError(f"{what}: body1 and body2 are both {self.body1!r}: a {self.kind} joins two bodies")
+        if self.kind == "joint" and self.joint1 == self.joint2:
+            raise ValueError(f"{what}: joint1 and joint2 are both {self.joint1!r}")
+
+
 @dataclass(frozen=True)
 class Layout:
-    """The physical model of an unbatched scene: what MuJoCo, pymunk and the MJCF exporter build."""
+    """The physical model of an unbatched scene: what MuJoCo, pymunk and the MJCF exporter build.
+
+    equalities: equality constraints (Equality) closing loops and coupling joints; joints carry their own
+    limits and dry friction (Joint.range, Joint.frictionloss). Both default to none, the tree alone."""
 
     bodies: tuple[Body, ...]
     joints: tuple[Joint, ...]
     fixed: tuple[Shape, ...] = ()
     contacts: tuple[Contact, ...] = ()
+    equalities: tuple[Equality, ...] = ()
+
+    @property
+    def constrained(self) -> bool:
+        """True when a joint has a range or frictionloss, or an equality is active: the model then runs through the
+        constraint layer (rbody.engine.constraints)."""
+        return (any(j.range is not None or j.frictionloss > 0 for j in self.joints)
+                or any(e.active for e in self.equalities))
 
 
 # ----- the one tree order ------------------------------------------------------------------------------

@@ -269,6 +269,7 @@ class TreeScene(Scene):
         qpos0, qvel0 = self._checked_state(self.qpos0, self.qvel0, model.qpos0, model.qvel0)
         object.__setattr__(self, "qpos0", qpos0)
         object.__setattr__(self, "qvel0", qvel0)
+        _ = self.constraint_table  # validates the limits, friction and equalities (ValueError before any work)
 
     def _checked_state(self, qpos0: Any, qvel0: Any, qpos_default: np.ndarray,
                        qvel_default: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -376,6 +377,8 @@ class TreeScene(Scene):
     @property
     def observables(self) -> tuple[str, ...]:  # type: ignore[override]
         names = ["qpos", "qvel", "energy"]
+        if self.tree.constrained:
+            names += ["constraint_force", "constraint_error", "active_limits", "sticking", "dissipated"]
         for body in self.multibody.body_names:
             names += [f"{body}.com", f"{body}.quat", f"{body}.velocity", f"{body}.omega"]
         return tuple(names)
@@ -467,6 +470,8 @@ class TreeScene(Scene):
         from rbody.engine.planar import planar_accel, planar_rhs
 
         model = self.multibody
+        if self.tree.constrained:
+            return self._constrained_native()
         qpos0, qvel0 = self._state0()
         y0 = self._native_state(qpos0, qvel0)
         planar = self._planar
@@ -490,6 +495,31 @@ class TreeScene(Scene):
         return NativeModel(y0=y0, params=params, rhs=mb.tree_rhs, observe=observe,
                            accel=None if self.symplectic_applies else mb.tree_accel,
                            finish=mb.tree_finish if model.nrot else None, rate_from_jacobian=True)
+
+    @cached_property
+    def constraint_table(self):
+        """The compiled constraints of the tree (rbody.engine.constraints.table), or None when it has none."""
+        from rbody.engine.constraints.table import build_table
+
+        return build_table(self.tree, self.multibody) if self.tree.constrained else None
+
+    def _constrained_native(self) -> NativeModel:
+        """The tree with its limits, dry friction and equalities: state (qpos, qvel, phi, dissipated), params the
+        tree's row and the constraint table, run by the constraint layer (rbody.engine.constraints)."""
+        from rbody.engine.constraints.dynamics import constrained_rhs
+
+        model, table = self.multibody, self.constraint_table
+        qpos0, qvel0 = self._state0()
+        count = qpos0.shape[0]
+        y0 = np.concatenate([qpos0, qvel0, np.zeros((count, 3 * model.nrot + 1))], axis=1)
+        params = np.tile(table.row(model.params), (count, 1))
+        nq, nv = model.nq, model.nv
+
+        def observe(t, y):
+            return self._observables(y[..., :nq], y[..., nq:nq + nv])
+
+        return NativeModel(y0=y0, params=params, rhs=constrained_rhs, observe=observe, rate_from_jacobian=True,
+                           constraints=table)
 
     # ----- what other simulators build -----------------------------------------------------------------
 

@@ -38,7 +38,10 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
 
     dt:         time step [s] (event-driven scenes: the sampling interval of the trajectory only)
     method:     one of rbody.METHODS; default "verlet" where it applies, else the scene's first
-                method; "events" (the only choice) for event-driven scenes
+                method; "events" (the only choice) for event-driven scenes; a tree with limits, dry friction
+                or equalities takes "rk4" (event-driven: rk4 between events located exactly, the default) or
+                "moreau" (time-stepping), and reports its events in trajectory.events and meta["events"]
+                (rbody.engine.constraints)
     t_end:      duration [s], default scene.t_end
     save_every: keep every n-th step (1 <= n <= ceil(t_end/dt)); the run takes ceil(t_end/dt) steps
                 rounded up to a multiple of save_every, so the last saved time is t_end or up to
@@ -49,7 +52,8 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
     client:     a dask.distributed.Client: the batch's rows run as tasks on its cluster, `chunk` rows each
                 (default: about 4 tasks per worker thread, at least a few thousand rows; see
                 rbody.engine.distributed); the result equals the serial run's bit for bit. Event-driven
-                scenes run here. None (default): everything runs here and Dask is not imported.
+                scenes and constrained trees (limits, dry friction, equalities: rbody.engine.constraints) run
+                here, element by element. None (default): everything runs here and Dask is not imported.
     Returns a Trajectory whose observables have shape (T, *scene.batch_shape, ...).
     Raises ValueError for bad arguments, a run too large to start (above), a closed client or a chunk
     without a client; MethodNotApplicable when the method cannot run the scene; SimulationError, before
@@ -131,7 +135,9 @@ class PreparedRun:
         self.t.setflags(write=False)
         self.leading = (self.t.size,) + scene.batch_shape
         self.meta = {"scene": scene.name, "backend": "rbody", "method": self.method, "dt": self.dt}
-        self._runner = (None if crosses_break(model, self.nsteps, self.dt)
+        # limits, dry friction, equalities: the constraint layer's own schemes (rbody.engine.constraints), no loop
+        self.constrained = model.constraints is not None
+        self._runner = (None if self.constrained or crosses_break(model, self.nsteps, self.dt)
                         else self.record.bound(model, self.y0.shape[0], self.dt, self.nsteps, self.save_every))
 
     def run(self, *, qpos0: Any = None, qvel0: Any = None) -> Trajectory:
@@ -147,6 +153,8 @@ class PreparedRun:
         y0 = self.y0 if qpos0 is None and qvel0 is None else self._start(qpos0, qvel0)
         if self.work["bytes"] > MEMORY_CHECKED_ABOVE:  # the memory available may have changed since prepare
             refuse_large(self.work, self.allow_large)
+        if self.constrained:
+            return self._constrained_run(y0)
         out = np.empty((self.t.size,) + y0.shape)
         if self._runner is None:  # the run crosses a break in the rhs: cut there (integrate_model)
             failed = integrate_model(self.model if y0 is self.y0 else dataclasses.replace(self.model, y0=y0),
@@ -156,8 +164,9 @@ class PreparedRun:
         return self._trajectory(y0, out, failed)
 
     def run_on_cluster(self, client: Any, chunk: int | None = None) -> Trajectory:
-        """The batch's rows as tasks on the Dask cluster of `client` (simulate's client=, chunk=)."""
-        if self.scene.event_driven:
+        """The batch's rows as tasks on the Dask cluster of `client` (simulate's client=, chunk=); event-driven and
+        constrained scenes run here."""
+        if self.scene.event_driven or self.constrained:
             return self.run()
         out = np.empty((self.t.size,) + self.y0.shape)
         failed = integrate_on_cluster(client, self.scene, self.model, self.method, self.dt, self.nsteps,
@@ -179,6 +188,17 @@ class PreparedRun:
         check_state(dataclasses.replace(self.model, y0=y0), self.scene.describe(), self.method, self.dt,
                     self.t_end)
         return y0
+
+    def _constrained_run(self, y0: np.ndarray) -> Trajectory:
+        """A constrained tree's run: events located exactly between smooth steps (rk4), or Moreau-Jean
+        time-stepping (moreau), by rbody.engine.constraints.runner."""
+        from rbody.engine.constraints.runner import run_constrained
+
+        model = self.model if y0 is self.y0 else dataclasses.replace(self.model, y0=y0)
+        t, data, events, meta = run_constrained(self.scene.describe(), model, self.method, self.dt, self.nsteps,
+                                                self.save_every)
+        data = {name: _shaped(value, (t.size,) + self.scene.batch_shape) for name, value in data.items()}
+        return Trajectory(t, data, events=events, meta={**self.meta, **meta})
 
     def _trajectory(self, y0: np.ndarray, out: np.ndarray, failed: np.ndarray) -> Trajectory:
         model = self.model if y0 is self.y0 else dataclasses.replace(self.model, y0=y0)

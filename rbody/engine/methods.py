@@ -8,6 +8,9 @@ scenes read (no parallel tables):
                   "rhs"    y' = f(y)                              (every general method)
                   "accel"  q'' = a(q), y = (q, q'): a separable Hamiltonian  (the explicit symplectic ones)
                   "split"  the scene's own symmetric one-step map under this method's name (model.split)
+                  "constraints"  a constrained tree (model.constraints): the constraint layer's time-stepping
+                A constrained tree (limits, dry friction, equalities) takes only the methods its constraint table
+                names (rk4: event-driven, rk4 between events; moreau: time-stepping): rbody.engine.constraints.
                 A scene may also supply its own flow under any method's name in model.split (a free rotation's
                 "yoshida6" composes its exact sub-rotations): that flow is then what runs.
     symplectic, symmetric, explicit
@@ -22,6 +25,7 @@ scenes read (no parallel tables):
                                     fixed-point iteration, which contracts by dt w rho(A) per sweep
                   splitting         2, a second-order symmetric splitting's (the yoshida6 composition of a
                                     scene's flow takes yoshida6's)
+                  moreau            2, as symplectic Euler (its free motion between impulses)
                   reference         inf (scipy's DOP853 at rtol 1e-13, adaptive)
     bind        bind(model, flow, batch, dt, nsteps, save_every) -> runner(y0, params, out) -> failed (B,): the
                 compiled loop with all but the states fixed (rbody.engine.integrators.Bound); flow is the
@@ -43,7 +47,8 @@ from rbody.engine import integrators
 
 NEEDS = {"rhs": "y' = f(y) (the model's rhs)",
          "accel": "q'' = a(q) with y = (q, q'), a separable Hamiltonian (the model's accel)",
-         "split": "the scene's own symmetric one-step map (the model's split flows)"}
+         "split": "the scene's own symmetric one-step map (the model's split flows)",
+         "constraints": "a constrained tree (the model's constraint table: rbody.engine.constraints)"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -76,6 +81,12 @@ class Method:
 
     def missing(self, model) -> str:
         """"" when `model` (a NativeModel) provides what this method needs, else what it lacks."""
+        table = getattr(model, "constraints", None)
+        if table is not None and self.name not in table.methods:  # the constraint layer runs its own schemes
+            return (f"{self.name!r} does not run a constrained tree (limits, dry friction, equalities): the constraint "
+                    f"layer runs {', '.join(table.methods)} (rbody.engine.constraints)")
+        if self.needs == "constraints":
+            return "" if table is not None else f"{self.name!r} needs {NEEDS['constraints']}"
         if self.flow(model) is not None:
             return ""
         if self.needs == "rhs" and model.rhs is not None:
@@ -149,6 +160,11 @@ def _bind_splitting(model, flow, batch, dt, nsteps, save_every):
     return _bind_flow(flow, batch, dt, nsteps, save_every)
 
 
+def _bind_constrained(model, flow, batch, dt, nsteps, save_every):
+    raise NotImplementedError("a constrained tree runs through rbody.engine.constraints.runner (simulate routes it "
+                              "there), never through a fixed-step loop")
+
+
 # ----- the stability intervals that need a computation ----------------------------------------------------
 
 @lru_cache(maxsize=None)
@@ -201,6 +217,9 @@ RECORDS: tuple[Method, ...] = (
                    "(dt |df/dy| too large)"),
     Method("splitting", 2, "split", symplectic=True, symmetric=True, explicit=True, beta=lambda: 2.0,
            bind=_bind_splitting, summary="the scene's own symmetric splitting into exact flows"),
+    Method("moreau", 1, "constraints", symplectic=False, symmetric=False, explicit=True, beta=lambda: 2.0,
+           bind=_bind_constrained, summary="Moreau-Jean time-stepping of a constrained tree: impulses at the velocity level, "
+           "a complementarity problem per step (rbody.engine.constraints.stepping)"),
     Method("reference", None, "rhs", symplectic=False, symmetric=False, explicit=True, beta=lambda: math.inf,
            bind=_bind_reference, summary="scipy DOP853 at rtol 1e-13: for checks only, never for speed",
            failure="a failed solve (scipy's DOP853 could not reach its tolerance)"),

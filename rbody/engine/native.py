@@ -61,6 +61,9 @@ class NativeModel:
     # diagnose(y (n,), y0 (n,), dt) -> str: why the motion cannot go on from state y, started from y0 ("" when nothing
     # is found), for the message of a failed run (a tree: the body and joint whose mass-matrix pivot vanished).
     diagnose: Any = None
+    # The constraint table (rbody.engine.constraints.table.ConstraintTable) of a tree with limits, dry friction or
+    # equalities, whose run simulate hands to the constraint layer (rbody.engine.constraints.runner); None: none.
+    constraints: Any = None
 
 
 @runtime_checkable

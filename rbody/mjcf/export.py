@@ -486,8 +486,11 @@ def _inertial(exported: ExportedInertia, indent: str) -> str:
 
 def _joint(joint: Joint, indent: str, limit: tuple[float, float] | None = None) -> str:
     extra = {name: _num(getattr(joint, name)) for name in _JOINT_ATTRIBUTES if getattr(joint, name, 0.0) != 0.0}
-    if limit is not None and joint.kind != "free":  # a scene's declared range (MJCFScene.limits) [rad | m]
+    limit = joint.range if joint.range is not None else limit  # the joint's own, else a scene's declared one
+    if limit is not None and joint.kind != "free":  # [rad | m]; a ball's (0, largest angle)
         extra.update(limited="true", range=_vec(limit))
+    if joint.frictionloss > 0:
+        extra.update(frictionloss=_num(joint.frictionloss))
     if joint.kind == "free":
         extra.pop("ref", None)
         if extra:  # <freejoint> takes no damping or armature; <joint type="free"> does
@@ -512,6 +515,32 @@ def _roll_equality(joint: Joint, dt: float, indent: str) -> str:
                    polycoef=_vec((0.0, joint.radius, 0.0, 0.0, 0.0)),
                    solref=_vec((EQUALITY_TIMECONST_STEPS * dt, 1.0)), solimp=_vec(EQUALITY_SOLIMP))
     return f"{indent}<joint {attrs}/>"
+
+
+def _equality_sites(equalities) -> dict[str, list[str]]:
+    """body name (or world) -> the <site>s that the equalities join (site semantics: each exact, whatever the pose
+    MuJoCo compiles the bodies in): a connect's two points; a weld's point on body1 turned by its relative
+    orientation and its anchor on body2."""
+    sites: dict[str, list[str]] = {}
+    for e in equalities:
+        if e.kind == "connect":
+            pairs = ((e.body1, e.anchor, (1.0, 0.0, 0.0, 0.0)), (e.body2, e.anchor2, (1.0, 0.0, 0.0, 0.0)))
+        elif e.kind == "weld":
+            pairs = ((e.body1, e.relpose[:3], e.relpose[3:]), (e.body2, e.anchor, (1.0, 0.0, 0.0, 0.0)))
+        else:
+            continue
+        for k, (body, pos, quat) in enumerate(pairs, start=1):
+            sites.setdefault(body, []).append(
+                f"<site {_attrs(name=f'{e.name}_site{k}', pos=_vec(pos), quat=_vec(_unit_quat(quat)))}/>")
+    return sites
+
+
+def _equality(e) -> str:
+    active = {} if e.active else {"active": "false"}
+    if e.kind == "joint":
+        joint2 = {"joint2": e.joint2} if e.joint2 else {}
+        return f"<joint {_attrs(name=e.name, joint1=e.joint1, **joint2, polycoef=_vec(e.polycoef), **active)}/>"
+    return f"<{e.kind} {_attrs(name=e.name, site1=f'{e.name}_site1', site2=f'{e.name}_site2', **active)}/>"
 
 
 def _comment(text: str) -> str:
@@ -577,6 +606,10 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
     qpos, qvel = initial_state(layout)
     order = body_order(layout)
     limits = dict(getattr(scene, "limits", None) or {})  # MJCFScene: the model's declared joint ranges
+    table = getattr(scene, "constraint_table", None)  # a TreeScene's equalities, made explicit by the engine
+    equalities = table.equalities if table is not None else tuple(e for e in layout.equalities if e.kind == "joint")
+    sites = _equality_sites(equalities)
+    restitutions = [(j.name, j.restitution) for j in layout.joints if j.range is not None and j.restitution > 0]
 
     # --- the comment: what the model holds and where it came from ---
     counts = {kind: sum(j.kind == kind for j in layout.joints) for kind in ("hinge", "slide", "ball", "free", "roll")}
@@ -597,6 +630,10 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
         + f"; timestep {dt!r} s; integrator {integrator}.",
         f"Initial state: keyframe {INITIAL_KEY!r} (free joints: angular velocity in the body frame).",
     ]
+    if any(j.range is not None or j.frictionloss > 0 for j in layout.joints) or equalities:
+        lines.append("Joint limits, frictionloss and equalities as the scene gives them, at MuJoCo's default softness "
+                     "(rbody holds them rigidly); connect and weld with sites at the points rbody joins; a limit's "
+                     "restitution as the custom numeric rbody.restitution.<joint> (MuJoCo ignores it).")
     if impacts:
         lines.append(f"Impacts (restitution > 0): contact springs solref=(-K, -B), solimp={CONTACT_SOLIMP}; elastic "
                      f"(e = 1): K=(1/dt)^2={1 / dt**2!r}, B=0; 0 < e < 1: K=(pi/({IMPACT_STEPS} dt))^2 with the "
@@ -622,6 +659,10 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
               "cone": cone, "impratio": None if impratio is None else _num(impratio),
               "noslip_iterations": None if noslip_iterations is None else str(int(noslip_iterations))}
     out.append(f"  <option {_attrs(**option)}/>")
+    if restitutions:
+        out.append("  <custom>")
+        out.extend(f"    <numeric {_attrs(name=f'rbody.restitution.{name}', data=_num(e))}/>" for name, e in restitutions)
+        out.append("  </custom>")
     meshes = [s for s in list(layout.fixed) + [s for b in order for s in b.shapes] if s.kind == "mesh"]
     if meshes:
         out.append("  <asset>")
@@ -632,6 +673,7 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
     out.append("  <worldbody>")
     for shape in layout.fixed:
         out.append(_geom(shape, "    "))
+    out.extend("    " + site for site in sites.get(WORLD, ()))
     children: dict[str, list[Body]] = {}
     for body in layout.bodies:
         children.setdefault(body.parent, []).append(body)
@@ -645,6 +687,7 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
         out.append(_inertial(exported[body.name], indent + "  "))
         for shape in body.shapes:
             out.append(_geom(shape, indent + "  "))
+        out.extend(indent + "  " + site for site in sites.get(body.name, ()))
         for child in children.get(body.name, ()):
             write(child, indent + "  ")
         out.append(f"{indent}</body>")
@@ -659,9 +702,10 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
                                              friction=_vec(p["friction"]), solref=_vec(p["solref"]),
                                              solimp=_vec(p["solimp"])) + "/>")
         out.append("  </contact>")
-    if rolls:
+    if rolls or equalities:
         out.append("  <equality>")
         out.extend(_roll_equality(joint, dt, "    ") for joint in joint_order(layout) if joint.kind == "roll")
+        out.extend("    " + _equality(e) for e in equalities)
         out.append("  </equality>")
     if qpos.size:
         out.append("  <keyframe>")

@@ -29,7 +29,9 @@ equal MuJoCo's body_mass, body_ipos and body_inertia/body_iquat to round-off):
   more than round-off (a small rotation left undone); rbody takes MuJoCo's, noting any difference
   beyond 1e-12, so that both engines run the same bodies;
 - joints hinge, slide, ball, free and ``<freejoint>``, with pos, axis, ref, damping, stiffness,
-  springref, armature, range and limited;
+  springref, armature, range, limited, margin and frictionloss, and ``<equality>`` connect, weld and joint,
+  held rigidly (rbody.mjcf.constraints: MuJoCo's defaults, active flags, what replaces solref and solimp, and
+  the ``<custom>`` numeric that gives a limit its restitution);
 - ``<option>``: timestep, gravity (along -z: rbody's scenes have gravity -g z), integrator; flags
   contact, constraint, equality, limit, frictionloss, gravity (disable: g = 0), spring and damper
   (disable: the joints' stiffness or damping become 0);
@@ -47,20 +49,18 @@ tendons without stiffness, damping, friction or limits.
 Refused (MJCFError, naming the element, its file and line): contacts that can happen (two geoms on
 different bodies, not welded together nor parent and child, whose contype/conaffinity match, or an
 explicit <pair>, while the contact flag is on: set contype="0" conaffinity="0" on the geoms, or
-<flag contact="disable"/>); equality constraints; tendons with stiffness, damping, friction or limits;
+<flag contact="disable"/>); tendon and flex equalities; tendons with stiffness, damping, friction or limits;
 actuators that push with a zero control (position, velocity, damper, ... or damping/armature on the
-actuator); fluid forces (option density or viscosity, geom fluidshape); joint frictionloss and
-springdamper; body gravcomp; heightfields, flexes, composites, plugins, <frame>, <replicate>,
+actuator); fluid forces (option density or viscosity, geom fluidshape); joint springdamper; body gravcomp; heightfields, flexes, composites, plugins, <frame>, <replicate>,
 <attach>; gravity not along -z; stiffness on a ball joint; boundmass, boundinertia, settotalmass,
 fusestatic, alignfree; a body
 with a joint but no mass; an orientation given twice; unknown elements or attributes; geoms of one body
 that overlap, which MuJoCo would count twice (``overlapping_geoms="sum"`` sums them as MuJoCo does).
 
-Joint limits: a limited joint's range (less its margin) is kept (``MJCFModel.limits``, ``MJCFScene.limits``:
-joint name -> (lo, hi) [rad | m]; ball: (0, largest rotation angle)). A limit declared but never reached
-changes nothing; rbody does not model the limit's force, so a native run whose saved states leave a range
-raises SimulationError with the joint and the time (checked on the saved states: with save_every > 1 a
-brief excursion between two saved states can pass unseen).
+Joint limits: a limited joint's range (less its margin) is its Joint.range, also listed in ``MJCFModel.limits``
+and ``MJCFScene.limits`` (joint name -> (lo, hi) [rad | m]; ball: (0, largest rotation angle)). A native run
+holds every limit rigidly (rbody.engine.constraints); a model whose initial state lies outside a range starts
+there, and the limit puts it back at once (the run's first event).
 
 Initial state: the model's reference (qpos0: hinge and slide at ref, balls at identity, free bodies at
 their pos/quat; at rest), a keyframe's (``keyframe=``), or the qpos0/qvel0 arguments, in MuJoCo's layout
@@ -79,15 +79,15 @@ from typing import Mapping
 
 import numpy as np
 
-from rbody.errors import SimulationError
 from rbody.inertia import Inertia
 from rbody.mjcf.document import (Element, MJCFError, boolean, choice, expand_includes, number, numbers,
                                  read_source)
+from rbody.mjcf.constraints import (EQUALITY_ATTRS, Frames, equality_from, equality_kind_error, read_numerics,
+                                    restitution_of, softness_note, unknown_restitutions)
 from rbody.mjcf.frames import MJ_EPS, frame_to_quat, normalize, quat_matrix, quat_product, z_to_quat
 from rbody.mjcf.geoms import (MESH_INERTIA_MODES, GeomMass, MeshMass, mesh_mass, mujoco_principal, primitive_moments,
                               primitive_volume, principal_tensor, sum_geoms)
 from rbody.layout import WORLD, Body, Joint, Layout, Shape
-from rbody.engine.native import NativeModel
 from rbody.scene import TreeScene
 
 DEFAULT_T_END = 1.0        # [s] duration of a scene read from MJCF when t_end is not given
@@ -228,6 +228,10 @@ class _Reader:
         self.mesh_paths: dict[str, str] = {}                 # mesh name -> absolute file path
         self.plane_bodies: list[tuple[Element, _Body]] = []  # planes on bodies (only static ones may hold them)
         self.key_elements: list[Element] = []
+        self.sites: dict[str, tuple[int, np.ndarray, np.ndarray]] = {}  # name -> (MJCF body index, pos, quat)
+        self.equality_elements: list[tuple[Element, dict]] = []
+        self.numerics: dict[str, np.ndarray] = {}
+        self.carriers: dict = {}
 
     # ----- helpers -----
 
@@ -321,9 +325,11 @@ class _Reader:
                                   "in ways rbody does not model)")
         self.read_compiler(sections.get("compiler", []))
         self.read_option(sections.get("option", []))
+        self.numerics = read_numerics(sections.get("custom", []))  # rbody's restitution (rbody.mjcf.constraints)
         for tag in ("size", "statistic", "visual", "custom"):
             if tag in sections:
-                self.note(tag, f"<{tag}> ignored (no effect on the dynamics rbody runs)")
+                self.note(tag, f"<{tag}> ignored (no effect on the dynamics rbody runs)" if tag != "custom" else
+                          "<custom> ignored (except the numerics rbody.restitution[.JOINT], rbody.mjcf.constraints)")
         self.classes = {"main": {}}
         for element in sections.get("default", []):
             self.read_default(element, None, top=True)
@@ -504,6 +510,10 @@ class _Reader:
                 self.check_attrs(child, _INERTIAL_ATTRS)
                 body.inertial = child
             elif tag in _VISUAL_ELEMENTS:
+                if tag == "site" and child.attrib.get("name"):  # equalities may join sites
+                    attrib = self.attrs(child, "site", childclass)
+                    pos = numbers(child, "pos", attrib, 3) if "pos" in attrib else np.zeros(3)
+                    self.sites[attrib["name"]] = (body.index, pos, self.orientation(child, attrib))
                 self.note(tag, f"<{tag}> elements ignored (they do not change the dynamics)")
             elif tag in _REFUSED_IN_BODY:
                 raise child.error(_REFUSED_IN_BODY[tag])
@@ -540,8 +550,6 @@ class _Reader:
         attrib["type"] = kind
         if "springdamper" in attrib and np.any(numbers(element, "springdamper", attrib, 2) != 0):
             raise element.error("springdamper is not supported: give stiffness and damping")
-        if self.frictionloss_on and number(element, "frictionloss", attrib, 0.0) != 0:
-            raise element.error("frictionloss (dry joint friction) is not supported")
         body.joints.append((element, attrib))
 
     def read_geom(self, element: Element, body: _Body, childclass: str | None) -> None:
@@ -619,13 +627,21 @@ class _Reader:
     def read_equality(self, element: Element) -> None:
         self.check_attrs(element, set())
         for child in element.children:
-            if self.equality_on and child.attrib.get("active", "true") == "true":
-                if child.tag == "joint":  # rbody.to_mjcf writes a roll joint as slide, hinge and this equality
-                    raise child.error("equality constraints are not supported (rbody models trees of joints only); "
-                                      "a joint equality slide = a hinge, as rbody.to_mjcf writes a roll joint, is "
-                                      "not read back as a roll joint: build the tree with Joint(kind=\"roll\")")
-                raise child.error("equality constraints are not supported (rbody models trees of joints only)")
-            self.note("equality", "equality constraints ignored (disabled)")
+            error = equality_kind_error(child)
+            attrib = self.attrs(child, "equality", None) if error is None else dict(child.attrib)
+            if not self.equality_on:
+                self.note("equality", "equality constraints ignored (<flag equality=\"disable\"/>)")
+                continue
+            if error is not None:
+                if child.tag == "tendon" and attrib.get("active", "true") == "false":
+                    self.note("equality tendon", "inactive tendon equalities ignored (rbody models no tendons)")
+                    continue
+                raise error
+            self.check_attrs(child, EQUALITY_ATTRS[child.tag])
+            soft = softness_note(attrib)
+            if soft:
+                self.note("equality soft", f"equality {soft} ignored: rbody holds equalities rigidly (to round-off)")
+            self.equality_elements.append((child, attrib))
 
     def read_tendons(self, element: Element) -> None:
         self.check_attrs(element, set())
@@ -965,8 +981,52 @@ class _Reader:
                     margin = number(element, "margin", attrib, 0.0)
                     low = 0.0 if kind == "ball" else low + margin
                     limit = (float(low), float(high - margin))
+            joint = self.joint_constraints(element, attrib, joint, limit)
             out.append((joint, qpos, nv, limit))
         return out
+
+    def joint_constraints(self, element: Element, attrib: dict, joint: Joint, limit: tuple | None) -> Joint:
+        """The joint with its limit, dry friction and restitution (rbody.mjcf.constraints), as the flags allow."""
+        friction = number(element, "frictionloss", attrib, 0.0)
+        if friction < 0:
+            raise element.error(f"frictionloss={friction!r}: must be >= 0")
+        if friction and not self.frictionloss_on:
+            self.note("frictionloss", "joint frictionloss ignored (<flag frictionloss=\"disable\"/>)")
+            friction = 0.0
+        soft = softness_note({k: v for k, v in attrib.items() if k.startswith(("solref", "solimp"))})
+        if soft and (limit is not None or friction):
+            self.note("joint soft", f"joint {soft} ignored: rbody's limits and dry friction are rigid")
+        if limit is not None and limit[0] >= limit[1]:
+            raise element.error(f"range={attrib.get('range')!r} less margin={attrib.get('margin')!r} leaves no room")
+        try:
+            return dataclasses.replace(joint, range=limit, frictionloss=friction,
+                                       restitution=restitution_of(self.numerics, joint.name))
+        except ValueError as error:
+            raise element.error(str(error)) from None
+
+    def equalities(self, layout: Layout) -> tuple:
+        """The model's equality constraints (rbody.mjcf.constraints), in document order; unnamed ones are called
+        equality<i> (i its index in <equality>, MuJoCo's id)."""
+        frames = Frames(self.bodies, self.carriers)
+        joints = {joint.name: joint for joint in layout.joints}
+        taken = {attrib.get("name") for _e, attrib in self.equality_elements}
+        out = []
+        for i, (element, attrib) in enumerate(self.equality_elements):
+            name = attrib.get("name") or f"equality{i}"
+            while not attrib.get("name") and name in taken:
+                name += "_"
+            taken.add(name)
+            try:
+                out.append(equality_from(element, attrib, name, frames, self.sites, joints))
+            except MJCFError:
+                raise
+            except ValueError as error:  # the Equality's own checks
+                raise element.error(str(error)) from None
+        names = [e.name for e in out]
+        duplicates = sorted({n for n in names if names.count(n) > 1})
+        if duplicates:
+            raise MJCFError(f"{self.root.file}: two equalities are called {duplicates[0]!r}")
+        return tuple(out)
 
     def build(self, qpos0, qvel0, keyframe) -> MJCFModel:
         self.name_everything()
@@ -1012,7 +1072,11 @@ class _Reader:
             state_qvel = _state_vector(qvel0, "qvel0", nv)
         state_qpos = self.unit_quaternions(joints, state_qpos)
         joints = self.joints_at(joints, state_qpos, state_qvel)
+        stray = unknown_restitutions(self.numerics, {joint.name for joint in joints})
+        if stray:
+            raise MJCFError(f"{self.root.file}: <custom><numeric name={stray[0]!r}> names no joint of the model")
         layout = self.layout(joints)
+        layout = dataclasses.replace(layout, equalities=self.equalities(layout))
         return MJCFModel(layout=layout, name=self.name, gravity=self.gravity, timestep=self.timestep,
                          integrator=self.integrator, qpos0=state_qpos.copy(), qvel0=state_qvel.copy(),
                          keyframes=keyframes, limits=limits, notes=tuple(self.notes), source=self.root.file)
@@ -1104,6 +1168,7 @@ class _Reader:
             bodies.append(Body(body.name, inertia, parent=carrier, pos=tuple(pos.tolist()),
                                quat=tuple(quat.tolist())))
         bodies = [dataclasses.replace(b, shapes=tuple(shapes[b.name])) for b in bodies]
+        self.carriers = kept
         return Layout(bodies=tuple(bodies), joints=tuple(joints), fixed=tuple(shapes[WORLD]))
 
     def shapes_of(self, geom: _Geom, pos: np.ndarray, quat: np.ndarray) -> list[Shape]:
@@ -1172,10 +1237,9 @@ def from_mjcf(source, *, t_end: float | None = None, qpos0=None, qvel0=None, key
 class MJCFScene(TreeScene):
     """Scene.from_layout's TreeScene of a model read from MJCF, with its declared joint limits.
 
-    limits: joint name -> (lo, hi) [rad | m] (ball joints: (0, largest rotation angle) [rad]). rbody does
-    not model a limit's constraint force, so a native run whose coordinates leave a range raises
-    SimulationError naming the joint and the first time it happened (checked on the run's saved states).
-    A limit declared but never reached changes nothing.
+    limits: joint name -> (lo, hi) [rad | m] (ball joints: (0, largest rotation angle) [rad]), the ranges its
+    joints hold (Joint.range; rbody.engine.constraints holds them rigidly). limit_violation tells where a run of
+    any engine leaves them (MuJoCo's soft limits let a joint pass its stop).
     """
 
     limits: Mapping[str, tuple[float, float]] = field(default_factory=dict)
@@ -1201,18 +1265,3 @@ class MJCFScene(TreeScene):
                 return (f"joint {name!r} left its range [{low:.6g}, {high:.6g}] at t={t[step]:.6g} s (value "
                         f"{found:.6g})")
         return ""
-
-    def native(self) -> NativeModel:
-        model = super().native()
-        if not self.limits:
-            return model
-        observe = model.observe
-
-        def observe_within_limits(t: np.ndarray, y: np.ndarray) -> dict:
-            data = observe(t, y)
-            violation = self.limit_violation(t, data["qpos"])
-            if violation:
-                raise SimulationError(f"scene {self.name!r}: {violation}; rbody does not model joint limits: remove "
-                                      "the range, or shorten the run (t_end)")
-            return data
-        return dataclasses.replace(model, observe=observe_within_limits)

@@ -601,9 +601,15 @@ def test_exported_roll_tree_has_the_engines_kinematics():
         np.testing.assert_allclose(states["omega"][i], velocity[:3], atol=1e-14)
 
 
-def test_exported_roll_joint_is_not_read_back_and_the_reader_says_so():
-    from rbody.mjcf import MJCFError, from_mjcf
+def test_exported_roll_joint_reads_back_as_a_slide_and_a_hinge_tied_by_a_joint_equality():
+    """MJCF has no roll joint: what to_mjcf writes for one (a slide, a hinge and a joint equality slide - ref =
+    a (hinge - ref)) reads back as exactly that, the equality held rigidly, its softness noted."""
+    from rbody.mjcf import from_mjcf
 
-    xml = to_mjcf(rolling_tree_scene(), dt=1e-3)
-    with pytest.raises(MJCFError, match="roll joint"):
-        from_mjcf(xml)
+    radius = 0.1
+    read = from_mjcf(to_mjcf(rolling_tree_scene(radius=radius), dt=1e-3))
+    assert [j.kind for j in read.tree.joints] == ["slide", "hinge"]
+    (equality,) = read.tree.equalities
+    assert (equality.kind, equality.joint1, equality.joint2) == ("joint", "roll_slide", "roll")
+    assert equality.polycoef == (0.0, radius, 0.0, 0.0, 0.0) and equality.active
+    assert any("rigidly" in note for note in read.import_notes)

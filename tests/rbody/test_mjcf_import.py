@@ -333,8 +333,16 @@ BODY = '<body name="b"><joint/><geom size="0.1"/></body>'
      "</body></worldbody></mujoco>", "orientation given twice"),
     ("<mujoco><worldbody><geom name='floor' type='plane' size='1 1 1'/>\n" + BODY + "</worldbody></mujoco>",
      r"line 1, <geom name='floor'>.*'floor' and 'b_geom0'.*can collide.*contype"),
-    (f"<mujoco>{OFF}<worldbody>{BODY}</worldbody><equality>\n<weld body1='b'/></equality></mujoco>",
-     r"line 2, <weld>: equality constraints"),
+    (f"<mujoco>{OFF}<worldbody>{BODY}</worldbody><equality>\n<tendon tendon1='t'/></equality></mujoco>",
+     r"line 2, <tendon>: tendon equality constraints are not supported"),
+    (f"<mujoco>{OFF}<worldbody>{BODY}</worldbody><equality>\n<weld body1='nobody'/></equality></mujoco>",
+     r"line 2, <weld>: body 'nobody' is not a body"),
+    (f"<mujoco>{OFF}<worldbody>{BODY}</worldbody><equality>\n<joint joint1='b_joint0' joint2='b_joint0'/></equality>"
+     "</mujoco>", r"joint1 and joint2 are both"),
+    (f"<mujoco>{OFF}<custom><numeric name='rbody.restitution.nope' data='0.5'/></custom><worldbody>{BODY}</worldbody>"
+     "</mujoco>", r"rbody.restitution.nope.*names no joint"),
+    (f"<mujoco>{OFF}<custom>\n<numeric name='rbody.restitution' data='2'/></custom><worldbody>{BODY}</worldbody>"
+     "</mujoco>", r"line 2, <numeric.*restitution is one number in \[0, 1\]"),
     (f"<mujoco>{OFF}<worldbody>{BODY}</worldbody><tendon>\n<fixed stiffness='2'><joint joint='b_joint0' coef='1'/>"
      "</fixed></tendon></mujoco>", r"line 2, <fixed>: tendons with stiffness"),
     (f"<mujoco><option density='1.2'><flag contact='disable'/></option><worldbody>{BODY}</worldbody></mujoco>",
@@ -347,8 +355,8 @@ BODY = '<body name="b"><joint/><geom size="0.1"/></body>'
      r"line 2, <position>.*zero control"),
     (f"<mujoco><worldbody>{BODY}</worldbody><contact><pair geom1='a' geom2='b'/></contact></mujoco>",
      "explicit contact pairs"),
-    (f"<mujoco>{OFF}<worldbody><body><joint frictionloss='1'/><geom size='0.1'/></body></worldbody></mujoco>",
-     "frictionloss"),
+    (f"<mujoco>{OFF}<worldbody><body><joint frictionloss='-1'/><geom size='0.1'/></body></worldbody></mujoco>",
+     r"frictionloss=-1.0: must be >= 0"),
     (f"<mujoco>{OFF}<worldbody><body>\n<joint type='ball' stiffness='2'/><geom size='0.1'/></body>"
      "</worldbody></mujoco>",
      r"line 2, <joint>: stiffness on a ball joint"),
@@ -475,17 +483,18 @@ def test_to_mjcf_of_from_mjcf_compiles_to_the_same_model():
     assert again.opt.timestep == original.opt.timestep and again.opt.integrator == original.opt.integrator
 
 
-def test_reached_limit_raises_with_time_and_joint():
-    from rbody import SimulationError, from_mjcf, simulate
+def test_declared_limit_is_the_joints_range():
+    from rbody import from_mjcf, simulate
 
     xml = """<mujoco><option><flag contact="disable"/></option><worldbody><body><joint name="j" axis="0 1 0"
       range="-10 20"/><geom type="capsule" fromto="0 0 0 0.5 0 0" size="0.05"/></body></worldbody></mujoco>"""
     scene = from_mjcf(xml, t_end=0.5)
     assert scene.limits == {"j": pytest.approx((math.radians(-10), math.radians(20)), rel=1e-15)}
-    with pytest.raises(SimulationError, match=r"joint 'j' left its range .* at t=0\.1"):
-        simulate(scene, dt=1e-3, method="rk4")
-    # the same joint, declared but not reached in a short run: nothing to say
-    simulate(from_mjcf(xml, t_end=0.05), dt=1e-3, method="rk4")
+    assert [j.range for j in scene.tree.joints] == [scene.limits["j"]]
+    run = simulate(scene, dt=1e-3, method="rk4")  # the rod (along +x) falls onto its stop at +20 degrees, stays
+    assert run.meta["impacts"] == 1 and run.events["constraints"][0] == "j.upper"
+    assert run["qpos"][:, 0].max() <= math.radians(20) + 1e-15 and run["active_limits"][-1].tolist() == [False, True]
+    assert "joint 'j' left its range" in scene.limit_violation(run.t, run["qpos"] + 1e-9)  # passing it is named
 
 
 @pytest.mark.parametrize("pos, verdict", [("0 0 0.25", None), ("0.25 0 0", "overlap"),

@@ -528,6 +528,10 @@ def check(scene: Scene) -> None:
     """Raise NotImplementedError when pymunk cannot model `scene` (a batch, 3-D rotation, joints or
     shapes without a planar counterpart), ValueError when `scene` is not a Scene or its layout is
     inconsistent."""
+    layout = getattr(scene, "tree", None)
+    if layout is not None and layout.constrained:
+        raise NotImplementedError(f"pymunk backend: scene {scene.name!r} has joint limits, dry friction or equality "
+                                  "constraints, which this backend does not build")
     _plan(scene)
 
 

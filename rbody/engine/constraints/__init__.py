@@ -1,0 +1,51 @@
+"""The constraint layer: joint limits, dry joint friction and equalities held rigidly (contacts will join them).
+
+What is modelled (rbody.layout: Joint.range, Joint.frictionloss, Joint.restitution, Equality) is the rigid limit of
+MuJoCo's soft constraints: a limit is a unilateral constraint that the joint never passes by more than round-off;
+dry friction is Coulomb's law per degree of freedom, exact stick and exact slip; an equality (a loop closed by a
+connect or a weld, a joint coupling) holds to round-off; an impact on a limit obeys Newton's law with the joint's
+restitution e (0 by default: the joint stays at its stop).
+
+The problem. With the mass matrix M(q), the generalised forces f = passive - bias and the constraint rows J (their
+kinds in table.py, their Jacobians in jacobians.py), the forces lambda on the rows solve a mixed complementarity
+problem in w = J qacc + J' v (at the acceleration level, between impacts) or w = J v+ + e J v- (at the velocity
+level, at impacts and over a time step), W = J M^-1 J^T:
+
+    equalities:  w = 0;   limits: lambda >= 0, w >= 0, lambda w = 0;   dry friction: |lambda| <= F, w = 0 inside,
+    lambda = -F sign(w) on the boundary
+
+(solver.py). Drake (SAP; TAMSI), MuJoCo and Siconos pose the same problem. MuJoCo and Drake's SAP regularise it
+into a strictly convex program (a constraint becomes a spring-damper in constraint space: solref/solimp, a
+relaxation time), which is robust and smooth but lets joints pass their stops, friction creep and loops open under
+load; TAMSI regularises friction by a Stribeck-like stiction speed. Siconos solves the complementarity problem
+itself, event-driven or time-stepped (Moreau-Jean). rbody takes Siconos's road: the rigid problem, solved to a
+stated tolerance, so that the divergence of a soft model from the rigid limit can be measured on a user's model.
+
+The scheme, in this order and for this reason:
+
+1. Event-driven where events are isolated (simulate(..., method="rk4"), the default; events.py). Between events
+   the mode is fixed (which limits hold, which dofs stick; every equality holds), and the constrained dynamics
+   (dynamics.py: M qacc = f + J^T lambda, J qacc + J' v = 0, by Cholesky and a minimum-norm solve that accepts
+   redundant rows) is integrated by classical Runge-Kutta (order 4) on the sampling grid, each step followed by the
+   projection of q and v onto the held rows' manifold (Newton's method in the metric of M), so that a loop's
+   closure error stays at round-off rather than drifting as Baumgarte's springs would let it. Events are located
+   exactly, by Brent's method on the length of the step that crossed a guard: a limit reached (its distance g = 0),
+   a held limit released (its force lambda = 0), a sticking dof's required friction force reaching frictionloss, a
+   sliding dof's velocity crossing zero. At an event, impacts are solved by Newton's law of restitution as a
+   complementarity problem over the touching limits and the equalities, then the new mode by the complementarity
+   problem at the acceleration level (exact active-set solver). Why: where events are isolated this keeps the
+   integrator's order through them (the closed forms of the tests hold to 1e-9 and better), with the event times
+   exact to the step map's round-off, as rbody's impact scenes (rbody.engine.events) already do for collisions.
+2. Time-stepping where events persist or cluster (method="moreau"; stepping.py): Moreau-Jean's scheme with
+   Anitescu-Potra's gap term, impulses over each step from one complementarity problem (exact active set up to
+   stepping.EXACT_ROWS rows, else projected Gauss-Seidel to stepping.STEP_TOLERANCE), order 1, no event located;
+   the projection after each step keeps equalities and stops at round-off. Why: a chattering joint, a ball coming
+   to rest by infinitely many bounces (Zeno), the many contacts of feet and grasps would stop an event-driven run;
+   a time-stepped one passes through them at a cost per step independent of the number of events. This is the
+   scheme contacts will use (the issue of contacts adds their rows to the same problem).
+
+A run reports its events (runner.py: trajectory.events and meta["events"]), its constraint forces, errors, held
+limits, sticking dofs and the energy dry friction and impacts dissipated (energy + dissipated is conserved where
+nothing else loses energy). Bad input (an inconsistent constraint set, no consistent force, a solver that does not
+converge within its budget) is a SimulationError naming the time, the constraints and the residual.
+"""

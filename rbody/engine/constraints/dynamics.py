@@ -1,0 +1,460 @@
+"""The constrained dynamics of a tree in one mode, compiled: accelerations and forces, the right-hand side, a
+Runge-Kutta step, and the projection of a state onto the constraint manifold.
+
+A mode (rbody.engine.constraints.table) fixes which rows hold: every equality, each limit held at its stop, each
+sticking degree of freedom; a sliding one feels the constant force -frictionloss sign. With M(q) the mass matrix
+(CRBA, armature included), f = passive - bias (RNEA: gravity, Coriolis, centrifugal; springs, dampers; the sliding
+friction) and the held rows J (m, nv) with their J' v, the accelerations and forces solve
+
+    M qacc = f + J^T lambda,     J qacc + J' v = 0,
+
+by the Cholesky factor M = L L^T: a0 = M^-1 f, A = L^-1 J^T, W = A^T A (the Delassus matrix J M^-1 J^T),
+W lambda = -(J a0 + J' v), qacc = a0 + L^-T A lambda. A redundant set of rows (a closed loop with more rows than
+it needs) makes W singular: lambda is then W's minimum-norm solution (rbody.engine.constraints.solver), which
+gives the one qacc every solution gives; rows that contradict each other leave a residual |W lambda - r| that the
+caller reports (SimulationError). Cost: O(nv^3 + m^3) per evaluation, dense: fit for trees of tens of degrees of
+freedom, which is what the event-driven scheme is for.
+
+The native state of a constrained tree is the tree's (qpos, qvel, phi) and one more entry, the energy dissipated
+so far by dry friction, impacts and the joints' dampers [J] (its rate here: the power of the sliding friction,
+frictionloss s v, and of the dampers, damping v^2).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from rbody.engine.multibody import (D_DAMPING, DOF_SIZE, FREE, H_BODIES, H_DOF, H_DOFS, H_JOINT, H_JOINTS, H_NQ, H_ROT, HINGE, J_DADR, J_KIND, J_QADR,
+                                    J_ROT, JOINT_SIZE, ROLL, SLIDE, _effective_qpos, inverse_one, mass_matrix_one,
+                                    passive, tree_finish, workspace_size)
+from rbody.engine.spatial import dexp_inverse, quat_exp, quat_multiply
+from rbody.engine.constraints.jacobians import (all_rows, bias_accelerations, some_rows, mode_at, row_count, unit_at,
+                                                unit_count)
+from rbody.engine.constraints.solver import symmetric_solve
+from rbody.engine.constraints.table import (CONE, CONNECT, COUPLING, FRICTION, LOWER, U_BOUND, U_DOF, U_KIND,
+                                            U_ROW0, U_ROWS, UPPER, WELD)
+
+PROJECTION_TOLERANCE = 1e-13   # |g| [m or rad] a projection aims for on the held rows (round-off of metre-scale trees)
+PROJECTION_ITERATIONS = 8      # Newton iterations of a projection at most
+
+
+@njit(cache=True, inline="always")
+def sizes(p):
+    """(nq, nv, n): the tree's sizes and the length of the native state (qpos, qvel, phi, dissipated)."""
+    nq, nv = int(p[H_NQ]), int(p[H_DOFS])
+    return nq, nv, nq + nv + 3 * int(p[H_ROT]) + 1
+
+
+@njit(cache=True)
+def snapshot(p, q, v, M, f, J, jdot, g, w, acc, rows_wanted=None):
+    """At qpos q (nq,) and qvel v (nv,): M (nv, nv); f (nv,) = passive - bias (gravity included); every unit's rows
+    J (rows, nv), jdot (rows,) and g (rows,) (rbody.engine.constraints.jacobians), or only the units with a row
+    flagged in rows_wanted (rows,). w: the tree's workspace; acc (nb, 6) scratch."""
+    nv = int(p[H_DOFS])
+    mass_matrix_one(p, q, M, w)
+    zero = np.zeros(nv)
+    inverse_one(p, q, v, zero, True, f, w)  # f = bias, and the workspace's frames at (q, v)
+    bias_accelerations(p, w, acc)
+    if rows_wanted is None:
+        all_rows(p, q, v, w, acc, J, jdot, g)
+    else:
+        some_rows(p, q, v, w, acc, J, jdot, g, rows_wanted)
+    held = np.empty(nv)
+    passive(p, q, v, held)
+    for d in range(nv):
+        f[d] = held[d] - f[d]
+
+
+@njit(cache=True)
+def add_sliding_friction(p, f):
+    """f (nv,) += -frictionloss s on every dof whose friction unit slides (mode s = +-1)."""
+    modes = mode_at(p)
+    for k in range(unit_count(p)):
+        u = unit_at(p, k)
+        if int(p[u + U_KIND]) == FRICTION and p[modes + k] != 0.0:
+            f[int(p[u + U_DOF])] -= p[u + U_BOUND] * p[modes + k]
+
+
+@njit(cache=True)
+def dof_states(p):
+    """(stop_held (nv,), sticking (nv,)): per dof, 1 where a LOWER or UPPER unit on it is held, and its frictionloss
+    where its friction sticks (0 elsewhere), in the mode written in p."""
+    nv = int(p[H_DOFS])
+    stop_held = np.zeros(nv)
+    sticking = np.zeros(nv)
+    modes = mode_at(p)
+    for k in range(unit_count(p)):
+        u = unit_at(p, k)
+        kind = int(p[u + U_KIND])
+        d = int(p[u + U_DOF])
+        if (kind == LOWER or kind == UPPER) and p[modes + k] == 1.0:
+            stop_held[d] = 1.0
+        elif kind == FRICTION and p[modes + k] == 0.0:
+            sticking[d] = p[u + U_BOUND]
+    return stop_held, sticking
+
+
+@njit(cache=True)
+def sticking_friction_on(p, dof):
+    """The frictionloss of dof `dof` when its friction sticks in the mode written in p, else 0."""
+    return dof_states(p)[1][dof]
+
+
+@njit(cache=True)
+def held_rows(p, rows_held):
+    """rows_held (rows,) = 1 where the mode holds the row (equalities, limits held, sticking dofs), else 0; returns
+    their count. Two held rows that would say the same thing are held once, so that each force is defined: a
+    sticking dof whose stop is held (the stop carries the load; the dof's friction then does nothing), and a ball's
+    cone when all three of its dofs stick (the ball is locked by its friction)."""
+    stop_held, sticking = dof_states(p)
+    modes = mode_at(p)
+    count = 0
+    for k in range(unit_count(p)):
+        u = unit_at(p, k)
+        kind = int(p[u + U_KIND])
+        mode = p[modes + k]
+        d = int(p[u + U_DOF])
+        on = (kind == CONNECT or kind == WELD or kind == COUPLING or
+              ((kind == LOWER or kind == UPPER) and mode == 1.0) or
+              (kind == CONE and mode == 1.0 and not (sticking[d] > 0.0 and sticking[d + 1] > 0.0
+                                                     and sticking[d + 2] > 0.0)) or
+              (kind == FRICTION and mode == 0.0 and stop_held[d] == 0.0))
+        r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])
+        for a in range(r0, r0 + r):
+            rows_held[a] = 1.0 if on else 0.0
+        if on:
+            count += r
+    return count
+
+
+@njit(cache=True)
+def lower_solve(L, b):
+    """x = L^-1 b for a lower-triangular L (n, n) and b (n,)."""
+    n = b.shape[0]
+    x = np.empty(n)
+    for i in range(n):
+        acc = b[i]
+        for j in range(i):
+            acc -= L[i, j] * x[j]
+        x[i] = acc / L[i, i]
+    return x
+
+
+@njit(cache=True)
+def upper_solve(L, b):
+    """x = L^-T b for a lower-triangular L (n, n)."""
+    n = b.shape[0]
+    x = np.empty(n)
+    for i in range(n - 1, -1, -1):
+        acc = b[i]
+        for j in range(i + 1, n):
+            acc -= L[j, i] * x[j]
+        x[i] = acc / L[i, i]
+    return x
+
+
+@njit(cache=True)
+def definite_solve(W, r, x):
+    """x = W^-1 r by Cholesky when W (m, m) is positive definite beyond round-off (every pivot above 1e-10 of its
+    diagonal entry), returning True; False (x untouched) when it is not: the caller then takes the minimum-norm
+    solution (redundant rows)."""
+    m = r.shape[0]
+    L = np.zeros((m, m))
+    for i in range(m):
+        for j in range(i + 1):
+            acc = W[i, j]
+            for k in range(j):
+                acc -= L[i, k] * L[j, k]
+            if i == j:
+                if not acc > 1e-10 * W[i, i]:
+                    return False
+                L[i, i] = np.sqrt(acc)
+            else:
+                L[i, j] = acc / L[j, j]
+    z = lower_solve(L, r)
+    out = upper_solve(L, z)
+    for i in range(m):
+        x[i] = out[i]
+    return True
+
+
+@njit(cache=True)
+def held_solve(L, J, held, r, correction, lam_rows):
+    """The minimum-norm lambda of the held rows with W lambda = r (W = J_h M^-1 J_h^T, M = L L^T, r (rows,) read on
+    the held rows), and correction (nv,) = M^-1 J_h^T lambda; lam_rows (rows,) gets lambda on the held rows, 0
+    elsewhere. Returns the residual |W lambda - r|_inf (0 when the held rows are consistent)."""
+    rows, nv = J.shape
+    index = np.empty(rows, dtype=np.int64)
+    m = 0
+    for a in range(rows):
+        lam_rows[a] = 0.0
+        if held[a] != 0.0:
+            index[m] = a
+            m += 1
+    for d in range(nv):
+        correction[d] = 0.0
+    if m == 0:
+        return 0.0
+    A = np.empty((nv, m))
+    for c in range(m):
+        A[:, c] = lower_solve(L, J[index[c]])
+    W = A.T @ A
+    rhs = np.empty(m)
+    for c in range(m):
+        rhs[c] = r[index[c]]
+    lam = np.empty(m)
+    if definite_solve(W, rhs, lam):
+        residual = 0.0
+    else:
+        residual = symmetric_solve(W, rhs, lam)
+    for c in range(m):
+        lam_rows[index[c]] = lam[c]
+    z = A @ lam
+    x = upper_solve(L, z)
+    for d in range(nv):
+        correction[d] = x[d]
+    return residual
+
+
+@njit(cache=True)
+def mode_accel(p, q, v, qacc, lam_rows, g, every_row=True):
+    """qacc (nv,) and the force of every row lam_rows (rows,) (held rows: their lambda; sliding friction: -F s;
+    others 0) in the mode written in p, at the effective qpos q and qvel v; g (rows,) gets every row's residual
+    (every_row False: only the held rows' are formed, the others left as they were: the right-hand side needs no
+    more). Returns (residual, scale): |W lambda - r|_inf of the held rows and |r|_inf (the caller judges it)."""
+    nv = int(p[H_DOFS])
+    rows = row_count(p)
+    w = np.empty(workspace_size(p))
+    M = np.empty((nv, nv))
+    f = np.empty(nv)
+    J = np.zeros((rows, nv))
+    jdot = np.zeros(rows)
+    acc = np.empty((int(p[H_BODIES]), 6))
+    held = np.empty(rows)
+    held_rows(p, held)
+    if every_row:
+        snapshot(p, q, v, M, f, J, jdot, g, w, acc)
+    else:
+        snapshot(p, q, v, M, f, J, jdot, g, w, acc, held)
+    add_sliding_friction(p, f)
+    L = np.linalg.cholesky(M)
+    a0 = upper_solve(L, lower_solve(L, f))
+    r = np.zeros(rows)
+    for a in range(rows):
+        if held[a] != 0.0:
+            acc_r = jdot[a]
+            for d in range(nv):
+                acc_r += J[a, d] * a0[d]
+            r[a] = -acc_r
+    scale = 0.0
+    for a in range(rows):
+        if held[a] != 0.0:
+            scale = max(scale, abs(r[a]))
+    correction = np.empty(nv)
+    residual = held_solve(L, J, held, r, correction, lam_rows)
+    for d in range(nv):
+        qacc[d] = a0[d] + correction[d]
+    modes = mode_at(p)
+    for k in range(unit_count(p)):
+        u = unit_at(p, k)
+        if int(p[u + U_KIND]) == FRICTION and p[modes + k] != 0.0:
+            lam_rows[int(p[u + U_ROW0])] = -p[u + U_BOUND] * p[modes + k]
+    return residual, scale
+
+
+@njit(cache=True)
+def friction_power(p, v):
+    """Power [W] the sliding dofs lose to dry friction: sum of frictionloss s v over the sliding units."""
+    modes = mode_at(p)
+    power = 0.0
+    for k in range(unit_count(p)):
+        u = unit_at(p, k)
+        if int(p[u + U_KIND]) == FRICTION and p[modes + k] != 0.0:
+            power += p[u + U_BOUND] * p[modes + k] * v[int(p[u + U_DOF])]
+    return power
+
+
+@njit(cache=True)
+def damping_power(p, v):
+    """Power [W] the joints' dampers take: sum of damping v^2 over the dofs."""
+    power = 0.0
+    do = int(p[H_DOF])
+    for d in range(int(p[H_DOFS])):
+        power += p[do + d * DOF_SIZE + D_DAMPING] * v[d] * v[d]
+    return power
+
+
+@njit(cache=True)
+def constrained_rhs(y, p, out):
+    """y' for y = (qpos (nq), qvel (nv), phi (3 per ball/free joint), dissipated (1)) in the mode written in p: as
+    the tree's right-hand side (rbody.engine.multibody.tree_rhs) with qvel' the constrained accelerations
+    (mode_accel), and dissipated' the power the sliding friction and the dampers take."""
+    nj, nq, nv = int(p[H_JOINTS]), int(p[H_NQ]), int(p[H_DOFS])
+    jo = int(p[H_JOINT])
+    n = y.shape[0]
+    q = np.empty(nq)
+    turn = np.empty(4)
+    _effective_qpos(p, y, q, turn)
+    rows = row_count(p)
+    lam = np.empty(rows)
+    g = np.zeros(rows)
+    mode_accel(p, q, y[nq:nq + nv], out[nq:nq + nv], lam, g, False)
+    for j in range(nj):
+        r = jo + j * JOINT_SIZE
+        kind = int(p[r + J_KIND])
+        qa, da = int(p[r + J_QADR]), int(p[r + J_DADR])
+        if kind == HINGE or kind == SLIDE or kind == ROLL:
+            out[qa] = y[nq + da]
+            continue
+        base = qa
+        if kind == FREE:
+            for a in range(3):
+                out[qa + a] = y[nq + da + a]
+            base, da = qa + 3, da + 3
+        for a in range(4):
+            out[base + a] = 0.0
+        at = nq + nv + 3 * int(p[r + J_ROT])
+        dexp_inverse(y[at:at + 3], y[nq + da:nq + da + 3], out[at:at + 3])
+    out[n - 1] = friction_power(p, y[nq:nq + nv]) + damping_power(p, y[nq:nq + nv])
+
+
+@njit(cache=True)
+def rk4_step(y, p, h, out):
+    """out = one classical Runge-Kutta step of constrained_rhs from y over h [s], rotations folded in after it."""
+    n = y.shape[0]
+    k1, k2, k3, k4, stage = np.empty(n), np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    constrained_rhs(y, p, k1)
+    for i in range(n):
+        stage[i] = y[i] + 0.5 * h * k1[i]
+    constrained_rhs(stage, p, k2)
+    for i in range(n):
+        stage[i] = y[i] + 0.5 * h * k2[i]
+    constrained_rhs(stage, p, k3)
+    for i in range(n):
+        stage[i] = y[i] + h * k3[i]
+    constrained_rhs(stage, p, k4)
+    for i in range(n):
+        out[i] = y[i] + h / 6.0 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
+    tree_finish(out, p)
+
+
+@njit(cache=True)
+def displace(p, y, delta):
+    """Move the configuration of y by the generalised displacement delta (nv,) (the qvel space): scalar joints and
+    free positions add it, ball and free rotations turn by q (x) exp(delta) (body frame, as their qvel)."""
+    nj, nq = int(p[H_JOINTS]), int(p[H_NQ])
+    jo = int(p[H_JOINT])
+    turn = np.empty(4)
+    old = np.empty(4)
+    for j in range(nj):
+        r = jo + j * JOINT_SIZE
+        kind = int(p[r + J_KIND])
+        qa, da = int(p[r + J_QADR]), int(p[r + J_DADR])
+        if kind == HINGE or kind == SLIDE or kind == ROLL:
+            y[qa] += delta[da]
+            continue
+        if kind == FREE:
+            for a in range(3):
+                y[qa + a] += delta[da + a]
+            qa, da = qa + 3, da + 3
+        quat_exp(delta[da:da + 3], turn)
+        for a in range(4):
+            old[a] = y[qa + a]
+        quat_multiply(old, turn, y[qa:qa + 4])
+    return nq
+
+
+@njit(cache=True)
+def project(p, y, position_rows, velocity_rows):
+    """Project the state y (phi folded: all zero) onto the manifold of the rows flagged in position_rows (rows,)
+    (g = 0: equalities, held limits; a flagged limit row also where it is violated) and its velocities onto that
+    of velocity_rows (J v = 0: the same and the sticking dofs), each in the metric of M (the smallest change of
+    kinetic energy): positions by Newton's method delta = -M^-1 J^T W^+ g until |g| <= PROJECTION_TOLERANCE,
+    velocities in one step. Returns (|g|_inf, |J v|_inf) on the flagged rows after it."""
+    nq, nv, _n = sizes(p)
+    rows = row_count(p)
+    w = np.empty(workspace_size(p))
+    M = np.empty((nv, nv))
+    f = np.empty(nv)
+    J = np.empty((rows, nv))
+    jdot = np.empty(rows)
+    g = np.empty(rows)
+    acc = np.empty((int(p[H_BODIES]), 6))
+    lam = np.empty(rows)
+    delta = np.empty(nv)
+    v = y[nq:nq + nv]
+    worst = 0.0
+    for iteration in range(PROJECTION_ITERATIONS + 1):
+        snapshot(p, y[:nq], v, M, f, J, jdot, g, w, acc)
+        worst = 0.0
+        for a in range(rows):
+            if position_rows[a] != 0.0:
+                worst = max(worst, abs(g[a]))
+        if worst <= PROJECTION_TOLERANCE or iteration == PROJECTION_ITERATIONS:
+            break
+        L = np.linalg.cholesky(M)
+        held_solve(L, J, position_rows, -g, delta, lam)
+        displace(p, y, delta)
+    L = np.linalg.cholesky(M)
+    jv = J @ v
+    held_solve(L, J, velocity_rows, -jv, delta, lam)
+    for d in range(nv):
+        v[d] += delta[d]
+    jv = J @ v
+    speed = 0.0
+    for a in range(rows):
+        if velocity_rows[a] != 0.0:
+            speed = max(speed, abs(jv[a]))
+    return worst, speed
+
+
+@njit(cache=True)
+def guards(p, y, out):
+    """out (units,): each unit's guard in the mode written in p, >= 0 while the mode is right (an event where one
+    crosses 0): a free limit its distance g; a held limit its force lambda; a sticking dof frictionloss - |lambda|;
+    a sliding one s v (its velocity in the direction it slides); equalities +inf. Returns (residual, scale) of the
+    held rows' forces (mode_accel)."""
+    nq, nv, _n = sizes(p)
+    rows = row_count(p)
+    q = np.empty(nq)
+    turn = np.empty(4)
+    _effective_qpos(p, y, q, turn)
+    lam = np.empty(rows)
+    g = np.empty(rows)
+    qacc = np.empty(nv)
+    residual, scale = mode_accel(p, q, y[nq:nq + nv], qacc, lam, g)
+    modes = mode_at(p)
+    _stop_held, sticking = dof_states(p)
+    for k in range(unit_count(p)):
+        u = unit_at(p, k)
+        kind = int(p[u + U_KIND])
+        row = int(p[u + U_ROW0])
+        mode = p[modes + k]
+        if kind == LOWER or kind == UPPER:  # a held stop with friction on its dof: friction can pull up to F too
+            out[k] = lam[row] + sticking[int(p[u + U_DOF])] if mode == 1.0 else g[row]
+        elif kind == CONE:
+            out[k] = lam[row] if mode == 1.0 else g[row]
+        elif kind == FRICTION:
+            out[k] = p[u + U_BOUND] - abs(lam[row]) if mode == 0.0 else mode * y[nq + int(p[u + U_DOF])]
+        else:
+            out[k] = np.inf
+    return residual, scale
+
+
+@njit(cache=True)
+def state_rows(p, y, M, f, J, jdot, g):
+    """snapshot at the state y (phi folded in): M, f (passive - bias, sliding friction of the mode included), rows."""
+    nq, nv, _n = sizes(p)
+    q = np.empty(nq)
+    turn = np.empty(4)
+    _effective_qpos(p, y, q, turn)
+    w = np.empty(workspace_size(p))
+    acc = np.empty((int(p[H_BODIES]), 6))
+    snapshot(p, q, y[nq:nq + nv], M, f, J, jdot, g, w, acc)
+    add_sliding_friction(p, f)
+
+
+__all__ = ["sizes", "snapshot", "mode_accel", "constrained_rhs", "rk4_step", "project", "guards", "state_rows",
+           "held_rows", "held_solve", "lower_solve", "upper_solve", "displace", "friction_power",
+           "PROJECTION_TOLERANCE"]

@@ -1,0 +1,427 @@
+"""The event-driven run of a constrained tree: smooth steps in a mode, events located exactly, impacts and mode
+changes solved as complementarity problems (the scheme: rbody.engine.constraints).
+
+Between events the state moves by classical Runge-Kutta steps (dynamics.rk4_step) of the mode's dynamics, each
+followed by the projection onto the held rows' manifold (dynamics.project), on the sampling grid t = k dt. After a
+step, every unit's guard (dynamics.guards) is checked; where one has turned negative, its root in the step is found
+by Brent's method on the step length h* in (0, h] of the same map from the step's start (so the event time is that
+of the discrete flow, to a few ulp of t), the earliest root wins, and at the state there:
+
+1. touching limits (distance <= TOUCH_TOLERANCE) are projected onto their stops; where one approaches (J v < 0) the
+   impact is solved: impulses P >= 0 on the touching limits with J v+ + e J v- >= 0, P (J v+ + e J v-) = 0 (Newton's
+   law, e the joint's restitution), the equalities' J v+ = 0, dry friction giving no impulse (a bounded force);
+2. the new mode is the solution of the complementarity problem at the acceleration level over the touching limits
+   at rest (unilateral), the dofs at rest with dry friction (box, |lambda| <= frictionloss) and the equalities
+   (rbody.engine.constraints.solver.mlcp_exact): a limit holds where its force is needed, a dof sticks where
+   frictionloss suffices, else it slides with the acceleration's sign;
+3. the velocities are projected onto the held rows and the guards checked again (all >= 0 to round-off).
+
+Zeno: a limit hit again and again with restitution under a steady load (a ball bouncing to rest) would need
+infinitely many impacts in a finite time; an impact whose approach speed is below ZENO_RATIO of the largest this
+unit met is taken as plastic (e = 0), and the joint stays at its stop. More than MAX_EVENTS_PER_STEP events in one
+step of dt is a cluster this scheme does not resolve: SimulationError (method="moreau" time-steps through them).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.optimize import brentq
+
+from rbody.errors import SimulationError
+from rbody.engine.constraints import dynamics as dyn
+from rbody.engine.constraints.solver import mlcp_exact, natural_residual, UNBOUNDED
+from rbody.engine.constraints.table import (C_HEADER, EQUALITY_KINDS, FRICTION, LOWER, U_BOUND, UPPER, U_DOF, U_RESTITUTION,
+                                            UNILATERAL, UNIT_SIZE, ConstraintTable)
+
+TOUCH_TOLERANCE = 1e-10   # [m or rad] a limit this close to its stop at an event touches it (projected onto it)
+REST_SPEED = 1e-9         # [m/s or rad/s] a dof with friction this slow at an event is at rest (it may stick)
+ZENO_RATIO = 1e-6         # an impact slower than this fraction of the fastest on its unit is plastic
+MAX_EVENTS_PER_STEP = 200
+PROJECTION_ROUNDS = 6     # projections at an event, each with the stops the last one pushed past
+FORCE_RTOL = 1e-9         # held rows' forces: |W lambda - r| above this fraction of |r| (and ABS) is inconsistent
+FORCE_ATOL = 1e-9
+MLCP_RTOL = 1e-10         # an event's complementarity problem solved to this fraction of its scale
+GUARD_RTOL = 1e-9         # after an event every guard is >= -this (relative to the largest): else no consistent mode
+GUARD_DISTANCE = 1e-14    # [m or rad] a free stop passed by more than this is an event (the root is then located)
+GUARD_SPEED = 1e-13       # [m/s or rad/s] a sliding dof's velocity past 0 by more than this is an event
+GUARD_FORCE_RTOL = 1e-10  # a held force past its bound by more than this fraction of the forces in play is an event
+
+
+@dataclass
+class Event:
+    """One event of a run: time t [s], what happened ("start", "impact", "limit", "release", "stick", "slip"), the
+    units it concerns (names), and for impacts the impulses [N s or N m s] and the kinetic energy lost [J]."""
+
+    t: float
+    what: str
+    units: tuple[str, ...]
+    impulse: tuple[float, ...] = ()
+    energy_lost: float = 0.0
+
+
+@dataclass
+class EventLog:
+    events: list = field(default_factory=list)
+    impacts: int = 0
+    mode_changes: int = 0
+
+
+class EventRun:
+    """The event-driven run of one batch element (module docstring).
+
+    table: the ConstraintTable; params: (p,) the tree's row with the table's block (written: its mode changes);
+    description: the scene's, for messages. run(y0, dt, nsteps, save_every) -> (samples (S, n), modes (S, units))."""
+
+    def __init__(self, table: ConstraintTable, params: np.ndarray, description: str) -> None:
+        self.table = table
+        self.p = np.array(params, dtype=np.float64)
+        self.modes = table.mode_slice()
+        self.description = description
+        self.nq, self.nv, self.n = (int(x) for x in dyn.sizes(self.p))
+        self.rows = table.rows
+        self.units = table.units
+        self.codes = np.array([u.code for u in table.units])
+        self.row_unit = np.concatenate([[k] * u.rows for k, u in enumerate(table.units)]).astype(int)
+        self.restitution = np.array([self.p[self._record(k) + U_RESTITUTION] for k in range(len(self.units))])
+        self.fastest = np.zeros(len(self.units))
+        self.is_limit = np.isin(self.codes, UNILATERAL)
+        self.is_friction = self.codes == FRICTION
+        self.largest_bound = max([0.0] + [float(self.p[self._record(k) + U_BOUND])
+                                          for k in np.flatnonzero(self.is_friction)])
+        self.has_position = (self.codes[self.row_unit] != FRICTION).astype(float)
+        self.log = EventLog()
+
+    # ----- small helpers ------------------------------------------------------------------------------
+
+    def _record(self, k: int) -> int:
+        return self.table.offset + C_HEADER + UNIT_SIZE * k
+
+    @property
+    def mode(self) -> np.ndarray:
+        return self.p[self.modes]  # a view: the mode written in the params row
+
+    def set_mode(self, mode: np.ndarray) -> None:
+        self.p[self.modes] = mode
+
+    def names(self, units) -> tuple[str, ...]:
+        return tuple(self.units[k].name for k in units)
+
+    def fail(self, t: float, what: str, units=(), residual: float | None = None) -> SimulationError:
+        named = f" constraints {', '.join(repr(n) for n in self.names(units))};" if len(units) else ""
+        tail = f" residual {residual:.3g}" if residual is not None else ""
+        return SimulationError(f"scene {self.description}: at t={t:.9g} s{named} {what}{tail}")
+
+    def state_rows(self, y: np.ndarray):
+        M = np.empty((self.nv, self.nv))
+        f = np.empty(self.nv)
+        J = np.empty((self.rows, self.nv))
+        jdot, g = np.empty(self.rows), np.empty(self.rows)
+        dyn.state_rows(self.p, y, M, f, J, jdot, g)
+        return M, f, J, jdot, g
+
+    def held(self) -> np.ndarray:
+        rows = np.empty(self.rows)
+        dyn.held_rows(self.p, rows)
+        return rows
+
+    def step(self, y: np.ndarray, h: float) -> np.ndarray:
+        out = np.empty_like(y)
+        dyn.rk4_step(y, self.p, h, out)
+        held = self.held()
+        dyn.project(self.p, out, held * self.has_position, held)
+        return out
+
+    def guards(self, y: np.ndarray, t: float) -> np.ndarray:
+        out = np.empty(len(self.units))
+        residual, scale = dyn.guards(self.p, y, out)
+        if residual > FORCE_RTOL * scale + FORCE_ATOL:
+            held = [k for k in range(len(self.units)) if self.held()[self.units[k].row0]]
+            raise self.fail(t, "the held constraints admit no consistent force (they contradict each other):",
+                            held, residual)
+        return out
+
+    # ----- the run ------------------------------------------------------------------------------------
+
+    def run(self, y0: np.ndarray, dt: float, nsteps: int, save_every: int) -> tuple[np.ndarray, np.ndarray]:
+        count = nsteps // save_every + 1
+        samples = np.empty((count, self.n))
+        modes = np.empty((count, len(self.units)))
+        y = np.array(y0, dtype=np.float64)
+        samples[0] = y
+        y = self.settle(y, 0.0, start=True)
+        modes[0] = self.mode
+        g0 = self.guards(y, 0.0)
+        t = 0.0
+        for k in range(1, nsteps + 1):
+            target = k * dt
+            events = 0
+            while True:
+                h = target - t
+                y1 = self.step(y, h)
+                if not np.all(np.isfinite(y1)):
+                    raise self.fail(t, f"a step of {h:.3g} s gave a non-finite state; try a smaller dt")
+                g1 = self.guards(y1, target)
+                crossing = np.flatnonzero(g1 < -self.guard_tolerance(g0, g1))
+                if crossing.size == 0:
+                    y, t, g0 = y1, target, g1
+                    break
+                events += 1
+                if events > MAX_EVENTS_PER_STEP:
+                    raise self.fail(t, f"more than {MAX_EVENTS_PER_STEP} events within one step of dt={dt:g} s (a "
+                                       "cluster of impacts or stick-slip transitions this event-driven scheme does "
+                                       "not resolve): use method='moreau', which time-steps through them;",
+                                    crossing)
+                h_event, first = self.locate(y, h, crossing, g0)
+                y = self.step(y, h_event) if h_event > 0 else y
+                t = t + h_event
+                y = self.settle(y, t, triggered=first)
+                g0 = self.guards(y, t)
+            if k % save_every == 0:
+                samples[k // save_every] = y
+                modes[k // save_every] = self.mode
+        return samples, modes
+
+    def guard_tolerance(self, g0: np.ndarray, g1: np.ndarray) -> np.ndarray:
+        """(units,) how far below 0 a guard must fall before it is an event: round-off of its kind (a distance
+        GUARD_DISTANCE, a speed GUARD_SPEED, a force GUARD_FORCE_RTOL of the largest force or frictionloss in play),
+        so that a guard that sits at 0 (a stop left with no force, a dof at rest on the verge of slipping) does not
+        fire again and again at one instant."""
+        mode = self.mode
+        held_stop = self.is_limit & (mode == 1.0)
+        sticking = self.is_friction & (mode == 0.0)
+        force = held_stop | sticking
+        scale = max(1.0, self.largest_bound, float(np.abs(g0[force]).max(initial=0.0)),
+                    float(np.abs(g1[force]).max(initial=0.0)))
+        out = np.where(force, GUARD_FORCE_RTOL * scale, GUARD_DISTANCE)
+        out[self.is_friction & (mode != 0.0)] = GUARD_SPEED
+        return out
+
+    def locate(self, y: np.ndarray, h: float, crossing: np.ndarray, g0: np.ndarray) -> tuple[float, list[int]]:
+        """The earliest root h* in [0, h] of the guards that turned negative over the step from y, and the units
+        whose guards cross there (to round-off of t)."""
+        roots = {}
+        for k in crossing:
+            def guard(s, k=k):
+                return self.guards(self.step(y, s), math.nan)[k] if s > 0 else g0[k]
+            start = 0.0
+            if g0[k] <= 0.0:  # at 0 after the last event (a stop just left): is it positive just after?
+                start = next((s for s in h * 0.5 ** np.arange(1, 40) if guard(s) > 0.0), None)
+                if start is None:
+                    roots[int(k)] = 0.0
+                    continue
+            roots[int(k)] = brentq(guard, start, h, xtol=4 * np.finfo(float).eps * h, rtol=4 * np.finfo(float).eps,
+                                   maxiter=200)
+        earliest = min(roots.values())
+        # Brent returns a point within xtol of the root; take the side where the guard has crossed
+        first = [k for k, r in roots.items() if r <= earliest + 8 * np.finfo(float).eps * max(h, 1.0)]
+        s = min(h, earliest + 4 * np.finfo(float).eps * h)
+        return s, first
+
+    # ----- at an event: impacts, then the new mode --------------------------------------------------------
+
+    def settle(self, y: np.ndarray, t: float, start: bool = False, triggered=()) -> np.ndarray:
+        """The consistent state and mode at an event at time t (module docstring, steps 1-3); start: the initial
+        state, which may lie outside its ranges or off its equalities (it is projected onto them: the run's first
+        event)."""
+        y = y.copy()
+        mode = self.mode.copy()
+        before = self.mode.copy()
+        nq, nv = self.nq, self.nv
+        M, f, J, jdot, g = self.state_rows(y)
+        unit_g = np.array([g[u.row0] for u in self.units])
+        touching = [k for k in range(len(self.units)) if self.codes[k] in UNILATERAL
+                    and (unit_g[k] <= TOUCH_TOLERANCE or mode[k] == 1.0)]
+        # 1. positions onto the equalities and the touching stops
+        position_rows = np.zeros(self.rows)
+        for k, unit in enumerate(self.units):
+            if self.codes[k] in EQUALITY_KINDS or k in touching:
+                position_rows[unit.row0:unit.row0 + unit.rows] = 1.0
+        moved = y[:nq].copy()
+        worst = 0.0
+        for _round in range(PROJECTION_ROUNDS):  # a stop that the projection pushes past joins the set
+            worst, _ = dyn.project(self.p, y, position_rows, np.zeros(self.rows))
+            _M, _f, _J, _jdot, g = self.state_rows(y)
+            grown = False
+            for k, unit in enumerate(self.units):
+                if self.codes[k] in UNILATERAL and g[unit.row0] < -TOUCH_TOLERANCE and not position_rows[unit.row0]:
+                    position_rows[unit.row0] = 1.0
+                    touching.append(k)
+                    grown = True
+            if not grown:
+                break
+        if worst > max(1e3 * dyn.PROJECTION_TOLERANCE, 1e-9):
+            bad = [k for k in range(len(self.units)) if position_rows[self.units[k].row0]]
+            raise self.fail(t, "no configuration satisfies these constraints together (projection stalled):",
+                            bad, worst)
+        if start and np.max(np.abs(y[:nq] - moved), initial=0.0) > 0:
+            self.log.events.append(Event(t, "start", self.names(touching), (), 0.0))
+        # 2. the impact
+        M, f, J, jdot, g = self.state_rows(y)
+        v = y[nq:nq + nv]
+        jv = J @ v
+        approaching = [k for k in touching if jv[self.units[k].row0] < -REST_SPEED]
+        if approaching or start:
+            y, lost, impulses = self.impact(y, M, J, touching, jv, start, t)
+            if approaching:
+                self.log.impacts += 1
+                self.log.events.append(Event(t, "impact", self.names(approaching), impulses, lost))
+            y[-1] += lost
+            v = y[nq:nq + nv]
+            jv = J @ v
+        # 3. the mode: complementarity at the acceleration level
+        resting = [k for k in touching if jv[self.units[k].row0] <= REST_SPEED]
+        for k in range(len(self.units)):
+            if self.codes[k] in UNILATERAL:
+                mode[k] = 0.0
+            elif self.codes[k] == FRICTION:
+                speed = v[int(self.p[self._record(k) + U_DOF])]
+                mode[k] = 0.0 if abs(speed) <= REST_SPEED else math.copysign(1.0, speed)
+        self.set_mode(mode)
+        # the velocities of the resting rows exactly 0 (changes below REST_SPEED), so that a dof that starts to slide
+        # or a stop that is left moves away from rest in the direction its acceleration says
+        at_rest = np.zeros(self.rows)
+        for k, unit in enumerate(self.units):
+            if self.codes[k] in EQUALITY_KINDS or k in resting or (self.codes[k] == FRICTION and mode[k] == 0.0):
+                at_rest[unit.row0:unit.row0 + unit.rows] = 1.0
+        dyn.project(self.p, y, np.zeros(self.rows), at_rest)
+        v = y[nq:nq + nv]
+        breaking = [k for k in triggered if self.codes[k] == FRICTION and before[k] == 0.0]
+        releasing = [k for k in triggered if self.codes[k] in UNILATERAL and before[k] == 1.0]
+        mode = self.select_mode(y, t, resting, breaking, releasing)
+        self.set_mode(mode)
+        held = self.held()
+        dyn.project(self.p, y, np.zeros(self.rows), held)
+        changed = np.flatnonzero(mode != before)
+        if changed.size and not start:
+            self.log.mode_changes += 1
+            kinds = {("limit", 1.0): "limit", ("limit", 0.0): "release", ("friction", 0.0): "stick"}
+            for k in changed:
+                what = kinds.get((self.units[k].kind, float(mode[k])), "slip")
+                self.log.events.append(Event(t, what, (self.units[k].name,)))
+        g_after = self.guards(y, t)
+        finite = g_after[np.isfinite(g_after)]
+        floor = -GUARD_RTOL * (1.0 + np.abs(finite).max(initial=0.0))
+        if np.any(g_after < floor):
+            bad = list(np.flatnonzero(g_after < floor))
+            raise self.fail(t, "no consistent mode: after the event these constraints still violate their "
+                               "conditions (a force beyond its bound, or a limit pulled):", bad,
+                            float(-g_after.min()))
+        return y
+
+    def impact(self, y, M, J, touching, jv, start: bool, t: float):
+        """Impulses at an impact (Newton's law with each limit's restitution, equalities held, no friction impulse);
+        returns (y with v+, kinetic energy lost [J], impulses on the approaching limits)."""
+        nq, nv = self.nq, self.nv
+        rows, lo, hi, b = [], [], [], []
+        impulses_of = []
+        for k, unit in enumerate(self.units):
+            if self.codes[k] in EQUALITY_KINDS:
+                for a in range(unit.row0, unit.row0 + unit.rows):
+                    rows.append(a)
+                    lo.append(-np.inf)
+                    hi.append(np.inf)
+                    b.append(jv[a])
+            elif k in touching:
+                a = unit.row0
+                speed = -jv[a]
+                e = 0.0 if start else self.restitution[k]
+                if speed > 0:
+                    if speed < ZENO_RATIO * self.fastest[k]:
+                        e = 0.0
+                    self.fastest[k] = max(self.fastest[k], speed)
+                    impulses_of.append(len(rows))
+                rows.append(a)
+                lo.append(0.0)
+                hi.append(np.inf)
+                b.append(jv[a] + e * min(jv[a], 0.0))
+        v = y[nq:nq + nv].copy()
+        if not rows:
+            return y, 0.0, ()
+        rows = np.array(rows)
+        L = np.linalg.cholesky(M)
+        A = np.linalg.solve(L, J[rows].T)
+        W = A.T @ A
+        lo, hi, b = np.array(lo), np.array(hi), np.array(b)
+        lam = np.empty(len(rows))
+        status, _steps = mlcp_exact(W, b, lo, hi, lam)
+        residual = natural_residual(W, b, lo, hi, lam)
+        if status != 0 or residual > MLCP_RTOL * (np.abs(b).max() + 1e-300) + 1e-14:
+            units = sorted({int(self.row_unit[a]) for a in rows})
+            raise self.fail(t, "the impact has no consistent impulse "
+                            f"(complementarity status {status}):", units, residual)
+        kinetic = 0.5 * v @ M @ v
+        v = v + np.linalg.solve(L.T, A @ lam)
+        y = y.copy()
+        y[nq:nq + nv] = v
+        lost = kinetic - 0.5 * v @ M @ v
+        return y, float(lost), tuple(float(lam[i]) for i in impulses_of)
+
+    def select_mode(self, y: np.ndarray, t: float, resting, breaking=(), releasing=()) -> np.ndarray:
+        """The mode at state y (module docstring, step 2): the complementarity problem at the acceleration level.
+
+        A stop at rest on a dof with dry friction is one row with the force on the dof from both: the stop pushes
+        any amount, friction pulls up to frictionloss F (bounds [-F, inf) on the stop's row, which holds the dof
+        inside them and lets it slide away from the stop at -F). breaking: sticking dofs whose friction force has
+        just grown to frictionloss (the event that located them); releasing: held stops whose force has just fallen
+        to its bound. At the boundary itself the problem is degenerate (the force exactly at its bound, the
+        acceleration 0), and the event's direction decides: they slide, or leave the stop."""
+        mode = self.mode.copy()
+        M, f, J, jdot, g = self.state_rows(y)  # f includes the sliding friction of the mode set by the caller
+        friction_of = {int(self.p[self._record(k) + U_DOF]): k for k in range(len(self.units))
+                       if self.codes[k] == FRICTION}
+        merged = {}  # stop unit -> the friction unit of its dof, both at rest
+        rows, lo, hi, units = [], [], [], []
+        for k in resting:
+            if self.codes[k] in (LOWER, UPPER):
+                j = friction_of.get(int(self.p[self._record(k) + U_DOF]))
+                if j is not None and mode[j] == 0.0:
+                    merged[k] = j
+        for k, unit in enumerate(self.units):
+            if self.codes[k] in EQUALITY_KINDS:
+                for a in range(unit.row0, unit.row0 + unit.rows):
+                    rows.append(a), lo.append(-np.inf), hi.append(np.inf), units.append(k)
+            elif k in resting:
+                bound = self.p[self._record(merged[k]) + U_BOUND] if k in merged else 0.0
+                rows.append(unit.row0), lo.append(-bound), hi.append(np.inf), units.append(k)
+            elif self.codes[k] == FRICTION and mode[k] == 0.0 and k not in merged.values():
+                bound = self.p[self._record(k) + U_BOUND]
+                rows.append(unit.row0), lo.append(-bound), hi.append(bound), units.append(k)
+        if not rows:
+            return mode
+        rows = np.array(rows)
+        L = np.linalg.cholesky(M)
+        a0 = np.linalg.solve(L.T, np.linalg.solve(L, f))
+        A = np.linalg.solve(L, J[rows].T)
+        W = A.T @ A
+        b = J[rows] @ a0 + jdot[rows]
+        lo, hi = np.array(lo), np.array(hi)
+        lam = np.empty(len(rows))
+        status, _steps = mlcp_exact(W, b, lo, hi, lam)
+        residual = natural_residual(W, b, lo, hi, lam)
+        scale = np.abs(b).max() + np.abs(W).max() * np.abs(lam).max(initial=0.0)
+        if status != 0 or residual > MLCP_RTOL * scale + 1e-14:
+            bad = sorted(set(units))
+            what = ("no consistent force exists (the held rows' accelerations contradict each other):"
+                    if status == UNBOUNDED else "no consistent force exists (complementarity problem unsolved):")
+            raise self.fail(t, what, bad, residual)
+        w = W @ lam + b
+        tolerance = 1e-12 * scale + 1e-14
+        for i, k in enumerate(units):
+            code = self.codes[k]
+            if code in UNILATERAL:
+                at_bound = lam[i] <= lo[i] + tolerance + 1e-9 * abs(lo[i])
+                leaves = w[i] > tolerance or (at_bound and k in releasing)
+                mode[k] = 0.0 if leaves else 1.0
+                if k in merged:  # the dof sticks at the stop, or slides away from it
+                    mode[merged[k]] = (1.0 if code == LOWER else -1.0) if leaves and lo[i] < 0.0 else 0.0
+            elif code == FRICTION:
+                mode[k] = 0.0 if abs(w[i]) <= tolerance else math.copysign(1.0, w[i])
+                if k in breaking and abs(lam[i]) >= (1 - 1e-9) * hi[i]:
+                    mode[k] = -math.copysign(1.0, lam[i])
+        return mode
+
+
+__all__ = ["EventRun", "Event", "EventLog", "TOUCH_TOLERANCE", "REST_SPEED", "ZENO_RATIO", "MAX_EVENTS_PER_STEP"]

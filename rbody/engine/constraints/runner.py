@@ -1,0 +1,99 @@
+"""A constrained tree's run: each batch element by the scheme its method names, and the constraint observables.
+
+simulate (rbody.simulation) hands a NativeModel with a constraint table here. method "rk4": the event-driven
+scheme (rbody.engine.constraints.events); "moreau": the time-stepping scheme (rbody.engine.constraints.stepping).
+Observables added to the tree's: constraint_force (T, *batch, rows) every row's force at each saved state (held
+rows: their Lagrange multiplier, sliding friction -frictionloss sign v, free rows 0; columns named in
+meta["constraint_rows"] as (kind, name, component)), constraint_error (T, *batch, rows) each row's error at
+each saved state (an equality's residual [m or rad]: a loop's closure error; a limit's overshoot past its stop,
+min(g, 0); 0 for friction), active_limits (T, *batch, limits) 1 where a limit holds the
+joint at its stop (columns meta["limits"]), sticking (T, *batch, frictions) 1 where a dof with dry friction sticks
+(columns meta["frictions"]), dissipated (T, *batch) [J] the energy dry friction, impacts and the joints' dampers have taken so far (the
+energy observable plus dissipated is constant: the integrator's error aside, nothing else loses energy). The events of element b are in
+trajectory.events (time, element, what, constraints, energy_lost) and meta["events"] counts them.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from rbody.engine.constraints import dynamics as dyn
+from rbody.engine.constraints.events import EventRun
+from rbody.engine.constraints.table import FRICTION, UNILATERAL, ConstraintTable
+
+
+def sample_rows(table: ConstraintTable, params: np.ndarray, samples: np.ndarray,
+                modes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(forces (S, rows), errors (S, rows)) at each saved state (S, n) in its mode (S, units): every row's force
+    (runner docstring) and its error: an equality's residual [m or rad], a limit's overshoot past its stop min(g, 0),
+    0 for friction rows."""
+    p = np.array(params, dtype=np.float64)
+    nq, nv, _n = dyn.sizes(p)
+    forces = np.empty((samples.shape[0], table.rows))
+    errors = np.empty((samples.shape[0], table.rows))
+    qacc = np.empty(nv)
+    turn, q = np.empty(4), np.empty(nq)
+    codes = np.array([unit.code for unit in table.units for _ in range(unit.rows)])
+    from rbody.engine.multibody import _effective_qpos
+
+    for s in range(samples.shape[0]):
+        p[table.mode_slice()] = modes[s]
+        _effective_qpos(p, samples[s], q, turn)
+        dyn.mode_accel(p, q, samples[s, nq:nq + nv], qacc, forces[s], errors[s])
+    limits = np.isin(codes, UNILATERAL)
+    errors[:, limits] = np.minimum(errors[:, limits], 0.0)
+    errors[:, codes == FRICTION] = 0.0
+    return forces, errors
+
+
+def run_constrained(description: str, model, method: str, dt: float, nsteps: int, save_every: int):
+    """Run every batch element of `model` (a NativeModel with constraints) by `method`; returns (t (S,), data
+    (name -> (S, B, ...)), events (name -> (E,)), meta)."""
+    table: ConstraintTable = model.constraints
+    y0, params = np.asarray(model.y0), np.asarray(model.params)
+    batch = y0.shape[0]
+    count = nsteps // save_every + 1
+    out = np.empty((count, batch, y0.shape[1]))
+    modes = np.empty((count, batch, len(table.units)))
+    forces = np.empty((count, batch, table.rows))
+    errors = np.empty((count, batch, table.rows))
+    events = {"time": [], "element": [], "what": [], "constraints": [], "energy_lost": []}
+    impacts = changes = 0
+    for b in range(batch):
+        if method == "moreau":
+            from rbody.engine.constraints.stepping import MoreauRun
+            run = MoreauRun(table, params[b], description)
+        else:
+            run = EventRun(table, params[b], description)
+        out[:, b], modes[:, b] = run.run(y0[b], dt, nsteps, save_every)
+        forces[:, b], errors[:, b] = sample_rows(table, params[b], out[:, b], modes[:, b])
+        if getattr(run, "forces", None) is not None:  # time-stepping: the mean force of the step (impulse / dt)
+            forces[:, b] = run.forces
+        impacts += run.log.impacts
+        changes += run.log.mode_changes
+        for event in run.log.events:
+            events["time"].append(event.t)
+            events["element"].append(b)
+            events["what"].append(event.what)
+            events["constraints"].append(", ".join(event.units))
+            events["energy_lost"].append(event.energy_lost)
+    t = np.arange(count) * (dt * save_every)
+    data = dict(model.observe(t, out))
+    limits = [k for k, unit in enumerate(table.units) if unit.code in UNILATERAL]
+    frictions = [k for k, unit in enumerate(table.units) if unit.code == FRICTION]
+    data["constraint_force"] = forces
+    data["constraint_error"] = errors
+    data["active_limits"] = modes[:, :, limits] == 1.0
+    data["sticking"] = modes[:, :, frictions] == 0.0
+    data["dissipated"] = out[:, :, -1]
+    meta = {"events": len(events["time"]), "impacts": impacts, "mode_changes": changes,
+            "constraint_rows": table.labels(), "limits": [table.units[k].name for k in limits],
+            "frictions": [table.units[k].name for k in frictions],
+            "scheme": "time-stepping (Moreau-Jean)" if method == "moreau" else "event-driven (rk4 between events)"}
+    arrays = {"time": np.array(events["time"], dtype=float), "element": np.array(events["element"], dtype=int),
+              "what": np.array(events["what"], dtype=str), "constraints": np.array(events["constraints"], dtype=str),
+              "energy_lost": np.array(events["energy_lost"], dtype=float)}
+    return t, data, arrays, meta
+
+
+__all__ = ["run_constrained", "sample_rows"]

@@ -1,0 +1,247 @@
+"""The time-stepping scheme of the constraint layer (Moreau-Jean, with Anitescu-Potra's gap term), compiled.
+
+For persistent or clustered events (a joint chattering against its stop, many limits at once, the contacts of
+feet and grasps to come) locating every event is hopeless or pointless; the scheme then works with impulses over
+a step h instead of forces at instants. From (q_k, v_k):
+
+    v_free  = v_k + h M(q_k)^-1 f(q_k, v_k)                                 (f = passive - bias, gravity included)
+    v_k+1   = v_free + M^-1 J^T P,        q_k+1 = q_k (+) h v_k+1            (symplectic Euler in the free motion)
+
+with the impulses P solving one complementarity problem (rbody.engine.constraints.solver) over the rows
+J = J(q_k): equalities J v_k+1 = 0 (bilateral); a limit touching its stop (g <= TOUCH_TOLERANCE), or with
+restitution e > 0 and a gap that would close within the step (g + h J v_free < 0), by Newton's law
+J v_k+1 + e min(J v_free, 0) >= 0, P >= 0, complementary (Moreau's impact law at the velocity level: the stop passed
+within the step is restored by the projection below); a plastic limit (e = 0) whose gap would close within the
+step by J v_k+1 + g / h >= 0, P >= 0, complementary (it reaches the stop at the end of the step, never beyond:
+Anitescu and Potra's term); a dof with dry friction
+|P| <= frictionloss h, sticking (v_k+1 = 0) inside the box, sliding against it on its boundary. After the step the
+configuration is projected onto the equalities and any stop it passed (rbody.engine.constraints.dynamics.project),
+so neither drifts beyond round-off.
+
+Order 1 in h (an event falls inside a step). The problem of a step is solved exactly (mlcp_exact) when it has at
+most EXACT_ROWS rows, else by projected Gauss-Seidel to STEP_TOLERANCE of the free velocities' scale, with at most
+PGS_SWEEPS sweeps; a step whose problem is left with a larger residual fails the run (SimulationError naming the
+time, the constraints and the residual). Stable, like symplectic Euler, on oscillations with h w < 2.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from rbody.engine.constraints import dynamics as dyn
+from rbody.engine.constraints.jacobians import row_count, unit_at, unit_count
+from rbody.engine.constraints.solver import mlcp_exact, mlcp_pgs, natural_residual
+from rbody.engine.constraints.table import (C_HEADER, CONE, CONNECT, COUPLING, FRICTION, LOWER, U_BOUND, U_KIND,
+                                            UNIT_SIZE,
+                                            U_RESTITUTION, U_ROW0, U_ROWS, UPPER, WELD, ConstraintTable)
+from rbody.errors import SimulationError
+
+EXACT_ROWS = 64          # a step's problem with at most this many rows is solved exactly
+STEP_TOLERANCE = 1e-10   # natural residual of PGS, relative to max(|b|, 1) [m/s or rad/s]
+PGS_SWEEPS = 2000
+TOUCH_TOLERANCE = 1e-10  # [m or rad]
+PROJECTION_ROUNDS = 6    # projections after a step, each with the stops the last one pushed past
+
+
+@njit(cache=True)
+def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included):
+    """One step of the scheme (module docstring) of the state y (n,) (phi all zero) in place, h [s]. P (rows,)
+    gets every row's impulse [N s or N m s] (0 for rows not in the problem), included (rows,) 1 on the rows of the
+    step's problem. Returns (status, residual, rows in
+    the problem): status 0 done, 1 the complementarity problem left a residual above the tolerance, 2 the
+    configuration could not be projected onto the equalities, UNBOUNDED (-1) the equalities contradict. The budget:
+    exactly when it has at most exact_rows rows, else at most `sweeps` Gauss-Seidel sweeps to `tolerance` (relative to
+    max(|b|, 1))."""
+    nq, nv, n = dyn.sizes(p)
+    rows = row_count(p)
+    M = np.empty((nv, nv))
+    f = np.empty(nv)
+    J = np.empty((rows, nv))
+    jdot = np.empty(rows)
+    g = np.empty(rows)
+    dyn.state_rows(p, y, M, f, J, jdot, g)
+    L = np.linalg.cholesky(M)
+    v = y[nq:nq + nv]
+    a0 = dyn.upper_solve(L, dyn.lower_solve(L, f))
+    vfree = np.empty(nv)
+    for d in range(nv):
+        vfree[d] = v[d] + h * a0[d]
+    jfree = J @ vfree
+    index = np.empty(rows, dtype=np.int64)
+    lo, hi, b = np.empty(rows), np.empty(rows), np.empty(rows)
+    m = 0
+    for k in range(unit_count(p)):
+        u = unit_at(p, k)
+        kind = int(p[u + U_KIND])
+        r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])
+        if kind == CONNECT or kind == WELD or kind == COUPLING:
+            for a in range(r0, r0 + r):
+                index[m], lo[m], hi[m], b[m] = a, -np.inf, np.inf, jfree[a]
+                m += 1
+        elif kind == LOWER or kind == UPPER or kind == CONE:
+            e = p[u + U_RESTITUTION]
+            if g[r0] <= TOUCH_TOLERANCE or (e > 0.0 and g[r0] + h * jfree[r0] < 0.0):
+                index[m], lo[m], hi[m] = r0, 0.0, np.inf
+                b[m] = jfree[r0] + e * min(jfree[r0], 0.0)
+                m += 1
+            elif g[r0] + h * jfree[r0] < 0.0:
+                index[m], lo[m], hi[m], b[m] = r0, 0.0, np.inf, jfree[r0] + g[r0] / h
+                m += 1
+        elif kind == FRICTION:
+            bound = p[u + U_BOUND] * h
+            index[m], lo[m], hi[m], b[m] = r0, -bound, bound, jfree[r0]
+            m += 1
+    previous = P.copy()  # the last step's impulses: the warm start of Gauss-Seidel
+    for a in range(rows):
+        P[a] = 0.0
+        included[a] = 0.0
+    for c in range(m):
+        included[index[c]] = 1.0
+    status = 0
+    residual = 0.0
+    if m > 0:
+        A = np.empty((nv, m))
+        for c in range(m):
+            A[:, c] = dyn.lower_solve(L, J[index[c]])
+        W = A.T @ A
+        bb, ll, hh = b[:m].copy(), lo[:m].copy(), hi[:m].copy()
+        lam = np.empty(m)
+        for c in range(m):
+            lam[c] = min(max(previous[index[c]], ll[c]), hh[c])
+        scale = 1.0
+        for c in range(m):
+            scale = max(scale, abs(bb[c]))
+        if m <= exact_rows:
+            status, _steps = mlcp_exact(W, bb, ll, hh, lam)
+            residual = natural_residual(W, bb, ll, hh, lam)
+            if status == 0 and residual > tolerance * scale:
+                status = 1
+        else:
+            _sweeps, residual = mlcp_pgs(W, bb, ll, hh, lam, tolerance * scale, sweeps)
+            status = 0 if residual <= tolerance * scale else 1
+        if status != 0:
+            return status, residual, m
+        x = dyn.upper_solve(L, A @ lam)
+        loss = 0.0
+        for c in range(m):
+            P[index[c]] = lam[c]
+        for d in range(nv):
+            v[d] = vfree[d] + x[d]
+        jafter = J @ v
+        for c in range(m):
+            if lo[c] > -np.inf:  # limits and friction: the kinetic energy their impulse took
+                loss -= 0.5 * lam[c] * (jafter[index[c]] + jfree[index[c]])
+        y[n - 1] += loss
+    else:
+        for d in range(nv):
+            v[d] = vfree[d]
+    y[n - 1] += h * dyn.damping_power(p, v)
+    delta = np.empty(nv)
+    for d in range(nv):
+        delta[d] = h * v[d]
+    dyn.displace(p, y, delta)
+    # positions onto the equalities and onto every stop passed or touched (a projection in the metric of M moves
+    # every dof: a stop it pushes past joins the set, and the projection is repeated), velocities onto the equalities
+    position_rows = np.zeros(rows)
+    velocity_rows = np.zeros(rows)
+    worst = 0.0
+    for _round in range(PROJECTION_ROUNDS):
+        dyn.state_rows(p, y, M, f, J, jdot, g)
+        grown = _round == 0
+        for k in range(unit_count(p)):
+            u = unit_at(p, k)
+            kind = int(p[u + U_KIND])
+            r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])
+            if kind == CONNECT or kind == WELD or kind == COUPLING:
+                for a in range(r0, r0 + r):
+                    position_rows[a] = 1.0
+                    velocity_rows[a] = 1.0
+            elif (kind == LOWER or kind == UPPER or kind == CONE) and g[r0] <= TOUCH_TOLERANCE * 1e-3 \
+                    and position_rows[r0] == 0.0 and (g[r0] < 0.0 or P[r0] > 0.0):
+                position_rows[r0] = 1.0
+                grown = True
+        if not grown:
+            break
+        worst, _speed = dyn.project(p, y, position_rows, velocity_rows)
+    if worst > 1e3 * dyn.PROJECTION_TOLERANCE:
+        return 2, worst, m
+    return 0, residual, m
+
+
+@njit(cache=True)
+def moreau_loop(p, y0, h, nsteps, save_every, out, impulses, exact_rows, sweeps, tolerance, included):
+    """nsteps steps from y0 (n,); out (S, n) every save_every-th state (out[0] = y0), impulses (S, rows) the impulses
+    of the step that ended at each saved state. Returns (failed step or -1, its status, its residual, its rows)."""
+    y = y0.copy()
+    rows = row_count(p)
+    P = np.zeros(rows)
+    out[0] = y
+    impulses[0] = 0.0
+    for k in range(1, nsteps + 1):
+        status, residual, m = moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included)
+        if status != 0:
+            return k, status, residual, m
+        for a in range(y.shape[0]):
+            if not np.isfinite(y[a]):
+                return k, 3, 0.0, m
+        if k % save_every == 0:
+            out[k // save_every] = y
+            impulses[k // save_every] = P
+    return -1, 0, 0.0, 0
+
+
+class MoreauRun:
+    """The time-stepping run of one batch element, with the EventRun's interface (rbody.engine.constraints.runner):
+    run(y0, dt, nsteps, save_every) -> (samples (S, n), modes (S, units)); forces (S, rows) the impulses of the step
+    ending at each sample divided by dt (its mean force); log: impacts and mode changes are not events here."""
+
+    def __init__(self, table: ConstraintTable, params: np.ndarray, description: str) -> None:
+        from rbody.engine.constraints.events import EventLog
+
+        self.table = table
+        self.p = np.array(params, dtype=np.float64)
+        self.p[table.mode_slice()] = np.where(np.array([u.code for u in table.units]) == FRICTION, 0.0,
+                                              self.p[table.mode_slice()])
+        self.description = description
+        self.log = EventLog()
+        self.forces = None
+
+    def run(self, y0, dt: float, nsteps: int, save_every: int):
+        count = nsteps // save_every + 1
+        out = np.empty((count, len(y0)))
+        impulses = np.empty((count, self.table.rows))
+        included = np.zeros(self.table.rows)
+        failed, status, residual, m = moreau_loop(self.p, np.array(y0, dtype=np.float64), dt, nsteps, save_every,
+                                                  out, impulses, EXACT_ROWS, PGS_SWEEPS, STEP_TOLERANCE, included)
+        if failed >= 0:
+            what = {1: f"the step's complementarity problem ({m} rows) was left with a residual above "
+                       f"{STEP_TOLERANCE:g} of its scale (solver budget: exact up to {EXACT_ROWS} rows, else "
+                       f"{PGS_SWEEPS} Gauss-Seidel sweeps)",
+                    2: "the configuration could not be projected onto the equalities (they contradict each other "
+                       "or the loop cannot close)",
+                    -1: "the equalities contradict each other (no impulse makes them hold)",
+                    3: "a non-finite state; try a smaller dt"}[status]
+            named = [u for u in self.table.units if included[u.row0]] or list(self.table.units)
+            names = ", ".join(repr(u.name) for u in named)
+            raise SimulationError(f"scene {self.description}: method 'moreau' with dt={dt}: at t={failed * dt:.9g} s, "
+                                  f"constraints {names}: {what}; residual {residual:.3g}")
+        self.forces = impulses / dt
+        modes = np.empty((count, len(self.table.units)))
+        for k, unit in enumerate(self.table.units):
+            value = impulses[:, unit.row0]
+            if unit.code == FRICTION:
+                bound = unit_bound(self.p, self.table, k) * dt
+                modes[:, k] = np.where(np.abs(value) < bound * (1 - 1e-9), 0.0, -np.sign(value))
+            elif unit.code in (LOWER, UPPER, CONE):
+                modes[:, k] = (value > 0).astype(float)
+            else:
+                modes[:, k] = 1.0
+        return out, modes
+
+
+def unit_bound(p: np.ndarray, table: ConstraintTable, k: int) -> float:
+    return float(p[table.offset + C_HEADER + UNIT_SIZE * k + U_BOUND])
+
+
+__all__ = ["moreau_step", "moreau_loop", "MoreauRun", "EXACT_ROWS", "STEP_TOLERANCE", "PGS_SWEEPS"]

@@ -1,0 +1,255 @@
+"""The constraint table: a Layout's limits, dry friction and equalities as units of rows, packed after the tree.
+
+A *unit* is one constraint with its rows (its components): a limit side, a ball's cone, one degree of freedom's
+dry friction, a connect (3 rows), a weld (6) or a joint coupling (1). The units are packed as one float block
+appended to the tree's params row (rbody.engine.multibody), so that every compiled kernel, and the NativeModel's
+rhs that the integrators and the stability check call, reads (tree, constraints, mode) from one row:
+
+    [ tree row | C_HEADER | unit records (UNIT_SIZE each) | mode (one per unit) ]
+
+Unit kinds and their rows (g >= 0 feasible for unilateral rows; the force on the tree is J^T lambda):
+
+    LOWER   qpos - lo >= 0                     J = +e_dof            (hinge, slide, roll)
+    UPPER   hi - qpos >= 0                     J = -e_dof
+    CONE    theta_max - theta >= 0             J = -u on the ball's 3 dofs, theta = 2 atan2(|v|, |w|), u the axis
+    FRICTION  |lambda| <= frictionloss         J = e_dof (lambda: the dof's friction force)
+    CONNECT p1 - p2 = 0 (3 rows, world)        J = J_p1 - J_p2
+    WELD    p1 - p2 = 0, log(q1 qrel q2^-1) = 0 (6 rows, world)
+    COUPLING (qpos1 - ref1) - P(qpos2 - ref2) = 0 (1 row)
+
+mode, per unit: limits and cones 1 active (held as an equality, lambda >= 0), 0 inactive; friction 0 sticking,
++1 / -1 sliding with the dof's velocity of that sign (force -frictionloss sign); equalities 1 (always active).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from rbody.layout import JOINTS, WORLD, Layout
+
+LOWER, UPPER, CONE, FRICTION, CONNECT, WELD, COUPLING = range(7)
+KIND_ROWS = {LOWER: 1, UPPER: 1, CONE: 1, FRICTION: 1, CONNECT: 3, WELD: 6, COUPLING: 1}
+KIND_NAMES = {LOWER: "limit", UPPER: "limit", CONE: "limit", FRICTION: "friction", CONNECT: "connect",
+              WELD: "weld", COUPLING: "joint"}
+UNILATERAL = (LOWER, UPPER, CONE)
+EQUALITY_KINDS = (CONNECT, WELD, COUPLING)
+
+# Header of the block: units, rows, the offset of the unit records, of the mode (absolute, in the params row).
+C_UNITS, C_ROWS, C_UNIT, C_MODE = range(4)
+C_HEADER = 4
+# Unit record: kind, rows, first row, dof, qpos address, bound (lo, hi, theta_max or frictionloss), restitution,
+# body1, body2 (-1: world), anchor1 (3), anchor2 (3), relquat (4), dof2, qpos address 2 (-1: none), ref1, ref2,
+# polycoef (5).
+(U_KIND, U_ROWS, U_ROW0, U_DOF, U_QADR, U_BOUND, U_RESTITUTION, U_BODY1, U_BODY2, U_A1, U_A2, U_QUAT, U_DOF2,
+ U_QADR2, U_REF1, U_REF2, U_POLY) = (0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 12, 15, 19, 20, 21, 22, 23)
+UNIT_SIZE = 28
+
+
+@dataclass(frozen=True)
+class Unit:
+    """One constraint as users see it: kind ("limit", "friction", "connect", "weld", "joint"), name (the joint's or
+    the equality's, a limit's side as "<joint>.lower" / ".upper", a multi-dof joint's friction as "<joint>[k]"),
+    its rows and where they start among all rows."""
+
+    code: int
+    kind: str
+    name: str
+    rows: int
+    row0: int
+
+
+@dataclass(frozen=True)
+class ConstraintTable:
+    """The compiled constraints of a tree (module docstring).
+
+    units: the Unit of every record, in order; block (C_HEADER + UNIT_SIZE units + units,) the floats appended to
+    the tree's row (offsets absolute: valid after a tree row of length `offset`); mode0 (units,) the mode every
+    run starts from before its first consistent mode is found; methods: the methods a constrained run takes."""
+
+    units: tuple[Unit, ...]
+    block: np.ndarray
+    offset: int
+    mode0: np.ndarray
+    methods: tuple[str, ...] = ("rk4", "moreau")
+    equalities: tuple = ()  # every equality but tendons, each made explicit (a connect's anchor2, a weld's relpose)
+
+    @property
+    def rows(self) -> int:
+        return sum(unit.rows for unit in self.units)
+
+    def labels(self) -> list[tuple[str, str, int]]:
+        """(kind, name, component) of every row, in row order: the columns of the constraint_force observable."""
+        return [(unit.kind, unit.name, k) for unit in self.units for k in range(unit.rows)]
+
+    def row(self, params: np.ndarray) -> np.ndarray:
+        """The tree's params row (p,) with the block appended: the row every constraint kernel reads."""
+        return np.concatenate([np.asarray(params, dtype=np.float64), self.block])
+
+    def mode_slice(self) -> slice:
+        start = self.offset + C_HEADER + UNIT_SIZE * len(self.units)
+        return slice(start, start + len(self.units))
+
+
+def _quat_conjugate(q: np.ndarray) -> np.ndarray:
+    return np.array([q[0], -q[1], -q[2], -q[3]])
+
+
+def _quat_product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    w1, x1, y1, z1 = a
+    w2, x2, y2, z2 = b
+    return np.array([w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2, w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
+                     w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2, w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2])
+
+
+def reference_qpos(layout: Layout, multibody) -> np.ndarray:
+    """(nq,) MuJoCo's qpos0 of the layout: every scalar joint at its ref, balls at identity, free bodies at their
+    pos/quat (the configuration in which equalities are completed)."""
+    bodies = {body.name: body for body in layout.bodies}
+    joints = {joint.name: joint for joint in layout.joints}
+    q = np.zeros(multibody.nq)
+    for name, kind, address in zip(multibody.joint_names, multibody.arrays.joint_kinds, multibody.arrays.qposadr):
+        joint = joints[name]
+        if JOINTS[kind].scalar:
+            q[address] = joint.ref
+        elif kind == "ball":
+            q[address:address + 4] = (1.0, 0.0, 0.0, 0.0)
+        else:
+            body = bodies[joint.body]
+            quat = np.asarray(body.quat, dtype=float)
+            q[address:address + 3] = body.pos
+            q[address + 3:address + 7] = quat / np.linalg.norm(quat)
+    return q
+
+
+def _frames_at(layout: Layout, multibody, q: np.ndarray) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """body name -> (origin (3,), quat (4,)) of every body frame in the world at qpos q, and the world's."""
+    com, quat = multibody.body_poses(q)
+    from rbody.motion import quat_to_matrix
+
+    inertia = {body.name: body.inertia for body in layout.bodies}
+    frames = {WORLD: (np.zeros(3), np.array([1.0, 0.0, 0.0, 0.0]))}
+    for i, name in enumerate(multibody.body_names):
+        frames[name] = (com[i] - quat_to_matrix(quat[i]) @ np.asarray(inertia[name].com), quat[i].copy())
+    return frames
+
+
+def build_table(layout: Layout, multibody) -> ConstraintTable | None:
+    """The ConstraintTable of a Layout's joints' ranges and frictionloss and its active equalities (None when it has
+    none), for the tree compiled in `multibody` (rbody.Multibody of the same layout). Raises ValueError naming the
+    equality for one whose bodies or joints are not in the tree, and NotImplementedError for a tendon equality."""
+    arrays = multibody.arrays
+    body_index = {name: i for i, name in enumerate(multibody.body_names)}
+    body_index[WORLD] = -1
+    joint_index = {name: j for j, name in enumerate(multibody.joint_names)}
+    joints = {joint.name: joint for joint in layout.joints}
+    records: list[np.ndarray] = []
+    units: list[Unit] = []
+    rows = 0
+
+    def add(code: int, name: str, **fields) -> None:
+        nonlocal rows
+        record = np.zeros(UNIT_SIZE)
+        record[[U_KIND, U_ROWS, U_ROW0]] = code, KIND_ROWS[code], rows
+        record[[U_BODY1, U_BODY2, U_DOF2, U_QADR2]] = -1, -1, -1, -1
+        for key, value in fields.items():
+            start = globals()[key]
+            values = np.atleast_1d(np.asarray(value, dtype=float))
+            record[start:start + values.size] = values
+        records.append(record)
+        units.append(Unit(code, KIND_NAMES[code], name, KIND_ROWS[code], rows))
+        rows += KIND_ROWS[code]
+
+    for name, kind, qa, da in zip(multibody.joint_names, arrays.joint_kinds, arrays.qposadr, arrays.dofadr):
+        joint = joints[name]
+        if joint.range is not None:
+            low, high = joint.range
+            if kind == "ball":
+                add(CONE, name, U_DOF=da, U_QADR=qa, U_BOUND=high, U_RESTITUTION=joint.restitution)
+            else:
+                add(LOWER, f"{name}.lower", U_DOF=da, U_QADR=qa, U_BOUND=low, U_RESTITUTION=joint.restitution)
+                add(UPPER, f"{name}.upper", U_DOF=da, U_QADR=qa, U_BOUND=high, U_RESTITUTION=joint.restitution)
+    for name, kind, qa, da in zip(multibody.joint_names, arrays.joint_kinds, arrays.qposadr, arrays.dofadr):
+        joint = joints[name]
+        if joint.frictionloss > 0:
+            count = JOINTS[kind].nv
+            for k in range(count):
+                add(FRICTION, name if count == 1 else f"{name}[{k}]", U_DOF=da + k, U_BOUND=joint.frictionloss)
+
+    names = [e.name for e in layout.equalities]
+    repeated = sorted({n for n in names if names.count(n) > 1})
+    if repeated:
+        raise ValueError(f"two equalities are called {repeated[0]!r}: equality names must be unique")
+    frames = None
+    resolved = []
+    for equality in layout.equalities:  # inactive ones are checked and made explicit too (exported as declared)
+        what = f"equality {equality.name!r}"
+        if equality.kind == "tendon" and not equality.active:
+            continue
+        if equality.kind == "tendon":
+            raise NotImplementedError(f"{what}: tendon equalities need tendons, which rbody does not model yet; "
+                                      "remove it or set active=False")
+        if equality.kind == "joint":
+            indices = []
+            for field_name in ("joint1", "joint2"):
+                joint_name = getattr(equality, field_name)
+                if joint_name is None:
+                    indices.append(-1)
+                    continue
+                if joint_name not in joint_index:
+                    raise ValueError(f"{what}: {field_name}={joint_name!r} is not a joint of the layout")
+                if not JOINTS[joints[joint_name].kind].scalar:
+                    raise ValueError(f"{what}: {field_name}={joint_name!r} is a {joints[joint_name].kind} joint: a "
+                                     "joint equality couples hinge, slide and roll joints")
+                indices.append(joint_index[joint_name])
+            j1, j2 = indices
+            fields = dict(U_DOF=arrays.dofadr[j1], U_QADR=arrays.qposadr[j1], U_REF1=joints[equality.joint1].ref,
+                          U_POLY=equality.polycoef)
+            if j2 >= 0:
+                fields.update(U_DOF2=arrays.dofadr[j2], U_QADR2=arrays.qposadr[j2], U_REF2=joints[equality.joint2].ref)
+            if equality.active:
+                add(COUPLING, equality.name, **fields)
+            resolved.append(equality)
+            continue
+        for field_name in ("body1", "body2"):
+            body = getattr(equality, field_name)
+            if body not in body_index:
+                raise ValueError(f"{what}: {field_name}={body!r} is not a body of the layout (nor {WORLD!r})")
+        if frames is None:
+            frames = _frames_at(layout, multibody, reference_qpos(layout, multibody))
+        (x1, q1), (x2, q2) = frames[equality.body1], frames[equality.body2]
+        from rbody.motion import quat_to_matrix
+
+        R1, R2 = quat_to_matrix(q1), quat_to_matrix(q2)
+        b1, b2 = body_index[equality.body1], body_index[equality.body2]
+        if equality.kind == "connect":
+            anchor2 = (np.asarray(equality.anchor2) if equality.anchor2 is not None
+                       else R2.T @ (x1 + R1 @ np.asarray(equality.anchor) - x2))
+            if equality.active:
+                add(CONNECT, equality.name, U_BODY1=b1, U_BODY2=b2, U_A1=equality.anchor, U_A2=anchor2)
+            resolved.append(dataclasses.replace(equality, anchor2=tuple(np.asarray(anchor2, dtype=float).tolist())))
+        else:  # weld: body1's point relpos on body2's anchor, q1 relquat = q2
+            anchor = np.asarray(equality.anchor)
+            if equality.relpose is not None:
+                relpos, relquat = np.asarray(equality.relpose[:3]), np.asarray(equality.relpose[3:])
+            else:
+                relpos = R1.T @ (x2 + R2 @ anchor - x1)
+                relquat = _quat_product(_quat_conjugate(q1), q2)
+            relquat = relquat / np.linalg.norm(relquat)
+            if equality.active:
+                add(WELD, equality.name, U_BODY1=b1, U_BODY2=b2, U_A1=relpos, U_A2=anchor, U_QUAT=relquat)
+            resolved.append(dataclasses.replace(equality, relpose=tuple(np.concatenate([relpos, relquat]).tolist())))
+    if not units:
+        return None
+    offset = int(np.asarray(multibody.params).size)
+    count = len(units)
+    block = np.zeros(C_HEADER + UNIT_SIZE * count + count)
+    block[[C_UNITS, C_ROWS, C_UNIT, C_MODE]] = count, rows, offset + C_HEADER, offset + C_HEADER + UNIT_SIZE * count
+    block[C_HEADER:C_HEADER + UNIT_SIZE * count] = np.concatenate(records)
+    mode0 = np.array([1.0 if unit.code in EQUALITY_KINDS else 0.0 for unit in units])
+    block[C_HEADER + UNIT_SIZE * count:] = mode0
+    block.setflags(write=False)
+    mode0.setflags(write=False)
+    return ConstraintTable(units=tuple(units), block=block, offset=offset, mode0=mode0, equalities=tuple(resolved))
