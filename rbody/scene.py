@@ -273,7 +273,25 @@ class TreeScene(Scene):
             if np.any(np.abs(norms - 1.0) > 1e-9):
                 raise ValueError(f"qpos0: the quaternions at qpos columns {quats} have lengths "
                                  f"{np.unique(np.round(norms, 12)).tolist()}: expected unit quaternions")
+        from rbody.engine.precision import angle_spacing_problem, lost_digits_problem
+
+        qpos, qvel = self._state0()
+        problem = angle_spacing_problem(model, qpos) or lost_digits_problem(model, qpos, qvel)
+        if problem:
+            raise ValueError(f"tree {self.name!r} cannot be carried in float64 by this engine: {problem}")
         model.check_pivots(self.qpos0)
+
+    def precision_problem(self, dt: float, t_end: float) -> str | None:
+        """Why float64 cannot carry this tree over a run of t_end [s] at step dt [s] (str), or None: coordinates that
+        lose digits far from the origin as the bodies travel, or a hinge angle whose rounding passes a millionth of
+        what a step moves it (rbody.engine.precision). simulate asks before any step."""
+        from rbody.engine import stability
+        from rbody.engine.precision import angle_step_problem, lost_digits_problem
+
+        qpos, qvel = self._state0()
+        return (lost_digits_problem(self.multibody, qpos, qvel, t_end)
+                or angle_step_problem(self.multibody, qpos, qvel, dt,
+                                      lambda: float(np.max(stability.fastest_rate(self, None)))))
 
     @cached_property
     def multibody(self):

@@ -908,6 +908,11 @@ class Multibody:
         qpos0.setflags(write=False)
         qvel0.setflags(write=False)
         self.qpos0, self.qvel0 = qpos0, qvel0
+        from rbody.engine.precision import lost_digits_problem  # (it reads this module's layout of the row)
+
+        problem = lost_digits_problem(self, qpos0, qvel0)  # before the pivots: far away they fail for that reason
+        if problem:
+            raise ValueError(f"the tree cannot be carried in float64 by this engine: {problem}")
         self.check_pivots(qpos0)
 
     # ----- arguments ---------------------------------------------------------------------------------
