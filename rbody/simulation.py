@@ -267,7 +267,7 @@ MEMORY_CHECKED_ABOVE = 2**20  # bytes at the peak below which the memory availab
 # The peak of a run, beside its saved states (measured with tracemalloc, tests/rbody/test_memory.py):
 BUILD_FACTOR = 3.0            # building a batch's native model: up to ~2.4 x its arrays y0 and params (broadcast
                               # copies, concatenations), for a model not built yet (a TreeScene's, on first use)
-OBSERVE_FACTOR = 2.0          # forming the observables: their arrays, and as much again in temporaries
+OBSERVE_FACTOR = 5.0          # forming the observables: their arrays, and up to 4x as much in temporaries (a chain's energy)
 DEFAULT_OBSERVED = 4.0        # numbers observed per state number where they are not probed (runs below the check)
 BATCH_PROBED_ABOVE = 1024     # a batch larger than this, whose model is not built yet, is sized from one element
 
