@@ -153,6 +153,7 @@ def _integrate_showing_progress(scene: Scene, model, record: Method, dt: float, 
     samples = nsteps // save_every
     batch = model.y0.shape[0]
     failed = np.full(batch, -1, dtype=np.int64)
+    out[0] = model.y0  # every segment starts from a saved state, the first from the initial one
     done, line = 0, None
     seconds_per_sample = None
     while done < samples:
