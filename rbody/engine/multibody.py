@@ -908,6 +908,9 @@ class Multibody:
         qpos0.setflags(write=False)
         qvel0.setflags(write=False)
         self.qpos0, self.qvel0 = qpos0, qvel0
+        if self.nv == 0:
+            raise ValueError(f"the tree has no degree of freedom ({len(self.body_names)} bodies, no joint): nothing in it "
+                             "moves; give a body a joint (a free joint for a body that flies)")
         from rbody.engine.precision import lost_digits_problem  # (it reads this module's layout of the row)
 
         problem = lost_digits_problem(self, qpos0, qvel0)  # before the pivots: far away they fail for that reason

@@ -81,8 +81,9 @@ import numpy as np
 
 from rbody.errors import SimulationError
 from rbody.inertia import Inertia
-from rbody.mjcf.document import (Element, MJCFError, boolean, choice, expand_includes, number, numbers,
-                                 read_source)
+from rbody.mjcf.document import (Element, MJCFError, boolean, choice, expand_includes, integer, integers, number,
+                                 numbers, read_source)
+from rbody.mjcf.grammar import ATTRIBUTES, CHILDLESS, check_value
 from rbody.mjcf.frames import MJ_EPS, frame_to_quat, normalize, quat_matrix, quat_product, z_to_quat
 from rbody.mjcf.geoms import (MESH_INERTIA_MODES, GeomMass, MeshMass, mesh_mass, mujoco_principal, primitive_moments,
                               primitive_volume, principal_tensor, sum_geoms)
@@ -100,6 +101,9 @@ PRINCIPAL_NOTE_RTOL = 1e-12  # a tensor MuJoCo's eigen-solver moves by more than
 # ----- the reader --------------------------------------------------------------------------------------
 
 _VISUAL_ELEMENTS = ("light", "camera", "site")
+_VISUAL_ATTRS = {"site": set(ATTRIBUTES["site"]) | {"name", "class", "material"},
+                 "camera": set(ATTRIBUTES["camera"]) | {"name", "class", "target"},
+                 "light": set(ATTRIBUTES["light"]) | {"name", "class", "target", "texture"}}
 _REFUSED_IN_BODY = {
     "frame": "<frame> is not supported: write its transform into the bodies and geoms it holds",
     "replicate": "<replicate> is not supported: write the copies out",
@@ -228,6 +232,7 @@ class _Reader:
         self.mesh_paths: dict[str, str] = {}                 # mesh name -> absolute file path
         self.plane_bodies: list[tuple[Element, _Body]] = []  # planes on bodies (only static ones may hold them)
         self.key_elements: list[Element] = []
+        self._nested_defaults: list[tuple[Element, str]] = []  # <default> classes still to read, with their parent
 
     # ----- helpers -----
 
@@ -237,9 +242,22 @@ class _Reader:
             self.notes.append(text)
 
     def check_attrs(self, element: Element, known: set) -> None:
+        """Unknown attributes refused; every attribute's value checked as MuJoCo reads it (rbody.mjcf.grammar: types,
+        counts, keywords, also where rbody does not use the value); child elements of an element that has none in
+        MuJoCo's schema (joint, geom, inertial, site, camera, light, ...) refused."""
         unknown = sorted(set(element.attrib) - known)
         if unknown:
             raise element.error(f"unknown attribute {unknown[0]!r} (MJCF's <{element.tag}> has {sorted(known)})")
+        for name, value in element.attrib.items():
+            problem = check_value(element.tag, name, value)
+            if problem:
+                raise element.error(problem)
+        if element.children and (element.tag in CHILDLESS or element.tag == "geom"):
+            child = element.children[0]
+            if element.tag == "geom" and child.tag == "plugin":
+                raise child.error("plugins are not supported (their physics is unknown to rbody)")
+            raise child.error(f"unknown element <{child.tag}> in <{element.tag}> (MJCF's <{element.tag}> has no child "
+                              "elements)")
 
     def attrs(self, element: Element, tag: str, childclass: str | None) -> dict:
         """The element's attributes over its class's defaults (class, else the body's childclass, else main)."""
@@ -369,8 +387,8 @@ class _Reader:
         self.inertiafromgeom = choice(where, "inertiafromgeom", attrib, ("true", "false", "auto"), "auto")
         self.group_range = (0, 5)
         if "inertiagrouprange" in attrib:
-            low, high = numbers(where, "inertiagrouprange", attrib, 2)
-            self.group_range = (int(low), int(high))
+            low, high = integers(where, "inertiagrouprange", attrib, 2)
+            self.group_range = (low, high)
         self.autolimits = boolean(where, "autolimits", attrib, True)
         self.balanceinertia = boolean(where, "balanceinertia", attrib, False)
         self.strippath = boolean(where, "strippath", attrib, False)
@@ -446,19 +464,27 @@ class _Reader:
         values = {tag: dict(attrs) for tag, attrs in self.classes.get(parent, {}).items()} if parent else {}
         if top and name == "main":
             values = self.classes.get("main", {})
+        seen: set[str] = set()
         for child in element.children:
             if child.tag == "default":
                 continue
             if child.tag not in _DEFAULT_CHILDREN:
                 raise child.error(f"unknown element <{child.tag}> in <default>")
-            known = {"joint": _JOINT_ATTRS, "geom": _GEOM_ATTRS, "mesh": _MESH_ATTRS}.get(child.tag)
+            if child.tag in seen:  # MuJoCo: "Schema violation: unique element found 2 times" (not a merge)
+                raise child.error(f"a second <{child.tag}> in <default class={name!r}>: a class holds at most one "
+                                  f"<{child.tag}> (merge their attributes into one)")
+            seen.add(child.tag)
+            known = {"joint": _JOINT_ATTRS, "geom": _GEOM_ATTRS, "mesh": _MESH_ATTRS, **_VISUAL_ATTRS}.get(child.tag)
             if known is not None:
                 self.check_attrs(child, known - {"name", "class"})
             values.setdefault(child.tag, {}).update(child.attrib)
         self.classes[name] = values
-        for child in element.children:
-            if child.tag == "default":
-                self.read_default(child, name)
+        for child in reversed([c for c in element.children if c.tag == "default"]):
+            self._nested_defaults.append((child, name))
+        if top:  # the nested classes, depth first through an explicit stack (no recursion)
+            while self._nested_defaults:
+                child, parent_name = self._nested_defaults.pop()
+                self.read_default(child, parent_name)
 
     def read_assets(self, element: Element) -> None:
         self.check_attrs(element, set())
@@ -486,10 +512,24 @@ class _Reader:
     # ----- bodies -----
 
     def read_body_contents(self, body: _Body, childclass: str | None) -> None:
+        """The contents of `body` and of every body below it, depth first (MuJoCo's body order), through an explicit
+        stack: no recursion, however deep the tree (MuJoCo reads 496 nested bodies)."""
+        pending: list[tuple[Element, _Body, str | None]] = []
+        self.read_children(body, childclass, pending)
+        while pending:
+            element, parent, inherited = pending.pop()
+            child, classname = self.read_body(element, parent, inherited)
+            self.read_children(child, classname, pending)
+            self.check_mocap(child)
+
+    def read_children(self, body: _Body, childclass: str | None, pending: list) -> None:
+        """The joints, geoms, inertial and ignored elements of `body`; its child bodies pushed on `pending` (in
+        reverse, so that they are read in document order)."""
+        bodies = []
         for child in body.element.children:
             tag = child.tag
             if tag == "body":
-                self.read_body(child, body, childclass)
+                bodies.append((child, body, childclass))
             elif tag == "geom":
                 self.read_geom(child, body, childclass)
             elif tag in ("joint", "freejoint"):
@@ -504,13 +544,15 @@ class _Reader:
                 self.check_attrs(child, _INERTIAL_ATTRS)
                 body.inertial = child
             elif tag in _VISUAL_ELEMENTS:
+                self.check_attrs(child, _VISUAL_ATTRS[tag])
                 self.note(tag, f"<{tag}> elements ignored (they do not change the dynamics)")
             elif tag in _REFUSED_IN_BODY:
                 raise child.error(_REFUSED_IN_BODY[tag])
             else:
                 raise child.error(f"unknown element <{tag}> in a body")
+        pending.extend(reversed(bodies))
 
-    def read_body(self, element: Element, parent: _Body, childclass: str | None) -> None:
+    def read_body(self, element: Element, parent: _Body, childclass: str | None) -> tuple[_Body, str | None]:
         self.check_attrs(element, _BODY_ATTRS)
         attrib = element.attrib
         if "childclass" in attrib:
@@ -525,7 +567,16 @@ class _Reader:
         body = _Body(element, attrib.get("name", ""), len(self.bodies) + 1, parent, pos,
                      self.orientation(element, attrib))
         self.bodies.append(body)
-        self.read_body_contents(body, childclass)
+        return body, childclass
+
+    def check_mocap(self, body: _Body) -> None:
+        """A mocap body must be a fixed child of the world, as MuJoCo's compiler requires (no joints, the world its
+        parent): a mocap body with joints, or below another body, is refused."""
+        if not boolean(body.element, "mocap", body.element.attrib, False):
+            return
+        if body.joints or body.parent.index != 0:
+            why = "it has joints" if body.joints else "its parent is not the world"
+            raise body.element.error(f"a mocap body must be a fixed child of the world (MuJoCo's rule), and {why}")
 
     def read_joint(self, element: Element, body: _Body, childclass: str | None) -> None:
         if element.tag == "freejoint":
@@ -592,8 +643,8 @@ class _Reader:
             raise element.error(f"size={attrib.get('size', '')!r}: a {kind} needs sizes > 0")
         if kind == "plane" and body.index != 0:
             self.plane_bodies.append((element, body))
-        geom = _Geom(element, attrib, name, kind, size, pos, quat, int(number(element, "contype", attrib, 1)),
-                     int(number(element, "conaffinity", attrib, 1)), int(number(element, "group", attrib, 0)),
+        geom = _Geom(element, attrib, name, kind, size, pos, quat, integer(element, "contype", attrib, 1),
+                     integer(element, "conaffinity", attrib, 1), integer(element, "group", attrib, 0),
                      mesh=attrib.get("mesh"))
         if kind == "mesh" and geom.mesh is None:
             raise element.error("a mesh geom needs mesh=\"name of a <mesh> asset\"")
