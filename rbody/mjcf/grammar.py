@@ -35,6 +35,7 @@ _DOUBLE = re.compile(r"[+-]?(?:(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
 _INT = re.compile(r"[+-]?[0-9]+")
 _HEX = re.compile(r"[+-]?0[xX]")
 FLOAT32_MAX = float(np.finfo(np.float32).max)
+NUMERIC = ("double", "float", "int")  # the kinds of ATTRIBUTES' numeric entries
 INT_RANGE = (-(2**31), 2**31 - 1)
 
 
@@ -186,6 +187,8 @@ _TABLE_TEXT = {
 }
 ATTRIBUTES: dict[str, dict[str, tuple]] = {tag: {name: _spec(spec) for name, spec in attrs.items()}
                                            for tag, attrs in _TABLE_TEXT.items()}
+# Children an element holds at most once in MuJoCo's schema ("child x ?"); a <default>'s children are all so.
+UNIQUE_CHILDREN = {"option": ("flag",), "compiler": ("lengthrange",), "body": ("inertial",)}
 # Elements with no child elements in MuJoCo's schema (a child is "Schema violation: unrecognized element");
 # a geom's <plugin> child is refused by rbody anyway (plugins are not supported).
 CHILDLESS = ("joint", "freejoint", "inertial", "site", "camera", "light", "flag", "key", "exclude", "pair")
@@ -219,4 +222,4 @@ def check_value(tag: str, name: str, text: str) -> str | None:
 
 
 __all__ = ["GrammarError", "parse_double", "parse_int", "parse_values", "tokens", "shorten", "check_value",
-           "ATTRIBUTES", "CHILDLESS"]
+           "ATTRIBUTES", "CHILDLESS", "UNIQUE_CHILDREN", "NUMERIC"]

@@ -83,7 +83,7 @@ from rbody.errors import SimulationError
 from rbody.inertia import Inertia
 from rbody.mjcf.document import (Element, MJCFError, boolean, choice, expand_includes, integer, integers, number,
                                  numbers, read_source)
-from rbody.mjcf.grammar import ATTRIBUTES, CHILDLESS, check_value
+from rbody.mjcf.grammar import ATTRIBUTES, CHILDLESS, NUMERIC, UNIQUE_CHILDREN, check_value
 from rbody.mjcf.frames import MJ_EPS, frame_to_quat, normalize, quat_matrix, quat_product, z_to_quat
 from rbody.mjcf.geoms import (MESH_INERTIA_MODES, GeomMass, MeshMass, mesh_mass, mujoco_principal, primitive_moments,
                               primitive_volume, principal_tensor, sum_geoms)
@@ -233,6 +233,7 @@ class _Reader:
         self.plane_bodies: list[tuple[Element, _Body]] = []  # planes on bodies (only static ones may hold them)
         self.key_elements: list[Element] = []
         self._nested_defaults: list[tuple[Element, str]] = []  # <default> classes still to read, with their parent
+        self.visual_names: dict[str, set[str]] = {}               # names of sites, cameras, lights (each unique)
 
     # ----- helpers -----
 
@@ -243,15 +244,24 @@ class _Reader:
 
     def check_attrs(self, element: Element, known: set) -> None:
         """Unknown attributes refused; every attribute's value checked as MuJoCo reads it (rbody.mjcf.grammar: types,
-        counts, keywords, also where rbody does not use the value); child elements of an element that has none in
-        MuJoCo's schema (joint, geom, inertial, site, camera, light, ...) refused."""
+        counts, keywords, also where rbody does not use the value), and a blank number dropped from the element (MuJoCo
+        reads it as absent); child elements of an element that has none in MuJoCo's schema (joint, geom, inertial,
+        site, camera, light, ...) refused, and a second child where MuJoCo allows one."""
         unknown = sorted(set(element.attrib) - known)
         if unknown:
             raise element.error(f"unknown attribute {unknown[0]!r} (MJCF's <{element.tag}> has {sorted(known)})")
-        for name, value in element.attrib.items():
+        for name, value in list(element.attrib.items()):
             problem = check_value(element.tag, name, value)
             if problem:
                 raise element.error(problem)
+            if not value.strip(" \t\n\r") and ATTRIBUTES.get(element.tag, {}).get(name, ("",))[0] in NUMERIC:
+                del element.attrib[name]  # MuJoCo reads a blank number as no attribute (a class default then holds)
+        for tag in UNIQUE_CHILDREN.get(element.tag, ()):
+            found = [child for child in element.children if child.tag == tag]
+            if len(found) > 1:
+                raise found[1].error(f"a second <{tag}> in <{element.tag}>: MJCF allows one")
+            for child in found if tag == "lengthrange" else ():  # read by no one here, but checked as MuJoCo does
+                self.check_attrs(child, set(ATTRIBUTES["lengthrange"]))
         if element.children and (element.tag in CHILDLESS or element.tag == "geom"):
             child = element.children[0]
             if element.tag == "geom" and child.tag == "plugin":
@@ -545,6 +555,7 @@ class _Reader:
                 body.inertial = child
             elif tag in _VISUAL_ELEMENTS:
                 self.check_attrs(child, _VISUAL_ATTRS[tag])
+                self.check_visual(child)
                 self.note(tag, f"<{tag}> elements ignored (they do not change the dynamics)")
             elif tag in _REFUSED_IN_BODY:
                 raise child.error(_REFUSED_IN_BODY[tag])
@@ -569,9 +580,37 @@ class _Reader:
         self.bodies.append(body)
         return body, childclass
 
+    def check_visual(self, element: Element) -> None:
+        """A site, camera or light: ignored, but as MuJoCo reads it, its name unique among its kind and its class a
+        <default> class of the model."""
+        name = element.attrib.get("name")
+        if name:
+            seen = self.visual_names.setdefault(element.tag, set())
+            if name in seen:
+                raise element.error(f"two {element.tag}s are called {name!r}")
+            seen.add(name)
+        if "class" in element.attrib and element.attrib["class"] not in self.classes:
+            raise element.error(f"class={element.attrib['class']!r} is not a <default> class of the model")
+        if element.tag in ("site", "camera"):
+            self.orientation(element, element.attrib)  # refused as MuJoCo refuses it (an axis too small, two given)
+        if element.tag == "site" and element.attrib.get("type") in ("plane", "hfield", "mesh"):
+            raise element.error(f"type={element.attrib['type']!r}: MuJoCo allows no plane, height field or mesh site "
+                                "here (a mesh site needs a mesh asset)")
+        if element.tag == "site" and "fromto" not in element.attrib:
+            kind = element.attrib.get("type", "sphere")
+            size = numbers(element, "size", element.attrib) if element.attrib.get("size", "").strip() else None
+            needed = {"sphere": 1, "capsule": 2, "cylinder": 2, "ellipsoid": 3, "box": 3}.get(kind, 0)
+            if size is not None and (len(size) < needed or np.any(size[:needed] <= 0)):
+                raise element.error(f"size={element.attrib['size']!r}: a {kind} site needs {needed} sizes > 0 (MuJoCo: "
+                                    "size must be positive)")
+
     def check_mocap(self, body: _Body) -> None:
         """A mocap body must be a fixed child of the world, as MuJoCo's compiler requires (no joints, the world its
-        parent): a mocap body with joints, or below another body, is refused."""
+        parent): a mocap body with joints, or below another body, is refused. So is a sleep policy other than auto
+        on a body that is not a moving child of the world (MuJoCo's rule; rbody has no sleeping)."""
+        if body.element.attrib.get("sleep", "auto") != "auto" and (not body.joints or body.parent.index != 0):
+            raise body.element.error(f"sleep={body.element.attrib['sleep']!r}: MuJoCo allows a sleep policy only on a "
+                                     "moving child of the world")
         if not boolean(body.element, "mocap", body.element.attrib, False):
             return
         if body.joints or body.parent.index != 0:
@@ -620,6 +659,9 @@ class _Reader:
             if len(size) < needed:
                 raise element.error(f"a {kind} needs {needed} sizes, got size={attrib.get('size', '')!r}")
             size = np.concatenate([size, np.zeros(3 - len(size))])
+            if kind == "plane" and not size[2] > 0:
+                raise element.error(f"size={attrib.get('size', '')!r}: a plane's third size (its grid spacing) must be "
+                                    "> 0 (MuJoCo: plane size(3) must be positive)")
         pos = numbers(element, "pos", attrib, 3) if "pos" in attrib else np.zeros(3)
         if fromto is not None:
             if kind not in ("capsule", "cylinder", "ellipsoid", "box"):
@@ -643,6 +685,8 @@ class _Reader:
             raise element.error(f"size={attrib.get('size', '')!r}: a {kind} needs sizes > 0")
         if kind == "plane" and body.index != 0:
             self.plane_bodies.append((element, body))
+        if integer(element, "condim", attrib, 3) not in (1, 3, 4, 6):
+            raise element.error(f"condim={attrib['condim']!r}: MuJoCo allows 1, 3, 4 or 6 (invalid condim)")
         geom = _Geom(element, attrib, name, kind, size, pos, quat, integer(element, "contype", attrib, 1),
                      integer(element, "conaffinity", attrib, 1), integer(element, "group", attrib, 0),
                      mesh=attrib.get("mesh"))
@@ -1010,6 +1054,9 @@ class _Reader:
                     if angular or (kind == "ball" and self.degree):
                         low, high = low / 180.0 * math.pi, high / 180.0 * math.pi
                     if kind == "ball":
+                        if low != 0:
+                            raise element.error(f"range={attrib['range']!r}: a ball joint's range starts at 0 (it "
+                                                "limits the rotation angle; MuJoCo: range[0] should be 0)")
                         low = 0.0
                     if not low < high:
                         raise element.error(f"range={attrib['range']!r}: needs lo < hi")
