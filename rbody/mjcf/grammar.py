@@ -29,8 +29,9 @@ import numpy as np
 
 _SPACE = " \t\n\v\f\r"  # C's isspace in the "C" locale
 _SPLIT = re.compile(f"[{re.escape(_SPACE)}]+")
-_DOUBLE = re.compile(r"[+-]?(?:(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
-                     r"|0[xX](?:[0-9a-fA-F]+\.?[0-9a-fA-F]*|\.[0-9a-fA-F]+)(?:[pP][+-]?[0-9]+)?"
+# (each part matched one way only: no backtracking, whatever the length of a token)
+_DOUBLE = re.compile(r"[+-]?(?:0[xX](?:[0-9a-fA-F]+(?:\.[0-9a-fA-F]*)?|\.[0-9a-fA-F]+)(?:[pP][+-]?[0-9]+)?"
+                     r"|(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?"
                      r"|(?i:inf(?:inity)?|nan(?:\([0-9A-Za-z_]*\))?))")
 _INT = re.compile(r"[+-]?[0-9]+")
 _HEX = re.compile(r"[+-]?0[xX]")
