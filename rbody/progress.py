@@ -98,4 +98,33 @@ class Progress:
         self.shown = True
 
 
-__all__ = ["Progress", "wanted", "interactive", "format_seconds", "PROGRESS_AFTER_SECONDS"]
+class Reporter:
+    """A Progress line shown as progress=True|False|None asks (module docstring): with None, only once the work done
+    so far predicts more than PROGRESS_AFTER_SECONDS in all (and only in an interactive session). For loops that
+    cannot be cut at will (a simulator's chunks of steps): call update(done) after each piece, finish() at the end."""
+
+    def __init__(self, progress: bool | None, label: str, total: float, unit: str = "steps",
+                 stream: IO | None = None) -> None:
+        self.show = wanted(progress)
+        self.label, self.total, self.unit, self.stream = label, float(total), unit, stream
+        self.started = time.perf_counter()
+        self.line: Progress | None = None
+
+    def update(self, done: float) -> None:
+        if self.show is False:
+            return
+        if self.line is None:
+            elapsed = time.perf_counter() - self.started
+            if self.show is None and (done <= 0 or done >= self.total
+                                      or elapsed * self.total / done <= PROGRESS_AFTER_SECONDS):
+                return
+            self.line = Progress(self.label, self.total, self.unit, self.stream)
+            self.line.started = self.started
+        self.line.update(done)
+
+    def finish(self) -> None:
+        if self.line is not None:
+            self.line.finish()
+
+
+__all__ = ["Progress", "Reporter", "wanted", "interactive", "format_seconds", "PROGRESS_AFTER_SECONDS"]
