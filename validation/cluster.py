@@ -89,7 +89,7 @@ def scheduler_answers(address: str, seconds: float | None = None) -> None:
         return  # a scheduler in this process
 
     async def identity():
-        comm = await open_comm(address, timeout=seconds)
+        comm = await open_comm(address, timeout=seconds / 2)  # refused or unreachable: an OSError before the deadline
         try:
             await comm.write({"op": "identity", "reply": True})
             return await comm.read()
