@@ -56,6 +56,20 @@ fusestatic, alignfree; a body
 with a joint but no mass; an orientation given twice; unknown elements or attributes; geoms of one body
 that overlap, which MuJoCo would count twice (``overlapping_geoms="sum"`` sums them as MuJoCo does).
 
+Read as strictly as MuJoCo reads it (so that rbody accepts no file MuJoCo refuses: tests/rbody/test_mjcf_fuzz.py):
+numbers by C's strtod and strtol, as MuJoCo's StringToVector (rbody.mjcf.grammar: no '1_0', no non-ASCII digits,
+hex accepted, overflow refused, an int attribute such as contype, conaffinity, condim, group or
+inertiagrouprange refused when fractional), every attribute of the elements read or ignored (sites, cameras,
+lights included) checked against MuJoCo's schema types, counts and keywords, and a blank number read as absent;
+child elements of <joint>, <freejoint>, <geom>, <inertial>, <site>, <camera>, <light> refused; one <joint>,
+<geom>, ... per <default> class and one <flag> per <option>; a file included twice, or an include with children,
+or an included file without elements; a mocap body that is not a fixed child of the world; condim other than
+1, 3, 4, 6; a plane's third size <= 0; a ball joint's range not starting at 0; repeated site, camera or light
+names; nesting beyond MuJoCo's XML parser's depth (tinyxml2: 496 nested bodies load, 497 do not; no recursion
+here). A file's bytes are decoded as MuJoCo takes them (up to a NUL; bytes that are not UTF-8 kept as bytes:
+a Latin-1 comment loads, a Latin-1 byte in a number is a bad number). MuJoCo's inf and nan are refused here (every
+number rbody reads must be finite). A message never echoes a long value whole (MJCFError cuts it).
+
 Joint limits: a limited joint's range (less its margin) is kept (``MJCFModel.limits``, ``MJCFScene.limits``:
 joint name -> (lo, hi) [rad | m]; ball: (0, largest rotation angle)). A limit declared but never reached
 changes nothing; rbody does not model the limit's force, so a native run whose saved states leave a range
