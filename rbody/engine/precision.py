@@ -30,8 +30,6 @@ import math
 
 import numpy as np
 
-from rbody.engine import multibody as mb
-from rbody.motion import quat_to_matrix
 
 EPS = float(np.finfo(np.float64).eps)
 LOST_DIGITS_LIMIT = 1e-8      # relative precision of the engine's pivots below which a tree is refused
@@ -49,11 +47,21 @@ def _largest_states(qpos: np.ndarray, qvel: np.ndarray) -> tuple[np.ndarray, np.
     return qpos[rows], qvel[rows]
 
 
+def _rotations(quat: np.ndarray) -> np.ndarray:
+    """(..., 3, 3) rotation matrices of unit quaternions (..., 4) (w, x, y, z)."""
+    w, x, y, z = np.moveaxis(quat, -1, 0)
+    return np.stack([np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+                     np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+                     np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], -2)
+
+
 def lost_digits(model, qpos: np.ndarray, qvel: np.ndarray, t_end: float = 0.0) -> tuple[float, str]:
     """(eps S / L, where) at its largest over the rotational degrees of freedom of `model` (a Multibody) and the
     states qpos (B, nq), qvel (B, nv) (module docstring); bodies below a free or slide joint travel for t_end [s].
-    `where` names the joint, the body and the figures. (0, "") for a tree with no rotational degree of freedom."""
-    p = np.asarray(model.params)
+    `where` names the joint, the body and the figures. (0, "") for a tree with no rotational degree of freedom.
+    Cost linear in the bodies: each subtree's mass, centre of mass, inertia about that centre (the parallel-axis
+    theorem, from differences of nearby points, which keep their digits far from the origin) and S are summed
+    towards the root once."""
     arrays = model.arrays
     nb, nv = len(model.body_names), model.nv
     if nv == 0 or nb == 0:
@@ -61,54 +69,68 @@ def lost_digits(model, qpos: np.ndarray, qvel: np.ndarray, t_end: float = 0.0) -
     qpos, qvel = _largest_states(np.atleast_2d(qpos), np.atleast_2d(qvel))
     states = model.body_states(qpos, qvel)
     com, quat = states["com"], states["quat"]                     # (B, nb, 3), (B, nb, 4)
-    bo, jo, do = int(p[mb.H_BODY]), int(p[mb.H_JOINT]), int(p[mb.H_DOF])
-    parent = np.array([int(p[bo + i * mb.BODY_SIZE + mb.B_PARENT]) for i in range(nb)])
-    mass = np.array([p[bo + i * mb.BODY_SIZE + mb.B_MASS] for i in range(nb)])
-    local_com = np.array([p[bo + i * mb.BODY_SIZE + mb.B_COM:bo + i * mb.BODY_SIZE + mb.B_COM + 3] for i in range(nb)])
-    trace = np.array([p[bo + i * mb.BODY_SIZE + mb.B_TENSOR:bo + i * mb.BODY_SIZE + mb.B_TENSOR + 9:4].sum()
-                      for i in range(nb)])
+    # the description, in the engine's order (its body_names and joint_names): read from the Layout
+    index = {name: i for i, name in enumerate(model.body_names)}
+    bodies = {body.name: body for body in model.layout.bodies}
+    joints = {joint.name: joint for joint in model.layout.joints}
+    described = [bodies[name] for name in model.body_names]
+    parent = np.array([index.get(body.parent, -1) for body in described])
+    mass = np.array([body.inertia.mass for body in described])
+    local_com = np.array([body.inertia.com for body in described], dtype=float).reshape(nb, 3)
+    trace = np.array([np.trace(body.inertia.tensor) for body in described])
+    joint_body = [index[joints[name].body] for name in model.joint_names]
     # how far each body may travel over the run: below a free or slide joint, |v| t + g t^2 / 2
-    speed = np.zeros((qpos.shape[0], nb))
-    moving = np.zeros(nb, dtype=bool)
-    for kind, body, dofadr in zip(arrays.joint_kinds, (int(p[jo + j * mb.JOINT_SIZE + mb.J_BODY])
-                                                        for j in range(len(arrays.joint_kinds))), arrays.dofadr):
+    batch = qpos.shape[0]
+    speed, moving = np.zeros((batch, nb)), np.zeros(nb, dtype=bool)
+    for kind, body, dofadr in zip(arrays.joint_kinds, joint_body, arrays.dofadr):
         if kind in ("free", "slide"):
             width = 3 if kind == "free" else 1
-            linear = np.linalg.norm(qvel[:, int(dofadr):int(dofadr) + width], axis=1)
             moving[body] = True
-            speed[:, body] = np.maximum(speed[:, body], linear)
+            speed[:, body] = np.maximum(speed[:, body], np.linalg.norm(qvel[:, int(dofadr):int(dofadr) + width], axis=1))
     for i in range(nb):  # parents come first: a body moves with everything above it
         if parent[i] >= 0:
             moving[i] |= moving[parent[i]]
             speed[:, i] = np.maximum(speed[:, i], speed[:, parent[i]])
     travel = np.where(moving, speed * t_end + 0.5 * abs(model.gravity) * t_end**2, 0.0)  # (B, nb)
     reach = np.linalg.norm(com, axis=2) + travel                                          # (B, nb)
-    world = mass * reach**2                                                               # m |x|^2, (B, nb)
-    worst, where = 0.0, ""
-    subtree = [[i] for i in range(nb)]
+    # subtree sums towards the root: mass M, centre C, inertia J about C (trace form), S = sum m reach^2
+    total, centre = np.broadcast_to(mass, (batch, nb)).copy(), com.copy()
+    inertia, world = np.broadcast_to(trace, (batch, nb)).copy(), mass * reach**2
+    farthest = np.broadcast_to(np.arange(nb), (batch, nb)).copy()
     for i in range(nb - 1, -1, -1):
-        if parent[i] >= 0:
-            subtree[parent[i]].extend(subtree[i])
+        k = parent[i]
+        if k < 0:
+            continue
+        both = total[:, k] + total[:, i]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            share = np.where(both > 0, total[:, i] / both, 0.0)
+        offset = centre[:, i] - centre[:, k]                       # two nearby points: no digits lost
+        inertia[:, k] += inertia[:, i] + total[:, k] * share * np.sum(offset**2, axis=1)  # parallel axes, combined
+        centre[:, k] += share[:, None] * offset
+        total[:, k] = both
+        world[:, k] += world[:, i]
+        far = reach[np.arange(batch), farthest[:, i]] > reach[np.arange(batch), farthest[:, k]]
+        farthest[:, k] = np.where(far, farthest[:, i], farthest[:, k])
+    rotation = _rotations(quat)                                                           # (B, nb, 3, 3)
+    worst, where = 0.0, ""
     for d in range(nv):
-        j = int(p[do + d * mb.DOF_SIZE + mb.D_JOINT])
-        index = int(p[do + d * mb.DOF_SIZE + mb.D_INDEX])
+        j = int(arrays.dof_joint[d])
+        within = d - int(arrays.dofadr[j])  # which degree of freedom of its joint
         kind = arrays.joint_kinds[j]
-        if kind == "slide" or (kind == "free" and index < 3):
+        if kind == "slide" or (kind == "free" and within < 3):
             continue  # a translation's pivot is a mass: nothing cancels
-        body = int(p[jo + j * mb.JOINT_SIZE + mb.J_BODY])
-        anchor_local = p[jo + j * mb.JOINT_SIZE + mb.J_ANCHOR:jo + j * mb.JOINT_SIZE + mb.J_ANCHOR + 3]
-        rotation = np.stack([quat_to_matrix(q) for q in quat[:, body]])                   # (B, 3, 3)
-        origin = com[:, body] - np.einsum("bij,j->bi", rotation, local_com[body])
-        anchor = origin + np.einsum("bij,j->bi", rotation, anchor_local)                  # (B, 3)
-        members = subtree[body]
-        local = (mass[members] * np.sum((com[:, members] - anchor[:, None]) ** 2, axis=2)).sum(axis=1) \
-            + trace[members].sum()                                                        # L, (B,)
-        scale = world[:, members].sum(axis=1)                                             # S, (B,)
+        if within > 0 and kind in ("ball", "free") and (kind == "ball" or within > 3):
+            continue  # the joint's other rotations: the same subtree, the same figures
+        body = joint_body[j]
+        anchor_local = np.asarray(joints[model.joint_names[j]].anchor, dtype=float)
+        anchor = com[:, body] + np.einsum("bij,j->bi", rotation[:, body], anchor_local - local_com[body])
+        local = inertia[:, body] + total[:, body] * np.sum((centre[:, body] - anchor) ** 2, axis=1)  # L, (B,)
+        scale = world[:, body]                                                                      # S, (B,)
         with np.errstate(divide="ignore", invalid="ignore"):
             ratio = np.where(local > 0, EPS * scale / local, 0.0)  # L = 0: singular of itself (check_pivots says so)
         b = int(np.argmax(ratio))
         if ratio[b] > worst:
-            far = members[int(np.argmax(reach[b, members]))]
+            far = int(farthest[b, body])
             worst = float(ratio[b])
             where = (f"joint {model.joint_names[j]!r} of body {model.body_names[body]!r}: the subtree's inertia about "
                      f"the world origin, sum m |x|^2 = {scale[b]:.3g} kg m^2 (body {model.body_names[far]!r} "
