@@ -10,7 +10,7 @@ from rbody.particles import Particles, reduced_mass, two_body
 from rbody.layout import Body, Contact, Equality, Joint, Layout, Shape
 from rbody.scene import Scene
 from rbody.trajectory import Trajectory
-from rbody.errors import MethodNotApplicable, SimulationError
+from rbody.errors import AccuracyWarning, MethodNotApplicable, SimulationError
 from rbody.engine import METHODS, METHOD_ORDER, stability
 from rbody.simulation import PreparedRun, prepare, simulate
 from rbody.engine.multibody import Multibody
@@ -22,6 +22,6 @@ from rbody.animation import Animation, animate
 __all__ = [
     "Inertia", "RigidMotion", "point_velocity", "Particles", "reduced_mass", "two_body",
     "Body", "Contact", "Equality", "Joint", "Layout", "Scene", "Shape", "Trajectory",
-    "SimulationError", "MethodNotApplicable", "METHODS", "METHOD_ORDER", "simulate", "prepare", "PreparedRun", "scenes",
+    "SimulationError", "MethodNotApplicable", "AccuracyWarning", "METHODS", "METHOD_ORDER", "simulate", "prepare", "PreparedRun", "scenes",
     "to_mjcf", "from_mjcf", "from_urdf", "Multibody", "stability", "animate", "Animation",
 ]

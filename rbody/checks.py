@@ -10,15 +10,25 @@ import numpy as np
 def finite_array(value: Any, name: str, *, shape: tuple | None = None, ndim: int | None = None) -> np.ndarray:
     """float64 copy of `value`, checked real, finite and (optionally) of a given shape or rank.
 
-    Text ("1.5") and complex numbers are refused rather than converted.
+    Text ("1.5") and complex numbers are refused rather than converted. A copy that would not fit in the memory
+    this process can still allocate (a broadcast view of 10^9 elements) is refused before it is made.
     """
     try:
-        kind = np.asarray(value).dtype.kind
+        viewed = np.asarray(value)
+        kind = viewed.dtype.kind
         if kind in "USVcmM":  # text, bytes, void, complex, timedelta, datetime
             raise TypeError(f"got dtype kind {kind!r}")
+        if viewed.size > LARGE_ARRAY:
+            from rbody.resources import memory_problem
+
+            problem = memory_problem(8.0 * viewed.size, f"a float64 copy of {name} (shape {viewed.shape})")
+            if problem:
+                raise MemoryError(problem)
         array = np.array(value, dtype=np.float64)
+    except MemoryError as error:
+        raise ValueError(f"{name}: {error}; give a smaller batch") from None
     except (TypeError, ValueError) as error:
-        raise ValueError(f"{name}={value!r}: expected real numbers ({error})") from None
+        raise ValueError(f"{name}={_short(value)}: expected real numbers ({error})") from None
     if shape is not None and array.shape != tuple(shape):
         raise ValueError(f"{name} has shape {array.shape}: expected {tuple(shape)}")
     if ndim is not None and array.ndim != ndim:
@@ -32,6 +42,15 @@ def finite_array(value: Any, name: str, *, shape: tuple | None = None, ndim: int
                          f"at index {tuple(int(i) for i in bad[0])} ({array[tuple(bad[0])]!r}); every value must be "
                          "finite (no NaN or inf)")
     return array
+
+
+LARGE_ARRAY = 2**23  # elements (64 MB as float64) above which finite_array checks that its copy fits in memory
+
+
+def _short(value: Any, limit: int = 200) -> str:
+    """repr(value) cut to `limit` characters (a message never echoes a huge value whole)."""
+    text = repr(value)
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
 
 
 def positive(value: Any, name: str) -> Any:
@@ -127,6 +146,7 @@ def representable(scene, *, exact: bool = True):
     and its parameters otherwise (a parameter too large or too small for float64: an overflow to inf, an
     underflow to 0 that divides). Observables that mean "not yet" (an arrival time) may be NaN."""
     size = int(np.prod(scene.batch_shape)) if scene.batch_shape else 1
+    refuse_batch_memory(scene)
     with np.errstate(all="ignore"):
         problem = None
         if not scene.event_driven:
@@ -154,3 +174,33 @@ def representable(scene, *, exact: bool = True):
                          "float64 arithmetic (an overflow to inf or an underflow to 0): give it in other units "
                          "or nearer the scene's scale")
     return scene
+
+
+# A batch larger than this is checked against the memory before its native model is built.
+BATCH_MEMORY_CHECKED_ABOVE = 2**16
+# Building a batch's native model holds up to ~2.4 x its arrays y0 and params at once (broadcast copies,
+# concatenations; measured with tracemalloc on the rod, chain, rocket and two-body factories): 3 x is the estimate.
+BATCH_BUILD_FACTOR = 3.0
+
+
+def refuse_batch_memory(scene) -> None:
+    """ValueError, before a batched scene's native model is built, when its arrays (y0 and params for every batch
+    element, BATCH_BUILD_FACTOR x as built) would not fit in the memory this process can still allocate
+    (rbody.resources). The sizes of one element come from the scene's first element, built alone."""
+    if scene.event_driven or not scene.batch_shape:
+        return
+    size = float(np.prod([float(n) for n in scene.batch_shape]))
+    if size <= BATCH_MEMORY_CHECKED_ABOVE or "native_model" in scene.__dict__:
+        return
+    from rbody.resources import memory_problem
+
+    try:
+        one = scene.item((0,) * len(scene.batch_shape)).native_model
+    except NotImplementedError:
+        return
+    numbers = one.y0.shape[1] + one.params.shape[1]
+    problem = memory_problem(BATCH_BUILD_FACTOR * 8.0 * size * numbers,
+                             f"scene {scene.name!r}: a batch of {size:.3g} elements ({scene.batch_shape}), "
+                             f"{numbers} numbers of state and parameters each,")
+    if problem:
+        raise ValueError(f"{problem}; refused before building it: split the batch")

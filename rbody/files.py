@@ -10,6 +10,11 @@ the old file as it was.
     with atomic_path(path) as temporary:     for writers that take a path (savefig, np.savez, to_csv)
     with atomic_open(path, "w") as f:        for writers that take an open file (csv.writer, json.dump)
     with replaced_folder(folder) as staging: a folder written whole (a report), swapped in at the end
+
+A process killed between the temporary write and the rename leaves the temporary behind: a hidden name
+(".<name>.<random>.tmp<suffix>", or a ".<folder>.<random>.new"/".old" folder). Readers of a folder skip hidden
+names (is_temporary), and stale_temporaries / remove_stale_temporaries find and remove those older than
+STALE_SECONDS (a live write lasts milliseconds), so that the next run cleans up after an interrupted one.
 """
 
 from __future__ import annotations
@@ -17,10 +22,15 @@ from __future__ import annotations
 import contextlib
 import errno
 import os
+import re
 import shutil
 import tempfile
+import time
 from pathlib import Path
 from typing import IO, Iterator
+
+STALE_SECONDS = 60.0  # a temporary left this long by write_atomic or replaced_folder is an interrupted write's
+_TEMPORARY = re.compile(r"^\..+\.[A-Za-z0-9_]+\.(tmp.*|new|old)$")  # the names _temporary_name and mkdtemp give
 
 
 def _temporary_name(path: Path) -> Path:
@@ -31,6 +41,41 @@ def _temporary_name(path: Path) -> Path:
     handle, name = tempfile.mkstemp(prefix=f".{path.name[:40]}.", suffix=f".tmp{path.suffix[:16]}", dir=path.parent)
     os.close(handle)
     return Path(name)
+
+
+def is_temporary(path: str | os.PathLike) -> bool:
+    """Whether `path` is named as this module's temporaries are (hidden, with a random part and .tmp*, .new or
+    .old): never to be read as a result."""
+    return bool(_TEMPORARY.match(Path(path).name))
+
+
+def stale_temporaries(folder: str | os.PathLike, older_than: float = STALE_SECONDS) -> list[Path]:
+    """The temporaries in `folder` (is_temporary) last modified more than `older_than` seconds ago."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        return []
+    now = time.time()
+    found = []
+    for entry in folder.iterdir():
+        try:
+            if is_temporary(entry) and now - entry.lstat().st_mtime > older_than:
+                found.append(entry)
+        except OSError:
+            continue
+    return sorted(found)
+
+
+def remove_stale_temporaries(folder: str | os.PathLike, older_than: float = STALE_SECONDS) -> list[Path]:
+    """Remove stale_temporaries(folder) (files and folders); returns what was removed."""
+    removed = []
+    for entry in stale_temporaries(folder, older_than):
+        with contextlib.suppress(OSError):
+            if entry.is_dir() and not entry.is_symlink():
+                shutil.rmtree(entry)
+            else:
+                entry.unlink()
+            removed.append(entry)
+    return removed
 
 
 def write_atomic(path: str | os.PathLike, data: str | bytes) -> Path:

@@ -47,6 +47,7 @@ class Shape:
     mesh: str | None = None
 
     def __post_init__(self) -> None:
+        _name(self.name, "shape", "name")
         if self.kind not in SHAPE_KINDS:
             raise ValueError(f"shape {self.name!r}: kind={self.kind!r}, expected one of {SHAPE_KINDS}")
         object.__setattr__(self, "size", tuple(float(s) for s in nonnegative(np.atleast_1d(self.size), "size")))
@@ -72,6 +73,45 @@ class Body:
     parent: str = WORLD
     pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
     quat: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+
+    def __post_init__(self) -> None:
+        """Every field checked at construction (ValueError naming the body and the field), so that a wrong type
+        never surfaces later as an AttributeError inside the engine; shapes, pos and quat kept as tuples."""
+        _name(self.name, "body", "name")
+        what = f"body {self.name!r}"
+        if not isinstance(self.inertia, Inertia):
+            raise ValueError(f"{what}: inertia={_short(self.inertia)} is a {type(self.inertia).__name__}: expected an "
+                             "rbody.Inertia (mass, centre of mass and tensor, e.g. Inertia.rod(1.0, 0.5, 'z'))")
+        object.__setattr__(self, "shapes", _items(self.shapes, Shape, f"{what}: shapes"))
+        _name(self.parent, what, "parent")
+        object.__setattr__(self, "pos", tuple(finite_array(self.pos, f"{what}: pos", shape=(3,)).tolist()))
+        quat = finite_array(self.quat, f"{what}: quat", shape=(4,))
+        if not np.any(quat):
+            raise ValueError(f"{what}: quat={quat.tolist()} must be non-zero (w, x, y, z)")
+        object.__setattr__(self, "quat", tuple(quat.tolist()))
+
+
+def _short(value: Any, limit: int = 80) -> str:
+    """repr(value) cut to `limit` characters, for messages."""
+    text = repr(value)
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
+
+
+def _name(value: Any, owner: str, field: str) -> str:
+    """`value` checked to be a non-empty str (a name, or the name a field refers to)."""
+    if not isinstance(value, str) or not value:
+        raise ValueError(f"{owner}: {field}={_short(value)} ({type(value).__name__}): expected a non-empty str")
+    return value
+
+
+def _items(values: Any, kind: type, what: str) -> tuple:
+    """`values` (a tuple or list) checked to hold only `kind`, as a tuple."""
+    if isinstance(values, (str, bytes)) or not isinstance(values, (tuple, list)):
+        raise ValueError(f"{what}={_short(values)} ({type(values).__name__}): expected a tuple of rbody.{kind.__name__}")
+    for k, value in enumerate(values):
+        if not isinstance(value, kind):
+            raise ValueError(f"{what}[{k}]={_short(value)} is a {type(value).__name__}: expected an rbody.{kind.__name__}")
+    return tuple(values)
 
 
 def already_unit(vector: np.ndarray) -> bool:
@@ -178,6 +218,8 @@ class Joint:
     restitution: float = 0.0
 
     def __post_init__(self) -> None:
+        _name(self.name, "joint", "name")
+        _name(self.body, f"joint {self.name!r}", "body")
         if self.kind not in JOINT_KINDS:
             raise ValueError(f"joint {self.name!r}: kind={self.kind!r}, expected one of {JOINT_KINDS}")
         self._check_constraints()
@@ -243,6 +285,8 @@ class Contact:
     restitution: float = 1.0
 
     def __post_init__(self) -> None:
+        _name(self.shape_a, "contact", "shape_a")
+        _name(self.shape_b, "contact", "shape_b")
         nonnegative(self.friction, "friction")
         in_interval(self.restitution, "restitution", 0.0, 1.0, closed=True)
 
@@ -334,6 +378,11 @@ class Layout:
         constraint layer (rbody.engine.constraints)."""
         return (any(j.range is not None or j.frictionloss > 0 for j in self.joints)
                 or any(e.active for e in self.equalities))
+
+    def __post_init__(self) -> None:
+        """Each field checked to be a tuple (or list) of its kind (ValueError naming the field and the item)."""
+        for field, kind in (("bodies", Body), ("joints", Joint), ("fixed", Shape), ("contacts", Contact)):
+            object.__setattr__(self, field, _items(getattr(self, field), kind, f"Layout {field}"))
 
 
 # ----- the one tree order ------------------------------------------------------------------------------

@@ -299,8 +299,23 @@ class TreeScene(Scene):
             if np.any(np.abs(norms - 1.0) > 1e-9):
                 raise ValueError(f"qpos0: the quaternions at qpos columns {quats} have lengths "
                                  f"{np.unique(np.round(norms, 12)).tolist()}: expected unit quaternions")
+        from rbody.engine.precision import angle_spacing_problem
+
+        problem = angle_spacing_problem(model, qpos0.reshape(-1, model.nq))
+        if problem:
+            raise ValueError(f"tree {self.name!r} cannot be carried in float64 by this engine: {problem}")
         model.check_pivots(qpos0)
         return qpos0, qvel0
+
+    def precision_problem(self, dt: float, t_end: float) -> str | None:
+        """Why float64 cannot carry this tree over a run of t_end [s] at step dt [s] (str), or None: a hinge angle whose
+        rounding passes a millionth of what a step moves it (rbody.engine.precision). simulate asks before any step.
+        (Coordinates far from the origin lose no digits: each tree is computed about its own origin.)"""
+        from rbody.engine import stability
+        from rbody.engine.precision import angle_step_problem
+
+        qpos, qvel = self._state0()
+        return angle_step_problem(self.multibody, qpos, qvel, dt, lambda: float(np.max(stability.fastest_rate(self, None))))
 
     @cached_property
     def multibody(self):

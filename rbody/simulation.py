@@ -14,17 +14,23 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import os
+import time
+import warnings
 from typing import Any
 
 import numpy as np
 
+from rbody import progress as progress_lines
 from rbody.checks import run_times, whole_number
+from rbody.engine.accuracy import accuracy_problem
 from rbody.engine.distributed import PREPARED_KEY, integrate_on_cluster
 from rbody.engine.methods import BY_NAME, Method, method as method_record
-from rbody.engine.runner import crosses_break, failure, integrate_model, step_count
-from rbody.engine.stability import check_state, check_step
-from rbody.errors import MethodNotApplicable, SimulationError
+from rbody.engine.runner import (crosses_break, failure, integrate_model, integrate_segment, segmentable,
+                                 step_count)
+from rbody.engine.stability import (DENSE_STATE_LIMIT, JACOBIAN_BLOCK, KRYLOV_VECTORS, check_state, check_step,
+                                    fastest_rate)
+from rbody.errors import AccuracyWarning, MethodNotApplicable, SimulationError
+from rbody.resources import MEMORY_FRACTION, available_memory
 from rbody.scene import Scene
 from rbody.trajectory import Trajectory
 
@@ -33,55 +39,85 @@ EVENT_METHOD = "events"
 
 def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float | None = None,
              save_every: int = 1, allow_large: bool = False, client: Any = None,
-             chunk: int | None = None) -> Trajectory:
+             chunk: int | None = None, progress: bool | None = None, error_estimate: bool = False) -> Trajectory:
     """Run `scene` natively.
 
     dt:         time step [s] (event-driven scenes: the sampling interval of the trajectory only)
     method:     one of rbody.METHODS; default "verlet" where it applies, else the scene's first
-                method; "events" (the only choice) for event-driven scenes; a tree with limits, dry friction
-                or equalities takes "rk4" (event-driven: rk4 between events located exactly, the default) or
-                "moreau" (time-stepping), and reports its events in trajectory.events and meta["events"]
-                (rbody.engine.constraints)
+                method; "events" (the only choice) for event-driven scenes
     t_end:      duration [s], default scene.t_end
     save_every: keep every n-th step (1 <= n <= ceil(t_end/dt)); the run takes ceil(t_end/dt) steps
                 rounded up to a multiple of save_every, so the last saved time is t_end or up to
                 save_every dt past it
     allow_large: run even when the work estimated before the run (estimate_work: steps, saved
-                samples, memory, impacts) is beyond its limits; without it such a run is refused
+                samples, the memory at the peak, impacts) is beyond its limits; without it such a run is refused
                 with a ValueError giving the estimate
     client:     a dask.distributed.Client: the batch's rows run as tasks on its cluster, `chunk` rows each
                 (default: about 4 tasks per worker thread, at least a few thousand rows; see
                 rbody.engine.distributed); the result equals the serial run's bit for bit. Event-driven
                 scenes and constrained trees (limits, dry friction, equalities: rbody.engine.constraints) run
-                here, element by element. None (default): everything runs here and Dask is not imported.
+                here. None (default): everything runs here and Dask is not imported.
+    progress:   a line on stderr with the share done and the time left (rbody.progress): True always, False
+                never, None (default) in an interactive session (a terminal, not pytest, not CI) when the run
+                proves longer than a few seconds (PROGRESS_AFTER_SECONDS, timed on its first steps). The run is
+                then stepped in segments, each from the last saved state, with the bits of one loop (gauss6 and
+                the reference solver, which carry more than the state between steps, run in one loop: no line);
+                a run on a Dask client shows none.
+    error_estimate: also run at dt/2 (step doubling) and put in trajectory.meta["error_estimate"] each observable's
+                estimated largest error over the run, max |y(dt) - y(dt/2)| 2^p / (2^p - 1) for a method of order
+                p (Richardson), with meta["error_estimate_how"] saying so; costs a second run of twice the steps.
+    Warns (rbody.errors.AccuracyWarning), before any step, when dt times the scene's fastest rate w is beyond the
+    method's accuracy threshold (rbody.engine.accuracy: one period of that mode carried with more than 1 % error).
     Returns a Trajectory whose observables have shape (T, *scene.batch_shape, ...).
     Raises ValueError for bad arguments, a run too large to start (above), a closed client or a chunk
     without a client; MethodNotApplicable when the method cannot run the scene; SimulationError, before
     any step, when dt is beyond the method's estimated stability limit on the scene (rbody.engine.stability)
-    and, after, when a step gives a non-finite state (never a trajectory holding NaN, except where an
-    observable means "not yet": a race's arrival time), or when a task lost its worker more often than
-    Dask retries it.
+    or the model cannot be carried by float64 over the run (a tree's precision_problem: hinge angles too large to
+    carry a step), and, after, when a step gives a
+    non-finite state (never a trajectory holding NaN, except where an observable means "not yet": a race's
+    arrival time), or when a task lost its worker more often than Dask retries it.
 
-    Without a client this is prepare(scene, ...).run(): the checks, the model and the bound loop are made on the
-    first call with these arguments and kept with the scene, so a repeated call costs the run alone.
+    Without a client this is prepare(scene, ...).run(progress=...): the checks, the model and the bound loop are
+    made on the first call with these arguments and kept with the scene, so a repeated call costs the run alone.
     """
+    if not isinstance(error_estimate, bool):
+        raise ValueError(f"error_estimate={error_estimate!r}: expected True or False")
+    show = progress_lines.wanted(progress)  # ValueError for anything but True, False, None
     if chunk is not None and client is None:
         raise ValueError(f"chunk={chunk!r}: rows per task of a Dask client; give client= too, or leave chunk out")
-    prepared = prepare(scene, dt=dt, method=method, t_end=t_end, save_every=save_every, allow_large=allow_large)
-    if client is None:
-        return prepared.run()
-    return prepared.run_on_cluster(client, chunk)
+    prepared = _prepare(scene, dt, method, t_end, save_every, allow_large)
+    if error_estimate and prepared.record is not None:  # the second run at dt/2, held beside the first
+        refuse_large(combined_work(prepared.work, estimate_work(scene, prepared.dt / 2, prepared.t_end,
+                                                                2 * prepared.save_every)), allow_large)
+    prepared.warn(stacklevel=3)
+    trajectory = prepared.run(progress=show) if client is None else prepared.run_on_cluster(client, chunk)
+    if error_estimate:
+        if prepared.record is None:
+            trajectory.meta["error_estimate_how"] = ("none: an event-driven scene's impacts are found exactly; dt only "
+                                                     "samples the trajectory")
+        else:
+            _estimate_error(scene, prepared.record, trajectory, prepared.dt, prepared.t_end, prepared.save_every,
+                            client, chunk, progress)
+    return trajectory
 
 
 def prepare(scene: Scene, *, dt: float, method: str | None = None, t_end: float | None = None,
             save_every: int = 1, allow_large: bool = False) -> "PreparedRun":
     """Everything of a run that depends only on (scene, dt, method, t_end, save_every), done once: the arguments
-    checked, the method chosen, the work estimated and refused if too large, the stability and resolution checks,
-    the native model built and the method's compiled loop bound to it. Arguments and errors as simulate's.
+    checked, the method chosen, the work estimated and refused if too large, the precision, stability and
+    resolution checks, the native model built and the method's compiled loop bound to it. Arguments, warnings and
+    errors as simulate's.
 
     The result is kept with the scene (a frozen scene never changes), so prepare, and simulate, called again
     with the same arguments return it at once. PreparedRun.run() then costs what the integration costs.
     """
+    prepared = _prepare(scene, dt, method, t_end, save_every, allow_large)
+    prepared.warn(stacklevel=3)
+    return prepared
+
+
+def _prepare(scene: Scene, dt, method, t_end, save_every, allow_large) -> "PreparedRun":
+    """The PreparedRun of these arguments, kept in the scene's __dict__ under PREPARED_KEY (made on first use)."""
     if not isinstance(scene, Scene):
         raise ValueError(f"scene={scene!r}: expected an rbody.Scene (see rbody.scenes)")
     key = (dt, method, t_end, save_every, allow_large)
@@ -118,9 +154,12 @@ class PreparedRun:
         self.work = estimate_work(scene, self.dt, self.t_end, self.save_every)
         self.allow_large = allow_large
         refuse_large(self.work, allow_large)
+        self.accuracy = None  # why dt resolves the fastest mode poorly (warned by simulate and prepare), or None
         if scene.event_driven:
             return
+        _check_precision(scene, self.dt, self.t_end)  # before the stability check: a model float64 cannot carry
         check_step(scene, self.method, self.dt, self.t_end)  # beyond the method's stability limit: refuse now
+        self.accuracy = accuracy_problem(self.method, self.dt, float(np.max(fastest_rate(scene, self.method))))
         self.model = model = scene.native_model  # built once per scene
         self.nsteps = step_count(self.t_end, self.dt, self.save_every)
         if model.break_time is not None and 0 < model.break_time < self.dt:
@@ -140,8 +179,16 @@ class PreparedRun:
         self._runner = (None if self.constrained or crosses_break(model, self.nsteps, self.dt)
                         else self.record.bound(model, self.y0.shape[0], self.dt, self.nsteps, self.save_every))
 
-    def run(self, *, qpos0: Any = None, qvel0: Any = None) -> Trajectory:
-        """The run, from the scene's initial state or (trees) from qpos0/qvel0; a Trajectory as simulate's."""
+    def warn(self, stacklevel: int = 2) -> None:
+        """An AccuracyWarning when dt times the scene's fastest rate is beyond the method's accuracy threshold."""
+        if self.accuracy is not None:
+            warnings.warn(AccuracyWarning(f"scene {self.scene.describe()}: method {self.method!r}: {self.accuracy}"),
+                          stacklevel=stacklevel)
+
+    def run(self, *, qpos0: Any = None, qvel0: Any = None, progress: bool | None = False) -> Trajectory:
+        """The run, from the scene's initial state or (trees) from qpos0/qvel0; a Trajectory as simulate's.
+        progress: as simulate's (rbody.progress); False (default) steps in one loop."""
+        show = progress_lines.wanted(progress)
         scene = self.scene
         if scene.event_driven:
             if qpos0 is not None or qvel0 is not None:
@@ -156,9 +203,12 @@ class PreparedRun:
         if self.constrained:
             return self._constrained_run(y0)
         out = np.empty((self.t.size,) + y0.shape)
-        if self._runner is None:  # the run crosses a break in the rhs: cut there (integrate_model)
-            failed = integrate_model(self.model if y0 is self.y0 else dataclasses.replace(self.model, y0=y0),
-                                     self.record, self.dt, self.nsteps, self.save_every, out)
+        model = self.model if y0 is self.y0 else dataclasses.replace(self.model, y0=y0)
+        if show is not False and segmentable(model, self.record, self.nsteps, self.dt):
+            failed = _integrate_showing_progress(scene, model, self.record, self.dt, self.nsteps, self.save_every,
+                                                 out, show)
+        elif self._runner is None:  # the run crosses a break in the rhs: cut there (integrate_model)
+            failed = integrate_model(model, self.record, self.dt, self.nsteps, self.save_every, out)
         else:
             failed = self._runner(y0, self.params, out)
         return self._trajectory(y0, out, failed)
@@ -214,12 +264,95 @@ class PreparedRun:
                                   f"states whose observables cannot be formed ({error}); try a smaller dt") from None
         return Trajectory(self.t, data, meta=dict(self.meta))
 
-    def __call__(self, *, qpos0: Any = None, qvel0: Any = None) -> Trajectory:
-        return self.run(qpos0=qpos0, qvel0=qvel0)
+    def __call__(self, *, qpos0: Any = None, qvel0: Any = None, progress: bool | None = False) -> Trajectory:
+        return self.run(qpos0=qpos0, qvel0=qvel0, progress=progress)
 
     def __repr__(self) -> str:
         return (f"PreparedRun({self.scene.describe()}, method={self.method!r}, dt={self.dt:g}, t_end={self.t_end:g}, "
                 f"save_every={self.save_every})")
+
+
+# The first segment of a run that may show progress: about this many element-steps (a few ms), timed to estimate the
+# whole run; then segments of about SEGMENT_SECONDS each, the line updated between them.
+PROBE_ELEMENT_STEPS = 200_000
+SEGMENT_SECONDS = 0.5
+
+
+def _integrate_showing_progress(scene: Scene, model, record: Method, dt: float, nsteps: int, save_every: int,
+                                out: np.ndarray, show: bool | None) -> np.ndarray:
+    """integrate_model's run, in segments (integrate_segment: the same bits), with a progress line when `show` is
+    True, or when None and the first segment predicts more than PROGRESS_AFTER_SECONDS for the whole run."""
+    samples = nsteps // save_every
+    batch = model.y0.shape[0]
+    failed = np.full(batch, -1, dtype=np.int64)
+    out[0] = model.y0  # every segment starts from a saved state, the first from the initial one
+    done, line = 0, None
+    seconds_per_sample = None
+    while done < samples:
+        if seconds_per_sample is None:
+            size = max(1, min(samples, PROBE_ELEMENT_STEPS // max(1, save_every * batch)))
+        else:
+            size = max(1, min(samples - done, int(SEGMENT_SECONDS / max(seconds_per_sample, 1e-12))))
+        size = min(size, samples - done)
+        started = time.perf_counter()
+        piece = integrate_segment(model, record, dt, done, size, save_every, out)
+        seconds_per_sample = (time.perf_counter() - started) / size
+        first = (failed < 0) & (piece >= 0)
+        failed[first] = piece[first]
+        done += size
+        if np.all(failed >= 0):
+            break
+        if line is None and done < samples:
+            if show is None and seconds_per_sample * (samples - done) <= progress_lines.PROGRESS_AFTER_SECONDS:
+                rest = integrate_segment(model, record, dt, done, samples - done, save_every, out)
+                first = (failed < 0) & (rest >= 0)
+                failed[first] = rest[first]
+                return failed
+            line = progress_lines.Progress(f"rbody {record.name} {scene.name}", nsteps * batch, unit="element-steps")
+        if line is not None:
+            line.update(done * save_every * batch)
+    if line is not None:
+        line.finish(done * save_every * batch)
+    return failed
+
+
+def _estimate_error(scene: Scene, record: Method, trajectory: Trajectory, dt: float, t_end: float, save_every: int,
+                    client, chunk, progress) -> None:
+    """meta["error_estimate"] of `trajectory` by step doubling (simulate's error_estimate), in place."""
+    meta = trajectory.meta
+    if record.order is None:
+        meta["error_estimate_how"] = f"none: {record.name!r} is an adaptive solver held to its own tolerance"
+        return
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", AccuracyWarning)  # said once, for the run itself
+        finer = simulate(scene, dt=dt / 2, method=record.name, t_end=t_end, save_every=2 * save_every,
+                         allow_large=True, client=client, chunk=chunk, progress=progress)
+    factor = 2.0**record.order / (2.0**record.order - 1.0)
+    estimates = {}
+    for name in trajectory.observables:
+        coarse, fine = np.asarray(trajectory[name], dtype=float), np.asarray(finer[name], dtype=float)
+        if coarse.shape != fine.shape or coarse.dtype.kind != "f":
+            continue
+        difference = np.abs(coarse - fine)
+        if name.endswith("arrival_time") or not np.all(np.isfinite(difference)):
+            difference = difference[np.isfinite(difference)]
+        estimates[name] = float(np.max(difference) * factor) if difference.size else 0.0
+    meta["error_estimate"] = estimates
+    meta["error_estimate_how"] = (f"step doubling: the run repeated at dt/2 = {dt / 2:g} s; for each observable the "
+                                  f"largest |y(dt) - y(dt/2)| over the samples and the batch, times 2^p/(2^p - 1) = "
+                                  f"{factor:.4g} for {record.name}'s order p = {record.order} (Richardson): an estimate "
+                                  "of the run's own error, in the observable's unit")
+
+
+def _check_precision(scene: Scene, dt: float, t_end: float) -> None:
+    """SimulationError, before any step, when the scene says float64 cannot carry its model over the run (a tree:
+    TreeScene.precision_problem)."""
+    check = getattr(scene, "precision_problem", None)
+    if check is None:
+        return
+    problem = check(dt, t_end)
+    if problem:
+        raise SimulationError(f"scene {scene.describe()}: cannot be run in float64 as the engine works now: {problem}")
 
 
 def _shaped(value, leading: tuple[int, ...]):
@@ -263,29 +396,58 @@ def _choose_method(scene: Scene, method: str | None) -> Method | None:
 MAX_ELEMENT_STEPS = 10**10    # steps x batch: ~2 min at 10 ns per pendulum step, hours for a long chain
 MAX_IMPACTS = 10**10          # impacts of an event-driven run: ~25 ns each (pi, 3.1e9 impacts in ~65 s)
 MAX_ELEMENT_SAMPLES = 10**9   # saved states x batch
-MEMORY_FRACTION = 0.5         # of the memory available now: the observables formed from the states take more
-MEMORY_CHECKED_ABOVE = 2**20  # bytes of saved states below which the memory available is not read (any machine has it)
+MEMORY_CHECKED_ABOVE = 2**20  # bytes at the peak below which the memory available is not read (any machine has it)
+# The peak of a run, beside its saved states (measured with tracemalloc, tests/rbody/test_memory.py):
+BUILD_FACTOR = 3.0            # building a batch's native model: up to ~2.4 x its arrays y0 and params (broadcast
+                              # copies, concatenations), for a model not built yet (a TreeScene's, on first use)
+OBSERVE_FACTOR = 5.0          # forming the observables: their arrays, and up to 4x as much in temporaries (a chain's energy)
+DEFAULT_OBSERVED = 4.0        # numbers observed per state number where they are not probed (runs below the check)
+BATCH_PROBED_ABOVE = 1024     # a batch larger than this, whose model is not built yet, is sized from one element
 
 
-def available_memory() -> int | None:
-    """Bytes of memory available to a new allocation now (Linux MemAvailable; else free pages), or None."""
+def _element(scene: Scene):
+    """One element of `scene` as an unbatched scene (scene.item of the first index); `scene` itself if unbatched."""
+    return scene.item((0,) * len(scene.batch_shape)) if scene.batch_shape else scene
+
+
+def _widths(scene: Scene, batch: float) -> tuple[int, int, bool]:
+    """(n, p, built): numbers of a batch element's state and parameters, and whether the native model was already
+    built; a large batch not yet built is sized from one element (building it is what is being estimated)."""
+    if "native_model" in scene.__dict__ or batch <= BATCH_PROBED_ABOVE:
+        built = "native_model" in scene.__dict__
+        model = scene.native_model
+        return model.y0.shape[1], model.params.shape[1], built
+    model = _element(scene).native_model
+    return model.y0.shape[1], model.params.shape[1], False
+
+
+def observed_numbers(scene: Scene) -> float:
+    """Numbers (float64) of the observables a run forms per saved sample and batch element, not counting lazy ones
+    (formed only when asked for, after the run): from the observables of one element at two samples of its initial
+    state. DEFAULT_OBSERVED x the state's numbers when they cannot be formed so."""
+    model = _element(scene).native_model
+    state = np.ascontiguousarray(np.broadcast_to(model.y0, (2,) + model.y0.shape))
     try:
-        with open("/proc/meminfo") as meminfo:
-            for line in meminfo:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except (OSError, ValueError, IndexError):
-        pass
-    try:
-        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    except (ValueError, OSError, AttributeError):
-        return None
+        data = model.observe(np.zeros(2), state)
+    except Exception:  # noqa: BLE001 - any failure only means the generous default below
+        return DEFAULT_OBSERVED * model.y0.shape[1]
+    total = 0.0
+    for value in data.values():
+        if not callable(value):
+            array = np.asarray(value)
+            if not np.shares_memory(array, state):  # a view of the saved states (a pendulum's theta) costs nothing
+                total += array.size * array.itemsize / 8.0
+    return total / (2.0 * model.y0.shape[0])
 
 
 def estimate_work(scene: Scene, dt: float, t_end: float, save_every: int) -> dict[str, float]:
     """The work of a run, before it starts (floats, so that 1e300 steps is a number, not an overflow):
-    steps (per batch element), batch, samples (saved times), bytes (the saved states, and the every-step
-    buffer of a run cut at a break), impacts (event-driven scenes that know their count, else 0).
+    steps (per batch element), batch, samples (saved times), impacts (event-driven scenes that know their count,
+    else 0), and the memory at the peak in bytes: state_bytes (the saved states, and the every-step buffer of a
+    run cut at a break), observable_bytes (the observables formed from them, OBSERVE_FACTOR x their arrays),
+    build_bytes (the batch's native model where it is not built yet, BUILD_FACTOR x its arrays), work_bytes (the
+    stability check's Jacobians) and bytes, their sum. The observables are probed (observed_numbers) only for runs
+    whose saved states pass MEMORY_CHECKED_ABOVE, the size the check reads the memory for.
     Raises ValueError when save_every is beyond the run."""
     steps = max(1.0, math.ceil(t_end / dt * (1 - 1e-12))) if t_end / dt < 2.0**62 else t_end / dt
     if save_every > steps:
@@ -293,26 +455,56 @@ def estimate_work(scene: Scene, dt: float, t_end: float, save_every: int) -> dic
                          "give save_every <= t_end/dt (a larger one would run the scene past t_end)")
     samples = -(-steps // save_every) + 1
     batch = float(np.prod(scene.batch_shape)) if scene.batch_shape else 1.0
-    impacts = 0.0
+    impacts = build = observed = work = 0.0
     if scene.event_driven:
         state = 3 * getattr(scene, "n", 1) + 4      # gaps, velocities, counts of each sample
         expected = getattr(scene, "expected_events", None)
         impacts = float(expected(t_end)) if callable(expected) else 0.0
         held = samples * state
+        observed = samples * state * OBSERVE_FACTOR
     else:
-        model = scene.native_model
-        state = model.y0.shape[1]
-        held = samples * state * batch
-        if crosses_break(model, steps, dt):
-            held += (steps + 1) * state * batch      # _integrate_across_break keeps every step
-    return {"steps": float(steps), "batch": batch, "samples": float(samples), "bytes": 8.0 * held,
-            "impacts": impacts}
+        n, p, built = _widths(scene, batch)
+        held = samples * n * batch
+        if not built:
+            build = BUILD_FACTOR * batch * (n + p)
+        if held * 8.0 > MEMORY_CHECKED_ABOVE:
+            observed = OBSERVE_FACTOR * samples * batch * observed_numbers(scene)
+        else:
+            observed = OBSERVE_FACTOR * samples * batch * DEFAULT_OBSERVED * n
+        if built and crosses_break(scene.native_model, steps, dt):
+            held += (steps + 1) * n * batch          # _integrate_across_break keeps every step
+        work = 3.0 * min(float(JACOBIAN_BLOCK), batch * n * n) if n <= DENSE_STATE_LIMIT else (KRYLOV_VECTORS + 8) * n
+    parts = {"state_bytes": 8.0 * held, "observable_bytes": 8.0 * observed, "build_bytes": 8.0 * build,
+             "work_bytes": 8.0 * work}
+    return {"steps": float(steps), "batch": batch, "samples": float(samples), "impacts": impacts,
+            "bytes": sum(parts.values()), **parts}
 
 
-def refuse_large(work: dict[str, float], allow_large: bool = False) -> None:
-    """ValueError, with the estimate, when `work` (estimate_work) is beyond the limits above (unless allow_large)."""
-    if allow_large:
-        return
+def combined_work(first: dict[str, float], second: dict[str, float]) -> dict[str, float]:
+    """The work of two runs made one after the other with both results held (simulate's error estimate): steps
+    added, the memory of both results held at once (the second's build and workspaces counted once)."""
+    combined = dict(first)
+    combined["steps"] = first["steps"] + second["steps"]
+    combined["samples"] = max(first["samples"], second["samples"])
+    combined["state_bytes"] = first["state_bytes"] + second["state_bytes"]
+    combined["observable_bytes"] = first["observable_bytes"] + second["observable_bytes"]
+    combined["bytes"] = sum(combined[k] for k in ("state_bytes", "observable_bytes", "build_bytes", "work_bytes"))
+    return combined
+
+
+def run_work(steps: float, samples: float, numbers_per_sample: float, *, batch: float = 1.0,
+             extra_bytes: float = 0.0) -> dict[str, float]:
+    """The work of any engine's run in refuse_large's terms (the validation commands check MuJoCo's and pymunk's
+    runs with it): steps per element, saved samples, numbers (float64) held per sample and element (states,
+    observables, buffers), and any other bytes at the peak."""
+    state = 8.0 * samples * batch * numbers_per_sample
+    return {"steps": float(steps), "batch": float(batch), "samples": float(samples), "impacts": 0.0,
+            "bytes": state + extra_bytes, "state_bytes": state, "observable_bytes": 0.0, "build_bytes": extra_bytes,
+            "work_bytes": 0.0}
+
+
+def work_problems(work: dict[str, float]) -> list[str]:
+    """What in `work` (estimate_work, run_work) is beyond the limits above, one phrase each with its figures."""
     steps, batch, samples, size, impacts = (work[k] for k in ("steps", "batch", "samples", "bytes", "impacts"))
     free = available_memory() if size > MEMORY_CHECKED_ABOVE else None  # reading /proc costs ~50 us a call
     problems = []
@@ -325,10 +517,20 @@ def refuse_large(work: dict[str, float], allow_large: bool = False) -> None:
         problems.append(f"{samples:.3g} saved samples x {batch:.3g} batch elements, beyond {MAX_ELEMENT_SAMPLES:.0e} "
                         "(raise save_every)")
     if free is not None and size > MEMORY_FRACTION * free:
-        problems.append(f"{size / 1e9:.3g} GB of saved states, more than {MEMORY_FRACTION:g} of the {free / 1e9:.3g} GB "
-                        "of memory available (raise save_every or split the batch)")
+        parts = ", ".join(f"{label} {work[key] / 1e9:.3g} GB" for key, label in (
+            ("state_bytes", "saved states"), ("observable_bytes", "observables"), ("build_bytes", "building the batch"),
+            ("work_bytes", "workspaces")) if work.get(key))
+        problems.append(f"{size / 1e9:.3g} GB at the peak ({parts}), more than {MEMORY_FRACTION:g} of the "
+                        f"{free / 1e9:.3g} GB this process can still allocate (raise save_every or split the batch)")
+    return problems
+
+
+def refuse_large(work: dict[str, float], allow_large: bool = False) -> None:
+    """ValueError, with the estimate, when `work` (estimate_work, run_work) is beyond the limits above (unless
+    allow_large)."""
+    if allow_large:
+        return
+    problems = work_problems(work)
     if problems:
         raise ValueError("run refused before it starts: " + "; ".join(problems)
                          + ". Pass allow_large=True to run it anyway.")
-
-

@@ -89,6 +89,7 @@ def main(argv: list[str] | None = None) -> int:
     """The command line; returns the exit status (OK, REGRESSION, INPUT_PROBLEM)."""
     from rbody.files import UnwritableFolder, check_writable_folder
     from validation.baselines import BaselineError
+    from validation.cluster import ClusterUnavailable
 
     args = _parser().parse_args(argv)
     try:
@@ -96,7 +97,7 @@ def main(argv: list[str] | None = None) -> int:
             raise InputProblem(f"--out {str(args.out)!r}: a path cannot hold a NUL character")
         check_writable_folder(args.out)  # before any work: a run of minutes must not end in a traceback
         return _command(args)
-    except (BaselineError, UnwritableFolder, InputProblem) as error:
+    except (BaselineError, UnwritableFolder, InputProblem, ClusterUnavailable) as error:
         print(f"error: {error}", file=sys.stderr)
         return INPUT_PROBLEM
     except OSError as error:

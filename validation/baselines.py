@@ -8,8 +8,10 @@ with an absolute floor for values at round-off level), or when a collision count
 The files are read and checked before any run (check): a file that is not JSON, or not of that shape,
 raises BaselineError naming the file, what is wrong and the command that rewrites it. A metric
 without a baseline (no file, or no entry) is reported as such ("no baseline for ...") and is not a
-pass. save() writes each file to a temporary name and renames it into place, and never reads the old
-one, so that --update-baselines repairs a broken file.
+pass. save() writes the new files into a staging folder that replaces the baseline folder whole at the end
+(rbody.files.replaced_folder: a killed update leaves the old baselines or the new ones, never a mix), and never
+reads the old files, so that --update-baselines repairs a broken file. Temporaries an interrupted write left in
+the folder (hidden names: rbody.files.is_temporary) are never read as baselines, and an update removes them.
 """
 
 from __future__ import annotations
@@ -23,7 +25,7 @@ from typing import Iterable
 
 import numpy as np
 
-from rbody.files import write_atomic
+from rbody.files import remove_stale_temporaries, replaced_folder, write_atomic
 
 BASELINE_DIR = Path(__file__).parent / "baselines"
 
@@ -110,22 +112,26 @@ def check(directory: str | os.PathLike, backends: Iterable[str]) -> None:
         load(backend, directory)
 
 
-def save(rows: Iterable, directory: str | os.PathLike = BASELINE_DIR / "full") -> list[Path]:
-    """Write one file per backend from the measured rows (values only; refused/failed rows skipped), each to a
-    temporary name renamed into place; the old files are not read (so that a broken one is repaired)."""
+def save(rows: Iterable, directory: str | os.PathLike = BASELINE_DIR / "full",
+         keep: dict[str, dict[str, float]] | None = None) -> list[Path]:
+    """Write one file per backend from the measured rows (values only; refused/failed rows skipped), all at once:
+    into a staging folder that then replaces `directory` whole (rbody.files.replaced_folder; files of backends not
+    written are kept). keep: backend -> metrics to write beside the rows' (another model's entries in a compare
+    baseline). The old files are not read here (so that a broken one is repaired); stale temporaries are removed."""
     directory = Path(directory)
-    by_backend: dict[str, dict[str, float]] = {}
+    by_backend: dict[str, dict[str, float]] = {backend: dict(metrics) for backend, metrics in (keep or {}).items()}
     for row in rows:
         if row.value is not None:
             by_backend.setdefault(row.backend, {})[f"{row.case}/{row.metric}"] = float(row.value)
     directory.mkdir(parents=True, exist_ok=True)
-    written = []
-    for backend, metrics in sorted(by_backend.items()):
-        path = directory / f"{backend}.json"
-        write_atomic(path, json.dumps({"versions": versions(), "metrics": dict(sorted(metrics.items()))},
-                                      indent=1) + "\n")
-        written.append(path)
-    return written
+    remove_stale_temporaries(directory)
+    names = []
+    with replaced_folder(directory) as staging:
+        for backend, metrics in sorted(by_backend.items()):
+            write_atomic(staging / f"{backend}.json",
+                         json.dumps({"versions": versions(), "metrics": dict(sorted(metrics.items()))}, indent=1) + "\n")
+            names.append(f"{backend}.json")
+    return [directory / name for name in names]
 
 
 def compare(rows: Iterable, directory: str | os.PathLike = BASELINE_DIR / "full") -> tuple[list[str], list[str]]:

@@ -31,6 +31,12 @@ from typing import Any, Callable, Iterator, Sequence
 
 TIMING = "timing"  # the worker resource a timed task holds (one per worker)
 CONNECT_TIMEOUT = "10s"
+HANDSHAKE_SECONDS = 15.0  # the whole first exchange with a scheduler (connect, handshake, identity) is bounded by this
+
+
+class ClusterUnavailable(ValueError):
+    """No Dask scheduler answers as Dask at the address given (nothing listens, or something else does), or the
+    cluster options are wrong: a set-up problem, found before any work (the commands exit with status 2)."""
 
 Task = tuple[str, Callable[..., Any], tuple]
 
@@ -39,10 +45,11 @@ Task = tuple[str, Callable[..., Any], tuple]
 def connect(scheduler: str | None = None, workers: int | None = None) -> Iterator[Any]:
     """A dask.distributed.Client of a local cluster of `workers` processes (one thread and one "timing"
     resource each), or of the scheduler at address `scheduler`; None when both are None. Closed on exit.
-    Raises ValueError when both are given, for workers < 1, and naming the address when no scheduler
-    answers there."""
+    Raises ClusterUnavailable (a ValueError) when both are given, for workers < 1, and naming the address when no
+    Dask scheduler answers there within HANDSHAKE_SECONDS (scheduler_answers: also when something else listens
+    there, which would otherwise hold the Client in its handshake for minutes)."""
     if scheduler is not None and workers is not None:
-        raise ValueError(f"--scheduler {scheduler} and --workers {workers}: give one of them")
+        raise ClusterUnavailable(f"--scheduler {scheduler} and --workers {workers}: give one of them")
     if scheduler is None and workers is None:
         yield None
         return
@@ -50,19 +57,63 @@ def connect(scheduler: str | None = None, workers: int | None = None) -> Iterato
 
     if workers is not None:
         if isinstance(workers, bool) or not isinstance(workers, int) or workers < 1:
-            raise ValueError(f"--workers {workers!r}: expected a whole number of worker processes >= 1")
+            raise ClusterUnavailable(f"--workers {workers!r}: expected a whole number of worker processes >= 1")
         with LocalCluster(n_workers=workers, processes=True, threads_per_worker=1, resources={TIMING: 1},
                           dashboard_address=":0") as cluster, Client(cluster) as client:
             yield client
         return
+    scheduler_answers(scheduler)
     try:
         client = Client(scheduler, timeout=CONNECT_TIMEOUT)
     except (OSError, TimeoutError, ValueError) as error:
-        raise ValueError(f"--scheduler {scheduler}: no Dask scheduler answered there within {CONNECT_TIMEOUT} "
-                         f"({type(error).__name__}: {error}); start one with `dask scheduler` and workers with "
-                         f"`dask worker {scheduler}`") from None
+        raise ClusterUnavailable(f"--scheduler {scheduler}: no Dask scheduler answered there within {CONNECT_TIMEOUT} "
+                                 f"({type(error).__name__}: {error}); start one with `dask scheduler` and workers "
+                                 f"with `dask worker {scheduler}`") from None
     with client:
         yield client
+
+
+def scheduler_answers(address: str, seconds: float | None = None) -> None:
+    """Return when a Dask scheduler answers at `address` (a comm connection, its handshake, and the scheduler's
+    reply to "identity"), all within `seconds`; else ClusterUnavailable saying what answered: nothing, something
+    silent (a handshake that never ends: distributed's Client would wait for minutes), or something that is not
+    Dask (garbage a Client would try to read as a frame of exabytes)."""
+    import asyncio
+
+    from distributed.comm import connect as open_comm
+
+    seconds = HANDSHAKE_SECONDS if seconds is None else seconds
+    if not isinstance(address, str) or not address:
+        raise ClusterUnavailable(f"--scheduler {address!r}: expected an address such as tcp://HOST:8786")
+    if address.startswith("inproc://"):
+        return  # a scheduler in this process
+
+    async def identity():
+        comm = await open_comm(address, timeout=seconds / 2)  # refused or unreachable: an OSError before the deadline
+        try:
+            await comm.write({"op": "identity", "reply": True})
+            return await comm.read()
+        finally:
+            comm.abort()
+
+    start = time.perf_counter()
+    try:
+        reply = asyncio.run(asyncio.wait_for(identity(), seconds))
+    except asyncio.TimeoutError:
+        raise ClusterUnavailable(f"--scheduler {address}: something accepted the connection but did not answer as a "
+                                 f"Dask scheduler within {seconds:g} s (no handshake): is the port right? Start a "
+                                 f"scheduler with `dask scheduler`") from None
+    except Exception as error:  # noqa: BLE001 - whatever went wrong, it is not a Dask scheduler answering
+        what = f"{type(error).__name__}: {str(error)[:200]}"
+        refused = isinstance(error, OSError)
+        raise ClusterUnavailable(
+            f"--scheduler {address}: " + (f"no Dask scheduler answered there ({what})" if refused else
+                                          f"what answered there is not a Dask scheduler ({what})")
+            + f", after {time.perf_counter() - start:.1f} s; start one with `dask scheduler` and workers with "
+              f"`dask worker {address}`") from None
+    if not isinstance(reply, dict) or reply.get("type") != "Scheduler":
+        raise ClusterUnavailable(f"--scheduler {address}: what answered there is not a Dask scheduler (it replied "
+                                 f"{str(reply)[:200]!r} to 'identity')")
 
 
 def run_tasks(client: Any, tasks: Sequence[Task], *, what: str, timed: bool = False, log=None) -> list:
@@ -86,6 +137,8 @@ def run_tasks(client: Any, tasks: Sequence[Task], *, what: str, timed: bool = Fa
 
 
 def _run_on_cluster(client: Any, tasks: Sequence[Task], *, what: str, timed: bool, log) -> list:
+    from concurrent.futures import CancelledError
+
     from distributed import as_completed
     from distributed.scheduler import KilledWorker
 
@@ -112,6 +165,9 @@ def _run_on_cluster(client: Any, tasks: Sequence[Task], *, what: str, timed: boo
                     f"it again after each worker death, up to distributed.scheduler.allowed-failures = "
                     f"{error.allowed_failures} (scheduler {address}, last worker {error.last_worker.address})"
                 ) from None
+            except CancelledError as error:  # every worker killed at once, or the scheduler gone
+                raise RuntimeError(f"task {name} of {what} was cancelled by the Dask cluster at {address} (its "
+                                   f"workers or its scheduler were lost: {type(error).__name__}: {error})") from None
             except Exception as error:
                 error.add_note(f"in task {name} of {what}, on the Dask cluster at {address}")
                 raise
@@ -129,7 +185,7 @@ def _check_timing_resource(client: Any, address: str) -> None:
     forever)."""
     workers = client.scheduler_info(n_workers=-1)["workers"]
     if not any(info.get("resources", {}).get(TIMING) for info in workers.values()):
-        raise ValueError(f"the Dask cluster at {address} has {len(workers)} workers and none with the resource "
+        raise ClusterUnavailable(f"the Dask cluster at {address} has {len(workers)} workers and none with the resource "
                          f"'{TIMING}': timed runs need it, one per worker, so that each timing has its worker to "
                          f"itself; start workers with `dask worker {address} --nthreads 1 --resources {TIMING}=1`")
 

@@ -274,7 +274,8 @@ def compare(model: Scene | str | Path, engines: Iterable[str] | None = None, *, 
     client:   a dask.distributed.Client: each engine's run is one task on its cluster (validation.cluster),
               the comparison the same as here
     Raises ValueError for bad input (a missing file, an unknown engine, dt <= 0, a batched scene, a method
-    that does not apply), before any run.
+    that does not apply), and for a run of any engine beyond the limits of rbody's own runs (engine_work: too many
+    steps, or more memory than the process can still allocate), before any run.
     """
     scene = load_model(model, t_end=t_end) if not isinstance(model, Scene) else model
     engines = _engine_names(engines, scene)
@@ -284,12 +285,14 @@ def compare(model: Scene | str | Path, engines: Iterable[str] | None = None, *, 
     dt = _default_dt(scene) if dt is None else dt
     dt, t_end = run_times(scene.t_end, dt, t_end)  # ValueError for dt <= 0, dt > t_end, t_end <= 0
     method = _method(scene, method)
+    able = {engine: supports(scene, engine) for engine in engines}
+    refuse_large_runs(scene, [engine for engine in engines if able[engine][0]], dt, t_end)
 
     runs: dict[str, EngineRun] = {}
     if client is not None:
-        runs = _runs_on_cluster(client, scene, engines, dt, t_end, method)
+        runs = _runs_on_cluster(client, scene, [e for e in engines if able[e][0]], dt, t_end, method)
     for k, engine in enumerate(engines, 1):
-        ok, reason = supports(scene, engine)
+        ok, reason = able[engine]
         if not ok:
             runs[engine] = EngineRun(engine, "refused", note=reason)
         elif engine not in runs:
@@ -301,6 +304,51 @@ def compare(model: Scene | str | Path, engines: Iterable[str] | None = None, *, 
     t, rows, curves = _divergences(scene, {e: r.trajectory for e, r in runs.items() if r.status == "ran"})
     source = None if isinstance(model, Scene) else str(model)
     return Comparison(scene, dt, t_end, method, runs, tuple(rows), t, curves, source)
+
+
+# MuJoCo's backend steps in chunks of this many bytes of rollout output, held twice (the run and its replay with
+# sensors): validation/backends/mujoco.py's _CHUNK_BYTES.
+MUJOCO_CHUNK_BYTES = 64 * 2**20
+
+
+def engine_work(scene: Scene, engine: str, dt: float, t_end: float) -> dict[str, float]:
+    """The work of `engine`'s run of `scene` (unbatched) over t_end [s] at step dt [s], every step saved, in the
+    terms of rbody.simulation.estimate_work, whose limits refuse_large applies to every engine alike:
+    rbody: estimate_work itself. MuJoCo: per saved step its state (time, qpos, qvel) and 13 sensor numbers per
+    body, kept from the rollout and stacked (3 copies), and the observables formed from them (2 copies), plus its
+    chunk buffers. pymunk: 6 numbers per body per saved step, and the observables (2 copies)."""
+    from rbody.simulation import estimate_work, observed_numbers, run_work
+
+    if engine == "rbody":
+        return estimate_work(scene, dt, t_end, 1)
+    steps = max(1.0, math.ceil(t_end / dt * (1 - 1e-12))) if t_end / dt < 2.0**62 else t_end / dt
+    bodies = len(scene.layout.bodies) if not scene.event_driven else getattr(scene, "n", 1)
+    if scene.event_driven:
+        state, observed = 2.0 * bodies, 4.0 * bodies
+    else:
+        state = float(scene.native_model.y0.shape[1])
+        observed = observed_numbers(scene) + state + 13.0 * bodies  # what scene.observe forms from body states
+    if engine == "mujoco":
+        numbers = 3.0 * (1.0 + state + 13.0 * bodies) + 2.0 * observed
+        extra = 2.0 * min(MUJOCO_CHUNK_BYTES, 8.0 * steps * (1.0 + state + 13.0 * bodies))
+    else:
+        numbers, extra = 6.0 * bodies + 2.0 * observed, 0.0
+    return run_work(steps, steps + 1.0, numbers, extra_bytes=extra)
+
+
+def refuse_large_runs(scene: Scene, engines: Sequence[str], dt: float, t_end: float) -> None:
+    """ValueError, before any run, when the run of any of `engines` is beyond the limits of rbody's own runs
+    (rbody.simulation.work_problems on engine_work: steps, saved samples, the memory at the peak), naming each."""
+    from rbody.simulation import work_problems
+
+    problems = []
+    for engine in engines:
+        found = work_problems(engine_work(scene, engine, dt, t_end))
+        if found:
+            problems.append(f"{engine}: " + "; ".join(found))
+    if problems:
+        raise ValueError(f"run refused before it starts (dt={dt:g} s, t_end={t_end:g} s; every engine's run obeys "
+                         "the limits of rbody's own): " + " | ".join(problems))
 
 
 def _settings_of(scene: Scene, engine: str, method: str | None) -> dict:
@@ -442,12 +490,17 @@ def load_model(source: str | Path, *, t_end: float | None = None) -> Scene:
             raise ValueError(f"model {text!r}: no such file {where!r}")
         spec = importlib.util.spec_from_file_location(Path(where).stem, where)
         module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
+        try:
+            spec.loader.exec_module(module)
+        except Exception as error:  # noqa: BLE001 - any failure of the user's file is a problem with the input
+            raise ValueError(f"model {text!r}: running {where!r} failed ({type(error).__name__}: "
+                             f"{_short(str(error))})") from None
     else:
         try:
             module = importlib.import_module(where)
-        except ImportError as error:
-            raise ValueError(f"model {text!r}: cannot import module {where!r} ({error})") from None
+        except Exception as error:  # noqa: BLE001 - ImportError, or the module's own error on import
+            raise ValueError(f"model {text!r}: cannot import module {where!r} ({type(error).__name__}: "
+                             f"{_short(str(error))})") from None
     if not hasattr(module, attribute):
         raise ValueError(f"model {text!r}: {where!r} has no {attribute!r}")
     value = getattr(module, attribute)
@@ -456,9 +509,17 @@ def load_model(source: str | Path, *, t_end: float | None = None) -> Scene:
             value = value()
         except TypeError as error:
             raise ValueError(f"model {text!r}: {attribute}() must build the Scene without arguments ({error})") from None
+        except Exception as error:  # noqa: BLE001 - the user's function failed: a problem with the input
+            raise ValueError(f"model {text!r}: {attribute}() failed ({type(error).__name__}: "
+                             f"{_short(str(error))})") from None
     if not isinstance(value, Scene):
         raise ValueError(f"model {text!r}: {attribute!r} is a {type(value).__name__}, expected an rbody Scene")
     return value
+
+
+def _short(text: str, limit: int = 300) -> str:
+    """`text` cut to `limit` characters (a message never echoes a huge value whole)."""
+    return text if len(text) <= limit else f"{text[:limit]}... ({len(text)} characters)"
 
 
 # ----- the divergences ---------------------------------------------------------------------------------
@@ -548,9 +609,31 @@ def _baseline_rows(comparison: Comparison) -> list[_BaselineRow]:
 
 def save_baseline(comparison: Comparison, path: str | Path) -> list[Path]:
     """Record the comparison's largest divergences in folder `path` (created if needed): one JSON file per
-    engine pair, as validation.baselines writes them. Returns the files written."""
+    engine pair, as validation.baselines writes them, the whole folder replaced at once (an interrupted update
+    leaves the old baselines); other models' divergences in the same files are kept (a file that cannot be read is
+    rewritten with this model's alone: the update repairs it). Returns the files written."""
     directory = _folder(path)
-    return baselines.save(_baseline_rows(comparison), directory)
+    keep: dict[str, dict[str, float]] = {}
+    prefix = f"{comparison.scene.name}/"
+    for file in _baseline_files(directory):
+        try:
+            metrics = baselines.read(file)["metrics"]
+        except baselines.BaselineError:
+            continue
+        others = {key: value for key, value in metrics.items() if not key.startswith(prefix)}
+        if others:
+            keep[file.stem] = others
+    return baselines.save(_baseline_rows(comparison), directory, keep=keep)
+
+
+def _baseline_files(directory: Path) -> list[Path]:
+    """The baseline files of a compare baseline folder: its *.json files, never a temporary an interrupted write
+    left behind (hidden: rbody.files.is_temporary)."""
+    from rbody.files import is_temporary
+
+    if not directory.is_dir():
+        return []
+    return sorted(file for file in directory.glob("*.json") if not file.name.startswith(".") and not is_temporary(file))
 
 
 def check_baseline(comparison: Comparison, path: str | Path) -> list[str]:
@@ -600,8 +683,13 @@ def _recorded(directory: Path, case: str) -> set[tuple[str, str]]:
     checked by validation.baselines.read: BaselineError naming a broken one)."""
     out = set()
     prefix = f"{case}/"
-    for file in sorted(directory.glob("*.json")):
+    for file in _baseline_files(directory):
         metrics = baselines.read(file)["metrics"]
+        for key, value in metrics.items():
+            if value < 0:  # a divergence is a norm: a negative one was edited in, and abs() would have hidden it
+                raise baselines.BaselineError(
+                    f"baseline file {str(file)!r} has divergence {key!r} = {value!r}: a divergence is >= 0 (a norm); "
+                    f"rewrite it with `python -m validation compare MODEL --baseline {directory} --update-baseline`")
         out.update((file.stem, key[len(prefix):]) for key in metrics if key.startswith(prefix))
     return out
 
@@ -703,6 +791,10 @@ def main(args) -> int:
     try:
         if args.update_baseline and args.baseline is None:
             raise ValueError("--update-baseline needs --baseline DIR: the folder to record the divergences in")
+        if args.baseline is not None:
+            from rbody.files import remove_stale_temporaries
+
+            remove_stale_temporaries(args.baseline)  # what an interrupted update left behind
         if args.baseline is not None and not args.update_baseline and not Path(args.baseline).is_dir():
             raise ValueError(f"--baseline {str(args.baseline)!r}: no such folder (record one with --update-baseline)")
         scene = load_model(args.model, t_end=args.t_end)

@@ -86,6 +86,8 @@ def integrate_on_cluster(client: Any, scene: Experiment, model: NativeModel, met
     Raises ValueError for a bad chunk or client (before any task), SimulationError when a task lost more
     workers than Dask retries it on, or when the scheduler is lost mid-run.
     """
+    from concurrent.futures import CancelledError
+
     from distributed import as_completed
     from distributed.client import FutureCancelledError
     from distributed.scheduler import KilledWorker
@@ -107,10 +109,14 @@ def integrate_on_cluster(client: Any, scene: Experiment, model: NativeModel, met
                                    key=key, pure=False)
             futures[future.key] = (future, start, stop)
         failed = np.empty(batch, dtype=np.int64)
-        for future, (states, failed_rows) in as_completed([f for f, _, _ in futures.values()], with_results=True):
+        for future in as_completed([f for f, _, _ in futures.values()]):
             _, start, stop = futures[future.key]
-            out[:, start:stop] = states
-            failed[start:stop] = failed_rows
+            result = future.result()  # a task's error, a KilledWorker or a cancellation is raised here, not unpacked
+            if not (isinstance(result, tuple) and len(result) == 2):
+                raise SimulationError(f"scene {scene.describe()}: task {future.key!r} (rows {start}:{stop} of {batch}) "
+                                      f"returned {type(result).__name__}, not its states: the Dask cluster at "
+                                      f"{address} lost it")
+            out[:, start:stop], failed[start:stop] = result
             future.release()
         return failed
     except KilledWorker as error:
@@ -120,9 +126,11 @@ def integrate_on_cluster(client: Any, scene: Experiment, model: NativeModel, met
             f"that ran it {error.allowed_failures + 1} times: Dask ran it again after each worker death, up to "
             f"distributed.scheduler.allowed-failures = {error.allowed_failures} times (scheduler {address}, last "
             f"worker {error.last_worker.address})") from None
-    except (OSError, FutureCancelledError) as error:
-        raise SimulationError(f"scene {scene.describe()}: the Dask scheduler at {address} was lost mid-run "
-                              f"({type(error).__name__}: {error})") from None
+    except (OSError, FutureCancelledError, CancelledError) as error:
+        raise SimulationError(f"scene {scene.describe()}: the Dask cluster at {address} lost the run: its tasks were "
+                              f"cancelled or its scheduler went away mid-run (every worker killed at once, or the "
+                              f"scheduler stopped: {type(error).__name__}: {error}); run it again, or without a "
+                              "client") from None
     finally:
         for future, _, _ in futures.values():
             future.cancel()

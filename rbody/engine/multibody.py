@@ -926,6 +926,9 @@ class Multibody:
         qpos0.setflags(write=False)
         qvel0.setflags(write=False)
         self.qpos0, self.qvel0 = qpos0, qvel0
+        if self.nv == 0:
+            raise ValueError(f"the tree has no degree of freedom ({len(self.body_names)} bodies, no joint): nothing in it "
+                             "moves; give a body a joint (a free joint for a body that flies)")
         self.check_pivots(qpos0)
 
     # ----- arguments ---------------------------------------------------------------------------------

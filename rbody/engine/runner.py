@@ -121,3 +121,27 @@ def _integrate(model, method: Method | str, dt: float, nsteps: int, save_every: 
     method = method_record(method) if isinstance(method, str) else method
     y0, p = np.ascontiguousarray(model.y0, dtype=np.float64), np.ascontiguousarray(model.params, dtype=np.float64)
     return method.integrate(model, y0, p, dt, nsteps, save_every, out)
+
+
+# Methods whose step carries nothing from one step to the next but the state (euler, symplectic_euler, verlet and
+# its compositions, rk4, a scene's splitting): a run cut into segments, each started from the last saved state,
+# gives the one-loop run's bits. gauss6 starts each step's iteration from the last steps' slopes, and the
+# reference solver chooses its own steps, so neither is cut.
+NOT_SEGMENTED = ("gauss6", "reference")
+
+
+def segmentable(model, method: Method | str, nsteps: int, dt: float) -> bool:
+    """Whether a run of `method` on `model` may be cut into segments (integrate_segment) with the same bits."""
+    name = method if isinstance(method, str) else method.name
+    return name not in NOT_SEGMENTED and not crosses_break(model, nsteps, dt)
+
+
+def integrate_segment(model, method: Method | str, dt: float, start: int, samples: int, save_every: int,
+                      out: np.ndarray) -> np.ndarray:
+    """Samples start+1 .. start+samples of a run (samples x save_every steps) from the saved state out[start]:
+    out[start:start + samples + 1] filled, as the whole run's loop fills them (segmentable methods only).
+    Returns failed (B,): each element's first non-finite step counted from the start of the whole run, or -1."""
+    method = method_record(method) if isinstance(method, str) else method
+    piece = dataclasses.replace(model, y0=out[start])
+    failed = _integrate(piece, method, dt, samples * save_every, save_every, out[start:start + samples + 1])
+    return np.where(failed >= 0, failed + start * save_every, failed)

@@ -115,9 +115,13 @@ def model_rate(model: NativeModel, method: str | None = None) -> np.ndarray:
 def jacobian_rate(rhs, y: np.ndarray, params: np.ndarray) -> np.ndarray:
     """(B,) spectral radius of df/dy at each row of y (B, n), by central differences of the compiled rhs: the
     Jacobians of a block of elements in one compiled loop (threads over chunks of it), their eigenvalues in one
-    stacked numpy call; blocks of at most JACOBIAN_BLOCK numbers bound the memory of a long chain's batch."""
+    stacked numpy call; blocks of at most JACOBIAN_BLOCK numbers bound the memory of a long chain's batch.
+    A state of more than DENSE_STATE_LIMIT numbers (a big tree) is not formed densely (2n evaluations, n^2
+    numbers, a cubic eigenproblem): krylov_rate finds its spectral radius from Jacobian-vector products."""
     y, params = np.ascontiguousarray(y, dtype=np.float64), np.ascontiguousarray(params, dtype=np.float64)
     batch, n = y.shape
+    if n > DENSE_STATE_LIMIT:
+        return np.array([krylov_rate(rhs, y[b], params[b]) for b in range(batch)])
     rates = np.empty(batch)
     block = max(1, JACOBIAN_BLOCK // (n * n))
     pointer = integrators.pointer_function(rhs)
@@ -134,6 +138,77 @@ def jacobian_rate(rhs, y: np.ndarray, params: np.ndarray) -> np.ndarray:
 
 JACOBIAN_BLOCK = 2**21  # numbers (16 MB) of Jacobians held at once
 JACOBIAN_CHUNK = 256    # elements per thread's task in the compiled loop
+# States longer than this are not linearised densely (krylov_rate): at n = 64 the dense Jacobian costs 128
+# evaluations and a 64 x 64 eigenproblem (~1 ms); a tree of 1,000 ball joints (n = 10,000) would cost 20,000
+# evaluations, 0.8 GB and a cubic eigenproblem (measured before: 41 s and 2.6 GB).
+DENSE_STATE_LIMIT = 64
+KRYLOV_TOLERANCE = 1e-3   # relative accuracy of the spectral radius from Arnoldi's iteration
+KRYLOV_VECTORS = 24       # its basis size (ARPACK's ncv)
+KRYLOV_MAX_RESTARTS = 60  # restarts before the best estimate so far is taken
+
+
+def krylov_rate(rhs, y: np.ndarray, params: np.ndarray) -> float:
+    """Spectral radius of df/dy at y (n,) [1/s], from Jacobian-vector products by central differences
+    (jvp_difference: two evaluations each) and the implicitly restarted Arnoldi iteration (scipy's ARPACK eigs,
+    the eigenvalue of largest magnitude, to KRYLOV_TOLERANCE): a few dozen products, O(n) memory, whatever n.
+    inf when a product is not finite (no step is known to be safe there); 0 for a zero Jacobian."""
+    from scipy.sparse.linalg import ArpackError, ArpackNoConvergence, LinearOperator, eigs
+
+    y, params = np.ascontiguousarray(y, dtype=np.float64), np.ascontiguousarray(params, dtype=np.float64)
+    n = y.size
+    pointer = integrators.pointer_function(rhs)
+    scale = JACOBIAN_STEP * max(1.0, float(np.max(np.abs(y))))
+    work = np.empty((4, n))
+    bad = [False]
+
+    def product(v):
+        v = np.ascontiguousarray(np.real(v), dtype=np.float64).reshape(n)
+        size = float(np.max(np.abs(v)))
+        out = np.empty(n)
+        if size == 0.0:
+            out[:] = 0.0
+            return out
+        _jvp(pointer, y, params, v, scale / size, work, out)
+        if not np.all(np.isfinite(out)):
+            bad[0] = True
+            out[:] = 0.0
+        return out
+
+    operator = LinearOperator((n, n), matvec=product, dtype=np.float64)
+    start = np.random.default_rng(0).standard_normal(n)  # a fixed start: the same rate on every call
+    try:
+        values = eigs(operator, k=1, which="LM", tol=KRYLOV_TOLERANCE, ncv=min(n - 1, KRYLOV_VECTORS),
+                      maxiter=KRYLOV_MAX_RESTARTS, v0=start, return_eigenvectors=False)
+    except ArpackNoConvergence as partial:  # the best converged value, else the power estimate below
+        values = partial.eigenvalues
+    except ArpackError:
+        values = np.zeros(0)
+    if bad[0]:
+        return math.inf
+    if values.size:
+        return float(np.max(np.abs(values)))
+    vector = start / np.linalg.norm(start)  # a few power steps: a lower estimate, never 0 when J is not 0
+    rate = 0.0
+    for _ in range(30):
+        image = product(vector)
+        rate = float(np.linalg.norm(image))
+        if rate == 0.0:
+            break
+        vector = image / rate
+    return math.inf if bad[0] else rate
+
+
+@njit(cache=True)
+def _jvp(rhs, y, params, v, step, work, out):
+    """out = (f(y + step v) - f(y - step v)) / (2 step): df/dy v by central differences; work (4, n)."""
+    n, m = y.size, params.size
+    for j in range(n):
+        work[0, j] = y[j] + step * v[j]
+        work[1, j] = y[j] - step * v[j]
+    rhs(integrators._row(work, 0), integrators._row(params.reshape(1, m), 0), integrators._row(work, 2), n, m)
+    rhs(integrators._row(work, 1), integrators._row(params.reshape(1, m), 0), integrators._row(work, 3), n, m)
+    for j in range(n):
+        out[j] = (work[2, j] - work[3, j]) / (2.0 * step)
 
 
 @njit(cache=True, parallel=True)
@@ -255,6 +330,14 @@ def check_step(scene: Experiment, method: str, dt: float, t_end: float | None = 
     limit = stability_limit(scene, method, t_end)
     if dt > limit:
         rate = float(np.max(fastest_rate(scene, method)))
+        if not math.isfinite(rate):  # no rate at all: say so, rather than "use dt <= 0 s"
+            b = int(np.argmax(~np.isfinite(fastest_rate(scene, method))))
+            raise SimulationError(
+                f"scene {scene.describe()}: method {method!r}: the stability limit cannot be estimated: the Jacobian of "
+                f"the dynamics is not finite at the initial state (batch element {b}), so no step is known to be "
+                "stable. The dynamics there are singular or carry no digits (e.g. a mass matrix that is singular, or "
+                "a tiny inertia far from the origin: TreeScene.precision_problem); check the model's masses, inertias "
+                "and initial state")
         if stability_interval(method) == 0.0:
             why = (f"{method} has no stability interval (|1 + i dt w| > 1): at dt={dt:g} s the fastest linear mode "
                    f"(w = {rate:.6g} rad/s) grows by more than {EULER_GROWTH:g}x over t_end; its limit here is "

@@ -57,6 +57,20 @@ fusestatic, alignfree; a body
 with a joint but no mass; an orientation given twice; unknown elements or attributes; geoms of one body
 that overlap, which MuJoCo would count twice (``overlapping_geoms="sum"`` sums them as MuJoCo does).
 
+Read as strictly as MuJoCo reads it (so that rbody accepts no file MuJoCo refuses: tests/rbody/test_mjcf_fuzz.py):
+numbers by C's strtod and strtol, as MuJoCo's StringToVector (rbody.mjcf.grammar: no '1_0', no non-ASCII digits,
+hex accepted, overflow refused, an int attribute such as contype, conaffinity, condim, group or
+inertiagrouprange refused when fractional), every attribute of the elements read or ignored (sites, cameras,
+lights included) checked against MuJoCo's schema types, counts and keywords, and a blank number read as absent;
+child elements of <joint>, <freejoint>, <geom>, <inertial>, <site>, <camera>, <light> refused; one <joint>,
+<geom>, ... per <default> class and one <flag> per <option>; a file included twice, or an include with children,
+or an included file without elements; a mocap body that is not a fixed child of the world; condim other than
+1, 3, 4, 6; a plane's third size <= 0; a ball joint's range not starting at 0; repeated site, camera or light
+names; nesting beyond MuJoCo's XML parser's depth (tinyxml2: 496 nested bodies load, 497 do not; no recursion
+here). A file's bytes are decoded as MuJoCo takes them (up to a NUL; bytes that are not UTF-8 kept as bytes:
+a Latin-1 comment loads, a Latin-1 byte in a number is a bad number). MuJoCo's inf and nan are refused here (every
+number rbody reads must be finite). A message never echoes a long value whole (MJCFError cuts it).
+
 Joint limits: a limited joint's range (less its margin) is its Joint.range, also listed in ``MJCFModel.limits``
 and ``MJCFScene.limits`` (joint name -> (lo, hi) [rad | m]; ball: (0, largest rotation angle)). A native run
 holds every limit rigidly (rbody.engine.constraints); a model whose initial state lies outside a range starts
@@ -80,10 +94,11 @@ from typing import Mapping
 import numpy as np
 
 from rbody.inertia import Inertia
-from rbody.mjcf.document import (Element, MJCFError, boolean, choice, expand_includes, number, numbers,
-                                 read_source)
+from rbody.mjcf.document import (Element, MJCFError, boolean, choice, expand_includes, integer, integers, number,
+                                 numbers, read_source)
 from rbody.mjcf.constraints import (EQUALITY_ATTRS, Frames, equality_from, equality_kind_error, read_numerics,
                                     restitution_of, softness_note, unknown_restitutions)
+from rbody.mjcf.grammar import ATTRIBUTES, CHILDLESS, NUMERIC, UNIQUE_CHILDREN, check_value
 from rbody.mjcf.frames import MJ_EPS, frame_to_quat, normalize, quat_matrix, quat_product, z_to_quat
 from rbody.mjcf.geoms import (MESH_INERTIA_MODES, GeomMass, MeshMass, mesh_mass, mujoco_principal, primitive_moments,
                               primitive_volume, principal_tensor, sum_geoms)
@@ -100,6 +115,9 @@ PRINCIPAL_NOTE_RTOL = 1e-12  # a tensor MuJoCo's eigen-solver moves by more than
 # ----- the reader --------------------------------------------------------------------------------------
 
 _VISUAL_ELEMENTS = ("light", "camera", "site")
+_VISUAL_ATTRS = {"site": set(ATTRIBUTES["site"]) | {"name", "class", "material"},
+                 "camera": set(ATTRIBUTES["camera"]) | {"name", "class", "target"},
+                 "light": set(ATTRIBUTES["light"]) | {"name", "class", "target", "texture"}}
 _REFUSED_IN_BODY = {
     "frame": "<frame> is not supported: write its transform into the bodies and geoms it holds",
     "replicate": "<replicate> is not supported: write the copies out",
@@ -232,6 +250,8 @@ class _Reader:
         self.equality_elements: list[tuple[Element, dict]] = []
         self.numerics: dict[str, np.ndarray] = {}
         self.carriers: dict = {}
+        self._nested_defaults: list[tuple[Element, str]] = []  # <default> classes still to read, with their parent
+        self.visual_names: dict[str, set[str]] = {}               # names of sites, cameras, lights (each unique)
 
     # ----- helpers -----
 
@@ -241,9 +261,31 @@ class _Reader:
             self.notes.append(text)
 
     def check_attrs(self, element: Element, known: set) -> None:
+        """Unknown attributes refused; every attribute's value checked as MuJoCo reads it (rbody.mjcf.grammar: types,
+        counts, keywords, also where rbody does not use the value), and a blank number dropped from the element (MuJoCo
+        reads it as absent); child elements of an element that has none in MuJoCo's schema (joint, geom, inertial,
+        site, camera, light, ...) refused, and a second child where MuJoCo allows one."""
         unknown = sorted(set(element.attrib) - known)
         if unknown:
             raise element.error(f"unknown attribute {unknown[0]!r} (MJCF's <{element.tag}> has {sorted(known)})")
+        for name, value in list(element.attrib.items()):
+            problem = check_value(element.tag, name, value)
+            if problem:
+                raise element.error(problem)
+            if not value.strip(" \t\n\r") and ATTRIBUTES.get(element.tag, {}).get(name, ("",))[0] in NUMERIC:
+                del element.attrib[name]  # MuJoCo reads a blank number as no attribute (a class default then holds)
+        for tag in UNIQUE_CHILDREN.get(element.tag, ()):
+            found = [child for child in element.children if child.tag == tag]
+            if len(found) > 1:
+                raise found[1].error(f"a second <{tag}> in <{element.tag}>: MJCF allows one")
+            for child in found if tag == "lengthrange" else ():  # read by no one here, but checked as MuJoCo does
+                self.check_attrs(child, set(ATTRIBUTES["lengthrange"]))
+        if element.children and (element.tag in CHILDLESS or element.tag == "geom"):
+            child = element.children[0]
+            if element.tag == "geom" and child.tag == "plugin":
+                raise child.error("plugins are not supported (their physics is unknown to rbody)")
+            raise child.error(f"unknown element <{child.tag}> in <{element.tag}> (MJCF's <{element.tag}> has no child "
+                              "elements)")
 
     def attrs(self, element: Element, tag: str, childclass: str | None) -> dict:
         """The element's attributes over its class's defaults (class, else the body's childclass, else main)."""
@@ -375,8 +417,8 @@ class _Reader:
         self.inertiafromgeom = choice(where, "inertiafromgeom", attrib, ("true", "false", "auto"), "auto")
         self.group_range = (0, 5)
         if "inertiagrouprange" in attrib:
-            low, high = numbers(where, "inertiagrouprange", attrib, 2)
-            self.group_range = (int(low), int(high))
+            low, high = integers(where, "inertiagrouprange", attrib, 2)
+            self.group_range = (low, high)
         self.autolimits = boolean(where, "autolimits", attrib, True)
         self.balanceinertia = boolean(where, "balanceinertia", attrib, False)
         self.strippath = boolean(where, "strippath", attrib, False)
@@ -452,19 +494,27 @@ class _Reader:
         values = {tag: dict(attrs) for tag, attrs in self.classes.get(parent, {}).items()} if parent else {}
         if top and name == "main":
             values = self.classes.get("main", {})
+        seen: set[str] = set()
         for child in element.children:
             if child.tag == "default":
                 continue
             if child.tag not in _DEFAULT_CHILDREN:
                 raise child.error(f"unknown element <{child.tag}> in <default>")
-            known = {"joint": _JOINT_ATTRS, "geom": _GEOM_ATTRS, "mesh": _MESH_ATTRS}.get(child.tag)
+            if child.tag in seen:  # MuJoCo: "Schema violation: unique element found 2 times" (not a merge)
+                raise child.error(f"a second <{child.tag}> in <default class={name!r}>: a class holds at most one "
+                                  f"<{child.tag}> (merge their attributes into one)")
+            seen.add(child.tag)
+            known = {"joint": _JOINT_ATTRS, "geom": _GEOM_ATTRS, "mesh": _MESH_ATTRS, **_VISUAL_ATTRS}.get(child.tag)
             if known is not None:
                 self.check_attrs(child, known - {"name", "class"})
             values.setdefault(child.tag, {}).update(child.attrib)
         self.classes[name] = values
-        for child in element.children:
-            if child.tag == "default":
-                self.read_default(child, name)
+        for child in reversed([c for c in element.children if c.tag == "default"]):
+            self._nested_defaults.append((child, name))
+        if top:  # the nested classes, depth first through an explicit stack (no recursion)
+            while self._nested_defaults:
+                child, parent_name = self._nested_defaults.pop()
+                self.read_default(child, parent_name)
 
     def read_assets(self, element: Element) -> None:
         self.check_attrs(element, set())
@@ -492,10 +542,24 @@ class _Reader:
     # ----- bodies -----
 
     def read_body_contents(self, body: _Body, childclass: str | None) -> None:
+        """The contents of `body` and of every body below it, depth first (MuJoCo's body order), through an explicit
+        stack: no recursion, however deep the tree (MuJoCo reads 496 nested bodies)."""
+        pending: list[tuple[Element, _Body, str | None]] = []
+        self.read_children(body, childclass, pending)
+        while pending:
+            element, parent, inherited = pending.pop()
+            child, classname = self.read_body(element, parent, inherited)
+            self.read_children(child, classname, pending)
+            self.check_mocap(child)
+
+    def read_children(self, body: _Body, childclass: str | None, pending: list) -> None:
+        """The joints, geoms, inertial and ignored elements of `body`; its child bodies pushed on `pending` (in
+        reverse, so that they are read in document order)."""
+        bodies = []
         for child in body.element.children:
             tag = child.tag
             if tag == "body":
-                self.read_body(child, body, childclass)
+                bodies.append((child, body, childclass))
             elif tag == "geom":
                 self.read_geom(child, body, childclass)
             elif tag in ("joint", "freejoint"):
@@ -510,6 +574,8 @@ class _Reader:
                 self.check_attrs(child, _INERTIAL_ATTRS)
                 body.inertial = child
             elif tag in _VISUAL_ELEMENTS:
+                self.check_attrs(child, _VISUAL_ATTRS[tag])
+                self.check_visual(child)
                 if tag == "site" and child.attrib.get("name"):  # equalities may join sites
                     attrib = self.attrs(child, "site", childclass)
                     pos = numbers(child, "pos", attrib, 3) if "pos" in attrib else np.zeros(3)
@@ -519,8 +585,9 @@ class _Reader:
                 raise child.error(_REFUSED_IN_BODY[tag])
             else:
                 raise child.error(f"unknown element <{tag}> in a body")
+        pending.extend(reversed(bodies))
 
-    def read_body(self, element: Element, parent: _Body, childclass: str | None) -> None:
+    def read_body(self, element: Element, parent: _Body, childclass: str | None) -> tuple[_Body, str | None]:
         self.check_attrs(element, _BODY_ATTRS)
         attrib = element.attrib
         if "childclass" in attrib:
@@ -535,7 +602,44 @@ class _Reader:
         body = _Body(element, attrib.get("name", ""), len(self.bodies) + 1, parent, pos,
                      self.orientation(element, attrib))
         self.bodies.append(body)
-        self.read_body_contents(body, childclass)
+        return body, childclass
+
+    def check_visual(self, element: Element) -> None:
+        """A site, camera or light: ignored, but as MuJoCo reads it, its name unique among its kind and its class a
+        <default> class of the model."""
+        name = element.attrib.get("name")
+        if name:
+            seen = self.visual_names.setdefault(element.tag, set())
+            if name in seen:
+                raise element.error(f"two {element.tag}s are called {name!r}")
+            seen.add(name)
+        if "class" in element.attrib and element.attrib["class"] not in self.classes:
+            raise element.error(f"class={element.attrib['class']!r} is not a <default> class of the model")
+        if element.tag in ("site", "camera"):
+            self.orientation(element, element.attrib)  # refused as MuJoCo refuses it (an axis too small, two given)
+        if element.tag == "site" and element.attrib.get("type") in ("plane", "hfield", "mesh"):
+            raise element.error(f"type={element.attrib['type']!r}: MuJoCo allows no plane, height field or mesh site "
+                                "here (a mesh site needs a mesh asset)")
+        if element.tag == "site" and "fromto" not in element.attrib:
+            kind = element.attrib.get("type", "sphere")
+            size = numbers(element, "size", element.attrib) if element.attrib.get("size", "").strip() else None
+            needed = {"sphere": 1, "capsule": 2, "cylinder": 2, "ellipsoid": 3, "box": 3}.get(kind, 0)
+            if size is not None and (len(size) < needed or np.any(size[:needed] <= 0)):
+                raise element.error(f"size={element.attrib['size']!r}: a {kind} site needs {needed} sizes > 0 (MuJoCo: "
+                                    "size must be positive)")
+
+    def check_mocap(self, body: _Body) -> None:
+        """A mocap body must be a fixed child of the world, as MuJoCo's compiler requires (no joints, the world its
+        parent): a mocap body with joints, or below another body, is refused. So is a sleep policy other than auto
+        on a body that is not a moving child of the world (MuJoCo's rule; rbody has no sleeping)."""
+        if body.element.attrib.get("sleep", "auto") != "auto" and (not body.joints or body.parent.index != 0):
+            raise body.element.error(f"sleep={body.element.attrib['sleep']!r}: MuJoCo allows a sleep policy only on a "
+                                     "moving child of the world")
+        if not boolean(body.element, "mocap", body.element.attrib, False):
+            return
+        if body.joints or body.parent.index != 0:
+            why = "it has joints" if body.joints else "its parent is not the world"
+            raise body.element.error(f"a mocap body must be a fixed child of the world (MuJoCo's rule), and {why}")
 
     def read_joint(self, element: Element, body: _Body, childclass: str | None) -> None:
         if element.tag == "freejoint":
@@ -577,6 +681,9 @@ class _Reader:
             if len(size) < needed:
                 raise element.error(f"a {kind} needs {needed} sizes, got size={attrib.get('size', '')!r}")
             size = np.concatenate([size, np.zeros(3 - len(size))])
+            if kind == "plane" and not size[2] > 0:
+                raise element.error(f"size={attrib.get('size', '')!r}: a plane's third size (its grid spacing) must be "
+                                    "> 0 (MuJoCo: plane size(3) must be positive)")
         pos = numbers(element, "pos", attrib, 3) if "pos" in attrib else np.zeros(3)
         if fromto is not None:
             if kind not in ("capsule", "cylinder", "ellipsoid", "box"):
@@ -600,8 +707,10 @@ class _Reader:
             raise element.error(f"size={attrib.get('size', '')!r}: a {kind} needs sizes > 0")
         if kind == "plane" and body.index != 0:
             self.plane_bodies.append((element, body))
-        geom = _Geom(element, attrib, name, kind, size, pos, quat, int(number(element, "contype", attrib, 1)),
-                     int(number(element, "conaffinity", attrib, 1)), int(number(element, "group", attrib, 0)),
+        if integer(element, "condim", attrib, 3) not in (1, 3, 4, 6):
+            raise element.error(f"condim={attrib['condim']!r}: MuJoCo allows 1, 3, 4 or 6 (invalid condim)")
+        geom = _Geom(element, attrib, name, kind, size, pos, quat, integer(element, "contype", attrib, 1),
+                     integer(element, "conaffinity", attrib, 1), integer(element, "group", attrib, 0),
                      mesh=attrib.get("mesh"))
         if kind == "mesh" and geom.mesh is None:
             raise element.error("a mesh geom needs mesh=\"name of a <mesh> asset\"")
@@ -975,6 +1084,9 @@ class _Reader:
                     if angular or (kind == "ball" and self.degree):
                         low, high = low / 180.0 * math.pi, high / 180.0 * math.pi
                     if kind == "ball":
+                        if low != 0:
+                            raise element.error(f"range={attrib['range']!r}: a ball joint's range starts at 0 (it "
+                                                "limits the rotation angle; MuJoCo: range[0] should be 0)")
                         low = 0.0
                     if not low < high:
                         raise element.error(f"range={attrib['range']!r}: needs lo < hi")

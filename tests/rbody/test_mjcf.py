@@ -243,7 +243,6 @@ ball = Body("b", Inertia.solid_sphere(1.0, 0.1), shapes=(Shape("s", "sphere", (0
 
 
 @pytest.mark.parametrize("bodies, joints, fixed, contacts, match", [
-    ([dataclasses.replace(ball, name="")], [dataclasses.replace(hinge, body="")], [], [], "non-empty"),
     ([ball, dataclasses.replace(ball, name="b", shapes=())], [hinge], [], [], "two bodys are called 'b'"),
     ([dataclasses.replace(ball, name="world")], [], [], [], "world"),
     ([ball], [hinge, dataclasses.replace(hinge, body="b")], [], [], "two joints"),
@@ -261,6 +260,14 @@ ball = Body("b", Inertia.solid_sphere(1.0, 0.1), shapes=(Shape("s", "sphere", (0
 def test_what_mujoco_refuses_is_refused_first(bodies, joints, fixed, contacts, match):
     with pytest.raises(ValueError, match=match):
         to_mjcf(handmade(bodies, joints, fixed, contacts))
+
+
+def test_empty_names_are_refused_when_the_body_or_joint_is_made():
+    """(Before issue 23 to_mjcf refused them; Body and Joint now check their fields at construction.)"""
+    with pytest.raises(ValueError, match="non-empty"):
+        dataclasses.replace(ball, name="")
+    with pytest.raises(ValueError, match="non-empty"):
+        dataclasses.replace(hinge, body="")
 
 
 def test_batched_scene_is_refused():

@@ -55,6 +55,7 @@ from rbody.checks import run_times, whole_number
 from rbody.errors import SimulationError
 from rbody.mjcf import INITIAL_KEY, ROLL_SLIDE_SUFFIX, has_impacts, to_mjcf
 from rbody.layout import JOINTS
+from rbody.progress import Reporter
 from rbody.scene import BodyStates, Scene
 from rbody.trajectory import Trajectory
 
@@ -128,12 +129,13 @@ def disable_unused(model: mujoco.MjModel) -> mujoco.MjModel:
 def run(scene: Scene, dt: float, t_end: float | None = None, *, integrator: str | None = None,
         solref=None, solimp=None, condim: int | None = None, cone: str | None = None,
         impratio: float | None = None, noslip_iterations: int | None = None, min_inertia: float | None = None,
-        save_every: int = 1) -> Trajectory:
+        save_every: int = 1, progress: bool | None = None) -> Trajectory:
     """Run `scene` in MuJoCo with step dt [s] for t_end [s] (default scene.t_end).
 
     integrator: "Euler", "RK4", "implicit", "implicitfast" (default: Euler when the scene has impacts,
     else RK4); solref, solimp, condim, cone, impratio, noslip_iterations, min_inertia: as rbody.to_mjcf.
-    save_every: keep every n-th step. Returns a Trajectory with the scene's observables (plus
+    save_every: keep every n-th step. progress: a line on stderr with the time left (rbody.progress: True, False,
+    or None: in an interactive session, for runs longer than a few seconds). Returns a Trajectory with the scene's observables (plus
     ``collisions`` and ``ball_collisions`` for scenes with impacts); meta holds the backend, the
     effective settings, the MuJoCo version, ``step_seconds``, the wall time of the stepping alone, and
     ``run_seconds``, that of the stepping with the recording of the observables (module docstring).
@@ -153,7 +155,7 @@ def run(scene: Scene, dt: float, t_end: float | None = None, *, integrator: str 
     run_ = _Run(model, observer, layout, save_every)
     plan = _drive_plan(scene, layout)
     if plan is None:
-        run_.step(nsteps)
+        run_.step(nsteps, Reporter(progress, f"mujoco {_integrator_name(model)} {scene.name}", nsteps))
     else:
         run_.drive(scene, plan, nsteps)
 
@@ -248,7 +250,7 @@ class _Run:
         self.seconds = 0.0           # the stepping alone
         self.observed_seconds = 0.0  # the stepping with sensors and the contact onsets: what gives the observables
 
-    def step(self, nsteps: int) -> None:
+    def step(self, nsteps: int, reporter: Reporter | None = None) -> None:
         model, nstate = self.model, mujoco.mj_stateSize(self.model, _FULL)
         state = np.empty(nstate)
         mujoco.mj_getState(model, self.data, state, _FULL)
@@ -284,6 +286,10 @@ class _Run:
             state = out[-1].copy()
             done += n
             self.observed_seconds += time.perf_counter() - start
+            if reporter is not None:
+                reporter.update(done)
+        if reporter is not None:
+            reporter.finish()
         start = time.perf_counter()
         # the final state and its sensors
         mujoco.mj_setState(self.observer, self.odata, state, _FULL)

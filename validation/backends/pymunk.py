@@ -72,6 +72,7 @@ from rbody.checks import nonnegative, run_times, whole_number
 from rbody.errors import SimulationError
 from rbody.motion import quat_from_axis_angle, quat_from_matrix, quat_multiply, quat_to_matrix
 from rbody.layout import WORLD, tree_order, Body, Joint, Layout, Shape
+from rbody.progress import Reporter
 from rbody.scene import BodyStates, Scene, TreeScene
 from rbody.trajectory import Trajectory
 
@@ -551,12 +552,14 @@ def _defaults(plan: _Plan) -> dict:
 
 
 def run(scene: Scene, dt: float, t_end: float | None = None, *, iterations: int | None = None,
-        collision_slop: float | None = None, save_every: int = 1) -> Trajectory:
+        collision_slop: float | None = None, save_every: int = 1, progress: bool | None = None) -> Trajectory:
     """Step `scene` in pymunk with step dt [s] up to t_end [s] (default scene.t_end).
 
     iterations:     solver iterations per step (default: default_settings(scene))
     collision_slop: overlap pymunk leaves uncorrected [m] (default: default_settings(scene))
     save_every:     keep every n-th step (n >= 1)
+    progress:       a line on stderr with the time left (rbody.progress: True, False, or None: in an interactive
+                    session, for runs longer than a few seconds)
     Returns a Trajectory with the scene's observables (scene.observe) and, for scenes with elastic
     contacts, `collisions` (T,) contact onsets so far over all pairs and `ball_collisions` (T,) over
     pairs of two moving bodies. meta: scene, backend, dt, settings, pymunk version, model (how each
@@ -608,12 +611,16 @@ def run(scene: Scene, dt: float, t_end: float | None = None, *, iterations: int 
             drive(n)
             space.step(dt)
             n += 1
+    reporter = Reporter(progress, f"pymunk {scene.name}", nsteps)
     for k in range(1, nsave):
         start = time.perf_counter()
         for _ in range(save_every):
             step(dt)
         seconds += time.perf_counter() - start
         record(k)
+        if k % 1024 == 0:
+            reporter.update(k * save_every)
+    reporter.finish()
     finite = np.all(np.isfinite(np.concatenate([position.reshape(nsave, -1), velocity.reshape(nsave, -1),
                                                 angle, angular], axis=1)), axis=1)
     if not np.all(finite):
