@@ -199,8 +199,10 @@ def krylov_rate(rhs, y: np.ndarray, params: np.ndarray) -> float:
 
 
 @njit(cache=True)
-def _jvp(rhs, y, params, v, step, work, out):
-    """out = (f(y + step v) - f(y - step v)) / (2 step): df/dy v by central differences; work (4, n)."""
+def _jvp(rhs_address, y, params, v, step, work, out):
+    """out = (f(y + step v) - f(y - step v)) / (2 step): df/dy v by central differences; work (4, n); f the model's
+    rhs at its C address (integrators.pointer_function)."""
+    rhs = integrators._rhs_at(rhs_address)
     n, m = y.size, params.size
     for j in range(n):
         work[0, j] = y[j] + step * v[j]
