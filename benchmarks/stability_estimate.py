@@ -6,7 +6,9 @@ A tree of N bodies joined by ball joints (3-D, not planar), each hung from a ran
 with uneven rods and inertias: its state holds 10 N numbers (qpos 4 N, qvel 3 N, rotation vectors 3 N). For each
 N it prints the seconds and the peak memory (tracemalloc) of the estimate as simulate makes it (Arnoldi's iteration
 on Jacobian-vector products, krylov_rate, above DENSE_STATE_LIMIT numbers of state), the number of right-hand-side
-evaluations it took, the rate found, and, up to --dense-up-to bodies, the dense Jacobian's spectral radius and its
+evaluations it took, the rate found, the seconds of a whole simulate call of one rk4 step on a fresh scene
+(its checks: work estimate, precision, stability, accuracy; then the step and the observables), and, up to
+--dense-up-to bodies, the dense Jacobian's spectral radius and its
 cost (the estimate before issue 23: 2n evaluations and a cubic eigenproblem) for comparison.
 Prints the machine and versions first. Not a test: run it on an idle machine and compare figures of one run.
 """
@@ -27,7 +29,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numba  # noqa: E402
 import scipy  # noqa: E402
 
-from rbody import Body, Inertia, Joint, Layout, Scene  # noqa: E402
+from rbody import Body, Inertia, Joint, Layout, Scene, simulate  # noqa: E402
 from rbody.engine import integrators, stability  # noqa: E402
 from validation.machine import describe_machine  # noqa: E402
 
@@ -68,8 +70,9 @@ def main() -> None:
           f"dense linearisation up to {stability.DENSE_STATE_LIMIT} numbers of state")
     ball_tree(3)  # compile the engine's functions outside the timings
     stability.fastest_rate(ball_tree(12), "rk4")
-    print(f"{'bodies':>7} {'state':>7} {'seconds':>8} {'peak MB':>8} {'evals':>6} {'rate [1/s]':>11}   "
-          f"{'dense rate':>11} {'dense s':>8} {'dense MB':>9}")
+    simulate(ball_tree(12), dt=1e-3, t_end=1e-3, method="rk4")
+    print(f"{'bodies':>7} {'state':>7} {'seconds':>8} {'peak MB':>8} {'evals':>6} {'rate [1/s]':>11} {'simulate s':>10}"
+          f"   {'dense rate':>11} {'dense s':>8} {'dense MB':>9}")
     for size in args.sizes:
         scene = ball_tree(size)
         model = scene.native_model
@@ -84,6 +87,9 @@ def main() -> None:
             tracemalloc.stop()
         finally:
             stability._jvp = _ORIGINAL_JVP
+        start = time.perf_counter()
+        simulate(ball_tree(size), dt=1e-3, t_end=1e-3, method="rk4")
+        whole = time.perf_counter() - start
         dense = ""
         if size <= args.dense_up_to:
             y = np.ascontiguousarray(model.y0)
@@ -98,8 +104,8 @@ def main() -> None:
             dense_peak = tracemalloc.get_traced_memory()[1] / 1e6
             tracemalloc.stop()
             dense = f"{dense_rate:11.6g} {dense_seconds:8.3f} {dense_peak:9.1f}"
-        print(f"{size:7d} {model.y0.shape[1]:7d} {seconds:8.3f} {peak:8.1f} {calls[0]:6d} {rate:11.6g}   {dense}",
-              flush=True)
+        print(f"{size:7d} {model.y0.shape[1]:7d} {seconds:8.3f} {peak:8.1f} {calls[0]:6d} {rate:11.6g} {whole:10.3f}   "
+              f"{dense}", flush=True)
 
 
 _ORIGINAL_JVP = stability._jvp

@@ -85,10 +85,15 @@ def test_bad_cluster_options_are_refused():
         assert none is None
 
 
-def test_an_unreachable_scheduler_is_an_error_naming_its_address(monkeypatch):
+def test_an_unreachable_scheduler_is_an_error_naming_its_address(monkeypatch, capsys):
+    """(Exit status 2 since issue 23: a set-up problem, not a regression; before, a traceback and status 1.)"""
     monkeypatch.setattr(cluster, "CONNECT_TIMEOUT", "1s")
+    monkeypatch.setattr(cluster, "HANDSHAKE_SECONDS", 2.0)
+    assert main(["--scheduler", "tcp://127.0.0.1:9", "--backend", "rbody", "--quick"]) == 2
+    assert "--scheduler tcp://127.0.0.1:9: no Dask scheduler answered" in capsys.readouterr().err
     with pytest.raises(ValueError, match=re.escape("--scheduler tcp://127.0.0.1:9: no Dask scheduler answered")):
-        main(["--scheduler", "tcp://127.0.0.1:9", "--backend", "rbody", "--quick"])
+        with cluster.connect("tcp://127.0.0.1:9"):
+            pass
 
 
 def test_timed_runs_refuse_a_cluster_without_the_timing_resource():
