@@ -3,7 +3,8 @@
 The model (built once in numpy from a Layout) is one flat float64 row, `params`: a header, then one
 record per body (parent, fixed placement in the parent, mass properties, its joints and degrees of
 freedom), per joint (kind, axis, anchor, qpos/qvel addresses, ref, stiffness, springref) and per degree
-of freedom (damping, armature). Every algorithm is an @njit(cache=True) free function of (params, q, v,
+of freedom (damping, armature), each record declared once below as a rbody.engine.schema.Record (TREE_HEADER,
+BODY, JOINT, DOF), from which its offsets follow. Every algorithm is an @njit(cache=True) free function of (params, q, v,
 ...): a new model is new numbers in the same row, never new compiled code, and the same row is what the
 integrators hand to the right-hand side of a TreeScene (rbody.scene).
 
@@ -63,6 +64,7 @@ import numpy as np
 from numba import carray, njit
 
 from rbody.engine.memory import address, stack_floats
+from rbody.engine.schema import FLOAT, INT, Record
 from rbody.layout import JOINTS, WORLD, coordinate_addresses, joint_order, tree_order
 from rbody.engine.spatial import (cross3, dexp_inverse, dot6, force_cross, inertia_apply, inertia_in_world,
                                   inertia_matrix, motion_cross, quat_axis_angle, quat_exp, quat_multiply,
@@ -75,23 +77,62 @@ NQ = {kind.code: kind.nq for kind in JOINTS.values()}
 NV = {kind.code: kind.nv for kind in JOINTS.values()}
 SCALAR_KINDS = tuple(kind.code for kind in JOINTS.values() if kind.scalar)  # one coordinate, displacement q - ref
 
-# Header of the params row.
-H_BODIES, H_JOINTS, H_DOFS, H_NQ, H_ROT, H_GRAVITY, H_BODY, H_JOINT, H_DOF = range(9)
-HEADER = 9
-# Body record: parent (-1 world), pos (3), quat (4), mass, com (3), tensor (9), first dof, dofs, first joint,
-# joints.
-B_PARENT, B_POS, B_QUAT, B_MASS, B_COM, B_TENSOR, B_DOF0, B_NDOF, B_JNT0, B_NJNT = 0, 1, 4, 8, 9, 12, 21, 22, 23, 24
-BODY_SIZE = 25
-# Joint record: kind, body, axis (3), anchor (3), qpos address, qvel address, ref, stiffness, springref,
-# rotation slot (index of the joint's rotation vector phi among the ball and free joints, -1 otherwise),
-# rolling radius a and rolling line l = axis x normal (3, body frame) of a roll joint (0 for the others).
-J_KIND, J_BODY, J_AXIS, J_ANCHOR, J_QADR, J_DADR, J_REF, J_STIFF, J_SPRINGREF, J_ROT = 0, 1, 2, 5, 8, 9, 10, 11, 12, 13
-J_RADIUS, J_LINE = 14, 15
-JOINT_SIZE = 18
-# Degree-of-freedom record: joint, index within the joint, starts a group (1: the velocity its bias uses
-# is the body's velocity so far; 0: the same as the dof before), damping, armature, parent dof (-1 none).
-D_JOINT, D_INDEX, D_GROUP, D_DAMPING, D_ARMATURE, D_PARENT = 0, 1, 2, 3, 4, 5
-DOF_SIZE = 6
+# The params row (rbody.engine.schema): a header, then one record per body, joint and degree of freedom.
+TREE_HEADER = Record("tree header", [
+    ("bodies", 1, INT, "number of bodies nb"),
+    ("joints", 1, INT, "number of joints nj"),
+    ("dofs", 1, INT, "degrees of freedom nv"),
+    ("nq", 1, INT, "position coordinates nq"),
+    ("rotations", 1, INT, "ball and free joints (rotation vectors phi in the state)"),
+    ("gravity", 1, FLOAT, "g [m/s^2], along -z"),
+    ("body", 1, INT, "where the body records start"),
+    ("joint", 1, INT, "where the joint records start"),
+    ("dof", 1, INT, "where the degree-of-freedom records start"),
+])
+H_BODIES, H_JOINTS, H_DOFS, H_NQ, H_ROT, H_GRAVITY, H_BODY, H_JOINT, H_DOF = TREE_HEADER.offsets()
+HEADER = TREE_HEADER.size
+BODY = Record("body", [
+    ("parent", 1, INT, "parent body (-1: the world)"),
+    ("pos", 3, FLOAT, "placement in the parent's frame [m]"),
+    ("quat", 4, FLOAT, "orientation in the parent's frame (w, x, y, z)"),
+    ("mass", 1, FLOAT, "[kg]"),
+    ("com", 3, FLOAT, "centre of mass, body frame [m]"),
+    ("tensor", 9, FLOAT, "inertia tensor about the centre of mass, body axes [kg m^2]"),
+    ("dof0", 1, INT, "first degree of freedom"),
+    ("ndof", 1, INT, "degrees of freedom of its joints"),
+    ("jnt0", 1, INT, "first joint"),
+    ("njnt", 1, INT, "joints"),
+])
+B_PARENT, B_POS, B_QUAT, B_MASS, B_COM, B_TENSOR, B_DOF0, B_NDOF, B_JNT0, B_NJNT = BODY.offsets()
+BODY_SIZE = BODY.size
+JOINT = Record("joint", [
+    ("kind", 1, INT, "joint code (rbody.layout.JOINTS)"),
+    ("body", 1, INT, "the body it moves"),
+    ("axis", 3, FLOAT, "unit axis, body frame (hinge, slide, roll)"),
+    ("anchor", 3, FLOAT, "anchor, body frame [m]"),
+    ("qadr", 1, INT, "qpos address"),
+    ("dadr", 1, INT, "qvel address"),
+    ("ref", 1, FLOAT, "reference coordinate [rad | m]"),
+    ("stiffness", 1, FLOAT, "spring stiffness [N m/rad | N/m]"),
+    ("springref", 1, FLOAT, "spring rest coordinate [rad | m]"),
+    ("rotation", 1, INT, "slot of its rotation vector phi among ball and free joints (-1: none)"),
+    ("radius", 1, FLOAT, "rolling radius a of a roll joint [m] (0 for the others)"),
+    ("line", 3, FLOAT, "rolling line l = axis x normal of a roll joint, body frame"),
+])
+(J_KIND, J_BODY, J_AXIS, J_ANCHOR, J_QADR, J_DADR, J_REF, J_STIFF, J_SPRINGREF, J_ROT, J_RADIUS,
+ J_LINE) = JOINT.offsets()
+JOINT_SIZE = JOINT.size
+DOF = Record("degree of freedom", [
+    ("joint", 1, INT, "its joint"),
+    ("index", 1, INT, "index within the joint"),
+    ("group", 1, INT, "1: starts a group (the velocity its bias uses is the body's velocity so far); 0: as the "
+                      "dof before"),
+    ("damping", 1, FLOAT, "viscous damping [N m s/rad | N s/m]"),
+    ("armature", 1, FLOAT, "armature inertia added to M's diagonal [kg m^2 | kg]"),
+    ("parent", 1, INT, "parent degree of freedom (-1: none)"),
+])
+D_JOINT, D_INDEX, D_GROUP, D_DAMPING, D_ARMATURE, D_PARENT = DOF.offsets()
+DOF_SIZE = DOF.size
 
 PIVOT_RTOL = 1e-12  # a pivot D of the ABA below this fraction of its scale leaves M singular
 NEARLY_SINGULAR = 1e-6  # a pivot below this fraction of its value at the start: the mass matrix is (nearly) singular
@@ -893,6 +934,10 @@ def build_tree(layout, gravity: float) -> tuple[TreeArrays, np.ndarray, np.ndarr
                 dof_body[d], dof_joint[d] = i, j
             j += 1
         last_dof[body.name] = parent_dof
+    TREE_HEADER.check(row, 0, 1)
+    BODY.check(row, body_offset_, nb)
+    JOINT.check(row, joint_offset, nj)
+    DOF.check(row, dof_offset, nv)
     row.setflags(write=False)
     arrays = TreeArrays(names=tuple(b.name for b in order), joint_names=tuple(jt.name for jt in joints),
                         joint_kinds=tuple(jt.kind for jt in joints), row=row, nq=nq, nv=nv, nrot=nrot,

@@ -63,27 +63,51 @@ from numba import carray, njit
 
 from rbody.engine import multibody as mb
 from rbody.engine.memory import stack_floats
+from rbody.engine.schema import FLOAT, INT, Record
 
 PLANAR_HINGE, PLANAR_SLIDE, PLANAR_ROLL = 0, 1, 2
 PLANAR_KINDS = {mb.HINGE: PLANAR_HINGE, mb.SLIDE: PLANAR_SLIDE, mb.ROLL: PLANAR_ROLL}  # the 3-D engine's codes
 PARALLEL_TOL = 1e-12  # |a x n| of a hinge axis, |d . n| of a slide direction: beyond this, not planar
 PIVOT_RTOL = mb.PIVOT_RTOL
 
-# Header of the planar row: nodes (= nq = nv), in-plane gravity as an upward acceleration of the world.
-P_NODES, P_GX, P_GY = range(3)
-HEADER = 3
-# Node record: parent node (-1 world), kind, sign s of the axis along n, point (2) (hinge and roll: anchor;
-# slide: unit direction) at the reference pose, ref, stiffness, springref, damping, armature, mass,
-# com (2) at the reference pose, I_n about the com, roll radius, roll line (2) at the reference pose.
+# The planar row (rbody.engine.schema): a header, then one record per node (degree of freedom).
+PLANAR_HEADER = Record("planar header", [
+    ("nodes", 1, INT, "nodes (= nq = nv)"),
+    ("gravity", 2, FLOAT, "in-plane gravity as an upward acceleration of the world [m/s^2]"),
+])
+P_NODES, P_GX = PLANAR_HEADER.offsets()
+P_GY = P_GX + 1
+HEADER = PLANAR_HEADER.size
+NODE = Record("planar node", [
+    ("parent", 1, INT, "parent node (-1: the world)"),
+    ("kind", 1, INT, "PLANAR_HINGE, PLANAR_SLIDE or PLANAR_ROLL"),
+    ("sign", 1, FLOAT, "sign s of the axis along the plane's normal n"),
+    ("point", 2, FLOAT, "hinge and roll: anchor [m]; slide: unit direction (reference pose)"),
+    ("ref", 1, FLOAT, "reference coordinate [rad | m]"),
+    ("stiffness", 1, FLOAT, "[N m/rad | N/m]"),
+    ("springref", 1, FLOAT, "[rad | m]"),
+    ("damping", 1, FLOAT, "[N m s/rad | N s/m]"),
+    ("armature", 1, FLOAT, "[kg m^2 | kg]"),
+    ("mass", 1, FLOAT, "mass the node carries [kg]"),
+    ("com", 2, FLOAT, "its centre of mass at the reference pose [m]"),
+    ("moment", 1, FLOAT, "I_n about that centre [kg m^2]"),
+    ("radius", 1, FLOAT, "roll radius [m]"),
+    ("line", 2, FLOAT, "roll line at the reference pose"),
+])
 (N_PARENT, N_KIND, N_SIGN, N_POINT, N_REF, N_STIFF, N_SPRINGREF, N_DAMPING, N_ARMATURE, N_MASS, N_COM, N_MOMENT,
- N_RADIUS, N_LINE) = (0, 1, 2, 3, 5, 6, 7, 8, 9, 10, 11, 13, 14, 15)
-NODE_SIZE = 17
-# Workspace of a node (one evaluation): cos, sin, angle of G; t of G (2); S (3); v (3); c (3) the velocity
-# product; articulated inertia (6: 00 01 02 11 12 22); articulated bias force (3); U = I S (3); 1/D; u;
-# acceleration (3); applied generalised force.
-(W_COS, W_SIN, W_ANGLE, W_T, W_S, W_V, W_C, W_I, W_P, W_U, W_DINV, W_SMALL_U, W_A, W_TAU) = (
-    0, 1, 2, 3, 5, 8, 11, 14, 20, 23, 26, 27, 28, 31)
-WORK = 32
+ N_RADIUS, N_LINE) = NODE.offsets()
+NODE_SIZE = NODE.size
+# Workspace of a node (one evaluation).
+NODE_WORK = Record("planar node workspace", [
+    ("cos", 1, FLOAT, "cos of the node's absolute angle"), ("sin", 1, FLOAT, "its sine"),
+    ("angle", 1, FLOAT, "the absolute angle of its frame G [rad]"), ("t", 2, FLOAT, "the origin of G [m]"),
+    ("S", 3, FLOAT, "motion subspace"), ("v", 3, FLOAT, "velocity"), ("c", 3, FLOAT, "velocity product"),
+    ("inertia", 6, FLOAT, "articulated inertia (00 01 02 11 12 22)"), ("bias", 3, FLOAT, "articulated bias force"),
+    ("U", 3, FLOAT, "U = I S"), ("dinv", 1, FLOAT, "1/D"), ("u", 1, FLOAT, "u"), ("acc", 3, FLOAT, "acceleration"),
+    ("tau", 1, FLOAT, "applied generalised force"),
+])
+(W_COS, W_SIN, W_ANGLE, W_T, W_S, W_V, W_C, W_I, W_P, W_U, W_DINV, W_SMALL_U, W_A, W_TAU) = NODE_WORK.offsets()
+WORK = NODE_WORK.size
 
 
 # ----- the algorithms ----------------------------------------------------------------------------------
@@ -524,6 +548,8 @@ def planar_structure(multibody: mb.Multibody) -> tuple[PlanarModel | None, str]:
         planar[n_ + N_MASS] = mass
         planar[n_ + N_COM:n_ + N_COM + 2] = com
         planar[n_ + N_MOMENT] = moment
+    PLANAR_HEADER.check(planar, 0, 1)
+    NODE.check(planar, HEADER, nv)
     planar.setflags(write=False)
     return PlanarModel(row=planar, normal=normal, basis=basis, nv=nv, multibody=multibody), ""
 
