@@ -605,12 +605,15 @@ def mass_matrix_one(p, q, out, w):
 
 @njit(cache=True)
 def energies_one(p, q, v, w):
-    """(kinetic, potential) [J]: sum 1/2 v_i . I_i v_i; sum m g z_com + 1/2 stiffness (q - springref)^2."""
+    """(kinetic, potential) [J]: sum 1/2 v_i . I_i v_i + sum 1/2 armature_d qvel_d^2 (the rotors armature stands
+    for: 1/2 qvel' M qvel with M MuJoCo's qM, which the dynamics integrate); sum m g z_com + 1/2 stiffness
+    (q - springref)^2."""
     _frames(p, q, v, w)
     ws = _views(p, w)
     vel, h, Ibar, scratch = ws.vel, ws.h, ws.Ibar, ws.scratch
     nb, nj = int(p[H_BODIES]), int(p[H_JOINTS])
     bo, jo = int(p[H_BODY]), int(p[H_JOINT])
+    do, nv = int(p[H_DOF]), int(p[H_DOFS])
     tmp = scratch[0:6]
     kinetic, potential = 0.0, 0.0
     for i in range(nb):
@@ -618,6 +621,8 @@ def energies_one(p, q, v, w):
         inertia_apply(mass, h[i], Ibar[i], vel[i], tmp)
         kinetic += 0.5 * dot6(vel[i], tmp)
         potential += p[H_GRAVITY] * (h[i, 2] + mass * ws.xorigin[i, 2])  # m g z_com, z in the world
+    for d in range(nv):
+        kinetic += 0.5 * p[do + d * DOF_SIZE + D_ARMATURE] * v[d] * v[d]
     for j in range(nj):
         r = jo + j * JOINT_SIZE
         x = q[int(p[r + J_QADR])] - p[r + J_SPRINGREF]
