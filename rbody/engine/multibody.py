@@ -129,10 +129,12 @@ STACK_FLOATS = 16384  # workspaces up to this size (128 kB, ~570 bodies) live on
 SCRATCH = 32  # floats of small temporaries (quaternions, 3- and 6-vectors) at the end of the workspace
 
 
-# The arrays of one evaluation (_views): per body xpos (nb, 3) relative to its tree's origin xorigin (nb, 3), xquat (nb, 4), xmat (nb, 3, 3), spatial velocity
-# vel, articulated bias force pA, acceleration acc, force (nb, 6), inertia about the origin h (nb, 3),
-# Ibar (nb, 3, 3), articulated inertia IA (nb, 6, 6), mass (nb,); per joint xaxis, xanchor, xline (nj, 3); per
-# dof S, bias, U (nv, 6), u (nv,), tau, pivots, zero (nv,); q (nq,); scratch (SCRATCH,).
+# The arrays of one evaluation (_views): per body xpos (nb, 3) relative to its tree's origin xorigin (nb, 3), xquat
+# (nb, 4), xmat (nb, 3, 3), spatial velocity vel, articulated bias force pA, acceleration acc, force (nb, 6),
+# inertia about the origin h (nb, 3), Ibar (nb, 3, 3), articulated inertia IA (nb, 6, 6; its upper triangle),
+# mass (nb,); per joint xaxis, xanchor, xline (nj, 3); per dof S, bias, U (nv, 6), u (nv,), tau, pivots, zero
+# (nv,); q (nq,); scratch (SCRATCH,). After the articulated-body algorithm IA and pA hold Featherstone's I^A and
+# p^A of each body (its subtree's, before its own joints are eliminated).
 Workspace = namedtuple("Workspace", ["xpos", "xquat", "xmat", "xaxis", "xanchor", "xline", "S", "bias", "vel", "h",
                                      "Ibar", "IA", "pA", "U", "u", "acc", "force", "mass", "q", "tau", "pivots",
                                      "zero", "scratch", "xorigin"])
@@ -569,38 +571,83 @@ def _frames(p, q, v, w):
 @njit(cache=True, inline="always")
 def _sweeps(p, w, o, qacc, ao):
     """The articulated-body algorithm's inward and outward sweeps (Featherstone, RBDA, table 7.1) from the
-    outward pass's S, bias, IA, pA and the generalised forces tau: qacc[ao + d] for each dof, pivots, U, u and acc
-    into the workspace. Returns the first dof whose pivot is not positive beyond PIVOT_RTOL of its scale, or -1.
+    outward pass's S, bias, IA, pA and the generalised forces tau: qacc[ao + d] for each dof; into the workspace
+    IA and pA of each body (I^A, p^A: its subtree's, before its own joints are eliminated), pivots D, U, u and
+    acc. Returns the first dof whose pivot is not positive beyond PIVOT_RTOL of its scale, or -1.
 
-    A body's articulated inertia (upper triangle: 21 numbers) and bias force stay in local variables while its
-    degrees of freedom are eliminated, and every sum of six products is added as a balanced tree: the inward
-    sweep is a chain of dependent steps from the leaves to the root, and this keeps it short."""
+    The inward sweep is a chain of dependent steps from the leaves to the root: eliminating a degree of freedom
+    needs its pivot D = S . Ia S, hence the articulated inertia Ia left by the previous elimination, Ia - U U^T / D,
+    hence that elimination's division. Two things keep the chain short. Each elimination's rank-one update is
+    left pending: the next one forms Ia S = A S - U (U . S) / D from the inertia A without it, which was ready one
+    step earlier, and applies the update (to all 21 numbers) meanwhile. And a body's articulated inertia and
+    bias force stay in local variables, handed in them to the next body when that is the parent (a body's first
+    child, in the tree's depth-first order; every body of a chain); other parents gather theirs in the workspace.
+    Every sum of six products is added as a balanced tree."""
     nb = int(p[H_BODIES])
     bo, do = int(p[H_BODY]), int(p[H_DOF])
     bad = -1
+    # A (upper triangle a..), the bias force P, and the pending elimination (q = U, qinv = 1 / D) live across
+    # bodies when one hands over to its parent (carry)
+    a00 = a01 = a02 = a03 = a04 = a05 = a11 = a12 = a13 = a14 = a15 = a22 = a23 = a24 = a25 = 0.0
+    a33 = a34 = a35 = a44 = a45 = a55 = P0 = P1 = P2 = P3 = P4 = P5 = 0.0
+    q0 = q1 = q2 = q3 = q4 = q5 = qinv = 0.0
+    carry, pending = False, False
     for i in range(nb - 1, -1, -1):
         b = bo + i * BODY_SIZE
         d0, nd = int(p[b + B_DOF0]), int(p[b + B_NDOF])
-        e = o.IA + 36 * i
-        a00, a01, a02, a03, a04, a05 = w[e], w[e + 1], w[e + 2], w[e + 3], w[e + 4], w[e + 5]
-        a11, a12, a13, a14, a15 = w[e + 7], w[e + 8], w[e + 9], w[e + 10], w[e + 11]
-        a22, a23, a24, a25 = w[e + 14], w[e + 15], w[e + 16], w[e + 17]
-        a33, a34, a35 = w[e + 21], w[e + 22], w[e + 23]
-        a44, a45 = w[e + 28], w[e + 29]
-        a55 = w[e + 35]
-        f = o.pA + 6 * i
-        P0, P1, P2, P3, P4, P5 = w[f], w[f + 1], w[f + 2], w[f + 3], w[f + 4], w[f + 5]
-        for d in range(d0 + nd - 1, d0 - 1, -1):
+        parent = int(p[b + B_PARENT])
+        e, f = o.IA + 36 * i, o.pA + 6 * i
+        if carry:  # the child handed over: add the body's own (and its other children's) inertia and force
+            a00, a01, a02, a03, a04, a05 = a00 + w[e], a01 + w[e + 1], a02 + w[e + 2], a03 + w[e + 3], a04 + w[e + 4], a05 + w[e + 5]
+            a11, a12, a13, a14, a15 = a11 + w[e + 7], a12 + w[e + 8], a13 + w[e + 9], a14 + w[e + 10], a15 + w[e + 11]
+            a22, a23, a24, a25 = a22 + w[e + 14], a23 + w[e + 15], a24 + w[e + 16], a25 + w[e + 17]
+            a33, a34, a35, a44, a45, a55 = a33 + w[e + 21], a34 + w[e + 22], a35 + w[e + 23], a44 + w[e + 28], a45 + w[e + 29], a55 + w[e + 35]
+            P0, P1, P2, P3, P4, P5 = P0 + w[f], P1 + w[f + 1], P2 + w[f + 2], P3 + w[f + 3], P4 + w[f + 4], P5 + w[f + 5]
+        else:
+            a00, a01, a02, a03, a04, a05 = w[e], w[e + 1], w[e + 2], w[e + 3], w[e + 4], w[e + 5]
+            a11, a12, a13, a14, a15 = w[e + 7], w[e + 8], w[e + 9], w[e + 10], w[e + 11]
+            a22, a23, a24, a25 = w[e + 14], w[e + 15], w[e + 16], w[e + 17]
+            a33, a34, a35, a44, a45, a55 = w[e + 21], w[e + 22], w[e + 23], w[e + 28], w[e + 29], w[e + 35]
+            P0, P1, P2, P3, P4, P5 = w[f], w[f + 1], w[f + 2], w[f + 3], w[f + 4], w[f + 5]
+            pending = False
+        w[f], w[f + 1], w[f + 2], w[f + 3], w[f + 4], w[f + 5] = P0, P1, P2, P3, P4, P5
+        stored = False
+        for d in range(d0 + nd - 1, d0 - 2, -1):
             s = o.S + 6 * d
-            s0, s1, s2, s3, s4, s5 = w[s], w[s + 1], w[s + 2], w[s + 3], w[s + 4], w[s + 5]
-            # U = Ia S, D = S . U + armature, u = tau - S . pa
-            U0 = ((a00 * s0 + a01 * s1) + (a02 * s2 + a03 * s3)) + (a04 * s4 + a05 * s5)
-            U1 = ((a01 * s0 + a11 * s1) + (a12 * s2 + a13 * s3)) + (a14 * s4 + a15 * s5)
-            U2 = ((a02 * s0 + a12 * s1) + (a22 * s2 + a23 * s3)) + (a24 * s4 + a25 * s5)
-            U3 = ((a03 * s0 + a13 * s1) + (a23 * s2 + a33 * s3)) + (a34 * s4 + a35 * s5)
-            U4 = ((a04 * s0 + a14 * s1) + (a24 * s2 + a34 * s3)) + (a44 * s4 + a45 * s5)
-            U5 = ((a05 * s0 + a15 * s1) + (a25 * s2 + a35 * s3)) + (a45 * s4 + a55 * s5)
-            sU = ((s0 * U0 + s1 * U1) + (s2 * U2 + s3 * U3)) + (s4 * U4 + s5 * U5)
+            if d >= d0:  # Y = A S with A before the pending elimination
+                s0, s1, s2, s3, s4, s5 = w[s], w[s + 1], w[s + 2], w[s + 3], w[s + 4], w[s + 5]
+                Y0 = ((a00 * s0 + a01 * s1) + (a02 * s2 + a03 * s3)) + (a04 * s4 + a05 * s5)
+                Y1 = ((a01 * s0 + a11 * s1) + (a12 * s2 + a13 * s3)) + (a14 * s4 + a15 * s5)
+                Y2 = ((a02 * s0 + a12 * s1) + (a22 * s2 + a23 * s3)) + (a24 * s4 + a25 * s5)
+                Y3 = ((a03 * s0 + a13 * s1) + (a23 * s2 + a33 * s3)) + (a34 * s4 + a35 * s5)
+                Y4 = ((a04 * s0 + a14 * s1) + (a24 * s2 + a34 * s3)) + (a44 * s4 + a45 * s5)
+                Y5 = ((a05 * s0 + a15 * s1) + (a25 * s2 + a35 * s3)) + (a45 * s4 + a55 * s5)
+                sU = ((s0 * Y0 + s1 * Y1) + (s2 * Y2 + s3 * Y3)) + (s4 * Y4 + s5 * Y5)
+            if pending:  # apply it: A -= q q^T / D_q
+                g0, g1, g2, g3, g4, g5 = q0 * qinv, q1 * qinv, q2 * qinv, q3 * qinv, q4 * qinv, q5 * qinv
+                a00, a01, a02, a03, a04, a05 = a00 - g0 * q0, a01 - g0 * q1, a02 - g0 * q2, a03 - g0 * q3, a04 - g0 * q4, a05 - g0 * q5
+                a11, a12, a13, a14, a15 = a11 - g1 * q1, a12 - g1 * q2, a13 - g1 * q3, a14 - g1 * q4, a15 - g1 * q5
+                a22, a23, a24, a25 = a22 - g2 * q2, a23 - g2 * q3, a24 - g2 * q4, a25 - g2 * q5
+                a33, a34, a35 = a33 - g3 * q3, a34 - g3 * q4, a35 - g3 * q5
+                a44, a45, a55 = a44 - g4 * q4, a45 - g4 * q5, a55 - g5 * q5
+            if not stored:  # I^A of the body: its children's eliminations applied, none of its own
+                w[e], w[e + 1], w[e + 2], w[e + 3], w[e + 4], w[e + 5] = a00, a01, a02, a03, a04, a05
+                w[e + 7], w[e + 8], w[e + 9], w[e + 10], w[e + 11] = a11, a12, a13, a14, a15
+                w[e + 14], w[e + 15], w[e + 16], w[e + 17] = a22, a23, a24, a25
+                w[e + 21], w[e + 22], w[e + 23] = a33, a34, a35
+                w[e + 28], w[e + 29] = a44, a45
+                w[e + 35] = a55
+                stored = True
+            if d < d0:
+                pending = False
+                break
+            # U = Ia S: Y less the pending elimination's part, q (q . S) / D_q
+            U0, U1, U2, U3, U4, U5 = Y0, Y1, Y2, Y3, Y4, Y5
+            if pending:
+                k = ((q0 * s0 + q1 * s1) + (q2 * s2 + q3 * s3)) + (q4 * s4 + q5 * s5)
+                t = k * qinv
+                U0, U1, U2, U3, U4, U5 = Y0 - q0 * t, Y1 - q1 * t, Y2 - q2 * t, Y3 - q3 * t, Y4 - q4 * t, Y5 - q5 * t
+                sU = sU - k * t
             armature = p[do + d * DOF_SIZE + D_ARMATURE]
             D = sU + armature
             w[o.pivots + d] = D
@@ -615,33 +662,28 @@ def _sweeps(p, w, o, qacc, ao):
             w[o.u + d] = ud
             g = o.U + 6 * d
             w[g], w[g + 1], w[g + 2], w[g + 3], w[g + 4], w[g + 5] = U0, U1, U2, U3, U4, U5
-            # Ia -= U U^T / D
             inv = 1.0 / D
-            w0, w1, w2, w3, w4, w5 = U0 * inv, U1 * inv, U2 * inv, U3 * inv, U4 * inv, U5 * inv
-            a00, a01, a02, a03, a04, a05 = a00 - w0 * U0, a01 - w0 * U1, a02 - w0 * U2, a03 - w0 * U3, a04 - w0 * U4, a05 - w0 * U5
-            a11, a12, a13, a14, a15 = a11 - w1 * U1, a12 - w1 * U2, a13 - w1 * U3, a14 - w1 * U4, a15 - w1 * U5
-            a22, a23, a24, a25 = a22 - w2 * U2, a23 - w2 * U3, a24 - w2 * U4, a25 - w2 * U5
-            a33, a34, a35 = a33 - w3 * U3, a34 - w3 * U4, a35 - w3 * U5
-            a44, a45 = a44 - w4 * U4, a45 - w4 * U5
-            a55 = a55 - w5 * U5
-            # pa += Ia c + U u / D (Ia after the update)
+            # pa += Ia' c + U u / D with Ia' = Ia - U U^T / D: Ia c + U (u - U . c) / D
             c = o.bias + 6 * d
-            c0, c1, c2, c3, c4, c5 = w[c], w[c + 1], w[c + 2], w[c + 3], w[c + 4], w[c + 5]
-            P0 += w0 * ud + (((a00 * c0 + a01 * c1) + (a02 * c2 + a03 * c3)) + (a04 * c4 + a05 * c5))
-            P1 += w1 * ud + (((a01 * c0 + a11 * c1) + (a12 * c2 + a13 * c3)) + (a14 * c4 + a15 * c5))
-            P2 += w2 * ud + (((a02 * c0 + a12 * c1) + (a22 * c2 + a23 * c3)) + (a24 * c4 + a25 * c5))
-            P3 += w3 * ud + (((a03 * c0 + a13 * c1) + (a23 * c2 + a33 * c3)) + (a34 * c4 + a35 * c5))
-            P4 += w4 * ud + (((a04 * c0 + a14 * c1) + (a24 * c2 + a34 * c3)) + (a44 * c4 + a45 * c5))
-            P5 += w5 * ud + (((a05 * c0 + a15 * c1) + (a25 * c2 + a35 * c3)) + (a45 * c4 + a55 * c5))
-        w[e], w[e + 1], w[e + 2], w[e + 3], w[e + 4], w[e + 5] = a00, a01, a02, a03, a04, a05
-        w[e + 7], w[e + 8], w[e + 9], w[e + 10], w[e + 11] = a11, a12, a13, a14, a15
-        w[e + 14], w[e + 15], w[e + 16], w[e + 17] = a22, a23, a24, a25
-        w[e + 21], w[e + 22], w[e + 23] = a33, a34, a35
-        w[e + 28], w[e + 29] = a44, a45
-        w[e + 35] = a55
-        w[f], w[f + 1], w[f + 2], w[f + 3], w[f + 4], w[f + 5] = P0, P1, P2, P3, P4, P5
-        parent = int(p[b + B_PARENT])
-        if parent >= 0:  # the parent's articulated inertia and bias force gather this body's
+            k0, k1, k2, k3, k4, k5 = w[c], w[c + 1], w[c + 2], w[c + 3], w[c + 4], w[c + 5]
+            r = (ud - (((U0 * k0 + U1 * k1) + (U2 * k2 + U3 * k3)) + (U4 * k4 + U5 * k5))) * inv
+            P0 += ((a00 * k0 + a01 * k1) + (a02 * k2 + a03 * k3)) + (a04 * k4 + a05 * k5) + U0 * r
+            P1 += ((a01 * k0 + a11 * k1) + (a12 * k2 + a13 * k3)) + (a14 * k4 + a15 * k5) + U1 * r
+            P2 += ((a02 * k0 + a12 * k1) + (a22 * k2 + a23 * k3)) + (a24 * k4 + a25 * k5) + U2 * r
+            P3 += ((a03 * k0 + a13 * k1) + (a23 * k2 + a33 * k3)) + (a34 * k4 + a35 * k5) + U3 * r
+            P4 += ((a04 * k0 + a14 * k1) + (a24 * k2 + a34 * k3)) + (a44 * k4 + a45 * k5) + U4 * r
+            P5 += ((a05 * k0 + a15 * k1) + (a25 * k2 + a35 * k3)) + (a45 * k4 + a55 * k5) + U5 * r
+            pending = True
+            q0, q1, q2, q3, q4, q5, qinv = U0, U1, U2, U3, U4, U5, inv
+        carry = parent >= 0 and parent == i - 1  # hand over in local variables, the last elimination pending
+        if parent >= 0 and not carry:  # the parent gathers the body's Ia and pa in the workspace
+            if pending:
+                g0, g1, g2, g3, g4, g5 = q0 * qinv, q1 * qinv, q2 * qinv, q3 * qinv, q4 * qinv, q5 * qinv
+                a00, a01, a02, a03, a04, a05 = a00 - g0 * q0, a01 - g0 * q1, a02 - g0 * q2, a03 - g0 * q3, a04 - g0 * q4, a05 - g0 * q5
+                a11, a12, a13, a14, a15 = a11 - g1 * q1, a12 - g1 * q2, a13 - g1 * q3, a14 - g1 * q4, a15 - g1 * q5
+                a22, a23, a24, a25 = a22 - g2 * q2, a23 - g2 * q3, a24 - g2 * q4, a25 - g2 * q5
+                a33, a34, a35 = a33 - g3 * q3, a34 - g3 * q4, a35 - g3 * q5
+                a44, a45, a55 = a44 - g4 * q4, a45 - g4 * q5, a55 - g5 * q5
             e = o.IA + 36 * parent
             w[e] += a00
             w[e + 1] += a01
@@ -685,8 +727,9 @@ def _sweeps(p, w, o, qacc, ao):
             c = o.bias + 6 * d
             x0, x1, x2, x3, x4, x5 = x0 + w[c], x1 + w[c + 1], x2 + w[c + 2], x3 + w[c + 3], x4 + w[c + 4], x5 + w[c + 5]
             e = o.U + 6 * d
+            inv = 1.0 / w[o.pivots + d]  # ready long before it is needed, unlike a division at the end
             qdd = (w[o.u + d] - (((w[e] * x0 + w[e + 1] * x1) + (w[e + 2] * x2 + w[e + 3] * x3))
-                                 + (w[e + 4] * x4 + w[e + 5] * x5))) / w[o.pivots + d]
+                                 + (w[e + 4] * x4 + w[e + 5] * x5))) * inv
             if d == bad:
                 qdd = np.nan
             qacc[ao + d] = qdd
