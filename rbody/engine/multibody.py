@@ -64,7 +64,8 @@ from numba import carray, njit
 
 from rbody.engine.memory import address, stack_floats
 from rbody.layout import JOINTS, WORLD, coordinate_addresses, joint_order, tree_order
-from rbody.engine.spatial import dexp_inverse, dot6, force_cross, inertia_apply, quat_exp, quat_multiply
+from rbody.engine.spatial import (REDUCED_RANGE, dexp_inverse3, dot6, force_cross, inertia_apply, quat_exp,
+                                  quat_multiply, sin_cos)
 
 # Joint codes, sizes and which kinds are scalar: the one joint table (rbody.layout.JOINTS), as numba constants.
 HINGE, SLIDE, BALL, FREE, ROLL = (JOINTS[k].code for k in ("hinge", "slide", "ball", "free", "roll"))
@@ -132,22 +133,23 @@ SCRATCH = 32  # floats of small temporaries (quaternions, 3- and 6-vectors) at t
 # The arrays of one evaluation (_views): per body xpos (nb, 3) relative to its tree's origin xorigin (nb, 3), xquat
 # (nb, 4), xmat (nb, 3, 3), spatial velocity vel, articulated bias force pA, acceleration acc, force (nb, 6),
 # inertia about the origin h (nb, 3), Ibar (nb, 3, 3), articulated inertia IA (nb, 6, 6; its upper triangle),
-# mass (nb,); per joint xaxis, xanchor, xline (nj, 3); per dof S, bias, U (nv, 6), u (nv,), tau, pivots, zero
-# (nv,); q (nq,); scratch (SCRATCH,). After the articulated-body algorithm IA and pA hold Featherstone's I^A and
+# mass (nb,); per joint xaxis, xanchor, xline (nj, 3), half (2, nj): cos and sin of half the angle q - ref of
+# each hinge and roll joint (0 for the others); per dof S, bias, U (nv, 6), u (nv,), tau, pivots, zero (nv,);
+# q (nq,); scratch (SCRATCH,). After the articulated-body algorithm IA and pA hold Featherstone's I^A and
 # p^A of each body (its subtree's, before its own joints are eliminated).
 Workspace = namedtuple("Workspace", ["xpos", "xquat", "xmat", "xaxis", "xanchor", "xline", "S", "bias", "vel", "h",
                                      "Ibar", "IA", "pA", "U", "u", "acc", "force", "mass", "q", "tau", "pivots",
-                                     "zero", "scratch", "xorigin"])
+                                     "zero", "scratch", "xorigin", "half"])
 # Where each of those arrays starts in the workspace (a float index): _offsets, read by _views and by the
 # algorithms, which index the workspace directly (w[o.xpos + 3 * i + a] is xpos[i, a]).
 Offsets = namedtuple("Offsets", ["S", "bias", "U", "vel", "pA", "acc", "force", "xpos", "h", "xorigin", "xaxis",
                                  "xanchor", "xline", "xmat", "Ibar", "IA", "xquat", "u", "mass", "q", "tau", "pivots",
-                                 "zero", "scratch"])
+                                 "zero", "scratch", "half"])
 
 
 # Floats of the workspace per body, joint and degree of freedom: _views cuts exactly these (a test checks it).
 BODY_FLOATS = 4 * 6 + 3 * 3 + 2 * 9 + 36 + 4 + 1  # vel pA acc force; xpos h xorigin; xmat Ibar; IA; xquat; mass
-JOINT_FLOATS = 3 * 3                                # xaxis xanchor xline
+JOINT_FLOATS = 3 * 3 + 2                            # xaxis xanchor xline; half
 DOF_FLOATS = 3 * 6 + 4                              # S bias U; u tau pivots zero
 
 
@@ -168,8 +170,8 @@ def _offsets(p):
     at += 24 * nb
     xpos, h, xorigin = at, at + 3 * nb, at + 6 * nb
     at += 9 * nb
-    xaxis, xanchor, xline = at, at + 3 * nj, at + 6 * nj
-    at += 9 * nj
+    xaxis, xanchor, xline, half = at, at + 3 * nj, at + 6 * nj, at + 9 * nj
+    at += 11 * nj
     xmat, Ibar = at, at + 9 * nb
     at += 18 * nb
     IA = at
@@ -179,7 +181,7 @@ def _offsets(p):
     u, mass = at, at + nv
     at += nv + nb
     return Offsets(S, bias, U, vel, pA, acc, force, xpos, h, xorigin, xaxis, xanchor, xline, xmat, Ibar, IA, xquat, u,
-                   mass, at, at + nq, at + nq + nv, at + nq + 2 * nv, at + nq + 3 * nv)
+                   mass, at, at + nq, at + nq + nv, at + nq + 2 * nv, at + nq + 3 * nv, half)
 
 
 @njit(cache=True, inline="always")
@@ -202,7 +204,7 @@ def _views(p, w):
                      _rows(w, o.acc, nb, 6), _rows(w, o.force, nb, 6), carray(address(w, o.mass), nb),
                      carray(address(w, o.q), nq), carray(address(w, o.tau), nv), carray(address(w, o.pivots), nv),
                      carray(address(w, o.zero), nv), carray(address(w, o.scratch), SCRATCH),
-                     _rows(w, o.xorigin, nb, 3))
+                     _rows(w, o.xorigin, nb, 3), _rows(w, o.half, 2, nj))
 
 
 # ----- one body at a time: the outward pass's steps -------------------------------------------------------
@@ -227,12 +229,35 @@ def _qrot(q0, q1, q2, q3, v0, v1, v2):
 
 
 @njit(cache=True, inline="always")
+def _half_angles(p, q, qo, w, o):
+    """half (2, nj): cos and sin of (q - ref) / 2 of every hinge and roll joint, 1 and 0 for the others: first the
+    angles, then their cosines and sines in a loop without a call, which LLVM vectorises (rbody.engine.spatial.sin_cos;
+    np.sin and np.cos when an angle is beyond its range)."""
+    nj, jo = int(p[H_JOINTS]), int(p[H_JOINT])
+    c, s = o.half, o.half + nj
+    largest = 0.0
+    for j in range(nj):
+        r = jo + j * JOINT_SIZE
+        kind = int(p[r + J_KIND])
+        x = 0.5 * (q[qo + int(p[r + J_QADR])] - p[r + J_REF]) if kind == HINGE or kind == ROLL else 0.0
+        w[s + j] = x
+        largest = max(largest, abs(x))
+    if largest < REDUCED_RANGE:
+        for j in range(nj):
+            w[s + j], w[c + j] = sin_cos(w[s + j])
+    else:
+        for j in range(nj):
+            x = w[s + j]
+            w[s + j], w[c + j] = np.sin(x), np.cos(x)
+
+
+@njit(cache=True, inline="always")
 def _pose(p, q, qo, w, o, i):
     """Body i's pose, as MuJoCo's mj_kinematics (kinematics() gives the meaning of each array), its parent's
     already placed: xorigin, xpos, xquat, xmat of the body; xaxis, xanchor, xline of its joints. q[qo + a] is
     qpos[a]."""
     b = int(p[H_BODY]) + i * BODY_SIZE
-    jo = int(p[H_JOINT])
+    jo, nj_all = int(p[H_JOINT]), int(p[H_JOINTS])
     parent = int(p[b + B_PARENT])
     j0, nj = int(p[b + B_JNT0]), int(p[b + B_NJNT])
     xp, xo = o.xpos + 3 * i, o.xorigin + 3 * i
@@ -298,10 +323,9 @@ def _pose(p, q, qo, w, o, i):
                 t0, t1, t2, t3 = q[qa], q[qa + 1], q[qa + 2], q[qa + 3]
                 norm = np.sqrt(t0 * t0 + t1 * t1 + t2 * t2 + t3 * t3)
                 t0, t1, t2, t3 = t0 / norm, t1 / norm, t2 / norm, t3 / norm
-            else:
-                half = 0.5 * (q[qa] - p[r + J_REF])
-                sine = np.sin(half)
-                t0, t1, t2, t3 = np.cos(half), sine * e0, sine * e1, sine * e2
+            else:  # cos and sin of half the angle: _half_angles
+                sine = w[o.half + nj_all + j]
+                t0, t1, t2, t3 = w[o.half + j], sine * e0, sine * e1, sine * e2
             q0, q1, q2, q3 = _qmul(q0, q1, q2, q3, t0, t1, t2, t3)
             if at_origin:  # the body frame's origin is the anchor
                 x0, x1, x2 = c0, c1, c2
@@ -488,6 +512,7 @@ def kinematics(p, q, w):
     (module docstring, "Precision"), so a tree a million metres from the world origin computes as it would at it."""
     o = _offsets(p)
     pp, qq, ww = address(p, 0), address(q, 0), address(w, 0)
+    _half_angles(pp, qq, 0, ww, o)
     for i in range(int(p[H_BODIES])):
         _pose(pp, qq, 0, ww, o, i)
 
@@ -551,6 +576,7 @@ def _passive(p, q, qo, v, vo, out, to):
 def _outward(p, q, qo, v, vo, w, o):
     """The outward pass of one state, body after body: kinematics, motion subspaces, velocities, world inertias
     and the start of the articulated-body algorithm (IA, pA) into the workspace."""
+    _half_angles(p, q, qo, w, o)
     for i in range(int(p[H_BODIES])):
         _pose(p, q, qo, w, o, i)
         _subspaces(p, w, o, i)
@@ -651,9 +677,9 @@ def _sweeps(p, w, o, qacc, ao):
             armature = p[do + d * DOF_SIZE + D_ARMATURE]
             D = sU + armature
             w[o.pivots + d] = D
-            scale = max(max(max(abs(a00) * (s0 * s0), abs(a11) * (s1 * s1)), max(abs(a22) * (s2 * s2),
-                                                                                 abs(a33) * (s3 * s3))),
-                        max(max(abs(a44) * (s4 * s4), abs(a55) * (s5 * s5)), abs(sU) + armature))
+            # the pivot's scale: |S . Ia S| + armature + trace(Ia) |S|^2 (the diagonal of Ia is not negative)
+            scale = (abs(sU) + armature) + (((a00 + a11) + (a22 + a33)) + (a44 + a55)) * (
+                ((s0 * s0 + s1 * s1) + (s2 * s2 + s3 * s3)) + (s4 * s4 + s5 * s5))
             if not D > PIVOT_RTOL * scale or not D > 0.0:
                 if bad < 0:
                     bad = d
@@ -938,23 +964,22 @@ def tree_rhs(y, p, out):
     _outward(pp, q, qo, yy, nq, ww, o)
     _passive(pp, q, qo, yy, nq, ww, o.tau)
     _sweeps(pp, ww, o, address(out, 0), nq)
+    oo = address(out, 0)
     for j in range(nj):
         r = jo + j * JOINT_SIZE
-        kind = int(p[r + J_KIND])
-        qa, da = int(p[r + J_QADR]), int(p[r + J_DADR])
+        kind = int(pp[r + J_KIND])
+        qa, da = int(pp[r + J_QADR]), int(pp[r + J_DADR])
         if kind == HINGE or kind == SLIDE or kind == ROLL:
-            out[qa] = y[nq + da]
+            oo[qa] = yy[nq + da]
             continue
         base = qa
         if kind == FREE:
-            for a in range(3):
-                out[qa + a] = y[nq + da + a]
+            oo[qa], oo[qa + 1], oo[qa + 2] = yy[nq + da], yy[nq + da + 1], yy[nq + da + 2]
             base, da = qa + 3, da + 3
-        for a in range(4):
-            out[base + a] = 0.0
-        slot = int(p[r + J_ROT])
-        at = nq + nv + 3 * slot
-        dexp_inverse(y[at:at + 3], y[nq + da:nq + da + 3], out[at:at + 3])
+        oo[base], oo[base + 1], oo[base + 2], oo[base + 3] = 0.0, 0.0, 0.0, 0.0
+        at = nq + nv + 3 * int(pp[r + J_ROT])
+        oo[at], oo[at + 1], oo[at + 2] = dexp_inverse3(yy[at], yy[at + 1], yy[at + 2], yy[nq + da], yy[nq + da + 1],
+                                                       yy[nq + da + 2])
 
 
 @njit(cache=True)
