@@ -251,6 +251,59 @@ def _half_angles(p, q, qo, w, o):
             w[s + j], w[c + j] = np.sin(x), np.cos(x)
 
 
+@njit(cache=True, fastmath=FMA)
+def _free_pose(p, q, qo, w, o, i, j):
+    """Body i moved by its free joint j (_pose): its origin and axes, the joint's axis and anchor; returns the body's
+    quaternion (w, x, y, z) made unit."""
+    r = int(p[H_JOINT]) + j * JOINT_SIZE
+    qa = qo + int(p[r + J_QADR])
+    xp, xo = o.xpos + 3 * i, o.xorigin + 3 * i
+    for a in range(3):  # a free joint's body is a child of the world: the origin of its own tree
+        w[xo + a] = q[qa + a]
+        w[xp + a] = 0.0
+        w[o.xanchor + 3 * j + a] = 0.0
+        w[o.xaxis + 3 * j + a] = p[r + J_AXIS + a]
+    q0, q1, q2, q3 = q[qa + 3], q[qa + 4], q[qa + 5], q[qa + 6]
+    norm = np.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+    return q0 / norm, q1 / norm, q2 / norm, q3 / norm
+
+
+@njit(cache=True, fastmath=FMA)
+def _other_joint(p, q, qo, w, o, j, x0, x1, x2, q0, q1, q2, q3):
+    """A slide, roll or ball joint j of a body whose frame is at x (relative to its tree's origin) with quaternion q
+    so far (_pose): the joint's axis, anchor and rolling line into the workspace; returns the body's (x, q) after
+    the joint. A separate function: the pose of hinges, the common joint, is written out where it is used."""
+    r = int(p[H_JOINT]) + j * JOINT_SIZE
+    kind = int(p[r + J_KIND])
+    n0, n1, n2 = p[r + J_ANCHOR], p[r + J_ANCHOR + 1], p[r + J_ANCHOR + 2]
+    a0, a1, a2 = _qrot(q0, q1, q2, q3, p[r + J_AXIS], p[r + J_AXIS + 1], p[r + J_AXIS + 2])
+    ja, jx = o.xaxis + 3 * j, o.xanchor + 3 * j
+    w[ja], w[ja + 1], w[ja + 2] = a0, a1, a2
+    c0, c1, c2 = _qrot(q0, q1, q2, q3, n0, n1, n2)
+    c0, c1, c2 = c0 + x0, c1 + x1, c2 + x2
+    qa = qo + int(p[r + J_QADR])
+    if kind == SLIDE:
+        w[jx], w[jx + 1], w[jx + 2] = c0, c1, c2
+        d = q[qa] - p[r + J_REF]
+        return x0 + a0 * d, x1 + a1 * d, x2 + a2 * d, q0, q1, q2, q3
+    if kind == ROLL:  # first slide by a (q - ref) along l (anchor and body together), then turn
+        l0, l1, l2 = _qrot(q0, q1, q2, q3, p[r + J_LINE], p[r + J_LINE + 1], p[r + J_LINE + 2])
+        jl = o.xline + 3 * j
+        w[jl], w[jl + 1], w[jl + 2] = l0, l1, l2
+        d = p[r + J_RADIUS] * (q[qa] - p[r + J_REF])
+        c0, c1, c2 = c0 + l0 * d, c1 + l1 * d, c2 + l2 * d
+        sine = w[o.half + int(p[H_JOINTS]) + j]
+        t0, t1, t2, t3 = w[o.half + j], sine * p[r + J_AXIS], sine * p[r + J_AXIS + 1], sine * p[r + J_AXIS + 2]
+    else:  # ball
+        t0, t1, t2, t3 = q[qa], q[qa + 1], q[qa + 2], q[qa + 3]
+        norm = np.sqrt(t0 * t0 + t1 * t1 + t2 * t2 + t3 * t3)
+        t0, t1, t2, t3 = t0 / norm, t1 / norm, t2 / norm, t3 / norm
+    w[jx], w[jx + 1], w[jx + 2] = c0, c1, c2
+    q0, q1, q2, q3 = _qmul(q0, q1, q2, q3, t0, t1, t2, t3)  # turn about the anchor
+    n0, n1, n2 = _qrot(q0, q1, q2, q3, n0, n1, n2)
+    return c0 - n0, c1 - n1, c2 - n2, q0, q1, q2, q3
+
+
 @njit(cache=True, inline="always")
 def _pose(p, q, qo, w, o, i):
     """Body i's pose, as MuJoCo's mj_kinematics (kinematics() gives the meaning of each array), its parent's
@@ -262,16 +315,7 @@ def _pose(p, q, qo, w, o, i):
     j0, nj = int(p[b + B_JNT0]), int(p[b + B_NJNT])
     xp, xo = o.xpos + 3 * i, o.xorigin + 3 * i
     if nj == 1 and int(p[jo + j0 * JOINT_SIZE + J_KIND]) == FREE:
-        r = jo + j0 * JOINT_SIZE
-        qa = qo + int(p[r + J_QADR])
-        for a in range(3):  # a free joint's body is a child of the world: the origin of its own tree
-            w[xo + a] = q[qa + a]
-            w[xp + a] = 0.0
-            w[o.xanchor + 3 * j0 + a] = 0.0
-            w[o.xaxis + 3 * j0 + a] = p[r + J_AXIS + a]
-        q0, q1, q2, q3 = q[qa + 3], q[qa + 4], q[qa + 5], q[qa + 6]
-        norm = np.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
-        q0, q1, q2, q3 = q0 / norm, q1 / norm, q2 / norm, q3 / norm
+        q0, q1, q2, q3 = _free_pose(p, q, qo, w, o, i, j0)
     else:
         if parent >= 0:
             pp, pq, pm = o.xpos + 3 * parent, o.xquat + 4 * parent, o.xmat + 9 * parent
@@ -293,7 +337,10 @@ def _pose(p, q, qo, w, o, i):
             q0, q1, q2, q3 = p[b + B_QUAT], p[b + B_QUAT + 1], p[b + B_QUAT + 2], p[b + B_QUAT + 3]
         for j in range(j0, j0 + nj):
             r = jo + j * JOINT_SIZE
-            kind = int(p[r + J_KIND])
+            if int(p[r + J_KIND]) != HINGE:
+                x0, x1, x2, q0, q1, q2, q3 = _other_joint(p, q, qo, w, o, j, x0, x1, x2, q0, q1, q2, q3)
+                continue
+            # a hinge: turn about the anchor, by the cosine and sine of half its angle (_half_angles)
             e0, e1, e2 = p[r + J_AXIS], p[r + J_AXIS + 1], p[r + J_AXIS + 2]
             n0, n1, n2 = p[r + J_ANCHOR], p[r + J_ANCHOR + 1], p[r + J_ANCHOR + 2]
             at_origin = n0 == 0.0 and n1 == 0.0 and n2 == 0.0  # the common case
@@ -305,28 +352,9 @@ def _pose(p, q, qo, w, o, i):
             else:
                 c0, c1, c2 = _qrot(q0, q1, q2, q3, n0, n1, n2)
                 c0, c1, c2 = c0 + x0, c1 + x1, c2 + x2
-            qa = qo + int(p[r + J_QADR])
-            if kind == SLIDE:
-                w[jx], w[jx + 1], w[jx + 2] = c0, c1, c2
-                d = q[qa] - p[r + J_REF]
-                x0, x1, x2 = x0 + a0 * d, x1 + a1 * d, x2 + a2 * d
-                continue
-            if kind == ROLL:  # first slide by a (q - ref) along l (anchor and body together), then turn
-                l0, l1, l2 = _qrot(q0, q1, q2, q3, p[r + J_LINE], p[r + J_LINE + 1], p[r + J_LINE + 2])
-                jl = o.xline + 3 * j
-                w[jl], w[jl + 1], w[jl + 2] = l0, l1, l2
-                d = p[r + J_RADIUS] * (q[qa] - p[r + J_REF])
-                c0, c1, c2 = c0 + l0 * d, c1 + l1 * d, c2 + l2 * d
             w[jx], w[jx + 1], w[jx + 2] = c0, c1, c2
-            # hinge, roll or ball: turn about the anchor
-            if kind == BALL:
-                t0, t1, t2, t3 = q[qa], q[qa + 1], q[qa + 2], q[qa + 3]
-                norm = np.sqrt(t0 * t0 + t1 * t1 + t2 * t2 + t3 * t3)
-                t0, t1, t2, t3 = t0 / norm, t1 / norm, t2 / norm, t3 / norm
-            else:  # cos and sin of half the angle: _half_angles
-                sine = w[o.half + nj_all + j]
-                t0, t1, t2, t3 = w[o.half + j], sine * e0, sine * e1, sine * e2
-            q0, q1, q2, q3 = _qmul(q0, q1, q2, q3, t0, t1, t2, t3)
+            sine = w[o.half + nj_all + j]
+            q0, q1, q2, q3 = _qmul(q0, q1, q2, q3, w[o.half + j], sine * e0, sine * e1, sine * e2)
             if at_origin:  # the body frame's origin is the anchor
                 x0, x1, x2 = c0, c1, c2
             else:
@@ -350,42 +378,71 @@ def _pose(p, q, qo, w, o, i):
     w[xm + 8] = 1.0 - 2.0 * (q1 * q1 + q2 * q2)
 
 
+@njit(cache=True, fastmath=FMA)
+def _other_subspace(p, w, o, i, d):
+    """S of degree of freedom d of body i when its joint is not a hinge (_subspaces)."""
+    j = int(p[int(p[H_DOF]) + d * DOF_SIZE + D_JOINT])
+    k = int(p[int(p[H_DOF]) + d * DOF_SIZE + D_INDEX])
+    r = int(p[H_JOINT]) + j * JOINT_SIZE
+    kind = int(p[r + J_KIND])
+    s = o.S + 6 * d
+    if kind == SLIDE:
+        w[s], w[s + 1], w[s + 2] = 0.0, 0.0, 0.0
+        w[s + 3], w[s + 4], w[s + 5] = w[o.xaxis + 3 * j], w[o.xaxis + 3 * j + 1], w[o.xaxis + 3 * j + 2]
+        return
+    if kind == FREE and k < 3:
+        for a in range(6):
+            w[s + a] = 0.0
+        w[s + 3 + k] = 1.0
+        return
+    if kind == ROLL:
+        a0, a1, a2 = w[o.xaxis + 3 * j], w[o.xaxis + 3 * j + 1], w[o.xaxis + 3 * j + 2]
+    else:  # a rotation of a ball or free joint: about the body's own axis k
+        c = k if kind == BALL else k - 3
+        xm = o.xmat + 9 * i
+        a0, a1, a2 = w[xm + c], w[xm + 3 + c], w[xm + 6 + c]
+    x0, x1, x2 = w[o.xanchor + 3 * j], w[o.xanchor + 3 * j + 1], w[o.xanchor + 3 * j + 2]
+    w[s], w[s + 1], w[s + 2] = a0, a1, a2
+    w[s + 3] = x1 * a2 - x2 * a1
+    w[s + 4] = x2 * a0 - x0 * a2
+    w[s + 5] = x0 * a1 - x1 * a0
+    if kind == ROLL:
+        radius = p[r + J_RADIUS]
+        for a in range(3):
+            w[s + 3 + a] += radius * w[o.xline + 3 * j + a]
+
+
 @njit(cache=True, inline="always")
 def _subspaces(p, w, o, i):
     """S of body i's degrees of freedom (motion_subspaces gives the meaning), after its pose."""
     b = int(p[H_BODY]) + i * BODY_SIZE
     jo, do = int(p[H_JOINT]), int(p[H_DOF])
-    xm = o.xmat + 9 * i
     d0, nd = int(p[b + B_DOF0]), int(p[b + B_NDOF])
     for d in range(d0, d0 + nd):
         j = int(p[do + d * DOF_SIZE + D_JOINT])
-        k = int(p[do + d * DOF_SIZE + D_INDEX])
-        r = jo + j * JOINT_SIZE
-        kind = int(p[r + J_KIND])
-        s = o.S + 6 * d
-        if kind == SLIDE:
-            w[s], w[s + 1], w[s + 2] = 0.0, 0.0, 0.0
-            w[s + 3], w[s + 4], w[s + 5] = w[o.xaxis + 3 * j], w[o.xaxis + 3 * j + 1], w[o.xaxis + 3 * j + 2]
+        if int(p[jo + j * JOINT_SIZE + J_KIND]) != HINGE:
+            _other_subspace(p, w, o, i, d)
             continue
-        if kind == FREE and k < 3:
-            for a in range(6):
-                w[s + a] = 0.0
-            w[s + 3 + k] = 1.0
-            continue
-        if kind == HINGE or kind == ROLL:
-            a0, a1, a2 = w[o.xaxis + 3 * j], w[o.xaxis + 3 * j + 1], w[o.xaxis + 3 * j + 2]
-        else:  # a rotation of a ball or free joint: about the body's own axis k
-            c = k if kind == BALL else k - 3
-            a0, a1, a2 = w[xm + c], w[xm + 3 + c], w[xm + 6 + c]
-        x0, x1, x2 = w[o.xanchor + 3 * j], w[o.xanchor + 3 * j + 1], w[o.xanchor + 3 * j + 2]
+        s, ja, jx = o.S + 6 * d, o.xaxis + 3 * j, o.xanchor + 3 * j  # a hinge: (a; x x a)
+        a0, a1, a2 = w[ja], w[ja + 1], w[ja + 2]
+        x0, x1, x2 = w[jx], w[jx + 1], w[jx + 2]
         w[s], w[s + 1], w[s + 2] = a0, a1, a2
         w[s + 3] = x1 * a2 - x2 * a1
         w[s + 4] = x2 * a0 - x0 * a2
         w[s + 5] = x0 * a1 - x1 * a0
-        if kind == ROLL:
-            radius = p[r + J_RADIUS]
-            for a in range(3):
-                w[s + 3 + a] += radius * w[o.xline + 3 * j + a]
+
+
+@njit(cache=True, fastmath=FMA)
+def _roll_bias(p, w, o, d, qd):
+    """The velocity product of a roll joint's degree of freedom d gains radius qd^2 (0; l x axis) (velocities)."""
+    j = int(p[int(p[H_DOF]) + d * DOF_SIZE + D_JOINT])
+    scale = p[int(p[H_JOINT]) + j * JOINT_SIZE + J_RADIUS] * qd * qd
+    l0, l1, l2 = w[o.xline + 3 * j], w[o.xline + 3 * j + 1], w[o.xline + 3 * j + 2]
+    a0, a1, a2 = w[o.xaxis + 3 * j], w[o.xaxis + 3 * j + 1], w[o.xaxis + 3 * j + 2]
+    c = o.bias + 6 * d
+    w[c + 3] += scale * (l1 * a2 - l2 * a1)
+    w[c + 4] += scale * (l2 * a0 - l0 * a2)
+    w[c + 5] += scale * (l0 * a1 - l1 * a0)
 
 
 @njit(cache=True, inline="always")
@@ -415,14 +472,8 @@ def _motion(p, v, vo, w, o, i):
         w[c + 3] = (b1 * s5 - b2 * s4 + b4 * s2 - b5 * s1) * qd
         w[c + 4] = (b2 * s3 - b0 * s5 + b5 * s0 - b3 * s2) * qd
         w[c + 5] = (b0 * s4 - b1 * s3 + b3 * s1 - b4 * s0) * qd
-        j = int(p[do + d * DOF_SIZE + D_JOINT])
-        if int(p[jo + j * JOINT_SIZE + J_KIND]) == ROLL:
-            scale = p[jo + j * JOINT_SIZE + J_RADIUS] * qd * qd
-            l0, l1, l2 = w[o.xline + 3 * j], w[o.xline + 3 * j + 1], w[o.xline + 3 * j + 2]
-            a0, a1, a2 = w[o.xaxis + 3 * j], w[o.xaxis + 3 * j + 1], w[o.xaxis + 3 * j + 2]
-            w[c + 3] += scale * (l1 * a2 - l2 * a1)
-            w[c + 4] += scale * (l2 * a0 - l0 * a2)
-            w[c + 5] += scale * (l0 * a1 - l1 * a0)
+        if int(p[jo + int(p[do + d * DOF_SIZE + D_JOINT]) * JOINT_SIZE + J_KIND]) == ROLL:
+            _roll_bias(p, w, o, d, qd)
         w0, w1, w2 = w0 + s0 * qd, w1 + s1 * qd, w2 + s2 * qd
         v0, v1, v2 = v0 + s3 * qd, v1 + s4 * qd, v2 + s5 * qd
     e = o.vel + 6 * i
@@ -572,7 +623,12 @@ def _passive(p, q, qo, v, vo, out, to):
             out[to + int(p[r + J_DADR])] -= stiffness * (q[qo + int(p[r + J_QADR])] - p[r + J_SPRINGREF])
 
 
-@njit(cache=True, inline="always")
+# An offset of 0 typed as a plain integer: a literal 0 argument would compile _outward and _sweeps a second
+# time, for Literal[int](0).
+AT_START = np.int64(0)
+
+
+@njit(cache=True, fastmath=FMA)
 def _outward(p, q, qo, v, vo, w, o):
     """The outward pass of one state, body after body: kinematics, motion subspaces, velocities, world inertias
     and the start of the articulated-body algorithm (IA, pA) into the workspace."""
@@ -589,12 +645,12 @@ def _outward(p, q, qo, v, vo, w, o):
 def _frames(p, q, v, w):
     """Kinematics, motion subspaces, velocities and world inertias of one state, into the workspace w, with the
     articulated-body algorithm's start (IA, pA)."""
-    _outward(address(p, 0), address(q, 0), 0, address(v, 0), 0, address(w, 0), _offsets(p))
+    _outward(address(p, 0), address(q, 0), AT_START, address(v, 0), AT_START, address(w, 0), _offsets(p))
 
 
 # ----- the articulated-body algorithm ---------------------------------------------------------------------
 
-@njit(cache=True, inline="always")
+@njit(cache=True, fastmath=FMA, error_model="numpy")  # 1 / D without a zero check: D is checked, set to inf when bad
 def _sweeps(p, w, o, qacc, ao):
     """The articulated-body algorithm's inward and outward sweeps (Featherstone, RBDA, table 7.1) from the
     outward pass's S, bias, IA, pA and the generalised forces tau: qacc[ao + d] for each dof; into the workspace
@@ -610,38 +666,96 @@ def _sweeps(p, w, o, qacc, ao):
     child, in the tree's depth-first order; every body of a chain); other parents gather theirs in the workspace.
     Every sum of six products is added as a balanced tree."""
     nb = int(p[H_BODIES])
-    bo, do = int(p[H_BODY]), int(p[H_DOF])
+    bo = int(p[H_BODY])
+    do = int(p[H_DOF])
     bad = -1
     # A (upper triangle a..), the bias force P, and the pending elimination (q = U, qinv = 1 / D) live across
     # bodies when one hands over to its parent (carry)
     a00 = a01 = a02 = a03 = a04 = a05 = a11 = a12 = a13 = a14 = a15 = a22 = a23 = a24 = a25 = 0.0
     a33 = a34 = a35 = a44 = a45 = a55 = P0 = P1 = P2 = P3 = P4 = P5 = 0.0
     q0 = q1 = q2 = q3 = q4 = q5 = qinv = 0.0
-    carry, pending = False, False
+    carry = False
+    pending = False
     for i in range(nb - 1, -1, -1):
         b = bo + i * BODY_SIZE
-        d0, nd = int(p[b + B_DOF0]), int(p[b + B_NDOF])
+        d0 = int(p[b + B_DOF0])
+        nd = int(p[b + B_NDOF])
         parent = int(p[b + B_PARENT])
-        e, f = o.IA + 36 * i, o.pA + 6 * i
+        e = o.IA + 36 * i
+        f = o.pA + 6 * i
         if carry:  # the child handed over: add the body's own (and its other children's) inertia and force
-            a00, a01, a02, a03, a04, a05 = a00 + w[e], a01 + w[e + 1], a02 + w[e + 2], a03 + w[e + 3], a04 + w[e + 4], a05 + w[e + 5]
-            a11, a12, a13, a14, a15 = a11 + w[e + 7], a12 + w[e + 8], a13 + w[e + 9], a14 + w[e + 10], a15 + w[e + 11]
-            a22, a23, a24, a25 = a22 + w[e + 14], a23 + w[e + 15], a24 + w[e + 16], a25 + w[e + 17]
-            a33, a34, a35, a44, a45, a55 = a33 + w[e + 21], a34 + w[e + 22], a35 + w[e + 23], a44 + w[e + 28], a45 + w[e + 29], a55 + w[e + 35]
-            P0, P1, P2, P3, P4, P5 = P0 + w[f], P1 + w[f + 1], P2 + w[f + 2], P3 + w[f + 3], P4 + w[f + 4], P5 + w[f + 5]
+            a00 = a00 + w[e]
+            a01 = a01 + w[e + 1]
+            a02 = a02 + w[e + 2]
+            a03 = a03 + w[e + 3]
+            a04 = a04 + w[e + 4]
+            a05 = a05 + w[e + 5]
+            a11 = a11 + w[e + 7]
+            a12 = a12 + w[e + 8]
+            a13 = a13 + w[e + 9]
+            a14 = a14 + w[e + 10]
+            a15 = a15 + w[e + 11]
+            a22 = a22 + w[e + 14]
+            a23 = a23 + w[e + 15]
+            a24 = a24 + w[e + 16]
+            a25 = a25 + w[e + 17]
+            a33 = a33 + w[e + 21]
+            a34 = a34 + w[e + 22]
+            a35 = a35 + w[e + 23]
+            a44 = a44 + w[e + 28]
+            a45 = a45 + w[e + 29]
+            a55 = a55 + w[e + 35]
+            P0 = P0 + w[f]
+            P1 = P1 + w[f + 1]
+            P2 = P2 + w[f + 2]
+            P3 = P3 + w[f + 3]
+            P4 = P4 + w[f + 4]
+            P5 = P5 + w[f + 5]
         else:
-            a00, a01, a02, a03, a04, a05 = w[e], w[e + 1], w[e + 2], w[e + 3], w[e + 4], w[e + 5]
-            a11, a12, a13, a14, a15 = w[e + 7], w[e + 8], w[e + 9], w[e + 10], w[e + 11]
-            a22, a23, a24, a25 = w[e + 14], w[e + 15], w[e + 16], w[e + 17]
-            a33, a34, a35, a44, a45, a55 = w[e + 21], w[e + 22], w[e + 23], w[e + 28], w[e + 29], w[e + 35]
-            P0, P1, P2, P3, P4, P5 = w[f], w[f + 1], w[f + 2], w[f + 3], w[f + 4], w[f + 5]
+            a00 = w[e]
+            a01 = w[e + 1]
+            a02 = w[e + 2]
+            a03 = w[e + 3]
+            a04 = w[e + 4]
+            a05 = w[e + 5]
+            a11 = w[e + 7]
+            a12 = w[e + 8]
+            a13 = w[e + 9]
+            a14 = w[e + 10]
+            a15 = w[e + 11]
+            a22 = w[e + 14]
+            a23 = w[e + 15]
+            a24 = w[e + 16]
+            a25 = w[e + 17]
+            a33 = w[e + 21]
+            a34 = w[e + 22]
+            a35 = w[e + 23]
+            a44 = w[e + 28]
+            a45 = w[e + 29]
+            a55 = w[e + 35]
+            P0 = w[f]
+            P1 = w[f + 1]
+            P2 = w[f + 2]
+            P3 = w[f + 3]
+            P4 = w[f + 4]
+            P5 = w[f + 5]
             pending = False
-        w[f], w[f + 1], w[f + 2], w[f + 3], w[f + 4], w[f + 5] = P0, P1, P2, P3, P4, P5
+        w[f] = P0
+        w[f + 1] = P1
+        w[f + 2] = P2
+        w[f + 3] = P3
+        w[f + 4] = P4
+        w[f + 5] = P5
         stored = False
         for d in range(d0 + nd - 1, d0 - 2, -1):
             s = o.S + 6 * d
             if d >= d0:  # Y = A S with A before the pending elimination
-                s0, s1, s2, s3, s4, s5 = w[s], w[s + 1], w[s + 2], w[s + 3], w[s + 4], w[s + 5]
+                s0 = w[s]
+                s1 = w[s + 1]
+                s2 = w[s + 2]
+                s3 = w[s + 3]
+                s4 = w[s + 4]
+                s5 = w[s + 5]
                 Y0 = ((a00 * s0 + a01 * s1) + (a02 * s2 + a03 * s3)) + (a04 * s4 + a05 * s5)
                 Y1 = ((a01 * s0 + a11 * s1) + (a12 * s2 + a13 * s3)) + (a14 * s4 + a15 * s5)
                 Y2 = ((a02 * s0 + a12 * s1) + (a22 * s2 + a23 * s3)) + (a24 * s4 + a25 * s5)
@@ -650,29 +764,75 @@ def _sweeps(p, w, o, qacc, ao):
                 Y5 = ((a05 * s0 + a15 * s1) + (a25 * s2 + a35 * s3)) + (a45 * s4 + a55 * s5)
                 sU = ((s0 * Y0 + s1 * Y1) + (s2 * Y2 + s3 * Y3)) + (s4 * Y4 + s5 * Y5)
             if pending:  # apply it: A -= q q^T / D_q
-                g0, g1, g2, g3, g4, g5 = q0 * qinv, q1 * qinv, q2 * qinv, q3 * qinv, q4 * qinv, q5 * qinv
-                a00, a01, a02, a03, a04, a05 = a00 - g0 * q0, a01 - g0 * q1, a02 - g0 * q2, a03 - g0 * q3, a04 - g0 * q4, a05 - g0 * q5
-                a11, a12, a13, a14, a15 = a11 - g1 * q1, a12 - g1 * q2, a13 - g1 * q3, a14 - g1 * q4, a15 - g1 * q5
-                a22, a23, a24, a25 = a22 - g2 * q2, a23 - g2 * q3, a24 - g2 * q4, a25 - g2 * q5
-                a33, a34, a35 = a33 - g3 * q3, a34 - g3 * q4, a35 - g3 * q5
-                a44, a45, a55 = a44 - g4 * q4, a45 - g4 * q5, a55 - g5 * q5
+                g0 = q0 * qinv
+                g1 = q1 * qinv
+                g2 = q2 * qinv
+                g3 = q3 * qinv
+                g4 = q4 * qinv
+                g5 = q5 * qinv
+                a00 = a00 - g0 * q0
+                a01 = a01 - g0 * q1
+                a02 = a02 - g0 * q2
+                a03 = a03 - g0 * q3
+                a04 = a04 - g0 * q4
+                a05 = a05 - g0 * q5
+                a11 = a11 - g1 * q1
+                a12 = a12 - g1 * q2
+                a13 = a13 - g1 * q3
+                a14 = a14 - g1 * q4
+                a15 = a15 - g1 * q5
+                a22 = a22 - g2 * q2
+                a23 = a23 - g2 * q3
+                a24 = a24 - g2 * q4
+                a25 = a25 - g2 * q5
+                a33 = a33 - g3 * q3
+                a34 = a34 - g3 * q4
+                a35 = a35 - g3 * q5
+                a44 = a44 - g4 * q4
+                a45 = a45 - g4 * q5
+                a55 = a55 - g5 * q5
             if not stored:  # I^A of the body: its children's eliminations applied, none of its own
-                w[e], w[e + 1], w[e + 2], w[e + 3], w[e + 4], w[e + 5] = a00, a01, a02, a03, a04, a05
-                w[e + 7], w[e + 8], w[e + 9], w[e + 10], w[e + 11] = a11, a12, a13, a14, a15
-                w[e + 14], w[e + 15], w[e + 16], w[e + 17] = a22, a23, a24, a25
-                w[e + 21], w[e + 22], w[e + 23] = a33, a34, a35
-                w[e + 28], w[e + 29] = a44, a45
+                w[e] = a00
+                w[e + 1] = a01
+                w[e + 2] = a02
+                w[e + 3] = a03
+                w[e + 4] = a04
+                w[e + 5] = a05
+                w[e + 7] = a11
+                w[e + 8] = a12
+                w[e + 9] = a13
+                w[e + 10] = a14
+                w[e + 11] = a15
+                w[e + 14] = a22
+                w[e + 15] = a23
+                w[e + 16] = a24
+                w[e + 17] = a25
+                w[e + 21] = a33
+                w[e + 22] = a34
+                w[e + 23] = a35
+                w[e + 28] = a44
+                w[e + 29] = a45
                 w[e + 35] = a55
                 stored = True
             if d < d0:
                 pending = False
                 break
             # U = Ia S: Y less the pending elimination's part, q (q . S) / D_q
-            U0, U1, U2, U3, U4, U5 = Y0, Y1, Y2, Y3, Y4, Y5
+            U0 = Y0
+            U1 = Y1
+            U2 = Y2
+            U3 = Y3
+            U4 = Y4
+            U5 = Y5
             if pending:
                 k = ((q0 * s0 + q1 * s1) + (q2 * s2 + q3 * s3)) + (q4 * s4 + q5 * s5)
                 t = k * qinv
-                U0, U1, U2, U3, U4, U5 = Y0 - q0 * t, Y1 - q1 * t, Y2 - q2 * t, Y3 - q3 * t, Y4 - q4 * t, Y5 - q5 * t
+                U0 = Y0 - q0 * t
+                U1 = Y1 - q1 * t
+                U2 = Y2 - q2 * t
+                U3 = Y3 - q3 * t
+                U4 = Y4 - q4 * t
+                U5 = Y5 - q5 * t
                 sU = sU - k * t
             armature = p[do + d * DOF_SIZE + D_ARMATURE]
             D = sU + armature
@@ -687,11 +847,21 @@ def _sweeps(p, w, o, qacc, ao):
             ud = w[o.tau + d] - (((s0 * P0 + s1 * P1) + (s2 * P2 + s3 * P3)) + (s4 * P4 + s5 * P5))
             w[o.u + d] = ud
             g = o.U + 6 * d
-            w[g], w[g + 1], w[g + 2], w[g + 3], w[g + 4], w[g + 5] = U0, U1, U2, U3, U4, U5
+            w[g] = U0
+            w[g + 1] = U1
+            w[g + 2] = U2
+            w[g + 3] = U3
+            w[g + 4] = U4
+            w[g + 5] = U5
             inv = 1.0 / D
             # pa += Ia' c + U u / D with Ia' = Ia - U U^T / D: Ia c + U (u - U . c) / D
             c = o.bias + 6 * d
-            k0, k1, k2, k3, k4, k5 = w[c], w[c + 1], w[c + 2], w[c + 3], w[c + 4], w[c + 5]
+            k0 = w[c]
+            k1 = w[c + 1]
+            k2 = w[c + 2]
+            k3 = w[c + 3]
+            k4 = w[c + 4]
+            k5 = w[c + 5]
             r = (ud - (((U0 * k0 + U1 * k1) + (U2 * k2 + U3 * k3)) + (U4 * k4 + U5 * k5))) * inv
             P0 += ((a00 * k0 + a01 * k1) + (a02 * k2 + a03 * k3)) + (a04 * k4 + a05 * k5) + U0 * r
             P1 += ((a01 * k0 + a11 * k1) + (a12 * k2 + a13 * k3)) + (a14 * k4 + a15 * k5) + U1 * r
@@ -700,16 +870,43 @@ def _sweeps(p, w, o, qacc, ao):
             P4 += ((a04 * k0 + a14 * k1) + (a24 * k2 + a34 * k3)) + (a44 * k4 + a45 * k5) + U4 * r
             P5 += ((a05 * k0 + a15 * k1) + (a25 * k2 + a35 * k3)) + (a45 * k4 + a55 * k5) + U5 * r
             pending = True
-            q0, q1, q2, q3, q4, q5, qinv = U0, U1, U2, U3, U4, U5, inv
+            q0 = U0
+            q1 = U1
+            q2 = U2
+            q3 = U3
+            q4 = U4
+            q5 = U5
+            qinv = inv
         carry = parent >= 0 and parent == i - 1  # hand over in local variables, the last elimination pending
         if parent >= 0 and not carry:  # the parent gathers the body's Ia and pa in the workspace
             if pending:
-                g0, g1, g2, g3, g4, g5 = q0 * qinv, q1 * qinv, q2 * qinv, q3 * qinv, q4 * qinv, q5 * qinv
-                a00, a01, a02, a03, a04, a05 = a00 - g0 * q0, a01 - g0 * q1, a02 - g0 * q2, a03 - g0 * q3, a04 - g0 * q4, a05 - g0 * q5
-                a11, a12, a13, a14, a15 = a11 - g1 * q1, a12 - g1 * q2, a13 - g1 * q3, a14 - g1 * q4, a15 - g1 * q5
-                a22, a23, a24, a25 = a22 - g2 * q2, a23 - g2 * q3, a24 - g2 * q4, a25 - g2 * q5
-                a33, a34, a35 = a33 - g3 * q3, a34 - g3 * q4, a35 - g3 * q5
-                a44, a45, a55 = a44 - g4 * q4, a45 - g4 * q5, a55 - g5 * q5
+                g0 = q0 * qinv
+                g1 = q1 * qinv
+                g2 = q2 * qinv
+                g3 = q3 * qinv
+                g4 = q4 * qinv
+                g5 = q5 * qinv
+                a00 = a00 - g0 * q0
+                a01 = a01 - g0 * q1
+                a02 = a02 - g0 * q2
+                a03 = a03 - g0 * q3
+                a04 = a04 - g0 * q4
+                a05 = a05 - g0 * q5
+                a11 = a11 - g1 * q1
+                a12 = a12 - g1 * q2
+                a13 = a13 - g1 * q3
+                a14 = a14 - g1 * q4
+                a15 = a15 - g1 * q5
+                a22 = a22 - g2 * q2
+                a23 = a23 - g2 * q3
+                a24 = a24 - g2 * q4
+                a25 = a25 - g2 * q5
+                a33 = a33 - g3 * q3
+                a34 = a34 - g3 * q4
+                a35 = a35 - g3 * q5
+                a44 = a44 - g4 * q4
+                a45 = a45 - g4 * q5
+                a55 = a55 - g5 * q5
             e = o.IA + 36 * parent
             w[e] += a00
             w[e + 1] += a01
@@ -745,13 +942,29 @@ def _sweeps(p, w, o, qacc, ao):
         parent = int(p[b + B_PARENT])
         if parent >= 0:
             e = o.acc + 6 * parent
-            x0, x1, x2, x3, x4, x5 = w[e], w[e + 1], w[e + 2], w[e + 3], w[e + 4], w[e + 5]
+            x0 = w[e]
+            x1 = w[e + 1]
+            x2 = w[e + 2]
+            x3 = w[e + 3]
+            x4 = w[e + 4]
+            x5 = w[e + 5]
         else:
-            x0, x1, x2, x3, x4, x5 = 0.0, 0.0, 0.0, 0.0, 0.0, g  # gravity: the world accelerates upwards
-        d0, nd = int(p[b + B_DOF0]), int(p[b + B_NDOF])
+            x0 = 0.0
+            x1 = 0.0
+            x2 = 0.0
+            x3 = 0.0
+            x4 = 0.0
+            x5 = g
+        d0 = int(p[b + B_DOF0])
+        nd = int(p[b + B_NDOF])
         for d in range(d0, d0 + nd):
             c = o.bias + 6 * d
-            x0, x1, x2, x3, x4, x5 = x0 + w[c], x1 + w[c + 1], x2 + w[c + 2], x3 + w[c + 3], x4 + w[c + 4], x5 + w[c + 5]
+            x0 = x0 + w[c]
+            x1 = x1 + w[c + 1]
+            x2 = x2 + w[c + 2]
+            x3 = x3 + w[c + 3]
+            x4 = x4 + w[c + 4]
+            x5 = x5 + w[c + 5]
             e = o.U + 6 * d
             inv = 1.0 / w[o.pivots + d]  # ready long before it is needed, unlike a division at the end
             qdd = (w[o.u + d] - (((w[e] * x0 + w[e + 1] * x1) + (w[e + 2] * x2 + w[e + 3] * x3))
@@ -760,10 +973,19 @@ def _sweeps(p, w, o, qacc, ao):
                 qdd = np.nan
             qacc[ao + d] = qdd
             s = o.S + 6 * d
-            x0, x1, x2 = x0 + w[s] * qdd, x1 + w[s + 1] * qdd, x2 + w[s + 2] * qdd
-            x3, x4, x5 = x3 + w[s + 3] * qdd, x4 + w[s + 4] * qdd, x5 + w[s + 5] * qdd
+            x0 = x0 + w[s] * qdd
+            x1 = x1 + w[s + 1] * qdd
+            x2 = x2 + w[s + 2] * qdd
+            x3 = x3 + w[s + 3] * qdd
+            x4 = x4 + w[s + 4] * qdd
+            x5 = x5 + w[s + 5] * qdd
         e = o.acc + 6 * i
-        w[e], w[e + 1], w[e + 2], w[e + 3], w[e + 4], w[e + 5] = x0, x1, x2, x3, x4, x5
+        w[e] = x0
+        w[e + 1] = x1
+        w[e + 2] = x2
+        w[e + 3] = x3
+        w[e + 4] = x4
+        w[e + 5] = x5
     return bad
 
 
@@ -780,7 +1002,7 @@ def articulated_body(p, w, qacc):
         h, ib = o.h + 3 * i, o.Ibar + 9 * i
         _articulated_start(ww, o, i, p[b + B_MASS], w[h], w[h + 1], w[h + 2], w[ib], w[ib + 1], w[ib + 2],
                            w[ib + 4], w[ib + 5], w[ib + 8])
-    return _sweeps(pp, ww, o, address(qacc, 0), 0)
+    return _sweeps(pp, ww, o, address(qacc, 0), AT_START)
 
 
 @njit(cache=True, fastmath=FMA, error_model="numpy")
@@ -790,11 +1012,11 @@ def forward_one(p, q, v, tau, qacc, pivots, w):
     o = _offsets(p)
     nv = int(p[H_DOFS])
     pp, qq, vv, ww = address(p, 0), address(q, 0), address(v, 0), address(w, 0)
-    _outward(pp, qq, 0, vv, 0, ww, o)
+    _outward(pp, qq, AT_START, vv, AT_START, ww, o)
     _passive(pp, qq, 0, vv, 0, ww, o.tau)
     for d in range(nv):
         w[o.tau + d] += tau[d]
-    bad = _sweeps(pp, ww, o, address(qacc, 0), 0)
+    bad = _sweeps(pp, ww, o, address(qacc, 0), AT_START)
     for d in range(nv):
         pivots[d] = w[o.pivots + d]
     return bad
@@ -1015,19 +1237,31 @@ def tree_accel(q, p, out):
     pp, qq, ww = address(p, 0), address(q, 0), address(w, 0)
     for d in range(nv):
         w[o.zero + d] = 0.0
-    _outward(pp, qq, 0, ww, o.zero, ww, o)
+    _outward(pp, qq, AT_START, ww, o.zero, ww, o)
     _passive(pp, qq, 0, ww, o.zero, ww, o.tau)
-    _sweeps(pp, ww, o, address(out, 0), 0)
+    _sweeps(pp, ww, o, address(out, 0), AT_START)
 
 
 # ----- batches: one compiled loop per algorithm -----------------------------------------------------------
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _forward_batch(p, Q, V, T, out, pivots):
-    bad = np.full(Q.shape[0], -1, dtype=np.int64)
+    """forward_one over rows of Q, V, T (C arrays), written out here: the two compiled passes it calls are the ones
+    tree_rhs calls, so that a new model's first run compiles no other copy of them."""
+    count, nq, nv = Q.shape[0], int(p[H_NQ]), int(p[H_DOFS])
+    bad = np.full(count, -1, dtype=np.int64)
     w = np.empty(workspace_size(p))
-    for b in range(Q.shape[0]):
-        bad[b] = forward_one(p, Q[b], V[b], T[b], out[b], pivots[b], w)
+    o = _offsets(p)
+    pp, ww, qq, vv, tt, aa = address(p, 0), address(w, 0), address(Q.ravel(), 0), address(V.ravel(), 0), address(
+        T.ravel(), 0), address(out.ravel(), 0)
+    for b in range(count):
+        _outward(pp, qq, b * nq, vv, b * nv, ww, o)
+        _passive(pp, qq, b * nq, vv, b * nv, ww, o.tau)
+        for d in range(nv):
+            w[o.tau + d] += tt[b * nv + d]
+        bad[b] = _sweeps(pp, ww, o, aa, b * nv)
+        for d in range(nv):
+            pivots[b, d] = w[o.pivots + d]
     return bad
 
 
