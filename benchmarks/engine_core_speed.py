@@ -120,7 +120,8 @@ def mujoco_rollout(xml: str, batch_states: np.ndarray | None = None, threads: in
 
 def rbody_loop(native, nstep: int):
     """run(): rk4 over nstep steps of a native model's batch, the compiled loop alone (saving the last state)."""
-    bound = integrators.bind_rk4(native.rhs, native.y0.shape[0], DT, nstep, nstep, finish=native.finish)
+    bound = integrators.bind_rk4(native.rhs, native.y0.shape[0], DT, nstep, nstep, finish=native.finish,
+                                 lanes=native.rhs_lanes)  # as simulate binds it
     y0, params = np.ascontiguousarray(native.y0), np.ascontiguousarray(native.params)
     out = np.empty((2,) + y0.shape)
     return lambda: bound(y0, params, out)
