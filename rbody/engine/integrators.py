@@ -36,6 +36,7 @@ from numba import carray, cfunc, get_num_threads, njit, prange, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
+from rbody.engine import pointers
 from rbody.engine.memory import address
 from rbody.engine.simd import WIDTH as LANES
 
@@ -103,6 +104,10 @@ def pointer_function(function, kind: str = "rhs") -> int:
     stays valid."""
     key = (id(function), kind)
     if key not in _POINTER_FUNCTIONS:
+        cached = pointers.wrapper(function, kind)  # the engine's kernels: a wrapper kept in numba's disk cache
+        if cached is not None:
+            _POINTER_FUNCTIONS[key] = (function, cached)
+            return cached.address
         if kind == "rhs":
             @cfunc(RHS_SIGNATURE)
             def wrapper(y, p, out, n, m):

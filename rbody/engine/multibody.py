@@ -60,8 +60,9 @@ from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
-from numba import carray, njit
+from numba import carray, cfunc, njit
 
+from rbody.engine import pointers
 from rbody.engine.memory import address, stack_floats
 from rbody.layout import JOINTS, WORLD, coordinate_addresses, joint_order, tree_order
 from rbody.engine.spatial import (REDUCED_RANGE, dexp_inverse3, dot6, force_cross, inertia_apply, quat_exp,
@@ -1240,6 +1241,34 @@ def tree_accel(q, p, out):
     _outward(pp, qq, AT_START, ww, o.zero, ww, o)
     _passive(pp, qq, 0, ww, o.zero, ww, o.tau)
     _sweeps(pp, ww, o, address(out, 0), AT_START)
+
+
+# ----- the kernels as C function pointers, kept in numba's disk cache (rbody.engine.pointers) --------------
+
+def _tree_rhs_pointer():
+    @cfunc(pointers.RHS_SIGNATURE, cache=True)
+    def tree_rhs_c(y, p, out, n, m):
+        tree_rhs(carray(y, n), carray(p, m), carray(out, n))
+    return tree_rhs_c
+
+
+def _tree_accel_pointer():
+    @cfunc(pointers.RHS_SIGNATURE, cache=True)
+    def tree_accel_c(q, p, out, n, m):
+        tree_accel(carray(q, n), carray(p, m), carray(out, n))
+    return tree_accel_c
+
+
+def _tree_finish_pointer():
+    @cfunc(pointers.FINISH_SIGNATURE, cache=True)
+    def tree_finish_c(y, p, n, m):
+        tree_finish(carray(y, n), carray(p, m))
+    return tree_finish_c
+
+
+pointers.register(tree_rhs, "rhs", _tree_rhs_pointer)
+pointers.register(tree_accel, "rhs", _tree_accel_pointer)
+pointers.register(tree_finish, "finish", _tree_finish_pointer)
 
 
 # ----- batches: one compiled loop per algorithm -----------------------------------------------------------

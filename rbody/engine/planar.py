@@ -59,9 +59,10 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import carray, njit
+from numba import carray, cfunc, njit
 
 from rbody.engine import multibody as mb
+from rbody.engine import pointers
 from rbody.engine.memory import address, stack_floats
 from rbody.engine.simd import (WIDTH, greater, lane, lanes, largest_abs, load, maximum, sin_cos as sin_cos_lanes, splat,
                                store, where)
@@ -468,6 +469,34 @@ def planar_accel_lanes(q, p, out):
     """planar_accel for LANES states side by side (q, out (n LANES,) structures of arrays)."""
     n = int(p[P_NODES])
     _articulated_lanes(address(p, 0), address(q, 0), -1, address(out, 0), 0, stack_floats(n * WORK * LANES))
+
+
+# ----- the kernels as C function pointers, kept in numba's disk cache (rbody.engine.pointers) --------------
+
+def _rhs_pointer():
+    @cfunc(pointers.RHS_SIGNATURE, cache=True)
+    def planar_rhs_c(y, p, out, n, m):
+        planar_rhs(carray(y, n), carray(p, m), carray(out, n))
+    return planar_rhs_c
+
+
+def _accel_pointer():
+    @cfunc(pointers.RHS_SIGNATURE, cache=True)
+    def planar_accel_c(q, p, out, n, m):
+        planar_accel(carray(q, n), carray(p, m), carray(out, n))
+    return planar_accel_c
+
+
+def _rhs_lanes_pointer():
+    @cfunc(pointers.RHS_SIGNATURE, cache=True)
+    def planar_rhs_lanes_c(y, p, out, n, m):
+        planar_rhs_lanes(carray(y, n * LANES), carray(p, m), carray(out, n * LANES))
+    return planar_rhs_lanes_c
+
+
+pointers.register(planar_rhs, "rhs", _rhs_pointer)
+pointers.register(planar_accel, "rhs", _accel_pointer)
+pointers.register(planar_rhs_lanes, "lanes", _rhs_lanes_pointer)
 
 
 @njit(cache=True)
