@@ -174,6 +174,25 @@ def _finite_row(y, b):
     return True
 
 
+@njit(cache=True, inline="always")
+def _unfailed(batch):
+    """(batch,) int64 of -1 (no element failed yet): np.empty and a loop, whose compilation is a fraction of np.full's."""
+    failed = np.empty(batch, dtype=np.int64)
+    for b in range(batch):
+        failed[b] = -1
+    return failed
+
+
+@njit(cache=True, inline="always")
+def _rows_of(y0, lo, width):
+    """A copy of y0[lo:lo + width] (element by element: no slicing and copying machinery to compile)."""
+    y = np.empty((width, y0.shape[1]))
+    for b in range(width):
+        for j in range(y0.shape[1]):
+            y[b, j] = y0[lo + b, j]
+    return y
+
+
 # ----- the compiled loops ------------------------------------------------------------------------------
 # The batch is cut into chunks, one thread each (prange). A thread steps its chunk together: stage by
 # stage, element by element, so that the evaluations of neighbouring elements, independent of each
@@ -229,11 +248,11 @@ def _rk4_loop(rhs_address, finish_address, finishing, y0, params, dt, nsteps, sa
     rhs, finish = _rhs_at(rhs_address), _finish_at(finish_address)
     batch, n = y0.shape
     m = params.shape[1]
-    failed = np.full(batch, -1, dtype=np.int64)
+    failed = _unfailed(batch)
     for c in prange(-(-batch // size)):
         lo = c * size
         width = min(batch, lo + size) - lo
-        y = y0[lo:lo + width].copy()
+        y = _rows_of(y0, lo, width)
         k1, k2, k3, k4 = np.empty((width, n)), np.empty((width, n)), np.empty((width, n)), np.empty((width, n))
         tmp = np.empty((width, n))
         running = width

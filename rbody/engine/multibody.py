@@ -61,10 +61,13 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import carray, cfunc, njit
+from numba.extending import overload
 
 from rbody.engine import pointers
-from rbody.engine.memory import address, stack_floats
+from rbody.engine.memory import address, data, stack_floats
 from rbody.layout import JOINTS, WORLD, coordinate_addresses, joint_order, tree_order
+from rbody.engine.simd import (WIDTH, LanePointer, choose, equals, lane_pointer, maximum_of, number, positive_beyond,
+                               sines_and_cosines as _sines_and_cosines)
 from rbody.engine.spatial import (REDUCED_RANGE, dexp_inverse3, dot6, force_cross, inertia_apply, quat_exp,
                                   quat_multiply, sin_cos)
 
@@ -236,20 +239,14 @@ def _half_angles(p, q, qo, w, o):
     np.sin and np.cos when an angle is beyond its range)."""
     nj, jo = int(p[H_JOINTS]), int(p[H_JOINT])
     c, s = o.half, o.half + nj
-    largest = 0.0
+    largest = number(w, 0.0)
     for j in range(nj):
         r = jo + j * JOINT_SIZE
         kind = int(p[r + J_KIND])
-        x = 0.5 * (q[qo + int(p[r + J_QADR])] - p[r + J_REF]) if kind == HINGE or kind == ROLL else 0.0
+        x = 0.5 * (q[qo + int(p[r + J_QADR])] - p[r + J_REF]) if kind == HINGE or kind == ROLL else number(w, 0.0)
         w[s + j] = x
-        largest = max(largest, abs(x))
-    if largest < REDUCED_RANGE:
-        for j in range(nj):
-            w[s + j], w[c + j] = sin_cos(w[s + j])
-    else:
-        for j in range(nj):
-            x = w[s + j]
-            w[s + j], w[c + j] = np.sin(x), np.cos(x)
+        largest = maximum_of(largest, abs(x))
+    _sines_and_cosines(w, s, c, nj, largest)
 
 
 @njit(cache=True, fastmath=FMA)
@@ -334,8 +331,9 @@ def _pose(p, q, qo, w, o, i):
         else:  # a child of the world: the origin of its own tree
             for a in range(3):
                 w[xo + a] = p[b + B_POS + a]
-            x0, x1, x2 = 0.0, 0.0, 0.0
-            q0, q1, q2, q3 = p[b + B_QUAT], p[b + B_QUAT + 1], p[b + B_QUAT + 2], p[b + B_QUAT + 3]
+            x0 = x1 = x2 = number(w, 0.0)
+            q0, q1 = number(w, p[b + B_QUAT]), number(w, p[b + B_QUAT + 1])
+            q2, q3 = number(w, p[b + B_QUAT + 2]), number(w, p[b + B_QUAT + 3])
         for j in range(j0, j0 + nj):
             r = jo + j * JOINT_SIZE
             if int(p[r + J_KIND]) != HINGE:
@@ -457,7 +455,7 @@ def _motion(p, v, vo, w, o, i):
         pv = o.vel + 6 * parent
         w0, w1, w2, v0, v1, v2 = w[pv], w[pv + 1], w[pv + 2], w[pv + 3], w[pv + 4], w[pv + 5]
     else:
-        w0, w1, w2, v0, v1, v2 = 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+        w0 = w1 = w2 = v0 = v1 = v2 = number(w, 0.0)
     b0, b1, b2, b3, b4, b5 = w0, w1, w2, v0, v1, v2
     d0, nd = int(p[b + B_DOF0]), int(p[b + B_NDOF])
     for d in range(d0, d0 + nd):
@@ -656,7 +654,8 @@ def _sweeps(p, w, o, qacc, ao):
     """The articulated-body algorithm's inward and outward sweeps (Featherstone, RBDA, table 7.1) from the
     outward pass's S, bias, IA, pA and the generalised forces tau: qacc[ao + d] for each dof; into the workspace
     IA and pA of each body (I^A, p^A: its subtree's, before its own joints are eliminated), pivots D, U, u and
-    acc. Returns the first dof whose pivot is not positive beyond PIVOT_RTOL of its scale, or -1.
+    acc. Returns the first dof whose pivot is not positive beyond PIVOT_RTOL of its scale, or -1 (a float; with
+    lanes, rbody.engine.simd.LanePointer, one per lane); its qacc is NaN.
 
     The inward sweep is a chain of dependent steps from the leaves to the root: eliminating a degree of freedom
     needs its pivot D = S . Ia S, hence the articulated inertia Ia left by the previous elimination, Ia - U U^T / D,
@@ -669,12 +668,13 @@ def _sweeps(p, w, o, qacc, ao):
     nb = int(p[H_BODIES])
     bo = int(p[H_BODY])
     do = int(p[H_DOF])
-    bad = -1
     # A (upper triangle a..), the bias force P, and the pending elimination (q = U, qinv = 1 / D) live across
-    # bodies when one hands over to its parent (carry)
-    a00 = a01 = a02 = a03 = a04 = a05 = a11 = a12 = a13 = a14 = a15 = a22 = a23 = a24 = a25 = 0.0
-    a33 = a34 = a35 = a44 = a45 = a55 = P0 = P1 = P2 = P3 = P4 = P5 = 0.0
-    q0 = q1 = q2 = q3 = q4 = q5 = qinv = 0.0
+    # bodies when one hands over to its parent (carry); numbers, or lanes (rbody.engine.simd.number)
+    zero = number(w, 0.0)
+    a00 = a01 = a02 = a03 = a04 = a05 = a11 = a12 = a13 = a14 = a15 = a22 = a23 = a24 = a25 = zero
+    a33 = a34 = a35 = a44 = a45 = a55 = P0 = P1 = P2 = P3 = P4 = P5 = zero
+    q0 = q1 = q2 = q3 = q4 = q5 = qinv = zero
+    bad = number(w, -1.0)  # the first dof whose pivot is not positive, or -1
     carry = False
     pending = False
     for i in range(nb - 1, -1, -1):
@@ -841,10 +841,9 @@ def _sweeps(p, w, o, qacc, ao):
             # the pivot's scale: |S . Ia S| + armature + trace(Ia) |S|^2 (the diagonal of Ia is not negative)
             scale = (abs(sU) + armature) + (((a00 + a11) + (a22 + a33)) + (a44 + a55)) * (
                 ((s0 * s0 + s1 * s1) + (s2 * s2 + s3 * s3)) + (s4 * s4 + s5 * s5))
-            if not D > PIVOT_RTOL * scale or not D > 0.0:
-                if bad < 0:
-                    bad = d
-                D = np.inf  # keeps the sweep finite; the caller reports the dof
+            good = positive_beyond(D, PIVOT_RTOL * scale)
+            bad = choose(good, bad, choose(positive_beyond(-bad, 0.0), float(d), bad))
+            D = choose(good, D, np.inf)  # inf keeps the sweep finite; the caller reports the dof
             ud = w[o.tau + d] - (((s0 * P0 + s1 * P1) + (s2 * P2 + s3 * P3)) + (s4 * P4 + s5 * P5))
             w[o.u + d] = ud
             g = o.U + 6 * d
@@ -949,13 +948,13 @@ def _sweeps(p, w, o, qacc, ao):
             x3 = w[e + 3]
             x4 = w[e + 4]
             x5 = w[e + 5]
-        else:
-            x0 = 0.0
-            x1 = 0.0
-            x2 = 0.0
-            x3 = 0.0
-            x4 = 0.0
-            x5 = g
+        else:  # gravity: the world accelerates upwards
+            x0 = zero
+            x1 = zero
+            x2 = zero
+            x3 = zero
+            x4 = zero
+            x5 = number(w, g)
         d0 = int(p[b + B_DOF0])
         nd = int(p[b + B_NDOF])
         for d in range(d0, d0 + nd):
@@ -970,8 +969,7 @@ def _sweeps(p, w, o, qacc, ao):
             inv = 1.0 / w[o.pivots + d]  # ready long before it is needed, unlike a division at the end
             qdd = (w[o.u + d] - (((w[e] * x0 + w[e + 1] * x1) + (w[e + 2] * x2 + w[e + 3] * x3))
                                  + (w[e + 4] * x4 + w[e + 5] * x5))) * inv
-            if d == bad:
-                qdd = np.nan
+            qdd = choose(equals(bad, float(d)), np.nan, qdd)
             qacc[ao + d] = qdd
             s = o.S + 6 * d
             x0 = x0 + w[s] * qdd
@@ -1003,7 +1001,7 @@ def articulated_body(p, w, qacc):
         h, ib = o.h + 3 * i, o.Ibar + 9 * i
         _articulated_start(ww, o, i, p[b + B_MASS], w[h], w[h + 1], w[h + 2], w[ib], w[ib + 1], w[ib + 2],
                            w[ib + 4], w[ib + 5], w[ib + 8])
-    return _sweeps(pp, ww, o, address(qacc, 0), AT_START)
+    return int(_sweeps(pp, ww, o, address(qacc, 0), AT_START))
 
 
 @njit(cache=True, fastmath=FMA, error_model="numpy")
@@ -1017,7 +1015,7 @@ def forward_one(p, q, v, tau, qacc, pivots, w):
     _passive(pp, qq, 0, vv, 0, ww, o.tau)
     for d in range(nv):
         w[o.tau + d] += tau[d]
-    bad = _sweeps(pp, ww, o, address(qacc, 0), AT_START)
+    bad = int(_sweeps(pp, ww, o, address(qacc, 0), AT_START))
     for d in range(nv):
         pivots[d] = w[o.pivots + d]
     return bad
@@ -1205,6 +1203,35 @@ def tree_rhs(y, p, out):
                                                        yy[nq + da + 2])
 
 
+# Trees of hinges in lanes: WIDTH states side by side (rbody.engine.simd), each lane with tree_rhs's bits.
+LANES = WIDTH
+
+
+@njit(cache=True, fastmath=FMA, error_model="numpy")  # 1 / D without a zero check (articulated_body)
+def tree_rhs_lanes(y, p, out):
+    """tree_rhs for LANES states side by side of a tree whose joints are all hinges (hinge_tree): y and out (2 nv
+    LANES,) structures of arrays (entry k of state l at k LANES + l). The same compiled passes as tree_rhs, over
+    rbody.engine.simd.LanePointer: each lane does tree_rhs's operations, and gets its bits."""
+    nj, nq = int(p[H_JOINTS]), int(p[H_NQ])
+    jo = int(p[H_JOINT])
+    size = workspace_size(p) * LANES
+    heap = np.empty(size if size > STACK_FLOATS else 1)  # huge trees: the workspace on the heap
+    w = lane_pointer(stack_floats(size) if size <= STACK_FLOATS else address(heap, 0))
+    o = _offsets(p)
+    pp, yy, oo = address(p, 0), lane_pointer(address(y, 0)), lane_pointer(address(out, 0))
+    _outward(pp, yy, AT_START, yy, nq, w, o)
+    _passive(pp, yy, AT_START, yy, nq, w, o.tau)
+    _sweeps(pp, w, o, oo, nq)
+    for j in range(nj):
+        r = jo + j * JOINT_SIZE
+        oo[int(pp[r + J_QADR])] = yy[nq + int(pp[r + J_DADR])]
+
+
+def hinge_tree(multibody) -> bool:
+    """Whether every joint of the tree is a hinge (tree_rhs_lanes runs it)."""
+    return all(kind == "hinge" for kind in multibody.arrays.joint_kinds)
+
+
 @njit(cache=True)
 def tree_finish(y, p):
     """After a step: fold every phi into its quaternion, q <- q (x) exp(phi), and set phi = 0."""
@@ -1266,7 +1293,15 @@ def _tree_finish_pointer():
     return tree_finish_c
 
 
+def _tree_rhs_lanes_pointer():
+    @cfunc(pointers.RHS_SIGNATURE, cache=True)
+    def tree_rhs_lanes_c(y, p, out, n, m):
+        tree_rhs_lanes(carray(y, n * LANES), carray(p, m), carray(out, n * LANES))
+    return tree_rhs_lanes_c
+
+
 pointers.register(tree_rhs, "rhs", _tree_rhs_pointer)
+pointers.register(tree_rhs_lanes, "lanes", _tree_rhs_lanes_pointer)
 pointers.register(tree_accel, "rhs", _tree_accel_pointer)
 pointers.register(tree_finish, "finish", _tree_finish_pointer)
 
@@ -1278,19 +1313,18 @@ def _forward_batch(p, Q, V, T, out, pivots):
     """forward_one over rows of Q, V, T (C arrays), written out here: the two compiled passes it calls are the ones
     tree_rhs calls, so that a new model's first run compiles no other copy of them."""
     count, nq, nv = Q.shape[0], int(p[H_NQ]), int(p[H_DOFS])
-    bad = np.full(count, -1, dtype=np.int64)
+    bad = np.empty(count, dtype=np.int64)
     w = np.empty(workspace_size(p))
     o = _offsets(p)
-    pp, ww, qq, vv, tt, aa = address(p, 0), address(w, 0), address(Q.ravel(), 0), address(V.ravel(), 0), address(
-        T.ravel(), 0), address(out.ravel(), 0)
+    pp, ww, qq, vv, tt, aa, pv = address(p, 0), address(w, 0), data(Q), data(V), data(T), data(out), data(pivots)
     for b in range(count):
         _outward(pp, qq, b * nq, vv, b * nv, ww, o)
         _passive(pp, qq, b * nq, vv, b * nv, ww, o.tau)
         for d in range(nv):
-            w[o.tau + d] += tt[b * nv + d]
-        bad[b] = _sweeps(pp, ww, o, aa, b * nv)
+            ww[o.tau + d] += tt[b * nv + d]
+        bad[b] = int(_sweeps(pp, ww, o, aa, b * nv))
         for d in range(nv):
-            pivots[b, d] = w[o.pivots + d]
+            pv[b * nv + d] = ww[o.pivots + d]
     return bad
 
 

@@ -31,8 +31,11 @@ from numba.core import cgutils
 from numba import njit
 from numba.extending import intrinsic, models, overload, register_model
 
+import numpy as np
+
 from rbody.engine.spatial import (_C1, _C2, _C3, _C4, _C5, _C6, _PIO2_1, _PIO2_2, _PIO2_3, _ROUND, _S1, _S2, _S3, _S4,
-                                  _S5, _S6, _TWO_OVER_PI)
+                                  _S5, _S6, _TWO_OVER_PI, REDUCED_RANGE)
+from rbody.engine.spatial import sin_cos as scalar_sin_cos
 
 WIDTH = 8
 _DOUBLE = ir.DoubleType()
@@ -229,7 +232,8 @@ def _operator(function, operation):
 
 
 for _function, _operation in ((operator.add, _add), (operator.sub, _sub), (operator.mul, _mul),
-                              (operator.truediv, _div)):
+                              (operator.truediv, _div), (operator.iadd, _add), (operator.isub, _sub),
+                              (operator.imul, _mul), (operator.itruediv, _div)):
     _operator(_function, _operation)
 
 
@@ -357,3 +361,208 @@ def largest_abs(typingctx, a):
             nan = builder.or_(nan, builder.fcmp_unordered("uno", y, y))
         return builder.select(nan, ir.Constant(_DOUBLE, float("nan")), result)
     return types.float64(a), codegen
+
+
+# ----- one kernel for numbers and for lanes ---------------------------------------------------------------------
+# A LanePointer is a float64 pointer over a structure of arrays: p[k] is the lanes of entry k (p's memory
+# [k WIDTH, (k + 1) WIDTH)), p[k] = x stores lanes (or a number in every lane). A kernel written with p[k] and the
+# helpers below (number, choose, pivot_good) compiles for float64 pointers, one state, and for LanePointers, WIDTH
+# states side by side, from the same source: each lane then does the scalar kernel's operations.
+
+class LanePointerType(types.Type):
+    """A float64 pointer indexed by entry: p[k] are the WIDTH lanes at p + k WIDTH."""
+
+    def __init__(self) -> None:
+        super().__init__(name="LanePointer")
+
+
+LanePointer = LanePointerType()
+
+
+@register_model(LanePointerType)
+class _LanePointerModel(models.PrimitiveModel):
+    def __init__(self, dmm, fe_type):
+        super().__init__(dmm, fe_type, _DOUBLE.as_pointer())
+
+
+@intrinsic
+def lane_pointer(typingctx, ptr):
+    """The LanePointer over the float64 pointer ptr (entry k at ptr[k WIDTH:(k + 1) WIDTH])."""
+    if ptr != _F64P:
+        return None
+
+    def codegen(context, builder, signature, args):
+        return args[0]
+    return LanePointer(ptr), codegen
+
+
+@intrinsic
+def _raw(typingctx, pointer):
+    if pointer != LanePointer:
+        return None
+
+    def codegen(context, builder, signature, args):
+        return args[0]
+    return _F64P(pointer), codegen
+
+
+@overload(operator.getitem)
+def _lane_getitem(pointer, k):
+    if pointer == LanePointer and isinstance(k, types.Integer):
+        return lambda pointer, k: load(_raw(pointer), k * WIDTH)
+
+
+@overload(operator.setitem)
+def _lane_setitem(pointer, k, value):
+    if pointer == LanePointer and isinstance(k, types.Integer):
+        if value == Lanes:
+            return lambda pointer, k, value: store(_raw(pointer), k * WIDTH, value)
+        if _is_number(value):
+            return lambda pointer, k, value: store(_raw(pointer), k * WIDTH, splat(value))
+
+
+def number(pointer, x):
+    """x as a value of the kind `pointer` holds: the float x for a float64 pointer, x in every lane for a
+    LanePointer (a kernel's constants, so that a variable is of one kind in every branch)."""
+
+
+@overload(number)
+def _number(pointer, x):
+    if pointer == LanePointer and _is_number(x):
+        return lambda pointer, x: splat(x)
+    if pointer == _F64P and _is_number(x):
+        return lambda pointer, x: float(x)
+
+
+def choose(condition, a, b):
+    """a where condition holds, else b: a bool and numbers (a if condition else b), or a Lanes mask (where)."""
+
+
+@overload(choose)
+def _choose(condition, a, b):
+    if condition == Lanes:
+        return lambda condition, a, b: where(condition, a, b)
+    if isinstance(condition, types.Boolean):
+        return lambda condition, a, b: _select(condition, a, b)
+
+
+def positive_beyond(x, threshold):
+    """x > threshold and x > 0 (false for NaN): a bool for numbers, a Lanes mask for lanes."""
+
+
+@overload(positive_beyond)
+def _positive_beyond(x, threshold):
+    if x == Lanes:
+        return lambda x, threshold: greater(x, threshold) * greater(x, 0.0)
+    if isinstance(x, types.Float):
+        return lambda x, threshold: (x > threshold) & (x > 0.0)
+
+
+def equals(x, value):
+    """x == value: a bool for numbers, a Lanes mask for lanes."""
+
+
+@overload(equals)
+def _equals(x, value):
+    if x == Lanes:
+        return lambda x, value: _equal_lanes(x, value)
+    if isinstance(x, types.Float):
+        return lambda x, value: x == value
+
+
+@intrinsic
+def _equal_lanes(typingctx, x, value):
+    if x != Lanes or not _is_number(value):
+        return None
+
+    def codegen(context, builder, signature, args):
+        y = _as_vector(context, builder, args[1], signature.args[1])
+        return builder.uitofp(builder.fcmp_ordered("==", args[0], y), _VECTOR)
+    return Lanes(x, value), codegen
+
+
+def maximum_of(a, b):
+    """numba's max(a, b) for numbers (b where b > a, else a), lane by lane for lanes (maximum)."""
+
+
+@overload(maximum_of)
+def _maximum_of(a, b):
+    if a == Lanes or b == Lanes:
+        return lambda a, b: maximum(a, b)
+    if _is_number(a) and _is_number(b):
+        return lambda a, b: max(a, b)
+
+
+def sines_and_cosines(w, s, c, count, largest):
+    """In place: w[s + j], w[c + j] = sin, cos of w[s + j] for j < count; largest, the largest |w[s + j]| (of each
+    lane), decides as for one number: the polynomial (sin_cos) for every j when within REDUCED_RANGE, else np.sin and
+    np.cos. Numbers: one loop without a call, which LLVM vectorises; lanes: lane by lane where needed."""
+
+
+@njit(cache=True, inline="always")
+def _scalar_sines_and_cosines(w, s, c, count, largest):
+    if largest < REDUCED_RANGE:
+        for j in range(count):
+            w[s + j], w[c + j] = scalar_sin_cos(w[s + j])
+    else:
+        for j in range(count):
+            x = w[s + j]
+            w[s + j], w[c + j] = np.sin(x), np.cos(x)
+
+
+@njit(cache=True)
+def _lane_sines_and_cosines(w, s, c, count, largest):
+    if largest_abs(largest) < REDUCED_RANGE:
+        for j in range(count):
+            w[s + j], w[c + j] = sin_cos(w[s + j])
+        return
+    ss = [0.0] * WIDTH
+    cc = [0.0] * WIDTH
+    for j in range(count):
+        x = w[s + j]
+        for k in range(WIDTH):
+            y = lane(x, k)
+            if lane(largest, k) < REDUCED_RANGE:
+                ss[k], cc[k] = scalar_sin_cos(y)
+            else:
+                ss[k], cc[k] = np.sin(y), np.cos(y)
+        w[s + j] = lanes(ss[0], ss[1], ss[2], ss[3], ss[4], ss[5], ss[6], ss[7])
+        w[c + j] = lanes(cc[0], cc[1], cc[2], cc[3], cc[4], cc[5], cc[6], cc[7])
+
+
+@overload(sines_and_cosines)
+def _sines_and_cosines(w, s, c, count, largest):
+    if w == LanePointer:
+        return lambda w, s, c, count, largest: _lane_sines_and_cosines(w, s, c, count, largest)
+    if w == _F64P:
+        return lambda w, s, c, count, largest: _scalar_sines_and_cosines(w, s, c, count, largest)
+
+
+@intrinsic
+def _select(typingctx, condition, a, b):
+    """a if condition else b, as one LLVM select (no branch)."""
+    if not isinstance(condition, types.Boolean) or not (_is_number(a) and _is_number(b)):
+        return None
+
+    def codegen(context, builder, signature, args):
+        x = context.cast(builder, args[1], signature.args[1], types.float64)
+        y = context.cast(builder, args[2], signature.args[2], types.float64)
+        return builder.select(args[0], x, y)
+    return types.float64(condition, a, b), codegen
+
+
+@intrinsic
+def _vsqrt(typingctx, a):
+    if a != Lanes:
+        return None
+
+    def codegen(context, builder, signature, args):
+        function = cgutils.get_or_insert_function(builder.module, ir.FunctionType(_VECTOR, [_VECTOR]), "llvm.sqrt.v8f64")
+        return builder.call(function, [args[0]])
+    return Lanes(a), codegen
+
+
+@overload(np.sqrt, inline="always")
+def _sqrt(a):
+    if a == Lanes:
+        return lambda a: _vsqrt(a)

@@ -15,12 +15,14 @@ from numba import njit
 import rbody
 from rbody import Body, Inertia, Joint, Layout, Multibody, Scene
 from rbody.engine import integrators, simd
+from rbody.engine import multibody as mb
 from rbody.engine import planar as pl
 from rbody.engine.memory import address
 from rbody.engine.spatial import REDUCED_RANGE, sin_cos
 
 sys.path.insert(0, str(Path(__file__).parent))
 from test_planar import NORMALS, planar_tree  # noqa: E402
+from trees import random_tree  # noqa: E402
 
 L = pl.LANES
 
@@ -116,6 +118,70 @@ def test_an_element_that_fails_is_reported_at_its_step_and_frozen_as_in_the_scal
     expected = integrators.run_rk4(native.rhs, y0, native.params, 1e-3, 30, 5, theirs)
     np.testing.assert_array_equal(failed, expected)
     assert failed[4] > 0 and np.all(np.delete(failed, 4) == -1)
+    np.testing.assert_array_equal(ours, theirs)
+
+
+# ----- trees of hinges in 3-D ------------------------------------------------------------------------------
+
+def hinge_states(rng, model: Multibody) -> np.ndarray:
+    y = np.zeros((L, model.nq + model.nv))
+    y[:, :model.nq] = model.qpos0 + rng.uniform(-2, 2, (L, model.nq))
+    y[:, model.nq:] = rng.uniform(-3, 3, (L, model.nv))
+    return y
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_3d_kernel_over_lanes_gives_each_lane_the_scalar_bits(seed):
+    rng = np.random.default_rng(seed)
+    model = Multibody(random_tree(rng, int(rng.integers(1, 9)), kinds=("hinge", "weld")))
+    assert mb.hinge_tree(model)
+    p, y = np.array(model.params), hinge_states(rng, model)
+    y[5, :model.nq] += 2e5  # beyond the polynomial sine's range in one lane: np.sin and np.cos there
+    theirs = np.empty_like(y)
+    for lane in range(L):
+        mb.tree_rhs(np.array(y[lane]), p, theirs[lane])
+    out = np.full(y.size, np.nan)
+    mb.tree_rhs_lanes(to_lanes(y), p, out)
+    np.testing.assert_array_equal(from_lanes(out, y.shape[1]), theirs)
+
+
+def test_a_3d_lane_whose_pivot_vanishes_gets_nan_where_the_scalar_kernel_does():
+    point = Inertia(1.0, np.zeros(3), np.zeros((3, 3)))
+    held = Layout(bodies=(Body("p", point),), joints=(Joint("h", "hinge", "p", axis=(0.0, 1.0, 0.0), armature=0.1),))
+    p = np.array(Multibody(held).params)
+    p[int(p[mb.H_DOF]) + mb.D_ARMATURE] = 0.0
+    y = np.column_stack([np.linspace(-1, 1, L), np.linspace(0, 2, L)])
+    out = np.empty(2 * L)
+    mb.tree_rhs_lanes(to_lanes(y), p, out)
+    single = np.empty(2)
+    mb.tree_rhs(np.array(y[3]), p, single)
+    assert np.isnan(single[1]) and np.all(np.isnan(from_lanes(out, 2)[:, 1]))
+
+
+def test_trees_with_other_joints_have_no_lanes():
+    rng = np.random.default_rng(4)
+    for kinds in (("hinge", "slide"), ("hinge", "ball"), ("hinge", "free")):
+        layout = random_tree(rng, 3, kinds=kinds)
+        scene = Scene.from_layout(layout, t_end=0.1)
+        if not mb.hinge_tree(scene.multibody):
+            assert scene.native_model.rhs_lanes is None
+
+
+@pytest.mark.parametrize("count", [8, 21])
+def test_a_3d_rk4_batch_over_lanes_equals_the_scalar_loop_bit_for_bit(count):
+    rng = np.random.default_rng(count)
+    layout = random_tree(rng, 5, kinds=("hinge", "weld"))
+    model = Multibody(layout)
+    scene = Scene.from_layout(layout, t_end=0.05, qpos0=model.qpos0 + rng.uniform(-1, 1, (count, model.nq)))
+    native = scene.native_model
+    if native.rhs is not mb.tree_rhs:
+        pytest.skip("a planar tree: the planar path's lanes are tested above")
+    assert native.rhs_lanes is mb.tree_rhs_lanes
+    ours, theirs = np.empty((6, count, native.y0.shape[1])), np.empty((6, count, native.y0.shape[1]))
+    bound = integrators.bind_rk4(native.rhs, count, 1e-3, 50, 10, lanes=native.rhs_lanes)
+    assert isinstance(bound, integrators.LanesBound)
+    bound(np.ascontiguousarray(native.y0), np.ascontiguousarray(native.params), ours)
+    integrators.run_rk4(native.rhs, native.y0, native.params, 1e-3, 50, 10, theirs)
     np.testing.assert_array_equal(ours, theirs)
 
 
