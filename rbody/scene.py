@@ -476,7 +476,7 @@ class TreeScene(Scene):
         return NativeModel(y0=y0, params=params, rhs=mb.tree_rhs, observe=observe,
                            accel=None if self.symplectic_applies else mb.tree_accel,
                            finish=mb.tree_finish if model.nrot else None, rate_from_jacobian=True,
-                           rhs_lanes=mb.tree_rhs_lanes if mb.hinge_tree(model) else None)
+                           rhs_lanes=mb.tree_rhs_lanes if mb.runs_in_lanes(model) else None)
 
     # ----- what other simulators build -----------------------------------------------------------------
 

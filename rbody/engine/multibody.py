@@ -1203,15 +1203,16 @@ def tree_rhs(y, p, out):
                                                        yy[nq + da + 2])
 
 
-# Trees of hinges in lanes: WIDTH states side by side (rbody.engine.simd), each lane with tree_rhs's bits.
+# Trees without ball or free joints in lanes: WIDTH states side by side (rbody.engine.simd), each lane with
+# tree_rhs's bits.
 LANES = WIDTH
 
 
 @njit(cache=True, fastmath=FMA, error_model="numpy")  # 1 / D without a zero check (articulated_body)
 def tree_rhs_lanes(y, p, out):
-    """tree_rhs for LANES states side by side of a tree whose joints are all hinges (hinge_tree): y and out (2 nv
-    LANES,) structures of arrays (entry k of state l at k LANES + l). The same compiled passes as tree_rhs, over
-    rbody.engine.simd.LanePointer: each lane does tree_rhs's operations, and gets its bits."""
+    """tree_rhs for LANES states side by side of a tree without ball or free joints (runs_in_lanes): y and out
+    (2 nv LANES,) structures of arrays (entry k of state l at k LANES + l). The same compiled passes as tree_rhs,
+    over rbody.engine.simd.LanePointer: each lane does tree_rhs's operations, and gets its bits."""
     nj, nq = int(p[H_JOINTS]), int(p[H_NQ])
     jo = int(p[H_JOINT])
     size = workspace_size(p) * LANES
@@ -1227,9 +1228,10 @@ def tree_rhs_lanes(y, p, out):
         oo[int(pp[r + J_QADR])] = yy[nq + int(pp[r + J_DADR])]
 
 
-def hinge_tree(multibody) -> bool:
-    """Whether every joint of the tree is a hinge (tree_rhs_lanes runs it)."""
-    return all(kind == "hinge" for kind in multibody.arrays.joint_kinds)
+def runs_in_lanes(multibody) -> bool:
+    """Whether tree_rhs_lanes runs the tree: no ball or free joint (their rotation vectors phi and the step's
+    finish, tree_finish, are not written for lanes)."""
+    return multibody.nrot == 0
 
 
 @njit(cache=True)

@@ -121,7 +121,7 @@ def test_an_element_that_fails_is_reported_at_its_step_and_frozen_as_in_the_scal
     np.testing.assert_array_equal(ours, theirs)
 
 
-# ----- trees of hinges in 3-D ------------------------------------------------------------------------------
+# ----- trees in 3-D without ball or free joints ----------------------------------------------------------
 
 def hinge_states(rng, model: Multibody) -> np.ndarray:
     y = np.zeros((L, model.nq + model.nv))
@@ -130,11 +130,14 @@ def hinge_states(rng, model: Multibody) -> np.ndarray:
     return y
 
 
-@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("seed", range(8))
 def test_the_3d_kernel_over_lanes_gives_each_lane_the_scalar_bits(seed):
+    """Hinges, slides, several joints on one body, welds (and roll joints, from the planar trees)."""
     rng = np.random.default_rng(seed)
-    model = Multibody(random_tree(rng, int(rng.integers(1, 9)), kinds=("hinge", "weld")))
-    assert mb.hinge_tree(model)
+    layout = (random_tree(rng, int(rng.integers(1, 9)), kinds=("hinge", "slide", "weld", "multi")) if seed % 2
+              else planar_tree(rng, int(rng.integers(1, 6)), NORMALS["x"]))
+    model = Multibody(layout)
+    assert mb.runs_in_lanes(model)
     p, y = np.array(model.params), hinge_states(rng, model)
     y[5, :model.nq] += 2e5  # beyond the polynomial sine's range in one lane: np.sin and np.cos there
     theirs = np.empty_like(y)
@@ -158,19 +161,18 @@ def test_a_3d_lane_whose_pivot_vanishes_gets_nan_where_the_scalar_kernel_does():
     assert np.isnan(single[1]) and np.all(np.isnan(from_lanes(out, 2)[:, 1]))
 
 
-def test_trees_with_other_joints_have_no_lanes():
-    rng = np.random.default_rng(4)
-    for kinds in (("hinge", "slide"), ("hinge", "ball"), ("hinge", "free")):
-        layout = random_tree(rng, 3, kinds=kinds)
+def test_trees_with_ball_or_free_joints_have_no_lanes():
+    ball = Layout(bodies=(Body("a", Inertia.box(1.0, [0.1, 0.2, 0.3])),), joints=(Joint("j", "ball", "a"),))
+    free = Layout(bodies=(Body("a", Inertia.box(1.0, [0.1, 0.2, 0.3])),), joints=(Joint("j", "free", "a"),))
+    for layout in (ball, free):
         scene = Scene.from_layout(layout, t_end=0.1)
-        if not mb.hinge_tree(scene.multibody):
-            assert scene.native_model.rhs_lanes is None
+        assert not mb.runs_in_lanes(scene.multibody) and scene.native_model.rhs_lanes is None
 
 
 @pytest.mark.parametrize("count", [8, 21])
 def test_a_3d_rk4_batch_over_lanes_equals_the_scalar_loop_bit_for_bit(count):
     rng = np.random.default_rng(count)
-    layout = random_tree(rng, 5, kinds=("hinge", "weld"))
+    layout = random_tree(rng, 5, kinds=("hinge", "slide", "weld"))
     model = Multibody(layout)
     scene = Scene.from_layout(layout, t_end=0.05, qpos0=model.qpos0 + rng.uniform(-1, 1, (count, model.nq)))
     native = scene.native_model
