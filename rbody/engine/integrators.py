@@ -135,6 +135,16 @@ def no_finish(y, p):
     """The finish hook of every scene that has none: nothing (the loops do not even call it)."""
 
 
+def _no_finish_pointer():
+    @cfunc(FINISH_SIGNATURE, cache=True)
+    def no_finish_c(y, p, n, m):
+        no_finish(carray(y, n), carray(p, m))
+    return no_finish_c
+
+
+pointers.register(no_finish, "finish", _no_finish_pointer)
+
+
 def finish_pointer(finish):
     """(pointer, flag) the loops take: the scene's finish(y, p) behind a C pointer and True, or a no-op and
     False (the flag skips the call: scenes without a finish pay one predictable branch per step)."""

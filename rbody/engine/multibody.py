@@ -27,7 +27,10 @@ massless virtual links with no transform between them, and nothing is ever moved
   degrees of freedom. Chosen over the composite-rigid-body algorithm and a dense Cholesky (cubic in n)
   because the goal is long chains and big batches; for the tree's sparsity it needs no factorisation.
   Armature adds to the pivot D of its degree of freedom, which is exactly (M + diag(armature)) qdd.
-  Articulated inertias are symmetric: only their upper triangles are updated and summed (21 of 36).
+  Articulated inertias are symmetric: only their upper triangles are updated and summed (21 of 36). The
+  inward sweep is a chain of dependent eliminations; each one's rank-one update is left pending and applied
+  while the next pivot is formed, and a body hands its inertia to its parent in registers where the parent
+  comes next (_sweeps).
 - inverse dynamics and the bias forces: the recursive Newton-Euler algorithm (RNEA), gravity entering
   as an upward acceleration of the world.
 - the mass matrix: the composite-rigid-body algorithm (CRBA), inertias added towards the root
@@ -39,12 +42,20 @@ A ball joint's degrees of freedom are rotations about the body's final axes (MuJ
 subsequent rotations"), so a ball joint must be the last joint of its body; a free joint is the only
 joint of a child of the world.
 
-Cost: an evaluation of the right-hand side allocates nothing: its workspace is an array on its own stack
-(stack_floats, an alloca), cut by _views into arrays over that memory (numba carrays: no reshape, no
-reference counting), and each algorithm takes (params, state, workspace) and cuts its own arrays, so that
-calls pass a few pointers. Only small spatial functions are inlined; each algorithm is compiled once (a
-first compilation of a minute, cached on disk after it). numba's cache does not follow imports: after
-editing spatial.py, delete rbody/engine/__pycache__/multibody*.nb[ci].
+Cost: an evaluation of the right-hand side allocates nothing: its workspace lives on its own stack
+(stack_floats, an alloca) and every algorithm reads it, the model row and the state through raw pointers by
+index (Offsets: where each workspace array starts; numba's array indexing would test every index for a negative
+value), in two compiled functions shared by every entry point: _outward (pose, motion subspaces, velocities,
+world inertia and the ABA's start, body after body in one pass) and _sweeps (the ABA's inward and outward
+sweeps). Sums of products fuse into fused multiply-adds (FMA), which shortens the chains of dependent
+operations. _views still cuts the workspace into named arrays for the other algorithms and for callers.
+The same source compiles for one state (float64 pointers) and for eight side by side
+(rbody.engine.simd.LanePointer: each workspace entry then holds eight lanes): tree_rhs_lanes steps a batch of a
+tree without ball or free joints eight elements per instruction, each lane with tree_rhs's bits. The cosines
+and sines of every hinge's half angle are formed first by a polynomial that LLVM vectorises
+(rbody.engine.spatial.sin_cos). Measured by benchmarks/engine_core_speed.py against MuJoCo and Pinocchio.
+numba's cache does not follow imports: after editing spatial.py, simd.py or memory.py, delete
+rbody/engine/__pycache__/multibody*.nb[ci].
 
 Precision: spatial quantities about a point lose digits in proportion to a body's distance from it
 (|x| / size of the tree), so each tree (the bodies below one child of the world) is written about its own
