@@ -74,7 +74,7 @@ def humanoid() -> str:
         </body>
       </body>"""
 
-    return (HEADER.format(name="humanoid", damping=0.2, armature=0.02) + f"""    <body name="torso" pos="0 0 1.4">
+    return (HEADER.format(name="humanoid", damping=0.2, armature=0.02) + """    <body name="torso" pos="0 0 1.4">
       <freejoint name="root"/>
       <geom name="torso" fromto="0 -0.07 0 0 0.07 0" size="0.07"/>
       <body name="lower_waist" pos="-0.01 0 -0.26" quat="1 0 -0.002 0">

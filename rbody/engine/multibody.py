@@ -72,15 +72,13 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import carray, cfunc, njit
-from numba.extending import overload
 
 from rbody.engine import pointers
 from rbody.engine.memory import address, data, stack_floats
 from rbody.layout import JOINTS, WORLD, coordinate_addresses, joint_order, tree_order
-from rbody.engine.simd import (WIDTH, LanePointer, choose, equals, lane_pointer, maximum_of, number, positive_beyond,
+from rbody.engine.simd import (WIDTH, choose, equals, lane_pointer, maximum_of, number, positive_beyond,
                                sines_and_cosines as _sines_and_cosines)
-from rbody.engine.spatial import (REDUCED_RANGE, dexp_inverse3, dot6, force_cross, inertia_apply, quat_exp,
-                                  quat_multiply, sin_cos)
+from rbody.engine.spatial import dexp_inverse3, dot6, force_cross, inertia_apply, quat_exp, quat_multiply
 
 # Joint codes, sizes and which kinds are scalar: the one joint table (rbody.layout.JOINTS), as numba constants.
 HINGE, SLIDE, BALL, FREE, ROLL = (JOINTS[k].code for k in ("hinge", "slide", "ball", "free", "roll"))
