@@ -38,3 +38,14 @@ def address(typingctx, array, offset):
         data = context.make_array(signature.args[0])(context, builder, args[0]).data
         return builder.gep(data, [context.cast(builder, args[1], signature.args[1], types.intp)])
     return F64P(array, offset), codegen
+
+
+@intrinsic
+def data(typingctx, array):
+    """float64* to the first element of a C-contiguous float64 array of any rank (its data pointer)."""
+    if not (isinstance(array, types.Array) and array.dtype == types.float64 and array.layout == "C"):
+        return None
+
+    def codegen(context, builder, signature, args):
+        return context.make_array(signature.args[0])(context, builder, args[0]).data
+    return F64P(array), codegen
