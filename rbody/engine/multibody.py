@@ -1179,8 +1179,7 @@ def tree_rhs(y, p, out):
     """y' for y = (qpos (nq), qvel (nv), phi (3 per ball/free joint)): hinge, slide and free-position
     coordinates move with qvel, quaternion entries stand still within a step, phi' = dexp^-1_phi(omega_body),
     qvel' = forward dynamics at the turned quaternions. A singular mass matrix gives NaN (the run fails)."""
-    nj, nq, nv = int(p[H_JOINTS]), int(p[H_NQ]), int(p[H_DOFS])
-    jo = int(p[H_JOINT])
+    nq = int(p[H_NQ])
     size = workspace_size(p)
     # the workspace on this function's stack (no allocation per evaluation), on the heap for huge trees
     w = carray(stack_floats(size), size) if size <= STACK_FLOATS else np.empty(size)
@@ -1194,22 +1193,40 @@ def tree_rhs(y, p, out):
     _outward(pp, q, qo, yy, nq, ww, o)
     _passive(pp, q, qo, yy, nq, ww, o.tau)
     _sweeps(pp, ww, o, address(out, 0), nq)
-    oo = address(out, 0)
+    _coordinate_rates(pp, yy, address(out, 0))
+
+
+@njit(cache=True, inline="always")
+def _coordinate_rates(p, y, out):
+    """The qpos and phi parts of y' (tree_rhs), y and out read and written by index (arrays or pointers): hinge,
+    slide, roll and free-position coordinates move with qvel, quaternion entries stand still within a step,
+    phi' = dexp^-1_phi(omega_body). Entries of y and out past phi are not touched."""
+    nj, nq, nv = int(p[H_JOINTS]), int(p[H_NQ]), int(p[H_DOFS])
+    jo = int(p[H_JOINT])
     for j in range(nj):
         r = jo + j * JOINT_SIZE
-        kind = int(pp[r + J_KIND])
-        qa, da = int(pp[r + J_QADR]), int(pp[r + J_DADR])
+        kind = int(p[r + J_KIND])
+        qa, da = int(p[r + J_QADR]), int(p[r + J_DADR])
         if kind == HINGE or kind == SLIDE or kind == ROLL:
-            oo[qa] = yy[nq + da]
+            out[qa] = y[nq + da]
             continue
         base = qa
         if kind == FREE:
-            oo[qa], oo[qa + 1], oo[qa + 2] = yy[nq + da], yy[nq + da + 1], yy[nq + da + 2]
+            out[qa], out[qa + 1], out[qa + 2] = y[nq + da], y[nq + da + 1], y[nq + da + 2]
             base, da = qa + 3, da + 3
-        oo[base], oo[base + 1], oo[base + 2], oo[base + 3] = 0.0, 0.0, 0.0, 0.0
-        at = nq + nv + 3 * int(pp[r + J_ROT])
-        oo[at], oo[at + 1], oo[at + 2] = dexp_inverse3(yy[at], yy[at + 1], yy[at + 2], yy[nq + da], yy[nq + da + 1],
-                                                       yy[nq + da + 2])
+        out[base], out[base + 1], out[base + 2], out[base + 3] = 0.0, 0.0, 0.0, 0.0
+        at = nq + nv + 3 * int(p[r + J_ROT])
+        out[at], out[at + 1], out[at + 2] = dexp_inverse3(y[at], y[at + 1], y[at + 2], y[nq + da], y[nq + da + 1],
+                                                          y[nq + da + 2])
+
+
+@njit(cache=True, fastmath=FMA)
+def coordinate_rates(p, y, out):
+    """The qpos and phi parts of y' (y, out (n,) with n >= nq + nv + 3 nrot), as tree_rhs forms them (the same
+    code, so a caller that forms qvel' its own way, e.g. the constraint layer, moves the coordinates as tree_rhs
+    does): hinge, slide, roll and free-position coordinates move with qvel, quaternion entries stand still within a
+    step, phi' = dexp^-1_phi(omega_body). out's qvel part and entries past phi are not touched."""
+    _coordinate_rates(address(p, 0), address(y, 0), address(out, 0))
 
 
 # Trees without ball or free joints in lanes: WIDTH states side by side (rbody.engine.simd), each lane with
