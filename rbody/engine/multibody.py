@@ -847,9 +847,13 @@ def _sweeps(p, w, o, qacc, ao):
             armature = p[do + d * DOF_SIZE + D_ARMATURE]
             D = sU + armature
             w[o.pivots + d] = D
-            # the pivot's scale: |S . Ia S| + armature + trace(Ia) |S|^2 (the diagonal of Ia is not negative)
-            scale = (abs(sU) + armature) + (((a00 + a11) + (a22 + a33)) + (a44 + a55)) * (
-                ((s0 * s0 + s1 * s1) + (s2 * s2 + s3 * s3)) + (s4 * s4 + s5 * s5))
+            # the pivot's scale: |S . Ia S| + armature + sum_a Ia[a, a] S_a^2 (the diagonal of Ia is not negative).
+            # Each term in kg m^2 for a rotation, kg for a translation: a body of tiny moments and finite mass
+            # (rotational entries 1e-12 of the translational ones) keeps its rotations' pivots on their own scale
+            # (a scale of trace(Ia) |S|^2 would add its mass to its moments and refuse it; tests/rbody/engine/
+            # test_precision.py)
+            scale = (abs(sU) + armature) + ((a00 * (s0 * s0) + a11 * (s1 * s1)) + (a22 * (s2 * s2) + a33 * (s3 * s3))
+                                            + (a44 * (s4 * s4) + a55 * (s5 * s5)))
             good = positive_beyond(D, PIVOT_RTOL * scale)
             bad = choose(good, bad, choose(positive_beyond(-bad, 0.0), float(d), bad))
             D = choose(good, D, np.inf)  # inf keeps the sweep finite; the caller reports the dof
