@@ -49,3 +49,17 @@ def data(typingctx, array):
     def codegen(context, builder, signature, args):
         return context.make_array(signature.args[0])(context, builder, args[0]).data
     return F64P(array), codegen
+
+
+@intrinsic
+def keep_alive(typingctx, array):
+    """Nothing at run time; a use of `array` by name. numba frees a function's own array after the last statement
+    that names it, and a raw pointer taken from it (address, data) does not count: a kernel that works in an
+    array of its own through such a pointer calls keep_alive(array) after its last access, or it writes into
+    freed memory (a workspace on the heap, beyond malloc's mmap threshold, is unmapped: a segmentation fault)."""
+    if not isinstance(array, types.Array):
+        return None
+
+    def codegen(context, builder, signature, args):
+        return context.get_dummy_value()
+    return types.none(array), codegen

@@ -74,7 +74,7 @@ import numpy as np
 from numba import carray, cfunc, njit
 
 from rbody.engine import pointers
-from rbody.engine.memory import address, data, stack_floats
+from rbody.engine.memory import address, data, keep_alive, stack_floats
 from rbody.layout import JOINTS, WORLD, coordinate_addresses, joint_order, tree_order
 from rbody.engine.simd import (WIDTH, choose, equals, lane_pointer, maximum_of, number, positive_beyond,
                                sines_and_cosines as _sines_and_cosines)
@@ -1198,6 +1198,7 @@ def tree_rhs(y, p, out):
     _passive(pp, q, qo, yy, nq, ww, o.tau)
     _sweeps(pp, ww, o, address(out, 0), nq)
     _coordinate_rates(pp, yy, address(out, 0))
+    keep_alive(w)  # the workspace was read through ww only: on the heap, it must outlive the passes
 
 
 @njit(cache=True, inline="always")
@@ -1256,6 +1257,7 @@ def tree_rhs_lanes(y, p, out):
     for j in range(nj):
         r = jo + j * JOINT_SIZE
         oo[int(pp[r + J_QADR])] = yy[nq + int(pp[r + J_DADR])]
+    keep_alive(heap)  # read through w only: on the heap, it must outlive the passes
 
 
 def runs_in_lanes(multibody) -> bool:
@@ -1300,6 +1302,7 @@ def tree_accel(q, p, out):
     _outward(pp, qq, AT_START, ww, o.zero, ww, o)
     _passive(pp, qq, 0, ww, o.zero, ww, o.tau)
     _sweeps(pp, ww, o, address(out, 0), AT_START)
+    keep_alive(w)  # the passes read the workspace through ww only
 
 
 # ----- the kernels as C function pointers, kept in numba's disk cache (rbody.engine.pointers) --------------
@@ -1357,6 +1360,7 @@ def _forward_batch(p, Q, V, T, out, pivots):
         bad[b] = int(_sweeps(pp, ww, o, aa, b * nv))
         for d in range(nv):
             pv[b * nv + d] = ww[o.pivots + d]
+    keep_alive(w)  # read through ww only: it must outlive the loop
     return bad
 
 
