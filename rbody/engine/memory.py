@@ -1,8 +1,9 @@
 """Raw memory for the compiled kernels: a buffer on the stack of an evaluation, the address of an element.
 
 An evaluation of a tree's right-hand side runs millions of times per simulation; an array allocated in it
-(np.empty: the allocator, reference counting) would cost more than the arithmetic of a small tree. These two
-numba intrinsics let a kernel work in memory it never allocates on the heap.
+(np.empty: the allocator, reference counting) would cost more than the arithmetic of a small tree. These numba
+intrinsics let a kernel work in memory it never allocates on the heap (stack_floats), read arrays through raw
+pointers (address, data), and keep an array of its own alive while it reads it through one (keep_alive).
 """
 
 from __future__ import annotations
