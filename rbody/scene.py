@@ -482,7 +482,7 @@ class TreeScene(Scene):
         algebra) when the tree is planar, decided from its structure, else the 3-D engine's. Observables and
         energies use the 3-D Multibody either way (once per saved sample, not per evaluation)."""
         from rbody.engine import multibody as mb
-        from rbody.engine.planar import planar_accel, planar_rhs
+        from rbody.engine.planar import planar_accel, planar_rhs, planar_rhs_lanes
 
         model = self.multibody
         if self.tree.constrained:
@@ -499,7 +499,7 @@ class TreeScene(Scene):
 
             return NativeModel(y0=y0, params=np.tile(planar.row, (qpos0.shape[0], 1)), rhs=planar_rhs,
                                observe=observe_planar, accel=None if self.symplectic_applies else planar_accel,
-                               rate_from_jacobian=True)
+                               rate_from_jacobian=True, rhs_lanes=planar_rhs_lanes)
         params = np.tile(np.asarray(model.params), (qpos0.shape[0], 1))
         nq, nv = model.nq, model.nv
 
@@ -509,7 +509,8 @@ class TreeScene(Scene):
 
         return NativeModel(y0=y0, params=params, rhs=mb.tree_rhs, observe=observe,
                            accel=None if self.symplectic_applies else mb.tree_accel,
-                           finish=mb.tree_finish if model.nrot else None, rate_from_jacobian=True)
+                           finish=mb.tree_finish if model.nrot else None, rate_from_jacobian=True,
+                           rhs_lanes=mb.tree_rhs_lanes if mb.runs_in_lanes(model) else None)
 
     @cached_property
     def constraint_table(self):
