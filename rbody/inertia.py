@@ -314,7 +314,11 @@ class Inertia:
             return NotImplemented
         mass = self.mass + other.mass
         com = (self.mass * self.com + other.mass * other.com) / mass
-        return Inertia(mass, com, self.about(com) + other.about(com))
+        tensor = self.about(com) + other.about(com)
+        # A shift by a round-off of com (coincident bodies) can leave a subnormal entry: it is zero, not a body
+        # too small for float64 (each part was checked), so it is not refused.
+        tensor[np.abs(tensor) < SMALLEST_CARRIED] = 0.0
+        return Inertia(mass, com, tensor)
 
     def angular_momentum(self, omega: Iterable[float]) -> np.ndarray:
         """L = I w [kg m^2/s] about the centre of mass; omega (..., 3) [rad/s]."""

@@ -420,3 +420,13 @@ def test_bad_input_raises_value_error_naming_the_problem(call, message):
 def test_sum_with_something_else_is_a_type_error():
     with pytest.raises(TypeError):
         Inertia.box(1.0, (1, 1, 1)) + 1.0
+
+
+def test_two_coincident_points_far_below_a_metre_join():
+    """Two 3 kg points at y = 1.3e-139 m: com's round-off leaves the shifted tensor subnormal; the union is a point
+    of 6 kg there (hypothesis found it), not a refusal."""
+    x = np.array([[0.0, 1.32404823e-139, 0.0]])
+    joined = Inertia.point_masses([3.0], x) + Inertia.point_masses([3.0], x)
+    assert joined.mass == 6.0
+    assert np.allclose(joined.com, x[0], rtol=1e-15, atol=0)
+    assert np.all(joined.tensor == 0.0)
