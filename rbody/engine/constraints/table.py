@@ -17,7 +17,11 @@ Unit kinds and their rows (g >= 0 feasible for unilateral rows; the force on the
     WELD    p1 - p2 = 0, log(q1 qrel q2^-1) = 0 (6 rows, world)
     COUPLING (qpos1 - ref1) - P(qpos2 - ref2) = 0 (1 row)
 
-mode, per unit: limits and cones 1 active (held as an equality, lambda >= 0), 0 inactive; friction 0 sticking,
+    CONTACT  the signed distance g >= 0 of a candidate contact of two geoms (rbody.engine.contacts.geometry), 3 rows:
+             the normal (J = n . (J_b - J_a) at the contact point, lambda >= 0) and two tangents whose forces stay
+             within the circular cone |lambda_t| <= mu lambda_n (Coulomb); CONTACT1 the normal row alone (condim 1)
+
+mode, per unit: limits, cones and contacts 1 active (held as an equality, lambda >= 0), 0 inactive; friction 0 sticking,
 +1 / -1 sliding with the dof's velocity of that sign (force -frictionloss sign); equalities 1 (always active).
 """
 
@@ -30,10 +34,11 @@ import numpy as np
 
 from rbody.layout import JOINTS, WORLD, Layout
 
-LOWER, UPPER, CONE, FRICTION, CONNECT, WELD, COUPLING = range(7)
-KIND_ROWS = {LOWER: 1, UPPER: 1, CONE: 1, FRICTION: 1, CONNECT: 3, WELD: 6, COUPLING: 1}
+LOWER, UPPER, CONE, FRICTION, CONNECT, WELD, COUPLING, CONTACT, CONTACT1 = range(9)
+KIND_ROWS = {LOWER: 1, UPPER: 1, CONE: 1, FRICTION: 1, CONNECT: 3, WELD: 6, COUPLING: 1, CONTACT: 3, CONTACT1: 1}
 KIND_NAMES = {LOWER: "limit", UPPER: "limit", CONE: "limit", FRICTION: "friction", CONNECT: "connect",
-              WELD: "weld", COUPLING: "joint"}
+              WELD: "weld", COUPLING: "joint", CONTACT: "contact", CONTACT1: "contact"}
+CONTACT_KINDS = (CONTACT, CONTACT1)
 UNILATERAL = (LOWER, UPPER, CONE)
 EQUALITY_KINDS = (CONNECT, WELD, COUPLING)
 
@@ -45,7 +50,12 @@ C_HEADER = 4
 # polycoef (5).
 (U_KIND, U_ROWS, U_ROW0, U_DOF, U_QADR, U_BOUND, U_RESTITUTION, U_BODY1, U_BODY2, U_A1, U_A2, U_QUAT, U_DOF2,
  U_QADR2, U_REF1, U_REF2, U_POLY) = (0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 12, 15, 19, 20, 21, 22, 23)
-UNIT_SIZE = 28
+# Contacts (rbody.engine.contacts.rows) reuse U_DOF as the candidate's slot, U_BOUND as the friction coefficient mu,
+# U_RESTITUTION, U_BODY1/U_BODY2 as the bodies of geoms a and b (-1: the world), and hold per geom its type code,
+# its pose in its body's frame (pos (3), axes as a row-major matrix (9)) and its size (3):
+U_GTYPE_A, U_GPOS_A, U_GMAT_A, U_GSIZE_A = 28, 29, 32, 41
+U_GTYPE_B, U_GPOS_B, U_GMAT_B, U_GSIZE_B = 44, 45, 48, 57
+UNIT_SIZE = 60
 
 
 @dataclass(frozen=True)
@@ -241,6 +251,9 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
             if equality.active:
                 add(WELD, equality.name, U_BODY1=b1, U_BODY2=b2, U_A1=relpos, U_A2=anchor, U_QUAT=relquat)
             resolved.append(dataclasses.replace(equality, relpose=tuple(np.concatenate([relpos, relquat]).tolist())))
+    for contact in layout.contacts:
+        for record_fields, name in _contact_units(layout, contact, body_index):
+            add(CONTACT if contact.condim == 3 and contact.friction > 0 else CONTACT1, name, **record_fields)
     if not units:
         return None
     offset = int(np.asarray(multibody.params).size)
@@ -252,4 +265,51 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
     block[C_HEADER + UNIT_SIZE * count:] = mode0
     block.setflags(write=False)
     mode0.setflags(write=False)
-    return ConstraintTable(units=tuple(units), block=block, offset=offset, mode0=mode0, equalities=tuple(resolved))
+    methods = ("moreau",) if any(unit.code in CONTACT_KINDS for unit in units) else ("rk4", "moreau")
+    return ConstraintTable(units=tuple(units), block=block, offset=offset, mode0=mode0, equalities=tuple(resolved),
+                           methods=methods)
+
+
+def _contact_units(layout: Layout, contact, body_index: dict[str, int]) -> list[tuple[dict, str]]:
+    """The unit records (fields for build_table's add) and names of a Contact's candidates: one per slot of its
+    pair of geoms (rbody.engine.contacts.geometry.SLOTS), the geoms in MuJoCo's order (type codes ascending).
+    Raises ValueError naming the contact for a shape that is not in the layout, two shapes of one body, or a pair
+    of kinds rbody does not compute."""
+    from rbody.engine.contacts.geometry import SLOTS, TYPE_CODES
+    from rbody.motion import quat_to_matrix
+
+    where = {shape.name: (WORLD, shape) for shape in layout.fixed}
+    for body in layout.bodies:
+        for shape in body.shapes:
+            where[shape.name] = (body.name, shape)
+    what = f"contact {contact.shape_a!r}/{contact.shape_b!r}"
+    geoms = []
+    for field_name in ("shape_a", "shape_b"):
+        name = getattr(contact, field_name)
+        if name not in where:
+            raise ValueError(f"{what}: {field_name}={name!r} is not a shape of the layout (a body's or a fixed one)")
+        body, shape = where[name]
+        if shape.kind not in TYPE_CODES:
+            raise ValueError(f"{what}: shape {name!r} is a {shape.kind}: rbody computes contacts of "
+                             f"{tuple(TYPE_CODES)} shapes")
+        geoms.append((TYPE_CODES[shape.kind], body, shape))
+    if geoms[0][1] == geoms[1][1]:
+        raise ValueError(f"{what}: both shapes are on {geoms[0][1]!r}: a contact needs two bodies (or a body and "
+                         "the world)")
+    geoms.sort(key=lambda geom: geom[0])
+    (ta, body_a, shape_a), (tb, body_b, shape_b) = geoms
+    if (ta, tb) not in SLOTS:
+        raise ValueError(f"{what}: rbody computes contacts between plane, sphere, capsule and box shapes except "
+                         f"{shape_a.kind}-{shape_b.kind} (pairs it computes: plane with sphere, capsule, box; "
+                         "sphere with sphere, capsule, box; capsule with capsule)")
+    fields = dict(U_BOUND=contact.friction, U_RESTITUTION=contact.restitution, U_BODY1=body_index[body_a],
+                  U_BODY2=body_index[body_b])
+    for suffix, code, shape in (("A", ta, shape_a), ("B", tb, shape_b)):
+        size = np.zeros(3)
+        size[:len(shape.size)] = shape.size[:3]
+        fields.update({f"U_GTYPE_{suffix}": code, f"U_GPOS_{suffix}": shape.pos,
+                       f"U_GMAT_{suffix}": quat_to_matrix(np.asarray(shape.quat)).reshape(-1),
+                       f"U_GSIZE_{suffix}": size})
+    count = SLOTS[(ta, tb)]
+    name = f"{shape_a.name}/{shape_b.name}"
+    return [(dict(fields, U_DOF=slot), name if count == 1 else f"{name}[{slot}]") for slot in range(count)]
