@@ -301,7 +301,7 @@ def _contact_units(layout: Layout, contact, body_index: dict[str, int]) -> list[
     if (ta, tb) not in SLOTS:
         raise ValueError(f"{what}: rbody computes contacts between plane, sphere, capsule and box shapes except "
                          f"{shape_a.kind}-{shape_b.kind} (pairs it computes: plane with sphere, capsule, box; "
-                         "sphere with sphere, capsule, box; capsule with capsule)")
+                         "sphere with sphere, capsule, box; capsule with capsule; box with box)")
     fields = dict(U_BOUND=contact.friction, U_RESTITUTION=contact.restitution, U_BODY1=body_index[body_a],
                   U_BODY2=body_index[body_b])
     for suffix, code, shape in (("A", ta, shape_a), ("B", tb, shape_b)):

@@ -21,7 +21,9 @@ the constraint layer decides from the distance and its rate which candidates tou
 Each distance is exact (closed form, no iteration): the surfaces of these primitives are offsets of points,
 segments and boxes, so the distance is the distance between the cores minus the radii, with the normal along the
 line of closest approach; where the cores overlap (a sphere's centre inside a box), the normal is that of the face
-of least penetration. The closest points of two segments follow Ericson's clamped solution (Real-Time Collision
+of least penetration. Two boxes give 16 candidates, each corner of one against the other box (vertex-face
+contacts: a box resting on a box, a stack); edge-edge contacts of two boxes crossing each other are not among
+them (a known limit: such boxes can pass through each other's edges). The closest points of two segments follow Ericson's clamped solution (Real-Time Collision
 Detection, 5.1.9); parallel segments take the midpoint of their overlap, so the normal is unique there too.
 """
 
@@ -34,8 +36,8 @@ PLANE, SPHERE, CAPSULE, ELLIPSOID, CYLINDER, BOX = 0, 2, 3, 4, 5, 6
 TYPE_CODES = {"plane": PLANE, "sphere": SPHERE, "capsule": CAPSULE, "box": BOX}
 # candidates per pair of type codes (type_a <= type_b): the pairs rbody computes
 SLOTS = {(PLANE, SPHERE): 1, (PLANE, CAPSULE): 2, (PLANE, BOX): 8, (SPHERE, SPHERE): 1, (SPHERE, CAPSULE): 1,
-         (CAPSULE, CAPSULE): 1, (SPHERE, BOX): 1}
-MAX_SLOTS = 8
+         (CAPSULE, CAPSULE): 1, (SPHERE, BOX): 1, (BOX, BOX): 16}
+MAX_SLOTS = 16
 
 
 @njit(cache=True, inline="always")
@@ -63,6 +65,40 @@ def _plane_point(pa, n, c, r, k, dist, normal, point):
     for a in range(3):
         normal[k, a] = n[a]
         point[k, a] = c[a] - n[a] * reach
+
+
+@njit(cache=True)
+def _point_box(c, r, pb, Rb, sb, k, dist, normal, point):
+    """Contact k of a sphere (centre c, radius r; r = 0: a point) and a box (centre pb, axes Rb, half sizes sb), the
+    normal from the sphere towards the box: along the line to the box's nearest point, or, with the centre inside
+    the box, against the outward normal of the face of least depth."""
+    local = np.empty(3)
+    for i in range(3):
+        local[i] = Rb[0, i] * (c[0] - pb[0]) + Rb[1, i] * (c[1] - pb[1]) + Rb[2, i] * (c[2] - pb[2])
+    out = np.empty(3)
+    outside = 0.0
+    for i in range(3):
+        nearest = min(max(local[i], -sb[i]), sb[i])
+        out[i] = local[i] - nearest
+        outside += out[i] * out[i]
+    if outside > 0.0:
+        length = np.sqrt(outside)
+        d = length - r
+        for a in range(3):  # from the sphere towards the box: against the outward offset
+            normal[k, a] = -(Rb[a, 0] * out[0] + Rb[a, 1] * out[1] + Rb[a, 2] * out[2]) / length
+    else:  # the centre inside the box (or on its surface): out through the face of least depth
+        face, depth = 0, sb[0] - abs(local[0])
+        for i in range(1, 3):
+            if sb[i] - abs(local[i]) < depth:
+                face, depth = i, sb[i] - abs(local[i])
+        side = 1.0 if local[face] >= 0.0 else -1.0
+        d = -depth - r
+        for a in range(3):
+            normal[k, a] = -side * Rb[a, face]
+    dist[k] = d
+    reach = r + 0.5 * d
+    for a in range(3):
+        point[k, a] = c[a] + normal[k, a] * reach
 
 
 @njit(cache=True)
@@ -138,36 +174,25 @@ def collide(ta, pa, Ra, sa, tb, pb, Rb, sb, dist, normal, point):
             _sphere_sphere(pa, sa[0], centre, sb[0], 0, dist, normal, point)
             return 1
         if tb == BOX:
-            local = np.empty(3)
-            for i in range(3):
-                local[i] = Rb[0, i] * (pa[0] - pb[0]) + Rb[1, i] * (pa[1] - pb[1]) + Rb[2, i] * (pa[2] - pb[2])
-            out = np.empty(3)
-            outside = 0.0
-            for i in range(3):
-                c = min(max(local[i], -sb[i]), sb[i])
-                out[i] = local[i] - c
-                outside += out[i] * out[i]
-            r = sa[0]
-            if outside > 0.0:
-                length = np.sqrt(outside)
-                d = length - r
-                for a in range(3):  # from the sphere towards the box: against the outward offset
-                    normal[0, a] = -(Rb[a, 0] * out[0] + Rb[a, 1] * out[1] + Rb[a, 2] * out[2]) / length
-            else:  # the centre inside the box: out through the face of least depth
-                face, depth = 0, sb[0] - abs(local[0])
-                for i in range(1, 3):
-                    if sb[i] - abs(local[i]) < depth:
-                        face, depth = i, sb[i] - abs(local[i])
-                side = 1.0 if local[face] >= 0.0 else -1.0
-                d = -depth - r
-                for a in range(3):
-                    normal[0, a] = -side * Rb[a, face]
-            dist[0] = d
-            reach = r + 0.5 * d
-            for a in range(3):
-                point[0, a] = pa[a] + normal[0, a] * reach
+            _point_box(pa, sa[0], pb, Rb, sb, 0, dist, normal, point)
             return 1
         return -1
+    if ta == BOX and tb == BOX:  # each box's corners against the other box (vertex-face contacts)
+        corner = np.empty(3)
+        for k in range(16):
+            own_p, own_R, own_s = (pb, Rb, sb) if k < 8 else (pa, Ra, sa)
+            other_p, other_R, other_s = (pa, Ra, sa) if k < 8 else (pb, Rb, sb)
+            c = k % 8
+            x = own_s[0] if c & 1 else -own_s[0]
+            y = own_s[1] if c & 2 else -own_s[1]
+            z = own_s[2] if c & 4 else -own_s[2]
+            for a in range(3):
+                corner[a] = own_p[a] + own_R[a, 0] * x + own_R[a, 1] * y + own_R[a, 2] * z
+            _point_box(corner, 0.0, other_p, other_R, other_s, k, dist, normal, point)
+            if k < 8:  # a corner of b: its normal points from b to a
+                for a in range(3):
+                    normal[k, a] = -normal[k, a]
+        return 16
     if ta == CAPSULE and tb == CAPSULE:
         ua = np.empty(3)
         ub = np.empty(3)
