@@ -46,10 +46,14 @@ sensors, contact parameters of geoms that cannot collide, solver settings (only 
 motor actuators and general actuators without bias (their controls are zero, so they apply no force),
 tendons without stiffness, damping, friction or limits.
 
-Refused (MJCFError, naming the element, its file and line): contacts that can happen (two geoms on
-different bodies, not welded together nor parent and child, whose contype/conaffinity match, or an
-explicit <pair>, while the contact flag is on: set contype="0" conaffinity="0" on the geoms, or
-<flag contact="disable"/>); tendon and flex equalities; tendons with stiffness, damping, friction or limits;
+Contacts: the geom pairs MuJoCo's broad phase keeps (different bodies, not welded together nor parent
+and child, no <exclude>, contype/conaffinity matching, the contact flag on) become rbody Contacts with
+MuJoCo's friction and condim combination and rbody's restitution numerics (rbody.mjcf.contacts), held
+rigidly by the constraint layer.
+
+Refused (MJCFError, naming the element, its file and line): contacts rbody does not compute (a pair
+with a cylinder, ellipsoid, mesh or height field, condim 4 or 6) or an explicit <pair>, while the
+contact flag is on: set contype="0" conaffinity="0" on the geoms, or <flag contact="disable"/>; tendon and flex equalities; tendons with stiffness, damping, friction or limits;
 actuators that push with a zero control (position, velocity, damper, ... or damping/armature on the
 actuator); fluid forces (option density or viscosity, geom fluidshape); joint springdamper; body gravcomp; heightfields, flexes, composites, plugins, <frame>, <replicate>,
 <attach>; gravity not along -z; stiffness on a ball joint; boundmass, boundinertia, settotalmass,
@@ -205,7 +209,7 @@ class _Body:
 class MJCFModel:
     """What layout_from_mjcf read: everything Scene.from_layout needs, and what was left out.
 
-    layout:     the bodies, joints and fixed shapes (no contacts: contacts are refused)
+    layout:     the bodies, joints, fixed shapes and the contacts MuJoCo's rules keep (rbody.mjcf.contacts)
     name:       the model's name (<mujoco model>)
     gravity:    magnitude g along -z [m/s^2]
     timestep:   option timestep [s] (MuJoCo's default 0.002 when not given); integrator: MuJoCo's name
@@ -991,7 +995,11 @@ class _Reader:
                 raise element.error("a plane can only be on the world or a body without joints (MuJoCo's rule)")
 
     def check_contacts(self) -> None:
-        """Refuse any geom pair MuJoCo's broad phase would keep (engine_collision_driver.c filterBodyPair)."""
+        """The geom pairs MuJoCo's broad phase keeps (engine_collision_driver.c filterBodyPair: not within one weld,
+        not both welded to the world, not parent and child unless filterparent is disabled, no <exclude>,
+        contype/conaffinity matching), as rbody Contacts (rbody.mjcf.contacts); a pair rbody does not compute is
+        refused, naming both geoms and their lines."""
+        self.contact_pairs = []
         if not self.contacts_on:
             return
         everyone = [self.world, *self.bodies]
@@ -1013,13 +1021,17 @@ class _Reader:
                     for g2 in b2.geoms:
                         if (g1.contype & g2.conaffinity) or (g2.contype & g1.conaffinity):
                             candidates.append((g1, g2))
-        if candidates:
-            g1, g2 = candidates[0]
-            more = f" (and {len(candidates) - 1} more pairs)" if len(candidates) > 1 else ""
-            raise g1.element.error(
-                f"geoms {g1.name!r} and {g2.name!r} (line {g2.element.line}) can collide{more}, and rbody runs "
-                "contact-free models only. Set contype=\"0\" conaffinity=\"0\" on the geoms that must not collide, "
-                "or disable contacts with <option><flag contact=\"disable\"/></option>")
+        from rbody.mjcf.contacts import unsupported_pair
+
+        for g1, g2 in candidates:
+            why = unsupported_pair(g1, g2)
+            if why:
+                more = f" (and {len(candidates) - 1} more pairs can collide)" if len(candidates) > 1 else ""
+                raise g1.element.error(
+                    f"geoms {g1.name!r} and {g2.name!r} (line {g2.element.line}) can collide, and {why}{more}. Set "
+                    "contype=\"0\" conaffinity=\"0\" on the geoms that must not collide, or disable contacts with "
+                    "<option><flag contact=\"disable\"/></option>")
+        self.contact_pairs = candidates
 
     def passive(self, element: Element, attrib: dict) -> dict:
         """damping, stiffness, armature of a joint, >= 0; stiffness and damping 0 where the flags disable them."""
@@ -1189,6 +1201,11 @@ class _Reader:
             raise MJCFError(f"{self.root.file}: <custom><numeric name={stray[0]!r}> names no joint of the model")
         layout = self.layout(joints)
         layout = dataclasses.replace(layout, equalities=self.equalities(layout))
+        if self.contact_pairs:
+            from rbody.mjcf.contacts import contacts_of
+
+            layout = dataclasses.replace(layout, contacts=contacts_of(self.contact_pairs, self.numerics,
+                                                                      self.root.file))
         return MJCFModel(layout=layout, name=self.name, gravity=self.gravity, timestep=self.timestep,
                          integrator=self.integrator, qpos0=state_qpos.copy(), qvel0=state_qvel.copy(),
                          keyframes=keyframes, limits=limits, notes=tuple(self.notes), source=self.root.file)
