@@ -97,3 +97,37 @@ def test_rolling_ball_from_mjcf_and_mujoco_divergence(tmp_path):
     print(f"MuJoCo (defaults, dt={dt}): sinks {sink:.3g} m, final speed {speed[-1]:.6f} m/s against 5/7 v0 = "
           f"{5 / 7 * v0:.6f}, slip {slip:.3g} m/s; rbody: {abs(v[-1] - 5 / 7 * v0):.2g} m/s, height exact")
     assert sink > 1e-6                                    # MuJoCo's soft contact sinks (the finding, measured)
+
+
+def incline_xml(mu, alpha=0.3, dt=1e-3):
+    q = f"{float(np.cos(alpha / 2))!r} 0 {float(np.sin(alpha / 2))!r} 0"
+    n = np.array([np.sin(alpha), 0.0, np.cos(alpha)])  # the plane's normal (its z axis turned by alpha about y)
+    pos = " ".join(repr(float(c)) for c in 0.05 * n)
+    return f"""<mujoco model="incline"><option timestep="{dt}"/>
+  <worldbody>
+    <geom name="ramp" type="plane" size="0 0 1" quat="{q}" friction="{float(mu)!r}"/>
+    <body name="box" pos="{pos}" quat="{q}"><freejoint/>
+      <geom name="b" type="box" size="0.1 0.1 0.05" mass="1" friction="{float(mu)!r}"/></body>
+  </worldbody></mujoco>"""
+
+
+def test_block_on_incline_from_mjcf_sticks_and_mujoco_creeps(tmp_path):
+    """mu = tan(alpha)(1 + 1e-6): rbody's block stays put (round-off) through from_mjcf; MuJoCo's (defaults) creeps
+    down the slope, since its friction is a soft constraint (a finding, printed and asserted measurable)."""
+    alpha, t_end, dt = 0.3, 2.0, 1e-3
+    path = tmp_path / "incline.xml"
+    path.write_text(incline_xml(np.tan(alpha) * (1 + 1e-6), alpha, dt))
+    run = rbody.simulate(from_mjcf(path, t_end=t_end), dt=dt)
+    moved = np.abs(run["box.com"] - run["box.com"][0]).max()
+    assert moved <= 1e-13
+    mujoco = pytest.importorskip("mujoco")
+    m = mujoco.MjModel.from_xml_path(str(path))
+    d = mujoco.MjData(m)
+    start = d.qpos[:3].copy()
+    mujoco.mj_forward(m, d)
+    start = d.qpos[:3].copy()
+    for _ in range(int(round(t_end / dt))):
+        mujoco.mj_step(m, d)
+    creep = np.linalg.norm(d.qpos[:3] - start)
+    print(f"block at mu = tan(alpha)(1 + 1e-6), {t_end} s: rbody moved {moved:.2g} m; MuJoCo (defaults) {creep:.3g} m")
+    assert creep > 1e-6
