@@ -1,7 +1,9 @@
 """MJCF's contacts as rbody Contacts: MuJoCo's combination rules for a geom pair, and rbody's restitution numerics.
 
 The broad phase's filter (which pairs can collide) is rbody.mjcf.parse (check_contacts: welds, parent-child,
-<exclude>, contype/conaffinity, the contact flag). For each pair kept, as MuJoCo's mj_contactParam combines them:
+<exclude>, contype/conaffinity, the contact flag), and every explicit <pair> (which replaces the dynamic pair of
+the same geoms, as MuJoCo's does, with its own friction (the first of its five, default 1) and condim (default 3),
+whatever the filters). For each dynamic pair kept, as MuJoCo's mj_contactParam combines them:
 
 - friction: the sliding coefficient (the first of a geom's `friction`, default 1) of the geom with the higher
   `priority`, or, at equal priority, the larger of the two (MuJoCo takes the maximum of each component);
@@ -49,8 +51,33 @@ def _condim(geom) -> int:
     return integer(geom.element, "condim", geom.attrib, 3)
 
 
-def unsupported_pair(g1, g2) -> str:
-    """Why rbody cannot run contacts between geoms g1 and g2 (parse's _Geom), or "" when it can."""
+def explicit_pairs(pairs, named: dict) -> list:
+    """(g1, g2, spec) of every <pair> (element, attributes with its class's defaults): the geoms it names (by the
+    names the file gives them) and spec = {"friction": the first of its friction (default 1), "condim": its condim
+    (default 3)}, MuJoCo's defaults for a pair (its own, not its geoms'). Raises MJCFError for a missing or unknown
+    geom, or a pair of one geom with itself."""
+    out = []
+    for element, attrib in pairs:
+        geoms = []
+        for key in ("geom1", "geom2"):
+            if key not in attrib:
+                raise element.error(f"a <pair> needs {key}")
+            if attrib[key] not in named:
+                raise element.error(f"{key}={attrib[key]!r} is not a geom of the model")
+            geoms.append(named[attrib[key]])
+        if geoms[0] is geoms[1]:
+            raise element.error(f"geom1 and geom2 are both {attrib['geom1']!r}")
+        friction = float(numbers(element, "friction", attrib)[0]) if "friction" in attrib else 1.0
+        condim = integer(element, "condim", attrib, 3)
+        if condim not in (1, 3, 4, 6):
+            raise element.error(f"condim={attrib['condim']!r}: MuJoCo allows 1, 3, 4 or 6 (invalid condim)")
+        out.append((geoms[0], geoms[1], {"friction": friction, "condim": condim}))
+    return out
+
+
+def unsupported_pair(g1, g2, spec: dict | None = None) -> str:
+    """Why rbody cannot run contacts between geoms g1 and g2 (parse's _Geom; spec: an explicit <pair>'s friction
+    and condim), or "" when it can."""
     from rbody.engine.contacts.geometry import SLOTS
 
     codes = [_kind_code(g) for g in (g1, g2)]
@@ -61,7 +88,7 @@ def unsupported_pair(g1, g2) -> str:
     if tuple(sorted(codes)) not in SLOTS:
         return (f"rbody does not compute {g1.kind}-{g2.kind} contacts yet (it computes plane with sphere, capsule and "
                 "box; sphere with sphere, capsule and box; capsule with capsule; box with box)")
-    condim = _combined(g1, g2, "condim", _condim)
+    condim = spec["condim"] if spec else _combined(g1, g2, "condim", _condim)
     if condim not in (1, 3):
         return (f"their contact has condim {condim}: rbody models condim 1 (frictionless) and 3 (Coulomb's cone), "
                 "not torsional (4) or rolling (6) friction")
@@ -69,9 +96,9 @@ def unsupported_pair(g1, g2) -> str:
 
 
 def contacts_of(pairs, numerics: dict, source: str) -> tuple[Contact, ...]:
-    """The rbody Contact of every geom pair (g1, g2) kept by the broad phase, with MuJoCo's friction and condim and
+    """The rbody Contact of every geom pair (g1, g2, spec) kept by the broad phase or listed (spec: explicit_pairs), with MuJoCo's friction and condim and
     rbody's restitution (module docstring). Raises MJCFError for a restitution numeric naming no geom."""
-    names = {g.name for pair in pairs for g in pair}
+    names = {g.name for g1, g2, _spec in pairs for g in (g1, g2)}
     prefix = CONTACT_RESTITUTION + "."
     stray = sorted(n for n in numerics if n.startswith(prefix) and n[len(prefix):] not in names)
     if stray:
@@ -81,7 +108,7 @@ def contacts_of(pairs, numerics: dict, source: str) -> tuple[Contact, ...]:
             raise MJCFError(f"{source}: <custom><numeric name={key!r}>: a restitution is one number in [0, 1], "
                             f"not {data.tolist()}")
     out = []
-    for g1, g2 in pairs:
+    for g1, g2, spec in pairs:
         own = [float(numerics[prefix + g.name][0]) for g in (g1, g2) if prefix + g.name in numerics]
         if own:
             restitution = max(own)
@@ -89,8 +116,11 @@ def contacts_of(pairs, numerics: dict, source: str) -> tuple[Contact, ...]:
             restitution = float(numerics[CONTACT_RESTITUTION][0])
         else:
             restitution = 0.0
-        out.append(Contact(g1.name, g2.name, friction=_combined(g1, g2, "friction", _friction),
-                           restitution=restitution, condim=_combined(g1, g2, "condim", _condim)))
+        if spec:
+            friction, condim = spec["friction"], spec["condim"]
+        else:
+            friction, condim = _combined(g1, g2, "friction", _friction), _combined(g1, g2, "condim", _condim)
+        out.append(Contact(g1.name, g2.name, friction=friction, restitution=restitution, condim=condim))
     return tuple(out)
 
 

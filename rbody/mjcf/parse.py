@@ -51,9 +51,10 @@ and child, no <exclude>, contype/conaffinity matching, the contact flag on) beco
 MuJoCo's friction and condim combination and rbody's restitution numerics (rbody.mjcf.contacts), held
 rigidly by the constraint layer.
 
+Explicit <pair>s too, with their own friction and condim, in place of the dynamic pair of their geoms.
+
 Refused (MJCFError, naming the element, its file and line): contacts rbody does not compute (a pair
-with a cylinder, ellipsoid, mesh or height field, condim 4 or 6) or an explicit <pair>, while the
-contact flag is on: set contype="0" conaffinity="0" on the geoms, or <flag contact="disable"/>; tendon and flex equalities; tendons with stiffness, damping, friction or limits;
+with a cylinder, ellipsoid, mesh or height field, condim 4 or 6), while the contact flag is on: set contype="0" conaffinity="0" on the geoms, or <flag contact="disable"/>; tendon and flex equalities; tendons with stiffness, damping, friction or limits;
 actuators that push with a zero control (position, velocity, damper, ... or damping/armature on the
 actuator); fluid forces (option density or viscosity, geom fluidshape); joint springdamper; body gravcomp; heightfields, flexes, composites, plugins, <frame>, <replicate>,
 <attach>; gravity not along -z; stiffness on a ball joint; boundmass, boundinertia, settotalmass,
@@ -137,6 +138,8 @@ _JOINT_ATTRS = {"name", "class", "type", "group", "pos", "axis", "springdamper",
                 "solreflimit", "solimplimit", "solreffriction", "solimpfriction", "stiffness", "range",
                 "actuatorfrcrange", "actuatorgravcomp", "margin", "ref", "springref", "armature", "damping",
                 "frictionloss", "user"}
+_PAIR_ATTRS = {"name", "class", "geom1", "geom2", "condim", "friction", "solref", "solreffriction", "solimp", "gap",
+               "margin"}
 _GEOM_ATTRS = {"name", "class", "type", "contype", "conaffinity", "condim", "group", "priority", "size", "material",
                "friction", "mass", "density", "shellinertia", "solmix", "solref", "solimp", "margin", "gap",
                "surfacevel", "adhesion", "fromto", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler", "hfield",
@@ -247,6 +250,7 @@ class _Reader:
         self.bodies: list[_Body] = []
         self.world: _Body | None = None
         self.excluded: set[frozenset] = set()
+        self.explicit_pairs: list = []  # (<pair> element, its attributes with its class's defaults)
         self.mesh_paths: dict[str, str] = {}                 # mesh name -> absolute file path
         self.plane_bodies: list[tuple[Element, _Body]] = []  # planes on bodies (only static ones may hold them)
         self.key_elements: list[Element] = []
@@ -728,9 +732,8 @@ class _Reader:
         self.check_attrs(element, set())
         for child in element.children:
             if child.tag == "pair":
-                if self.contacts_on:
-                    raise child.error("explicit contact pairs are not supported (rbody runs contact-free models): "
-                                      "remove the <pair> or disable contacts with <flag contact=\"disable\"/>")
+                self.check_attrs(child, _PAIR_ATTRS)
+                self.explicit_pairs.append((child, self.attrs(child, "pair", None)))
             elif child.tag == "exclude":
                 self.check_attrs(child, {"name", "body1", "body2"})
                 self.excluded.add(frozenset((child.attrib.get("body1"), child.attrib.get("body2"))))
@@ -1021,10 +1024,15 @@ class _Reader:
                     for g2 in b2.geoms:
                         if (g1.contype & g2.conaffinity) or (g2.contype & g1.conaffinity):
                             candidates.append((g1, g2))
-        from rbody.mjcf.contacts import unsupported_pair
+        from rbody.mjcf.contacts import explicit_pairs, unsupported_pair
 
-        for g1, g2 in candidates:
-            why = unsupported_pair(g1, g2)
+        named = {g.attrib["name"]: g for b in everyone for g in b.geoms if g.attrib.get("name")}
+        explicit = explicit_pairs(self.explicit_pairs, named)  # MuJoCo: an explicit pair replaces the dynamic one
+        listed = {frozenset((g1.name, g2.name)) for g1, g2, _spec in explicit}
+        candidates = [(g1, g2, None) for g1, g2 in candidates if frozenset((g1.name, g2.name)) not in listed]
+        candidates += explicit
+        for g1, g2, spec in candidates:
+            why = unsupported_pair(g1, g2, spec)
             if why:
                 more = f" (and {len(candidates) - 1} more pairs can collide)" if len(candidates) > 1 else ""
                 raise g1.element.error(

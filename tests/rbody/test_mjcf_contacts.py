@@ -131,3 +131,30 @@ def test_block_on_incline_from_mjcf_sticks_and_mujoco_creeps(tmp_path):
     creep = np.linalg.norm(d.qpos[:3] - start)
     print(f"block at mu = tan(alpha)(1 + 1e-6), {t_end} s: rbody moved {moved:.2g} m; MuJoCo (defaults) {creep:.3g} m")
     assert creep > 1e-6
+
+
+def test_explicit_pair_replaces_the_dynamic_one(tmp_path):
+    """<pair> with its own friction and condim (MuJoCo's defaults for a pair: friction 1, condim 3), whatever the
+    filters (contype 0 here), and in place of the dynamic pair of the same geoms, as MuJoCo's contact list shows."""
+    xml = """<mujoco><default><pair friction="0.7 0.7 0.005 0.0001 0.0001"/></default><worldbody>
+      <geom name="floor" type="plane" size="0 0 1" friction="0.2"/>
+      <body name="a" pos="0 0 1"><freejoint/><geom name="ga" type="sphere" size="0.1"/></body>
+      <body name="b" pos="1 0 1"><freejoint/><geom name="gb" type="box" size="0.1 0.1 0.1" contype="0" conaffinity="0"/>
+      </body></worldbody>
+      <contact><pair geom1="floor" geom2="ga" condim="1"/><pair geom1="gb" geom2="floor"/></contact></mujoco>"""
+    path = tmp_path / "pairs.xml"
+    path.write_text(xml)
+    contacts = {frozenset((c.shape_a, c.shape_b)): c for c in from_mjcf(path).tree.contacts}
+    assert set(contacts) == {frozenset(("floor", "ga")), frozenset(("floor", "gb"))}
+    assert contacts[frozenset(("floor", "ga"))].friction == 0.7 and contacts[frozenset(("floor", "ga"))].condim == 1
+    assert contacts[frozenset(("floor", "gb"))].friction == 0.7 and contacts[frozenset(("floor", "gb"))].condim == 3
+    mujoco = pytest.importorskip("mujoco")
+    wide = xml.replace('<pair geom1="floor" geom2="ga" condim="1"/>', '<pair geom1="floor" geom2="ga" condim="1" '
+                       'margin="10"/>').replace('<pair geom1="gb" geom2="floor"/>',
+                                                '<pair geom1="gb" geom2="floor" margin="10"/>')
+    m = mujoco.MjModel.from_xml_string(wide)
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    seen = {frozenset((m.geom(c.geom1).name, m.geom(c.geom2).name)): (c.friction[0], c.dim)
+            for c in d.contact[:d.ncon]}
+    assert seen == {frozenset(("floor", "ga")): (0.7, 1), frozenset(("floor", "gb")): (0.7, 3)}

@@ -354,7 +354,7 @@ BODY = '<body name="b"><joint/><geom size="0.1"/></body>'
     (f"<mujoco>{OFF}<worldbody>{BODY}</worldbody><actuator>\n<position joint='b_joint0' kp='10'/></actuator></mujoco>",
      r"line 2, <position>.*zero control"),
     (f"<mujoco><worldbody>{BODY}</worldbody><contact><pair geom1='a' geom2='b'/></contact></mujoco>",
-     "explicit contact pairs"),
+     "geom1='a' is not a geom of the model"),
     (f"<mujoco>{OFF}<worldbody><body><joint frictionloss='-1'/><geom size='0.1'/></body></worldbody></mujoco>",
      r"frictionloss=-1.0: must be >= 0"),
     (f"<mujoco>{OFF}<worldbody><body>\n<joint type='ball' stiffness='2'/><geom size='0.1'/></body>"
