@@ -54,6 +54,29 @@ def block(factor, t_end, dt, alpha=0.3):
               f" m, |x - a t^2/2| {np.abs(x - a * t ** 2 / 2).max():.2g} m (a t_end dt / 2 = {a * t_end * dt / 2:.2g})")
 
 
+def stack_in_mujoco(t_end=100.0, dt=2e-3):
+    """The test's stack of five boxes (each narrower than the one below) as MJCF, MuJoCo's defaults: how far the boxes
+    sink into each other and drift over t_end (rbody: 1.6e-14 over 100 s, tests/rbody/engine)."""
+    bodies, z = [], 0.0
+    for k in range(5):
+        hx, hy, hz = 0.3 - 0.04 * k, 0.25 - 0.04 * k, 0.05
+        z += hz
+        bodies.append(f'<body pos="{0.01 * k} {-0.005 * k} {z}"><freejoint/><geom type="box" size="{hx} {hy} {hz}" '
+                      f'mass="{1.0 + k}" friction="0.5"/></body>')
+        z += hz
+    xml = (f'<mujoco><option timestep="{dt}"/><worldbody><geom type="plane" size="0 0 1" friction="0.5"/>'
+           + "".join(bodies) + "</worldbody></mujoco>")
+    m = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(m)
+    start = d.qpos.copy()
+    for _ in range(int(round(t_end / dt))):
+        mujoco.mj_step(m, d)
+    sink = max(start[7 * k + 2] - d.qpos[7 * k + 2] for k in range(5))
+    drift = max(np.linalg.norm(d.qpos[7 * k:7 * k + 2] - start[7 * k:7 * k + 2]) for k in range(5))
+    print(f"stack of five boxes, MuJoCo (defaults, dt={dt}), {t_end} s: top box {sink:.3g} m lower (sinking into the "
+          f"contacts below), horizontal drift {drift:.3g} m; rbody: 1.6e-14 (qpos, 100 s, dt = 10 ms)")
+
+
 def main():
     print(platform.processor() or platform.machine(), platform.platform())
     print(f"numpy {np.__version__}, numba {numba.__version__}, mujoco {mujoco.__version__}")
@@ -61,6 +84,7 @@ def main():
     rolling()
     for factor, t_end, dt in ((1 + 1e-6, 100.0, 1e-2), (1 - 1e-6, 2.0, 1e-3), (0.3, 2.0, 1e-3)):
         block(factor, t_end, dt)
+    stack_in_mujoco()
     print(f"({time.perf_counter() - start:.0f} s)")
 
 
