@@ -276,19 +276,25 @@ class Contact:
     """Two pieces of geometry that may touch: shape names (world shapes or body shapes).
 
     friction [-] is the Coulomb coefficient of the pair; restitution in [0, 1] the coefficient of
-    restitution of the pair (1 elastic). Pairs not listed never collide.
+    restitution of the pair (Newton's: 1 elastic, 0 plastic, the default); condim 3 (Coulomb's circular cone) or 1
+    (frictionless). Pairs not listed never collide. In a tree (Scene.from_layout) the constraint layer holds
+    them rigidly (rbody.engine.constraints; the pairs rbody.engine.contacts.geometry computes).
     """
 
     shape_a: str
     shape_b: str
     friction: float = 0.0
-    restitution: float = 1.0
+    restitution: float = 0.0
+    condim: int = 3
 
     def __post_init__(self) -> None:
         _name(self.shape_a, "contact", "shape_a")
         _name(self.shape_b, "contact", "shape_b")
         nonnegative(self.friction, "friction")
         in_interval(self.restitution, "restitution", 0.0, 1.0, closed=True)
+        if self.condim not in (1, 3):
+            raise ValueError(f"contact {self.shape_a!r}/{self.shape_b!r}: condim={self.condim!r}, expected 1 "
+                             "(frictionless) or 3 (Coulomb's cone; torsional and rolling friction are not modelled)")
 
 
 EQUALITY_KINDS = ("connect", "weld", "joint", "tendon")
@@ -374,10 +380,10 @@ class Layout:
 
     @property
     def constrained(self) -> bool:
-        """True when a joint has a range or frictionloss, or an equality is active: the model then runs through the
-        constraint layer (rbody.engine.constraints)."""
+        """True when a joint has a range or frictionloss, an equality is active or contacts are listed: the model
+        then runs through the constraint layer (rbody.engine.constraints)."""
         return (any(j.range is not None or j.frictionloss > 0 for j in self.joints)
-                or any(e.active for e in self.equalities))
+                or any(e.active for e in self.equalities) or bool(self.contacts))
 
     def __post_init__(self) -> None:
         """Each field checked to be a tuple (or list) of its kind (ValueError naming the field and the item)."""

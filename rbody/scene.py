@@ -237,7 +237,7 @@ TREE_SYMPLECTIC_METHODS = ("verlet", "symplectic_euler", "yoshida6")
 class TreeScene(Scene):
     """A user's tree of bodies and joints, simulated by the general engine (rbody.Multibody).
 
-    tree:   the Layout (bodies, joints; contacts are not modelled natively)
+    tree:   the Layout (bodies, joints, limits, equalities, contacts: rbody.engine.constraints)
     qpos0:  (..., nq) initial qpos, MuJoCo's layout, or None (the joints' own qpos0); leading axes: a batch
     qvel0:  (..., nv) initial qvel (free joints: world linear velocity of the body-frame origin, then the
             body-frame angular velocity; ball: body-frame angular velocity), or None (the joints' qvel0)
@@ -394,6 +394,9 @@ class TreeScene(Scene):
         names = ["qpos", "qvel", "energy"]
         if self.tree.constrained:
             names += ["constraint_force", "constraint_error", "active_limits", "sticking", "dissipated"]
+        if self.tree.contacts:
+            names += ["contacts", "contact_distance", "contact_point", "contact_normal", "contact_normal_force",
+                      "contact_friction_force"]
         for body in self.multibody.body_names:
             names += [f"{body}.com", f"{body}.quat", f"{body}.velocity", f"{body}.omega"]
         return tuple(names)

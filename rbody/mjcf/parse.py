@@ -46,10 +46,15 @@ sensors, contact parameters of geoms that cannot collide, solver settings (only 
 motor actuators and general actuators without bias (their controls are zero, so they apply no force),
 tendons without stiffness, damping, friction or limits.
 
-Refused (MJCFError, naming the element, its file and line): contacts that can happen (two geoms on
-different bodies, not welded together nor parent and child, whose contype/conaffinity match, or an
-explicit <pair>, while the contact flag is on: set contype="0" conaffinity="0" on the geoms, or
-<flag contact="disable"/>); tendon and flex equalities; tendons with stiffness, damping, friction or limits;
+Contacts: the geom pairs MuJoCo's broad phase keeps (different bodies, not welded together nor parent
+and child, no <exclude>, contype/conaffinity matching, the contact flag on) become rbody Contacts with
+MuJoCo's friction and condim combination and rbody's restitution numerics (rbody.mjcf.contacts), held
+rigidly by the constraint layer.
+
+Explicit <pair>s too, with their own friction and condim, in place of the dynamic pair of their geoms.
+
+Refused (MJCFError, naming the element, its file and line): contacts rbody does not compute (a pair
+with a cylinder, ellipsoid, mesh or height field, condim 4 or 6), while the contact flag is on: set contype="0" conaffinity="0" on the geoms, or <flag contact="disable"/>; tendon and flex equalities; tendons with stiffness, damping, friction or limits;
 actuators that push with a zero control (position, velocity, damper, ... or damping/armature on the
 actuator); fluid forces (option density or viscosity, geom fluidshape); joint springdamper; body gravcomp; heightfields, flexes, composites, plugins, <frame>, <replicate>,
 <attach>; gravity not along -z; stiffness on a ball joint; boundmass, boundinertia, settotalmass,
@@ -133,6 +138,8 @@ _JOINT_ATTRS = {"name", "class", "type", "group", "pos", "axis", "springdamper",
                 "solreflimit", "solimplimit", "solreffriction", "solimpfriction", "stiffness", "range",
                 "actuatorfrcrange", "actuatorgravcomp", "margin", "ref", "springref", "armature", "damping",
                 "frictionloss", "user"}
+_PAIR_ATTRS = {"name", "class", "geom1", "geom2", "condim", "friction", "solref", "solreffriction", "solimp", "gap",
+               "margin"}
 _GEOM_ATTRS = {"name", "class", "type", "contype", "conaffinity", "condim", "group", "priority", "size", "material",
                "friction", "mass", "density", "shellinertia", "solmix", "solref", "solimp", "margin", "gap",
                "surfacevel", "adhesion", "fromto", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler", "hfield",
@@ -205,7 +212,7 @@ class _Body:
 class MJCFModel:
     """What layout_from_mjcf read: everything Scene.from_layout needs, and what was left out.
 
-    layout:     the bodies, joints and fixed shapes (no contacts: contacts are refused)
+    layout:     the bodies, joints, fixed shapes and the contacts MuJoCo's rules keep (rbody.mjcf.contacts)
     name:       the model's name (<mujoco model>)
     gravity:    magnitude g along -z [m/s^2]
     timestep:   option timestep [s] (MuJoCo's default 0.002 when not given); integrator: MuJoCo's name
@@ -243,6 +250,7 @@ class _Reader:
         self.bodies: list[_Body] = []
         self.world: _Body | None = None
         self.excluded: set[frozenset] = set()
+        self.explicit_pairs: list = []  # (<pair> element, its attributes with its class's defaults)
         self.mesh_paths: dict[str, str] = {}                 # mesh name -> absolute file path
         self.plane_bodies: list[tuple[Element, _Body]] = []  # planes on bodies (only static ones may hold them)
         self.key_elements: list[Element] = []
@@ -724,9 +732,8 @@ class _Reader:
         self.check_attrs(element, set())
         for child in element.children:
             if child.tag == "pair":
-                if self.contacts_on:
-                    raise child.error("explicit contact pairs are not supported (rbody runs contact-free models): "
-                                      "remove the <pair> or disable contacts with <flag contact=\"disable\"/>")
+                self.check_attrs(child, _PAIR_ATTRS)
+                self.explicit_pairs.append((child, self.attrs(child, "pair", None)))
             elif child.tag == "exclude":
                 self.check_attrs(child, {"name", "body1", "body2"})
                 self.excluded.add(frozenset((child.attrib.get("body1"), child.attrib.get("body2"))))
@@ -991,7 +998,11 @@ class _Reader:
                 raise element.error("a plane can only be on the world or a body without joints (MuJoCo's rule)")
 
     def check_contacts(self) -> None:
-        """Refuse any geom pair MuJoCo's broad phase would keep (engine_collision_driver.c filterBodyPair)."""
+        """The geom pairs MuJoCo's broad phase keeps (engine_collision_driver.c filterBodyPair: not within one weld,
+        not both welded to the world, not parent and child unless filterparent is disabled, no <exclude>,
+        contype/conaffinity matching), as rbody Contacts (rbody.mjcf.contacts); a pair rbody does not compute is
+        refused, naming both geoms and their lines."""
+        self.contact_pairs = []
         if not self.contacts_on:
             return
         everyone = [self.world, *self.bodies]
@@ -1013,13 +1024,22 @@ class _Reader:
                     for g2 in b2.geoms:
                         if (g1.contype & g2.conaffinity) or (g2.contype & g1.conaffinity):
                             candidates.append((g1, g2))
-        if candidates:
-            g1, g2 = candidates[0]
-            more = f" (and {len(candidates) - 1} more pairs)" if len(candidates) > 1 else ""
-            raise g1.element.error(
-                f"geoms {g1.name!r} and {g2.name!r} (line {g2.element.line}) can collide{more}, and rbody runs "
-                "contact-free models only. Set contype=\"0\" conaffinity=\"0\" on the geoms that must not collide, "
-                "or disable contacts with <option><flag contact=\"disable\"/></option>")
+        from rbody.mjcf.contacts import explicit_pairs, unsupported_pair
+
+        named = {g.attrib["name"]: g for b in everyone for g in b.geoms if g.attrib.get("name")}
+        explicit = explicit_pairs(self.explicit_pairs, named)  # MuJoCo: an explicit pair replaces the dynamic one
+        listed = {frozenset((g1.name, g2.name)) for g1, g2, _spec in explicit}
+        candidates = [(g1, g2, None) for g1, g2 in candidates if frozenset((g1.name, g2.name)) not in listed]
+        candidates += explicit
+        for g1, g2, spec in candidates:
+            why = unsupported_pair(g1, g2, spec)
+            if why:
+                more = f" (and {len(candidates) - 1} more pairs can collide)" if len(candidates) > 1 else ""
+                raise g1.element.error(
+                    f"geoms {g1.name!r} and {g2.name!r} (line {g2.element.line}) can collide, and {why}{more}. Set "
+                    "contype=\"0\" conaffinity=\"0\" on the geoms that must not collide, or disable contacts with "
+                    "<option><flag contact=\"disable\"/></option>")
+        self.contact_pairs = candidates
 
     def passive(self, element: Element, attrib: dict) -> dict:
         """damping, stiffness, armature of a joint, >= 0; stiffness and damping 0 where the flags disable them."""
@@ -1189,6 +1209,11 @@ class _Reader:
             raise MJCFError(f"{self.root.file}: <custom><numeric name={stray[0]!r}> names no joint of the model")
         layout = self.layout(joints)
         layout = dataclasses.replace(layout, equalities=self.equalities(layout))
+        if self.contact_pairs:
+            from rbody.mjcf.contacts import contacts_of
+
+            layout = dataclasses.replace(layout, contacts=contacts_of(self.contact_pairs, self.numerics,
+                                                                      self.root.file))
         return MJCFModel(layout=layout, name=self.name, gravity=self.gravity, timestep=self.timestep,
                          integrator=self.integrator, qpos0=state_qpos.copy(), qvel0=state_qvel.copy(),
                          keyframes=keyframes, limits=limits, notes=tuple(self.notes), source=self.root.file)

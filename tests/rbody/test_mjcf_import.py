@@ -331,8 +331,8 @@ BODY = '<body name="b"><joint/><geom size="0.1"/></body>'
      "</worldbody></mujoco>", r"line 2, <body>: orientation given twice \(quat and euler\)"),
     (f"<mujoco>{OFF}<worldbody><body><joint/><geom type='capsule' fromto='0 0 0 1 0 0' euler='0 0 1' size='0.1'/>"
      "</body></worldbody></mujoco>", "orientation given twice"),
-    ("<mujoco><worldbody><geom name='floor' type='plane' size='1 1 1'/>\n" + BODY + "</worldbody></mujoco>",
-     r"line 1, <geom name='floor'>.*'floor' and 'b_geom0'.*can collide.*contype"),
+    ("<mujoco><worldbody><geom name='floor' type='plane' size='1 1 1'/>\n" + BODY.replace('size="0.1"', 'type="cylinder" size="0.1 0.2"') + "</worldbody></mujoco>",
+     r"line 1, <geom name='floor'>.*'floor' and 'b_geom0'.*can collide, and rbody computes contacts of plane, sphere.*contype"),
     (f"<mujoco>{OFF}<worldbody>{BODY}</worldbody><equality>\n<tendon tendon1='t'/></equality></mujoco>",
      r"line 2, <tendon>: tendon equality constraints are not supported"),
     (f"<mujoco>{OFF}<worldbody>{BODY}</worldbody><equality>\n<weld body1='nobody'/></equality></mujoco>",
@@ -354,7 +354,7 @@ BODY = '<body name="b"><joint/><geom size="0.1"/></body>'
     (f"<mujoco>{OFF}<worldbody>{BODY}</worldbody><actuator>\n<position joint='b_joint0' kp='10'/></actuator></mujoco>",
      r"line 2, <position>.*zero control"),
     (f"<mujoco><worldbody>{BODY}</worldbody><contact><pair geom1='a' geom2='b'/></contact></mujoco>",
-     "explicit contact pairs"),
+     "geom1='a' is not a geom of the model"),
     (f"<mujoco>{OFF}<worldbody><body><joint frictionloss='-1'/><geom size='0.1'/></body></worldbody></mujoco>",
      r"frictionloss=-1.0: must be >= 0"),
     (f"<mujoco>{OFF}<worldbody><body>\n<joint type='ball' stiffness='2'/><geom size='0.1'/></body>"

@@ -1,4 +1,4 @@
-"""The constraint layer: joint limits, dry joint friction and equalities held rigidly (contacts will join them).
+"""The constraint layer: joint limits, dry joint friction, equalities and contacts between geoms held rigidly.
 
 What is modelled (rbody.layout: Joint.range, Joint.frictionloss, Joint.restitution, Equality) is the rigid limit of
 MuJoCo's soft constraints: a limit is a unilateral constraint that the joint never passes by more than round-off;
@@ -41,8 +41,10 @@ The scheme, in this order and for this reason:
    stepping.EXACT_ROWS rows, else projected Gauss-Seidel to stepping.STEP_TOLERANCE), order 1, no event located;
    the projection after each step keeps equalities and stops at round-off. Why: a chattering joint, a ball coming
    to rest by infinitely many bounces (Zeno), the many contacts of feet and grasps would stop an event-driven run;
-   a time-stepped one passes through them at a cost per step independent of the number of events. This is the
-   scheme contacts will use (the issue of contacts adds their rows to the same problem).
+   a time-stepped one passes through them at a cost per step independent of the number of events. Contacts
+   between geoms (table.CONTACT, CONTACT1: gap functions from rbody.engine.contacts, Coulomb's circular cone solved
+   by cone.py) run by this scheme only, for now: their acceleration-level rows (the gap's curvature terms) are
+   still to come, so a model with contacts offers method "moreau" alone (docs/contacts.md).
 
 A run reports its events (runner.py: trajectory.events and meta["events"]), its constraint forces, errors, held
 limits, sticking dofs and the energy dry friction and impacts dissipated (energy + dissipated is conserved where

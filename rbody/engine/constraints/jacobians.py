@@ -23,7 +23,10 @@ from numba import njit
 
 from rbody.engine.multibody import (B_DOF0, B_NDOF, B_PARENT, BODY_SIZE, DOF_SIZE, H_BODIES, H_BODY, H_DOF,
                                     H_DOFS, _views)
-from rbody.engine.constraints.table import (C_MODE, C_ROWS, C_UNIT, C_UNITS, CONE, COUPLING, FRICTION,
+from rbody.engine.contacts.geometry import tangents
+from rbody.engine.contacts.rows import contact_geometry
+from rbody.engine.constraints.table import (C_MODE, C_ROWS, C_UNIT, C_UNITS, CONE, CONTACT, CONTACT1, COUPLING,
+                                            FRICTION,
                                             LOWER, U_A1, U_A2, U_BOUND, U_BODY1, U_BODY2, U_DOF, U_DOF2, U_KIND,
                                             U_POLY, U_QADR, U_QADR2, U_QUAT, U_REF1, U_REF2, U_ROW0, U_ROWS,
                                             UNIT_SIZE, UPPER, WELD)
@@ -162,6 +165,34 @@ def rotation_vector(quat, out):
 
 
 @njit(cache=True)
+def _contact_rows(p, w, acc, u, r, J, jdot, g, row):
+    """A contact unit's r rows (1: the normal; 3: the normal and the tangents t1, t2 of the contact frame): g the
+    signed distance of its candidate, J = (n; t1; t2) . (J_b - J_a) the relative velocity of geom b's material
+    point at the contact point with respect to geom a's, J' v the same rows of the points' accelerations at qacc
+    = 0 (the material points': only the time-stepping scheme, which reads no J' v, runs contacts)."""
+    normal, point = np.empty(3), np.empty(3)
+    g[row] = contact_geometry(p, w, u, normal, point)
+    frame = np.empty((3, 3))
+    frame[0] = normal
+    tangents(normal, frame[1], frame[2])
+    nv = J.shape[1]
+    Jp = np.zeros((3, nv))
+    bias = np.zeros(3)
+    local = np.empty(3)
+    for body, sign in ((int(p[u + U_BODY2]), 1.0), (int(p[u + U_BODY1]), -1.0)):
+        if body < 0:
+            continue
+        for a in range(3):  # the point about the origin of the body's tree, where its subspaces are written
+            local[a] = point[a] - _origin(p, w, body, a)
+        _add_point_rows(p, w, body, local, sign, Jp, 0, False)
+        _point_bias(p, w, acc, body, local, bias, sign)
+    for e in range(r):
+        for c in range(nv):
+            J[row + e, c] = frame[e, 0] * Jp[0, c] + frame[e, 1] * Jp[1, c] + frame[e, 2] * Jp[2, c]
+        jdot[row + e] = frame[e, 0] * bias[0] + frame[e, 1] * bias[1] + frame[e, 2] * bias[2]
+
+
+@njit(cache=True)
 def unit_rows(p, k, q, v, w, acc, J, jdot, g, row):
     """Rows of unit k into J[row:row + r] (zeroed here, r its rows, over all nv columns), jdot[row:] (J' v) and
     g[row:] (residual: >= 0 feasible for limits, 0 held for equalities, 0 for friction), at the effective qpos q
@@ -213,6 +244,8 @@ def unit_rows(p, k, q, v, w, acc, J, jdot, g, row):
             J[row, d2] -= slope
             jdot[row] = -curvature * v[d2] * v[d2]
         g[row] = q[qa] - p[u + U_REF1] - value
+    elif kind == CONTACT or kind == CONTACT1:
+        _contact_rows(p, w, acc, u, r, J, jdot, g, row)
     else:  # CONNECT or WELD: body1's point p1 on body2's point p2
         body1, body2 = int(p[u + U_BODY1]), int(p[u + U_BODY2])
         p1 = np.empty(3)

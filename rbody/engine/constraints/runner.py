@@ -8,7 +8,8 @@ meta["constraint_rows"] as (kind, name, component)), constraint_error (T, *batch
 each saved state (an equality's residual [m or rad]: a loop's closure error; a limit's overshoot past its stop,
 min(g, 0); 0 for friction), active_limits (T, *batch, limits) 1 where a limit holds the
 joint at its stop (columns meta["limits"]), sticking (T, *batch, frictions) 1 where a dof with dry friction sticks
-(columns meta["frictions"]), dissipated (T, *batch) [J] the energy dry friction, impacts and the joints' dampers have taken so far (the
+(columns meta["frictions"]); with contacts (rbody.engine.contacts.observe) contacts (T, *batch) their count and
+per candidate contact (columns meta["contacts"]) its distance, point, normal, normal and friction force; dissipated (T, *batch) [J] the energy dry friction, impacts and the joints' dampers have taken so far (the
 energy observable plus dissipated is constant: the integrator's error aside, nothing else loses energy). The events of element b are in
 trajectory.events (time, element, what, constraints, energy_lost) and meta["events"] counts them.
 """
@@ -19,7 +20,7 @@ import numpy as np
 
 from rbody.engine.constraints import dynamics as dyn
 from rbody.engine.constraints.events import EventRun
-from rbody.engine.constraints.table import FRICTION, UNILATERAL, ConstraintTable
+from rbody.engine.constraints.table import CONTACT_KINDS, FRICTION, UNILATERAL, ConstraintTable
 
 
 def sample_rows(table: ConstraintTable, params: np.ndarray, samples: np.ndarray,
@@ -43,6 +44,13 @@ def sample_rows(table: ConstraintTable, params: np.ndarray, samples: np.ndarray,
     limits = np.isin(codes, UNILATERAL)
     errors[:, limits] = np.minimum(errors[:, limits], 0.0)
     errors[:, codes == FRICTION] = 0.0
+    normals = np.array([unit.code in CONTACT_KINDS for unit in table.units], dtype=bool)
+    if normals.any():  # a contact's normal row: its penetration min(g, 0); its tangent rows 0
+        first = np.array([unit.row0 for unit in table.units])[normals]
+        contact_rows = np.isin(codes, CONTACT_KINDS)
+        kept = errors[:, first]
+        errors[:, contact_rows] = 0.0
+        errors[:, first] = np.minimum(kept, 0.0)
     return forces, errors
 
 
@@ -86,9 +94,15 @@ def run_constrained(description: str, model, method: str, dt: float, nsteps: int
     data["active_limits"] = modes[:, :, limits] == 1.0
     data["sticking"] = modes[:, :, frictions] == 0.0
     data["dissipated"] = out[:, :, -1]
+    contact_units = [k for k, unit in enumerate(table.units) if unit.code in CONTACT_KINDS]
+    if contact_units:
+        from rbody.engine.contacts.observe import contact_observables
+
+        data.update(contact_observables(table, params, out, forces, contact_units))
     meta = {"events": len(events["time"]), "impacts": impacts, "mode_changes": changes,
             "constraint_rows": table.labels(), "limits": [table.units[k].name for k in limits],
             "frictions": [table.units[k].name for k in frictions],
+            "contacts": [table.units[k].name for k in contact_units],
             "scheme": "time-stepping (Moreau-Jean)" if method == "moreau" else "event-driven (rk4 between events)"}
     arrays = {"time": np.array(events["time"], dtype=float), "element": np.array(events["element"], dtype=int),
               "what": np.array(events["what"], dtype=str), "constraints": np.array(events["constraints"], dtype=str),

@@ -31,8 +31,10 @@ from numba import njit
 
 from rbody.engine.constraints import dynamics as dyn
 from rbody.engine.constraints.jacobians import row_count, unit_at, unit_count
+from rbody.engine.constraints.cone import NORMAL, ROW, TANGENT, TANGENT2, cone_pgs, cone_polish, stick_polish
 from rbody.engine.constraints.solver import mlcp_exact, mlcp_pgs, natural_residual
-from rbody.engine.constraints.table import (C_HEADER, CONE, CONNECT, COUPLING, FRICTION, LOWER, U_BOUND, U_KIND,
+from rbody.engine.constraints.table import (C_HEADER, CONE, CONNECT, CONTACT, CONTACT1, CONTACT_KINDS, COUPLING,
+                                            FRICTION, LOWER, U_BOUND, U_KIND,
                                             UNIT_SIZE,
                                             U_RESTITUTION, U_ROW0, U_ROWS, UPPER, WELD, ConstraintTable)
 from rbody.errors import SimulationError
@@ -40,6 +42,7 @@ from rbody.errors import SimulationError
 EXACT_ROWS = 64          # a step's problem with at most this many rows is solved exactly
 STEP_TOLERANCE = 1e-10   # natural residual of PGS, relative to max(|b|, 1) [m/s or rad/s]
 PGS_SWEEPS = 2000
+CONE_ROUND = 50          # Gauss-Seidel sweeps between two exact finishes of a problem with contacts' cones
 TOUCH_TOLERANCE = 1e-10  # [m or rad]
 PROJECTION_ROUNDS = 6    # projections after a step, each with the stops the last one pushed past
 
@@ -70,6 +73,8 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included):
     jfree = J @ vfree
     index = np.empty(rows, dtype=np.int64)
     lo, hi, b = np.empty(rows), np.empty(rows), np.empty(rows)
+    role, mu = np.zeros(rows, dtype=np.int64), np.zeros(rows)
+    cones = False
     m = 0
     for k in range(unit_count(p)):
         u = unit_at(p, k)
@@ -92,6 +97,23 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included):
             bound = p[u + U_BOUND] * h
             index[m], lo[m], hi[m], b[m] = r0, -bound, bound, jfree[r0]
             m += 1
+        elif kind == CONTACT or kind == CONTACT1:  # a contact: its normal as a limit's row, its cone with it
+            e = p[u + U_RESTITUTION]
+            touching = g[r0] <= TOUCH_TOLERANCE
+            if touching or g[r0] + h * jfree[r0] < 0.0:
+                index[m], lo[m], hi[m] = r0, 0.0, np.inf
+                if touching or e > 0.0:
+                    b[m] = jfree[r0] + e * min(jfree[r0], 0.0)
+                else:
+                    b[m] = jfree[r0] + g[r0] / h
+                m += 1
+                role[m - 1] = NORMAL
+                if kind == CONTACT:
+                    for t in range(1, 3):
+                        index[m], lo[m], hi[m], b[m] = r0 + t, -np.inf, np.inf, jfree[r0 + t]
+                        role[m], mu[m] = (TANGENT, p[u + U_BOUND]) if t == 1 else (TANGENT2, 0.0)
+                        m += 1
+                    cones = True
     previous = P.copy()  # the last step's impulses: the warm start of Gauss-Seidel
     for a in range(rows):
         P[a] = 0.0
@@ -112,7 +134,21 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included):
         scale = 1.0
         for c in range(m):
             scale = max(scale, abs(bb[c]))
-        if m <= exact_rows:
+        if cones:  # Gauss-Seidel by blocks, each round finished exactly (rbody.engine.constraints.cone)
+            roles, mus = role[:m].copy(), mu[:m].copy()
+            done = 0
+            residual = np.inf
+            while done < sweeps:
+                spent, residual = cone_pgs(W, bb, ll, hh, roles, mus, lam, tolerance * scale, min(CONE_ROUND,
+                                                                                                   sweeps - done))
+                done += max(spent, 1)
+                residual = min(stick_polish(W, bb, ll, hh, roles, mus, lam, 8), residual)
+                if residual > 1e-3 * tolerance * scale:
+                    residual = cone_polish(W, bb, ll, hh, roles, mus, lam, 4)
+                if residual <= 1e-3 * tolerance * scale:
+                    break
+            status = 0 if residual <= tolerance * scale else 1
+        elif m <= exact_rows:
             status, _steps = mlcp_exact(W, bb, ll, hh, lam)
             residual = natural_residual(W, bb, ll, hh, lam)
             if status == 0 and residual > tolerance * scale:
@@ -123,6 +159,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included):
         if status != 0:
             return status, residual, m
         x = dyn.upper_solve(L, A @ lam)
+        jnow = J @ v
         loss = 0.0
         for c in range(m):
             P[index[c]] = lam[c]
@@ -130,7 +167,11 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included):
             v[d] = vfree[d] + x[d]
         jafter = J @ v
         for c in range(m):
-            if lo[c] > -np.inf:  # limits and friction: the kinetic energy their impulse took
+            if role[c] != ROW:  # contacts: the work of the impulse at the mean of the velocities before and after
+                # the step (Kelvin's theorem; before it, not after the free motion, so that a contact that holds a
+                # body at rest does no work against the velocity gravity gave it within the step)
+                loss -= 0.5 * lam[c] * (jafter[index[c]] + jnow[index[c]])
+            elif lo[c] > -np.inf:  # limits and friction: the kinetic energy their impulse took
                 loss -= 0.5 * lam[c] * (jafter[index[c]] + jfree[index[c]])
         y[n - 1] += loss
     else:
@@ -157,7 +198,8 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included):
                 for a in range(r0, r0 + r):
                     position_rows[a] = 1.0
                     velocity_rows[a] = 1.0
-            elif (kind == LOWER or kind == UPPER or kind == CONE) and g[r0] <= TOUCH_TOLERANCE * 1e-3 \
+            elif (kind == LOWER or kind == UPPER or kind == CONE or kind == CONTACT or kind == CONTACT1) \
+                    and g[r0] <= TOUCH_TOLERANCE * 1e-3 \
                     and position_rows[r0] == 0.0 and (g[r0] < 0.0 or P[r0] > 0.0):
                 position_rows[r0] = 1.0
                 grown = True
@@ -233,7 +275,7 @@ class MoreauRun:
             if unit.code == FRICTION:
                 bound = unit_bound(self.p, self.table, k) * dt
                 modes[:, k] = np.where(np.abs(value) < bound * (1 - 1e-9), 0.0, -np.sign(value))
-            elif unit.code in (LOWER, UPPER, CONE):
+            elif unit.code in (LOWER, UPPER, CONE) or unit.code in CONTACT_KINDS:
                 modes[:, k] = (value > 0).astype(float)
             else:
                 modes[:, k] = 1.0

@@ -17,7 +17,11 @@ Unit kinds and their rows (g >= 0 feasible for unilateral rows; the force on the
     WELD    p1 - p2 = 0, log(q1 qrel q2^-1) = 0 (6 rows, world)
     COUPLING (qpos1 - ref1) - P(qpos2 - ref2) = 0 (1 row)
 
-mode, per unit: limits and cones 1 active (held as an equality, lambda >= 0), 0 inactive; friction 0 sticking,
+    CONTACT  the signed distance g >= 0 of a candidate contact of two geoms (rbody.engine.contacts.geometry), 3 rows:
+             the normal (J = n . (J_b - J_a) at the contact point, lambda >= 0) and two tangents whose forces stay
+             within the circular cone |lambda_t| <= mu lambda_n (Coulomb); CONTACT1 the normal row alone (condim 1)
+
+mode, per unit: limits, cones and contacts 1 active (held as an equality, lambda >= 0), 0 inactive; friction 0 sticking,
 +1 / -1 sliding with the dof's velocity of that sign (force -frictionloss sign); equalities 1 (always active).
 """
 
@@ -31,10 +35,11 @@ import numpy as np
 from rbody.engine.schema import FLOAT, INT, Record
 from rbody.layout import JOINTS, WORLD, Layout
 
-LOWER, UPPER, CONE, FRICTION, CONNECT, WELD, COUPLING = range(7)
-KIND_ROWS = {LOWER: 1, UPPER: 1, CONE: 1, FRICTION: 1, CONNECT: 3, WELD: 6, COUPLING: 1}
+LOWER, UPPER, CONE, FRICTION, CONNECT, WELD, COUPLING, CONTACT, CONTACT1 = range(9)
+KIND_ROWS = {LOWER: 1, UPPER: 1, CONE: 1, FRICTION: 1, CONNECT: 3, WELD: 6, COUPLING: 1, CONTACT: 3, CONTACT1: 1}
 KIND_NAMES = {LOWER: "limit", UPPER: "limit", CONE: "limit", FRICTION: "friction", CONNECT: "connect",
-              WELD: "weld", COUPLING: "joint"}
+              WELD: "weld", COUPLING: "joint", CONTACT: "contact", CONTACT1: "contact"}
+CONTACT_KINDS = (CONTACT, CONTACT1)
 UNILATERAL = (LOWER, UPPER, CONE)
 EQUALITY_KINDS = (CONNECT, WELD, COUPLING)
 
@@ -49,12 +54,13 @@ CONSTRAINT_HEADER = Record("constraint header", [
 C_UNITS, C_ROWS, C_UNIT, C_MODE = CONSTRAINT_HEADER.offsets()
 C_HEADER = CONSTRAINT_HEADER.size
 UNIT = Record("constraint unit", [
-    ("kind", 1, INT, "LOWER, UPPER, CONE, FRICTION, CONNECT, WELD or COUPLING"),
+    ("kind", 1, INT, "LOWER, UPPER, CONE, FRICTION, CONNECT, WELD, COUPLING, CONTACT or CONTACT1"),
     ("rows", 1, INT, "its rows"),
     ("row0", 1, INT, "its first row among all rows"),
-    ("dof", 1, INT, "its degree of freedom (limits, friction, joint coupling)"),
+    ("dof", 1, INT, "its degree of freedom (limits, friction, joint coupling); a contact's candidate slot"),
     ("qadr", 1, INT, "its qpos address"),
-    ("bound", 1, FLOAT, "lower or upper limit, a cone's largest angle [rad | m], or frictionloss [N m | N]"),
+    ("bound", 1, FLOAT, "lower or upper limit, a cone's largest angle [rad | m], frictionloss [N m | N], or a "
+                                "contact's friction coefficient mu"),
     ("restitution", 1, FLOAT, "Newton's coefficient at an impact"),
     ("body1", 1, INT, "first body (-1: the world)"),
     ("body2", 1, INT, "second body (-1: the world)"),
@@ -66,9 +72,24 @@ UNIT = Record("constraint unit", [
     ("ref1", 1, FLOAT, "reference coordinate of the first joint"),
     ("ref2", 1, FLOAT, "of the second"),
     ("polycoef", 5, FLOAT, "a joint coupling's polynomial"),
+    ("gtype_a", 1, INT, "a contact's geom a: its type (MuJoCo's code)"),
+    ("gpos_a", 3, FLOAT, "its position in its body's frame [m]"),
+    ("gmat_a", 9, FLOAT, "its axes in its body's frame (row-major)"),
+    ("gsize_a", 3, FLOAT, "its size (MuJoCo's) [m]"),
+    ("gtype_b", 1, INT, "geom b: its type"),
+    ("gpos_b", 3, FLOAT, "its position [m]"),
+    ("gmat_b", 9, FLOAT, "its axes"),
+    ("gsize_b", 3, FLOAT, "its size [m]"),
 ])
 (U_KIND, U_ROWS, U_ROW0, U_DOF, U_QADR, U_BOUND, U_RESTITUTION, U_BODY1, U_BODY2, U_A1, U_A2, U_QUAT, U_DOF2,
- U_QADR2, U_REF1, U_REF2, U_POLY) = UNIT.offsets()
+ U_QADR2, U_REF1, U_REF2, U_POLY) = UNIT.offsets(
+    "kind", "rows", "row0", "dof", "qadr", "bound", "restitution", "body1", "body2", "anchor1", "anchor2", "relquat",
+    "dof2", "qadr2", "ref1", "ref2", "polycoef")
+# Contacts (rbody.engine.contacts.rows) reuse U_DOF as the candidate's slot, U_BOUND as the friction coefficient mu,
+# U_RESTITUTION, U_BODY1/U_BODY2 as the bodies of geoms a and b (-1: the world), and hold per geom its type code,
+# its pose in its body's frame and its size:
+U_GTYPE_A, U_GPOS_A, U_GMAT_A, U_GSIZE_A = UNIT.offsets("gtype_a", "gpos_a", "gmat_a", "gsize_a")
+U_GTYPE_B, U_GPOS_B, U_GMAT_B, U_GSIZE_B = UNIT.offsets("gtype_b", "gpos_b", "gmat_b", "gsize_b")
 UNIT_SIZE = UNIT.size
 
 
@@ -265,6 +286,9 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
             if equality.active:
                 add(WELD, equality.name, U_BODY1=b1, U_BODY2=b2, U_A1=relpos, U_A2=anchor, U_QUAT=relquat)
             resolved.append(dataclasses.replace(equality, relpose=tuple(np.concatenate([relpos, relquat]).tolist())))
+    for contact in layout.contacts:
+        for record_fields, name in _contact_units(layout, contact, body_index):
+            add(CONTACT if contact.condim == 3 and contact.friction > 0 else CONTACT1, name, **record_fields)
     if not units:
         return None
     offset = int(np.asarray(multibody.params).size)
@@ -278,4 +302,51 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
     UNIT.check(block, C_HEADER, count)
     block.setflags(write=False)
     mode0.setflags(write=False)
-    return ConstraintTable(units=tuple(units), block=block, offset=offset, mode0=mode0, equalities=tuple(resolved))
+    methods = ("moreau",) if any(unit.code in CONTACT_KINDS for unit in units) else ("rk4", "moreau")
+    return ConstraintTable(units=tuple(units), block=block, offset=offset, mode0=mode0, equalities=tuple(resolved),
+                           methods=methods)
+
+
+def _contact_units(layout: Layout, contact, body_index: dict[str, int]) -> list[tuple[dict, str]]:
+    """The unit records (fields for build_table's add) and names of a Contact's candidates: one per slot of its
+    pair of geoms (rbody.engine.contacts.geometry.SLOTS), the geoms in MuJoCo's order (type codes ascending).
+    Raises ValueError naming the contact for a shape that is not in the layout, two shapes of one body, or a pair
+    of kinds rbody does not compute."""
+    from rbody.engine.contacts.geometry import SLOTS, TYPE_CODES
+    from rbody.motion import quat_to_matrix
+
+    where = {shape.name: (WORLD, shape) for shape in layout.fixed}
+    for body in layout.bodies:
+        for shape in body.shapes:
+            where[shape.name] = (body.name, shape)
+    what = f"contact {contact.shape_a!r}/{contact.shape_b!r}"
+    geoms = []
+    for field_name in ("shape_a", "shape_b"):
+        name = getattr(contact, field_name)
+        if name not in where:
+            raise ValueError(f"{what}: {field_name}={name!r} is not a shape of the layout (a body's or a fixed one)")
+        body, shape = where[name]
+        if shape.kind not in TYPE_CODES:
+            raise ValueError(f"{what}: shape {name!r} is a {shape.kind}: rbody computes contacts of "
+                             f"{tuple(TYPE_CODES)} shapes")
+        geoms.append((TYPE_CODES[shape.kind], body, shape))
+    if geoms[0][1] == geoms[1][1]:
+        raise ValueError(f"{what}: both shapes are on {geoms[0][1]!r}: a contact needs two bodies (or a body and "
+                         "the world)")
+    geoms.sort(key=lambda geom: geom[0])
+    (ta, body_a, shape_a), (tb, body_b, shape_b) = geoms
+    if (ta, tb) not in SLOTS:
+        raise ValueError(f"{what}: rbody computes contacts between plane, sphere, capsule and box shapes except "
+                         f"{shape_a.kind}-{shape_b.kind} (pairs it computes: plane with sphere, capsule, box; "
+                         "sphere with sphere, capsule, box; capsule with capsule; box with box)")
+    fields = dict(U_BOUND=contact.friction, U_RESTITUTION=contact.restitution, U_BODY1=body_index[body_a],
+                  U_BODY2=body_index[body_b])
+    for suffix, code, shape in (("A", ta, shape_a), ("B", tb, shape_b)):
+        size = np.zeros(3)
+        size[:len(shape.size)] = shape.size[:3]
+        fields.update({f"U_GTYPE_{suffix}": code, f"U_GPOS_{suffix}": shape.pos,
+                       f"U_GMAT_{suffix}": quat_to_matrix(np.asarray(shape.quat)).reshape(-1),
+                       f"U_GSIZE_{suffix}": size})
+    count = SLOTS[(ta, tb)]
+    name = f"{shape_a.name}/{shape_b.name}"
+    return [(dict(fields, U_DOF=slot), name if count == 1 else f"{name}[{slot}]") for slot in range(count)]

@@ -1,0 +1,279 @@
+"""Coulomb's circular cone in the complementarity problem of a time step, compiled: projected Gauss-Seidel by blocks.
+
+A contact with friction (condim 3) has three rows in the step's problem, consecutive: its normal n (an impulse
+lambda_n >= 0, its velocity w_n >= 0 after the step, complementary) and its two tangents (t1, t2) whose impulse
+lambda_t = (lambda_t1, lambda_t2) stays in the disc |lambda_t| <= mu lambda_n: inside it the contact sticks
+(w_t = 0), on its edge it slides against its velocity (lambda_t = -mu lambda_n w_t / |w_t|: Coulomb's law with the
+principle of maximal dissipation). This is the exact Coulomb problem at the velocity level, as Siconos's
+nonsmooth Gauss-Seidel poses it (not Anitescu's convexified cone, which lifts a sliding contact off its surface),
+with the other rows of the layer (equalities free, limits and frictionless contacts >= 0, joint friction in a box)
+solved alongside them.
+
+Sweep: every ordinary row i: lambda_i <- clamp(lambda_i - w_i / W_ii, lo_i, hi_i); every contact's tangent pair:
+the projected gradient step lambda_t <- P_disc(lambda_t - w_t / s), s the largest eigenvalue of the pair's 2 x 2
+block of W (a step that decreases the quadratic and whose fixed points are exactly the points where w_t lies in
+the normal cone of the disc, i.e. Coulomb's law), repeated within the block until it settles. The residual is the
+natural residual of the whole problem in the units of w (0 exactly at a solution): the caller compares it with
+its tolerance. Roles: ROW (ordinary), NORMAL (a contact's normal), TANGENT (its first tangent; the second follows).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from rbody.engine.constraints.solver import clamp
+
+ROW, NORMAL, TANGENT, TANGENT2 = 0, 1, 2, 3
+INNER_STEPS = 50
+
+
+@njit(cache=True, inline="always")
+def _disc(x, y, radius):
+    """The point of the disc of the given radius nearest to (x, y)."""
+    length = np.sqrt(x * x + y * y)
+    if length <= radius:
+        return x, y
+    if length == 0.0:
+        return 0.0, 0.0
+    return x * radius / length, y * radius / length
+
+
+@njit(cache=True)
+def _tangent_step_size(W, i):
+    a, b, c = W[i, i], W[i, i + 1], W[i + 1, i + 1]
+    return 0.5 * (a + c) + np.sqrt(0.25 * (a - c) * (a - c) + b * b)
+
+
+@njit(cache=True)
+def cone_residual(W, b, lo, hi, role, mu, lam):
+    """The natural residual of the problem (module docstring) at lam: max over rows of W_ii |lambda_i -
+    clamp(lambda_i - w_i / W_ii)| and over tangent pairs of s |lambda_t - P_disc(lambda_t - w_t / s)|."""
+    m = b.shape[0]
+    w = b + W @ lam
+    worst = 0.0
+    for i in range(m):
+        if role[i] == TANGENT:
+            s = _tangent_step_size(W, i)
+            if s > 0.0:
+                radius = mu[i] * max(lam[normal_of(role, i)], 0.0)
+                x, y = _disc(lam[i] - w[i] / s, lam[i + 1] - w[i + 1] / s, radius)
+                worst = max(worst, s * np.sqrt((lam[i] - x) ** 2 + (lam[i + 1] - y) ** 2))
+        elif role[i] != TANGENT2:
+            d = W[i, i]
+            if d > 0.0:
+                worst = max(worst, d * abs(lam[i] - clamp(lam[i] - w[i] / d, lo[i], hi[i])))
+            elif lam[i] > lo[i] and lam[i] < hi[i]:
+                worst = max(worst, abs(w[i]))
+    return worst
+
+
+@njit(cache=True, inline="always")
+def normal_of(role, i):
+    """The row of the normal of the contact whose first tangent is row i (the row just before it)."""
+    return i - 1
+
+
+@njit(cache=True)
+def cone_pgs(W, b, lo, hi, role, mu, lam, tolerance, max_sweeps):
+    """Solve the step's problem with Coulomb cones by block projected Gauss-Seidel from lam (a warm start), until
+    cone_residual <= tolerance or max_sweeps sweeps. role (m,) each row's ROW, NORMAL, TANGENT or TANGENT2; mu (m,)
+    the friction coefficient on TANGENT rows. Returns (sweeps, residual)."""
+    m = b.shape[0]
+    w = b + W @ lam
+    residual = cone_residual(W, b, lo, hi, role, mu, lam)
+    for sweep in range(max_sweeps):
+        if residual <= tolerance:
+            return sweep, residual
+        w = b + W @ lam  # afresh each sweep: the updates below keep it in step without drift
+        for i in range(m):
+            if role[i] == TANGENT2:
+                continue
+            if role[i] == TANGENT:
+                s = _tangent_step_size(W, i)
+                if not s > 0.0:
+                    continue
+                radius = mu[i] * max(lam[i - 1], 0.0)
+                for _inner in range(INNER_STEPS):
+                    x, y = _disc(lam[i] - w[i] / s, lam[i + 1] - w[i + 1] / s, radius)
+                    dx, dy = x - lam[i], y - lam[i + 1]
+                    if dx == 0.0 and dy == 0.0:
+                        break
+                    lam[i], lam[i + 1] = x, y
+                    for j in range(m):
+                        w[j] += W[j, i] * dx + W[j, i + 1] * dy
+                    if s * np.sqrt(dx * dx + dy * dy) <= 0.01 * tolerance:
+                        break
+                continue
+            d = W[i, i]
+            if not d > 0.0:
+                continue
+            new = clamp(lam[i] - w[i] / d, lo[i], hi[i])
+            delta = new - lam[i]
+            if delta != 0.0:
+                lam[i] = new
+                for j in range(m):
+                    w[j] += W[j, i] * delta
+        residual = cone_residual(W, b, lo, hi, role, mu, lam)
+    return max_sweeps, residual
+
+
+__all__ = ["cone_pgs", "cone_residual", "ROW", "NORMAL", "TANGENT", "TANGENT2"]
+
+
+@njit(cache=True)
+def cone_polish(W, b, lo, hi, role, mu, lam, rounds):
+    """Finish a Gauss-Seidel solution exactly: with the contacts' states read from lam (a normal pushing or not; a
+    pushing contact sticking inside its cone or sliding on its edge, against its tangential velocity), the rows
+    that must have w = 0 (free ordinary rows, pushing normals, sticking tangents) are solved for the impulses within
+    those states (least squares, minimum norm), a sliding contact's force on its cone's edge against its velocity
+    (its direction from the last round's velocities; in the first round from Gauss-Seidel's force); `rounds`
+    rounds, the best kept. Returns the residual of the lam kept."""
+    m = b.shape[0]
+    best = cone_residual(W, b, lo, hi, role, mu, lam)
+    for _round in range(rounds):
+        w = b + W @ lam
+        scale = 0.0
+        for i in range(m):
+            scale = max(scale, abs(lam[i]))
+        tiny = 1e-14 * max(scale, 1e-300)
+        B = np.zeros((m, m))
+        rows = np.empty(m, dtype=np.int64)
+        k = 0
+        e = 0
+        for i in range(m):
+            if role[i] == ROW:
+                if lam[i] > lo[i] and lam[i] < hi[i]:
+                    B[i, k] = 1.0
+                    k += 1
+                    rows[e] = i
+                    e += 1
+            elif role[i] == NORMAL:
+                if lam[i] <= tiny:
+                    continue
+                rows[e] = i
+                e += 1
+                has_cone = i + 1 < m and role[i + 1] == TANGENT
+                if not has_cone:
+                    B[i, k] = 1.0
+                    k += 1
+                    continue
+                j = i + 1
+                tx, ty = lam[j], lam[j + 1]
+                radius = mu[j] * lam[i]
+                if np.sqrt(tx * tx + ty * ty) < radius * (1.0 - 1e-10):  # sticking: the three rows held
+                    B[i, k], B[j, k + 1], B[j + 1, k + 2] = 1.0, 1.0, 1.0
+                    k += 3
+                    rows[e], rows[e + 1] = j, j + 1
+                    e += 2
+                else:  # sliding: its force on the cone's edge, against the tangential velocity (round 0: along
+                    # the force Gauss-Seidel found, whose direction is good where the sliding speed is small)
+                    sx, sy = (tx, ty) if _round == 0 else (-w[j], -w[j + 1])
+                    length = np.sqrt(sx * sx + sy * sy)
+                    if length <= tiny:
+                        sx, sy = tx, ty
+                        length = np.sqrt(sx * sx + sy * sy)
+                    if length > 0.0:
+                        sx, sy = sx / length, sy / length
+                    else:
+                        sx, sy = 0.0, 0.0
+                    B[i, k], B[j, k], B[j + 1, k] = 1.0, mu[j] * sx, mu[j] * sy
+                    k += 1
+        if k == 0 or e == 0:
+            break
+        base = lam.copy()  # the impulses not in any column (rows at a bound), the others solved for whole
+        for c in range(k):
+            for i in range(m):
+                if B[i, c] != 0.0:
+                    base[i] = 0.0
+        w = b + W @ base
+        A = np.empty((e, k))
+        r = np.empty(e)
+        for a in range(e):
+            r[a] = -w[rows[a]]
+            for c in range(k):
+                acc = 0.0
+                for i in range(m):
+                    acc += W[rows[a], i] * B[i, c]
+                A[a, c] = acc
+        x = np.linalg.lstsq(A, r, 1e-13)[0]
+        trial = base + np.ascontiguousarray(B[:, :k]) @ x
+        residual = cone_residual(W, b, lo, hi, role, mu, trial)
+        if residual < best:
+            best = residual
+            for i in range(m):
+                lam[i] = trial[i]
+    return best
+
+
+@njit(cache=True)
+def _least_norm(A, r, weights):
+    """x = the solution of A x = r (least squares where inconsistent) of least sum x_i^2 / weights_i."""
+    k = weights.shape[0]
+    scaled = np.empty_like(A)
+    for c in range(k):
+        root = np.sqrt(weights[c])
+        for a in range(A.shape[0]):
+            scaled[a, c] = A[a, c] * root
+    z = np.linalg.lstsq(scaled, r, 1e-13)[0]
+    for c in range(k):
+        z[c] *= np.sqrt(weights[c])
+    return z
+
+
+@njit(cache=True)
+def stick_polish(W, b, lo, hi, role, mu, lam, rounds):
+    """The exact solution in which every pushing contact sticks, if there is one near lam: the impulses of the
+    rows that must have w = 0 (pushing normals and their tangents, free ordinary rows) solved together, of least
+    sum lambda_j^2 / lambda_n (each contact's rows weighted by its normal impulse, repeated with the new normals
+    `rounds` times). Among the many solutions of a redundant set (four corners of a box on a face) this one is
+    lambda_j = lambda_n (J_j u) for one generalised velocity u: the tangential load follows the normal load, so
+    that every corner stays inside its cone wherever the face as a whole can hold (a block on an incline at
+    mu = tan(alpha) (1 + 1e-6)). lam is replaced when the natural residual falls; returns the residual kept."""
+    m = b.shape[0]
+    best = cone_residual(W, b, lo, hi, role, mu, lam)
+    rows = np.empty(m, dtype=np.int64)
+    owner = np.empty(m, dtype=np.int64)  # the normal row whose impulse weighs each row (-1: ordinary rows)
+    k = 0
+    total, count = 0.0, 0
+    for i in range(m):
+        if role[i] == NORMAL and lam[i] > 0.0:
+            rows[k], owner[k] = i, i
+            k += 1
+            total += lam[i]
+            count += 1
+            if i + 1 < m and role[i + 1] == TANGENT:
+                rows[k], owner[k], rows[k + 1], owner[k + 1] = i + 1, i, i + 2, i
+                k += 2
+        elif role[i] == ROW and lam[i] > lo[i] and lam[i] < hi[i]:
+            rows[k], owner[k] = i, -1
+            k += 1
+    if count == 0:
+        return best
+    mean = total / count
+    trial = lam.copy()
+    inside = np.zeros(m, dtype=np.bool_)
+    for a in range(k):
+        inside[rows[a]] = True
+    A = np.empty((k, k))
+    r = np.empty(k)
+    weights = np.empty(k)
+    for _round in range(rounds):
+        for a in range(k):
+            acc = b[rows[a]]
+            for j in range(m):
+                if not inside[j]:
+                    acc += W[rows[a], j] * trial[j]
+            r[a] = -acc
+            weights[a] = max(trial[owner[a]], 1e-300) if owner[a] >= 0 else mean
+            for c in range(k):
+                A[a, c] = W[rows[a], rows[c]]
+        x = _least_norm(A, r, weights)
+        for a in range(k):
+            trial[rows[a]] = x[a]
+        residual = cone_residual(W, b, lo, hi, role, mu, trial)
+        if residual < best:
+            best = residual
+            for i in range(m):
+                lam[i] = trial[i]
+    return best

@@ -1,0 +1,265 @@
+"""The narrow phase of rbody's contacts: signed distance, normal and contact points of two primitive geoms, compiled.
+
+Geoms are given as MuJoCo gives them to its collision functions (engine_collision_primitive.c): a type code (the
+values of MuJoCo's mjtGeom: PLANE 0, SPHERE 2, CAPSULE 3, BOX 6), the world position pos (3,) [m] of the geom's
+centre, its world orientation mat (3, 3) (columns: the geom's axes) and its size (3,) [m]:
+
+    plane    infinite, through pos, its normal the geom's z axis (mat[:, 2]); size unused
+    sphere   radius size[0]
+    capsule  radius size[0], half-length size[1] of its segment along the geom's z axis
+    box      half sizes size[0:3] along the geom's axes
+
+`collide` takes the pair in MuJoCo's order (type_a <= type_b; the caller swaps) and writes each candidate contact:
+dist [m] (the signed distance between the surfaces along the normal, < 0 when they overlap), normal (3,) the unit
+normal pointing from geom a towards geom b (MuJoCo's contact frame's first axis), and point (3,) [m] midway between
+the two surfaces (MuJoCo's con.pos). It returns the number of candidates, which for a pair of types is fixed
+(SLOTS): a plane and a capsule always give the two end spheres, a plane and a box its 8 corners, whatever their
+distance, so that a contact's identity (which corner, which end) is the same at every state and its distance is a
+smooth function of the configuration (the gap function of the constraint layer). The rigid limit needs no margin:
+the constraint layer decides from the distance and its rate which candidates touch.
+
+Each distance is exact (closed form, no iteration): the surfaces of these primitives are offsets of points,
+segments and boxes, so the distance is the distance between the cores minus the radii, with the normal along the
+line of closest approach; where the cores overlap (a sphere's centre inside a box), the normal is that of the face
+of least penetration. Two boxes give 16 candidates, each corner of one against the other box (vertex-face
+contacts: a box resting on a box, a stack); edge-edge contacts of two boxes crossing each other are not among
+them (a known limit: such boxes can pass through each other's edges). The closest points of two segments follow Ericson's clamped solution (Real-Time Collision
+Detection, 5.1.9); parallel segments take the midpoint of their overlap, so the normal is unique there too.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+PLANE, SPHERE, CAPSULE, ELLIPSOID, CYLINDER, BOX = 0, 2, 3, 4, 5, 6
+TYPE_CODES = {"plane": PLANE, "sphere": SPHERE, "capsule": CAPSULE, "box": BOX}
+# candidates per pair of type codes (type_a <= type_b): the pairs rbody computes
+SLOTS = {(PLANE, SPHERE): 1, (PLANE, CAPSULE): 2, (PLANE, BOX): 8, (SPHERE, SPHERE): 1, (SPHERE, CAPSULE): 1,
+         (CAPSULE, CAPSULE): 1, (SPHERE, BOX): 1, (BOX, BOX): 16}
+MAX_SLOTS = 16
+
+
+@njit(cache=True, inline="always")
+def _sphere_sphere(ca, ra, cb, rb, k, dist, normal, point):
+    """Contact k of a sphere (ca, ra) and a sphere (cb, rb), normal from a to b; coincident centres: +z."""
+    dx, dy, dz = cb[0] - ca[0], cb[1] - ca[1], cb[2] - ca[2]
+    length = np.sqrt(dx * dx + dy * dy + dz * dz)
+    if length > 0.0:
+        nx, ny, nz = dx / length, dy / length, dz / length
+    else:
+        nx, ny, nz = 0.0, 0.0, 1.0
+    d = length - ra - rb
+    dist[k] = d
+    normal[k, 0], normal[k, 1], normal[k, 2] = nx, ny, nz
+    reach = ra + 0.5 * d
+    point[k, 0], point[k, 1], point[k, 2] = ca[0] + nx * reach, ca[1] + ny * reach, ca[2] + nz * reach
+
+
+@njit(cache=True, inline="always")
+def _plane_point(pa, n, c, r, k, dist, normal, point):
+    """Contact k of the plane (pa, normal n) and a sphere (c, r) (r = 0: a point)."""
+    d = n[0] * (c[0] - pa[0]) + n[1] * (c[1] - pa[1]) + n[2] * (c[2] - pa[2]) - r
+    dist[k] = d
+    reach = r + 0.5 * d
+    for a in range(3):
+        normal[k, a] = n[a]
+        point[k, a] = c[a] - n[a] * reach
+
+
+@njit(cache=True)
+def _point_box(c, r, pb, Rb, sb, k, dist, normal, point):
+    """Contact k of a sphere (centre c, radius r; r = 0: a point) and a box (centre pb, axes Rb, half sizes sb), the
+    normal from the sphere towards the box: along the line to the box's nearest point, or, with the centre inside
+    the box, against the outward normal of the face of least depth."""
+    local = np.empty(3)
+    for i in range(3):
+        local[i] = Rb[0, i] * (c[0] - pb[0]) + Rb[1, i] * (c[1] - pb[1]) + Rb[2, i] * (c[2] - pb[2])
+    out = np.empty(3)
+    outside = 0.0
+    for i in range(3):
+        nearest = min(max(local[i], -sb[i]), sb[i])
+        out[i] = local[i] - nearest
+        outside += out[i] * out[i]
+    if outside > 0.0:
+        length = np.sqrt(outside)
+        d = length - r
+        for a in range(3):  # from the sphere towards the box: against the outward offset
+            normal[k, a] = -(Rb[a, 0] * out[0] + Rb[a, 1] * out[1] + Rb[a, 2] * out[2]) / length
+    else:  # the centre inside the box (or on its surface): out through the face of least depth
+        face, depth = 0, sb[0] - abs(local[0])
+        for i in range(1, 3):
+            if sb[i] - abs(local[i]) < depth:
+                face, depth = i, sb[i] - abs(local[i])
+        side = 1.0 if local[face] >= 0.0 else -1.0
+        d = -depth - r
+        for a in range(3):
+            normal[k, a] = -side * Rb[a, face]
+    dist[k] = d
+    reach = r + 0.5 * d
+    for a in range(3):
+        point[k, a] = c[a] + normal[k, a] * reach
+
+
+@njit(cache=True)
+def segment_closest(p1, u1, l1, p2, u2, l2):
+    """(s, t): the parameters of the closest points p1 + s u1 and p2 + t u2 of two segments with centres p1, p2,
+    unit directions u1, u2 and half-lengths l1, l2 (s in [-l1, l1], t in [-l2, l2]); parallel segments: the
+    midpoint of their overlap (or of the gap between them)."""
+    rx, ry, rz = p1[0] - p2[0], p1[1] - p2[1], p1[2] - p2[2]
+    b = u1[0] * u2[0] + u1[1] * u2[1] + u1[2] * u2[2]
+    c = u1[0] * rx + u1[1] * ry + u1[2] * rz
+    f = u2[0] * rx + u2[1] * ry + u2[2] * rz
+    denom = 1.0 - b * b
+    if denom > 1e-12:
+        s = (b * f - c) / denom
+        s = min(max(s, -l1), l1)
+    else:  # parallel: the middle of the overlap of segment 1 with segment 2's projection
+        centre = -c  # p2 projected on line 1, in its parameter; segment 2 spans centre -+ l2 there
+        lo, hi = centre - l2, centre + l2
+        lo, hi = max(lo, -l1), min(hi, l1)
+        s = 0.5 * (lo + hi) if lo <= hi else (l1 if centre > 0 else -l1)
+        s = min(max(s, -l1), l1)
+    t = b * s + f
+    if t < -l2 or t > l2:
+        t = min(max(t, -l2), l2)
+        s = b * t - c
+        s = min(max(s, -l1), l1)
+    return s, t
+
+
+@njit(cache=True)
+def collide(ta, pa, Ra, sa, tb, pb, Rb, sb, dist, normal, point):
+    """The candidate contacts of geom a (type ta <= tb, centre pa (3,) [m], axes Ra (3, 3), size sa (3,) [m]) and
+    geom b, into dist (MAX_SLOTS,) [m], normal (MAX_SLOTS, 3) from a to b and point (MAX_SLOTS, 3) [m]; returns
+    their count (SLOTS of the pair), or -1 for a pair of types it does not compute."""
+    if ta == PLANE:
+        n = np.empty(3)
+        for a in range(3):
+            n[a] = Ra[a, 2]
+        if tb == SPHERE:
+            _plane_point(pa, n, pb, sb[0], 0, dist, normal, point)
+            return 1
+        if tb == CAPSULE:
+            end = np.empty(3)
+            for k in range(2):
+                side = 1.0 if k == 0 else -1.0
+                for a in range(3):
+                    end[a] = pb[a] + side * sb[1] * Rb[a, 2]
+                _plane_point(pa, n, end, sb[0], k, dist, normal, point)
+            return 2
+        if tb == BOX:
+            corner = np.empty(3)
+            for k in range(8):
+                x = sb[0] if k & 1 else -sb[0]
+                y = sb[1] if k & 2 else -sb[1]
+                z = sb[2] if k & 4 else -sb[2]
+                for a in range(3):
+                    corner[a] = pb[a] + Rb[a, 0] * x + Rb[a, 1] * y + Rb[a, 2] * z
+                _plane_point(pa, n, corner, 0.0, k, dist, normal, point)
+            return 8
+        return -1
+    if ta == SPHERE:
+        if tb == SPHERE:
+            _sphere_sphere(pa, sa[0], pb, sb[0], 0, dist, normal, point)
+            return 1
+        if tb == CAPSULE:
+            s = 0.0
+            for a in range(3):
+                s += (pa[a] - pb[a]) * Rb[a, 2]
+            s = min(max(s, -sb[1]), sb[1])
+            centre = np.empty(3)
+            for a in range(3):
+                centre[a] = pb[a] + s * Rb[a, 2]
+            _sphere_sphere(pa, sa[0], centre, sb[0], 0, dist, normal, point)
+            return 1
+        if tb == BOX:
+            _point_box(pa, sa[0], pb, Rb, sb, 0, dist, normal, point)
+            return 1
+        return -1
+    if ta == BOX and tb == BOX:  # each box's corners against the other box (vertex-face contacts)
+        corner = np.empty(3)
+        for k in range(16):
+            own_p, own_R, own_s = (pb, Rb, sb) if k < 8 else (pa, Ra, sa)
+            other_p, other_R, other_s = (pa, Ra, sa) if k < 8 else (pb, Rb, sb)
+            c = k % 8
+            x = own_s[0] if c & 1 else -own_s[0]
+            y = own_s[1] if c & 2 else -own_s[1]
+            z = own_s[2] if c & 4 else -own_s[2]
+            for a in range(3):
+                corner[a] = own_p[a] + own_R[a, 0] * x + own_R[a, 1] * y + own_R[a, 2] * z
+            _point_box(corner, 0.0, other_p, other_R, other_s, k, dist, normal, point)
+            if k < 8:  # a corner of b: its normal points from b to a
+                for a in range(3):
+                    normal[k, a] = -normal[k, a]
+        return 16
+    if ta == CAPSULE and tb == CAPSULE:
+        ua = np.empty(3)
+        ub = np.empty(3)
+        for a in range(3):
+            ua[a] = Ra[a, 2]
+            ub[a] = Rb[a, 2]
+        s, t = segment_closest(pa, ua, sa[1], pb, ub, sb[1])
+        ca = np.empty(3)
+        cb = np.empty(3)
+        for a in range(3):
+            ca[a] = pa[a] + s * ua[a]
+            cb[a] = pb[a] + t * ub[a]
+        _sphere_sphere(ca, sa[0], cb, sb[0], 0, dist, normal, point)
+        return 1
+    return -1
+
+
+@njit(cache=True)
+def tangents(n, t1, t2):
+    """t1, t2 (3,): a right-handed orthonormal frame (n, t1, t2) from the unit normal n (the contact frame; the cone
+    is circular, so which pair of tangents is taken does not change the law)."""
+    if abs(n[0]) < 0.6:
+        ax, ay, az = 1.0, 0.0, 0.0
+    else:
+        ax, ay, az = 0.0, 1.0, 0.0
+    dot = ax * n[0] + ay * n[1] + az * n[2]
+    t1[0], t1[1], t1[2] = ax - dot * n[0], ay - dot * n[1], az - dot * n[2]
+    length = np.sqrt(t1[0] * t1[0] + t1[1] * t1[1] + t1[2] * t1[2])
+    for a in range(3):
+        t1[a] /= length
+    t2[0] = n[1] * t1[2] - n[2] * t1[1]
+    t2[1] = n[2] * t1[0] - n[0] * t1[2]
+    t2[2] = n[0] * t1[1] - n[1] * t1[0]
+
+
+def collide_pair(kind_a: str, pos_a, mat_a, size_a, kind_b: str, pos_b, mat_b, size_b):
+    """The candidate contacts of two geoms in any order, for Python callers: (dist (k,) [m], normal (k, 3) from geom
+    a to geom b, point (k, 3) [m]). kind: "plane", "sphere", "capsule", "box"; pos (3,) [m]; mat (3, 3) the geom's
+    axes as columns; size (3,) or shorter [m]. Raises ValueError for a pair rbody does not compute."""
+    codes = []
+    for kind in (kind_a, kind_b):
+        if kind not in TYPE_CODES:
+            raise ValueError(f"geom kind {kind!r}: expected one of {tuple(TYPE_CODES)}")
+        codes.append(TYPE_CODES[kind])
+    ta, tb = codes
+    swap = ta > tb
+    args = [(ta, pos_a, mat_a, size_a), (tb, pos_b, mat_b, size_b)]
+    if swap:
+        args.reverse()
+    (t1, p1, R1, s1), (t2, p2, R2, s2) = args
+    if (t1, t2) not in SLOTS:
+        raise ValueError(f"geoms {kind_a!r} and {kind_b!r}: rbody computes contacts between the pairs "
+                         f"{sorted(SLOTS)} (type codes as MuJoCo's mjtGeom), not this one")
+    sizes = []
+    for s in (s1, s2):
+        full = np.zeros(3)
+        s = np.atleast_1d(np.asarray(s, dtype=float))
+        full[:s.size] = s
+        sizes.append(full)
+    dist, normal, point = np.empty(MAX_SLOTS), np.empty((MAX_SLOTS, 3)), np.empty((MAX_SLOTS, 3))
+    count = collide(t1, np.asarray(p1, dtype=float), np.asarray(R1, dtype=float), sizes[0], t2,
+                    np.asarray(p2, dtype=float), np.asarray(R2, dtype=float), sizes[1], dist, normal, point)
+    dist, normal, point = dist[:count].copy(), normal[:count].copy(), point[:count].copy()
+    if swap:
+        normal = -normal
+    return dist, normal, point
+
+
+__all__ = ["collide", "collide_pair", "tangents", "segment_closest", "SLOTS", "MAX_SLOTS", "TYPE_CODES", "PLANE",
+           "SPHERE", "CAPSULE", "BOX"]

@@ -1,0 +1,68 @@
+"""The contact observables of a constrained run: how many contacts hold, and where and how hard each pushes.
+
+Columns: one per candidate contact of the constraint table (meta["contacts"]: "<geom a>/<geom b>" and the
+candidate's slot, e.g. "floor/box[3]" for a box's fourth corner), geoms in MuJoCo's order (type codes ascending).
+
+    contacts (T, *batch)                       the number of candidates whose normal force is > 0
+    contact_distance (T, *batch, k) [m]        signed distance (< 0: overlap; round-off in the rigid limit)
+    contact_point (T, *batch, k, 3) [m]        the candidate's point, midway between the surfaces, world frame
+    contact_normal (T, *batch, k, 3)           its unit normal, from geom a towards geom b, world frame
+    contact_normal_force (T, *batch, k) [N]    the force geom a exerts on geom b along the normal (>= 0)
+    contact_friction_force (T, *batch, k, 2) [N]  the friction force on geom b along the contact frame's
+                                               tangents (rbody.engine.contacts.geometry.tangents); 0 for condim 1
+
+Forces are those of the constraint_force observable (time-stepping: the step's impulse over dt, its mean force).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from rbody.engine.constraints import dynamics as dyn
+from rbody.engine.constraints.jacobians import row_count, unit_at
+from rbody.engine.contacts.rows import contact_geometry
+from rbody.engine.multibody import H_BODIES, _effective_qpos, workspace_size
+
+
+@njit(cache=True)
+def contact_frames(p, y, units, dist, point, normal):
+    """At the state y (n,): dist (k,), point (k, 3), normal (k, 3) of the contact units listed in units (k,)."""
+    nq, nv, _n = dyn.sizes(p)
+    q = np.empty(nq)
+    _effective_qpos(p, y, q, 0)
+    from_rows = row_count(p)
+    w = np.empty(workspace_size(p))
+    M = np.empty((nv, nv))
+    f = np.empty(nv)
+    J = np.zeros((from_rows, nv))
+    jdot, g = np.zeros(from_rows), np.zeros(from_rows)
+    acc = np.empty((int(p[H_BODIES]), 6))
+    wanted = np.zeros(from_rows)
+    dyn.snapshot(p, q, y[nq:nq + nv], M, f, J, jdot, g, w, acc, wanted)  # the frames, no rows
+    for i in range(units.shape[0]):
+        dist[i] = contact_geometry(p, w, unit_at(p, units[i]), normal[i], point[i])
+
+
+def contact_observables(table, params: np.ndarray, out: np.ndarray, forces: np.ndarray, units: list[int]) -> dict:
+    """The observables of the module docstring from the saved states out (S, B, n) and the rows' forces
+    (S, B, rows) of a run."""
+    S, B = out.shape[:2]
+    k = len(units)
+    index = np.array(units, dtype=np.int64)
+    dist, point, normal = np.empty((S, B, k)), np.empty((S, B, k, 3)), np.empty((S, B, k, 3))
+    for b in range(B):
+        p = np.array(params[b], dtype=np.float64)
+        for s in range(S):
+            contact_frames(p, out[s, b], index, dist[s, b], point[s, b], normal[s, b])
+    first = np.array([table.units[u].row0 for u in units])
+    friction = np.zeros((S, B, k, 2))
+    for i, u in enumerate(units):
+        if table.units[u].rows == 3:
+            friction[:, :, i] = forces[:, :, first[i] + 1:first[i] + 3]
+    normal_force = forces[:, :, first]
+    return {"contacts": (normal_force > 0).sum(axis=-1), "contact_distance": dist, "contact_point": point,
+            "contact_normal": normal, "contact_normal_force": normal_force, "contact_friction_force": friction}
+
+
+__all__ = ["contact_observables", "contact_frames"]

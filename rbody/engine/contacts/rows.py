@@ -1,0 +1,63 @@
+"""Where a contact unit's geoms are, and its candidate contact, from the tree's workspace, compiled.
+
+A contact unit of the constraint table (rbody.engine.constraints.table: CONTACT, CONTACT1) names two geoms by
+their type codes, their bodies (-1: the world) and their poses in their bodies' frames; after the tree's
+kinematics (rbody.engine.multibody: xorigin, xpos, xmat) each geom's world pose is its body's pose composed with
+its own, and the unit's candidate (its slot among the pair's candidates, rbody.engine.contacts.geometry) gives
+the gap function g (the signed distance), the normal n (from geom a to geom b) and the contact point.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from rbody.engine.contacts.geometry import MAX_SLOTS, collide
+from rbody.engine.multibody import _views
+from rbody.engine.constraints.table import (U_BODY1, U_BODY2, U_DOF, U_GMAT_A, U_GMAT_B, U_GPOS_A, U_GPOS_B,
+                                            U_GSIZE_A, U_GSIZE_B, U_GTYPE_A, U_GTYPE_B)
+
+
+@njit(cache=True)
+def geom_pose(p, w, body, pos_at, mat_at, pos, mat):
+    """pos (3,) [m] and mat (3, 3) of a geom in the world: body's frame (world coordinates, its tree's origin
+    added) composed with the geom's pose read at pos_at, mat_at in the params row p (the world's: as read)."""
+    if body < 0:
+        for a in range(3):
+            pos[a] = p[pos_at + a]
+            for c in range(3):
+                mat[a, c] = p[mat_at + 3 * a + c]
+        return
+    ws = _views(p, w)
+    for a in range(3):
+        acc = ws.xorigin[body, a] + ws.xpos[body, a]
+        for c in range(3):
+            acc += ws.xmat[body, a, c] * p[pos_at + c]
+        pos[a] = acc
+        for c in range(3):
+            value = 0.0
+            for e in range(3):
+                value += ws.xmat[body, a, e] * p[mat_at + 3 * e + c]
+            mat[a, c] = value
+    return
+
+
+@njit(cache=True)
+def contact_geometry(p, w, u, normal, point):
+    """The gap g [m] of the contact unit whose record starts at u (returned), its normal (3,) from geom a to geom b
+    and its point (3,) [m, world], after the tree's kinematics in the workspace w."""
+    pa, pb = np.empty(3), np.empty(3)
+    Ra, Rb = np.empty((3, 3)), np.empty((3, 3))
+    geom_pose(p, w, int(p[u + U_BODY1]), u + U_GPOS_A, u + U_GMAT_A, pa, Ra)
+    geom_pose(p, w, int(p[u + U_BODY2]), u + U_GPOS_B, u + U_GMAT_B, pb, Rb)
+    dist, normals, points = np.empty(MAX_SLOTS), np.empty((MAX_SLOTS, 3)), np.empty((MAX_SLOTS, 3))
+    collide(int(p[u + U_GTYPE_A]), pa, Ra, p[u + U_GSIZE_A:u + U_GSIZE_A + 3], int(p[u + U_GTYPE_B]), pb, Rb,
+            p[u + U_GSIZE_B:u + U_GSIZE_B + 3], dist, normals, points)
+    k = int(p[u + U_DOF])
+    for a in range(3):
+        normal[a] = normals[k, a]
+        point[a] = points[k, a]
+    return dist[k]
+
+
+__all__ = ["geom_pose", "contact_geometry"]

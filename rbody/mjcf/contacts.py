@@ -1,0 +1,127 @@
+"""MJCF's contacts as rbody Contacts: MuJoCo's combination rules for a geom pair, and rbody's restitution numerics.
+
+The broad phase's filter (which pairs can collide) is rbody.mjcf.parse (check_contacts: welds, parent-child,
+<exclude>, contype/conaffinity, the contact flag), and every explicit <pair> (which replaces the dynamic pair of
+the same geoms, as MuJoCo's does, with its own friction (the first of its five, default 1) and condim (default 3),
+whatever the filters). For each dynamic pair kept, as MuJoCo's mj_contactParam combines them:
+
+- friction: the sliding coefficient (the first of a geom's `friction`, default 1) of the geom with the higher
+  `priority`, or, at equal priority, the larger of the two (MuJoCo takes the maximum of each component);
+- condim: the higher-priority geom's, or the larger; rbody models 1 (frictionless) and 3 (Coulomb's circular cone,
+  exact, rigid); 4 and 6 (torsional and rolling friction) are refused;
+- restitution (rbody's own, MuJoCo's contacts have none but their softness): Newton's coefficient, from
+  ``<custom><numeric name="rbody.contact_restitution.GEOM" data="e"/>`` on either geom (the larger of the two when
+  both have one), else ``<numeric name="rbody.contact_restitution" data="e"/>`` for every pair, else 0 (plastic:
+  the rigid limit of MuJoCo's critically damped default);
+- solref, solimp, margin, gap, solmix (MuJoCo's softness and activation distance) have no counterpart in the rigid
+  limit: a contact acts at distance 0 and holds to round-off.
+
+Geom kinds rbody computes: plane, sphere, capsule, box, the pairs of rbody.engine.contacts.geometry.SLOTS.
+"""
+
+from __future__ import annotations
+
+from rbody.layout import Contact
+from rbody.mjcf.document import MJCFError, integer, numbers
+
+CONTACT_RESTITUTION = "rbody.contact_restitution"
+
+
+def _kind_code(geom) -> int | None:
+    from rbody.engine.contacts.geometry import TYPE_CODES
+
+    return TYPE_CODES.get(geom.kind)
+
+
+def _combined(g1, g2, key: str, read):
+    p1, p2 = (integer(g.element, "priority", g.attrib, 0) for g in (g1, g2))
+    v1, v2 = read(g1), read(g2)
+    if p1 != p2:
+        return v1 if p1 > p2 else v2
+    return max(v1, v2)
+
+
+def _friction(geom) -> float:
+    if "friction" not in geom.attrib:
+        return 1.0
+    return float(numbers(geom.element, "friction", geom.attrib)[0])
+
+
+def _condim(geom) -> int:
+    return integer(geom.element, "condim", geom.attrib, 3)
+
+
+def explicit_pairs(pairs, named: dict) -> list:
+    """(g1, g2, spec) of every <pair> (element, attributes with its class's defaults): the geoms it names (by the
+    names the file gives them) and spec = {"friction": the first of its friction (default 1), "condim": its condim
+    (default 3)}, MuJoCo's defaults for a pair (its own, not its geoms'). Raises MJCFError for a missing or unknown
+    geom, or a pair of one geom with itself."""
+    out = []
+    for element, attrib in pairs:
+        geoms = []
+        for key in ("geom1", "geom2"):
+            if key not in attrib:
+                raise element.error(f"a <pair> needs {key}")
+            if attrib[key] not in named:
+                raise element.error(f"{key}={attrib[key]!r} is not a geom of the model")
+            geoms.append(named[attrib[key]])
+        if geoms[0] is geoms[1]:
+            raise element.error(f"geom1 and geom2 are both {attrib['geom1']!r}")
+        friction = float(numbers(element, "friction", attrib)[0]) if "friction" in attrib else 1.0
+        condim = integer(element, "condim", attrib, 3)
+        if condim not in (1, 3, 4, 6):
+            raise element.error(f"condim={attrib['condim']!r}: MuJoCo allows 1, 3, 4 or 6 (invalid condim)")
+        out.append((geoms[0], geoms[1], {"friction": friction, "condim": condim}))
+    return out
+
+
+def unsupported_pair(g1, g2, spec: dict | None = None) -> str:
+    """Why rbody cannot run contacts between geoms g1 and g2 (parse's _Geom; spec: an explicit <pair>'s friction
+    and condim), or "" when it can."""
+    from rbody.engine.contacts.geometry import SLOTS
+
+    codes = [_kind_code(g) for g in (g1, g2)]
+    if None in codes:
+        kind = g1.kind if codes[0] is None else g2.kind
+        return (f"rbody computes contacts of plane, sphere, capsule and box geoms, not {kind} (cylinder, ellipsoid, "
+                "mesh and height-field contacts are to come)")
+    if tuple(sorted(codes)) not in SLOTS:
+        return (f"rbody does not compute {g1.kind}-{g2.kind} contacts yet (it computes plane with sphere, capsule and "
+                "box; sphere with sphere, capsule and box; capsule with capsule; box with box)")
+    condim = spec["condim"] if spec else _combined(g1, g2, "condim", _condim)
+    if condim not in (1, 3):
+        return (f"their contact has condim {condim}: rbody models condim 1 (frictionless) and 3 (Coulomb's cone), "
+                "not torsional (4) or rolling (6) friction")
+    return ""
+
+
+def contacts_of(pairs, numerics: dict, source: str) -> tuple[Contact, ...]:
+    """The rbody Contact of every geom pair (g1, g2, spec) kept by the broad phase or listed (spec: explicit_pairs), with MuJoCo's friction and condim and
+    rbody's restitution (module docstring). Raises MJCFError for a restitution numeric naming no geom."""
+    names = {g.name for g1, g2, _spec in pairs for g in (g1, g2)}
+    prefix = CONTACT_RESTITUTION + "."
+    stray = sorted(n for n in numerics if n.startswith(prefix) and n[len(prefix):] not in names)
+    if stray:
+        raise MJCFError(f"{source}: <custom><numeric name={stray[0]!r}> names no geom that can collide")
+    for key, data in numerics.items():
+        if (key == CONTACT_RESTITUTION or key.startswith(prefix)) and (data.size != 1 or not 0 <= data[0] <= 1):
+            raise MJCFError(f"{source}: <custom><numeric name={key!r}>: a restitution is one number in [0, 1], "
+                            f"not {data.tolist()}")
+    out = []
+    for g1, g2, spec in pairs:
+        own = [float(numerics[prefix + g.name][0]) for g in (g1, g2) if prefix + g.name in numerics]
+        if own:
+            restitution = max(own)
+        elif CONTACT_RESTITUTION in numerics:
+            restitution = float(numerics[CONTACT_RESTITUTION][0])
+        else:
+            restitution = 0.0
+        if spec:
+            friction, condim = spec["friction"], spec["condim"]
+        else:
+            friction, condim = _combined(g1, g2, "friction", _friction), _combined(g1, g2, "condim", _condim)
+        out.append(Contact(g1.name, g2.name, friction=friction, restitution=restitution, condim=condim))
+    return tuple(out)
+
+
+__all__ = ["contacts_of", "unsupported_pair", "CONTACT_RESTITUTION"]

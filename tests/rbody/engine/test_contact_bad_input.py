@@ -1,0 +1,54 @@
+"""Bad input to contacts: refused before any work, naming the contact and what was expected."""
+
+import pytest
+
+import rbody
+from rbody import Body, Contact, Joint, Layout, Scene, Shape
+from rbody.engine.contacts.geometry import collide_pair
+from rbody.errors import MethodNotApplicable
+from rbody.inertia import Inertia
+
+
+def layout_with(contact, shape=Shape("s", "sphere", (0.1,)), fixed=(Shape("floor", "plane", (0, 0)),)):
+    ball = Body("ball", Inertia.solid_sphere(1.0, 0.1), shapes=(shape,), pos=(0, 0, 0.1))
+    return Layout(bodies=(ball,), joints=(Joint("free", "free", "ball"),), fixed=fixed, contacts=(contact,))
+
+
+@pytest.mark.parametrize("contact, shape, match", [
+    (Contact("floor", "nothing"), Shape("s", "sphere", (0.1,)), r"shape_b='nothing' is not a shape of the layout"),
+    (Contact("floor", "c"), Shape("c", "cylinder", (0.1, 0.2)), r"shape 'c' is a cylinder"),
+])
+def test_layout_contacts_refused(contact, shape, match):
+    with pytest.raises(ValueError, match=match):
+        Scene.from_layout(layout_with(contact, shape), t_end=1.0)
+
+
+def test_two_world_shapes_refused():
+    fixed = (Shape("floor", "plane", (0, 0)), Shape("rock", "sphere", (0.1,)))
+    with pytest.raises(ValueError, match="both shapes are on 'world'"):
+        Scene.from_layout(layout_with(Contact("floor", "rock"), fixed=fixed), t_end=1.0)
+
+
+def test_contact_fields_checked():
+    with pytest.raises(ValueError, match="condim=4"):
+        Contact("a", "b", condim=4)
+    with pytest.raises(ValueError, match="restitution"):
+        Contact("a", "b", restitution=1.5)
+    with pytest.raises(ValueError, match="friction"):
+        Contact("a", "b", friction=-0.1)
+
+
+def test_contacts_run_by_time_stepping_only():
+    scene = Scene.from_layout(layout_with(Contact("floor", "s", friction=0.5)), t_end=0.01)
+    assert scene.methods == ("moreau",)
+    with pytest.raises(MethodNotApplicable, match="moreau"):
+        rbody.simulate(scene, dt=1e-3, method="rk4")
+
+
+def test_geometry_refuses_unknown_kinds_and_pairs():
+    import numpy as np
+
+    with pytest.raises(ValueError, match="geom kind 'cone'"):
+        collide_pair("cone", [0, 0, 0], np.eye(3), [1], "sphere", [0, 0, 0], np.eye(3), [1])
+    with pytest.raises(ValueError, match="'plane' and 'plane'"):
+        collide_pair("plane", [0, 0, 0], np.eye(3), [], "plane", [0, 0, 0], np.eye(3), [])
