@@ -56,6 +56,8 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument("model", help="an MJCF file, a URDF file, or 'module:name' / 'file.py:name' naming an rbody "
                                        "Scene")
     compare.add_argument("--t-end", type=float, metavar="S", help="duration [s] (default: the model's)")
+    compare.add_argument("--no-constraints", action="store_true",
+                         help="a URDF's limits, friction and mimics recorded, not applied (as Pinocchio's aba runs it)")
     compare.add_argument("--dt", type=float, metavar="S", help="time step [s] (default: the model's timestep, else 1e-3)")
     compare.add_argument("--method", metavar="M", help="rbody's method (default: rk4 where it applies, MuJoCo's scheme)")
     compare.add_argument("--engines", default=None,
