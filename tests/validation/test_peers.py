@@ -220,3 +220,26 @@ def test_compare_a_urdf_with_every_engine(arm, tmp_path):
     assert main(["compare", arm, "--t-end", "0.2", "--engines", "rbody,pinocchio", "--no-constraints", "--out",
                  str(tmp_path / "o")]) == 0
     assert (tmp_path / "o" / "arm.md").exists()
+
+
+# ----- the main command ---------------------------------------------------------------------------------------
+
+def test_the_main_command_runs_the_peers_where_they_can_express_a_scene():
+    """Pinocchio runs the contact-free trees (same rk4 as rbody: the same error to round-off), Bullet the trees and
+    the contacts (first order); a scene a peer cannot express, or one the main command skips, is a refused row with
+    the reason."""
+    from dataclasses import replace
+
+    from validation.cases import default_cases
+    from validation.evaluate import evaluate
+
+    cases = {c.name: c for c in default_cases(quick=True)}
+    rows, _ = evaluate(cases["swinging_rod"], ("rbody", "pinocchio"))
+    value = {(r.backend, r.metric): r for r in rows}
+    ours, theirs = value["rbody", "max_abs_error"], value["pinocchio", "max_abs_error"]
+    assert theirs.verdict == "ok" and theirs.value == pytest.approx(ours.value, rel=1e-3)
+    rows, _ = evaluate(cases["rolling_disc"], ("pinocchio",))
+    assert rows[0].verdict == "refused" and "contact" in rows[0].note
+    skipped = replace(cases["pi_collisions_0"], skipped={"bullet": "not run here: the reason"})
+    rows, _ = evaluate(skipped, ("bullet",))
+    assert [(r.verdict, r.note) for r in rows] == [("refused", "not run here: the reason")]
