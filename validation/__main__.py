@@ -42,6 +42,8 @@ def _parser() -> argparse.ArgumentParser:
                        help="only this scene, or 'batch' or 'growth' (repeatable; default: all)")
     bench.add_argument("--quick", action="store_true", help="short sweeps, under 2 minutes (the test suite's)")
     bench.add_argument("--out", type=Path, default=Path("report/bench"), help="folder (default: report/bench/)")
+    bench.add_argument("--engine", action="append", choices=("rbody", "mujoco", "pymunk", "pinocchio", "bullet"),
+                       help="only this engine's series (repeatable; default: every engine's)")
     bench.add_argument("--repeat", type=int, default=1, metavar="N",
                        help="run every sweep N times; the summary gives each ratio with its range (default: 1)")
     hard = commands.add_parser(

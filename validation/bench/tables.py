@@ -56,7 +56,7 @@ def ratio_table(points: list[Point]) -> str:
              "|---|" + "---|" * len(LEVELS)]
     for scene in scenes:
         mine = [p for p in points if p.scene == scene]
-        columns = ["rbody"] + [c for c in ("mujoco", "mujoco reduced", "pymunk")
+        columns = ["rbody"] + [c for c in ("mujoco", "mujoco reduced", "pymunk", "pinocchio", "bullet")
                                if any(column(p) == c and not math.isnan(p.dt) for p in mine)]
         _table, standing = level_table(mine, scene, columns)
         cells = []
