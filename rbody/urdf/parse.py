@@ -353,6 +353,10 @@ class _Reader:
         joint name -> type. A mimic of or by a joint other than revolute, continuous or prismatic is refused."""
         out = []
         for follower, (leader, multiplier, offset) in self.mimics.items():
+            if leader not in kinds:
+                raise self.mimic_elements[follower].error(
+                    f"joint {follower!r} mimics joint {leader!r}, which is not a joint of the robot; "
+                    "constraints=False loads the file with the mimic recorded only")
             for joint in (follower, leader):
                 if kinds[joint] not in ("revolute", "continuous", "prismatic"):
                     raise self.mimic_elements[follower].error(
@@ -405,10 +409,6 @@ class _Reader:
                                     "trees")
             parent_joint[joint["child"]] = joint
             read_joints.append(joint)
-        for follower, (leader, _, _) in self.mimics.items():
-            if leader not in names:
-                element = next(j["element"] for j in read_joints if j["name"] == follower)
-                raise element.one("mimic").error(f"mimics joint {leader!r}, which is not a joint of the robot")
         return links, parent_joint, read_joints
 
     def build(self, qpos0, qvel0) -> URDFModel:

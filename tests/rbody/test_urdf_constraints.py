@@ -231,3 +231,11 @@ def test_mujocos_loader_reads_the_same_three_and_holds_them_softly(tmp_path):
     stray = np.max(np.abs(qpos[:, 1] - (2 * qpos[:, 0] + 0.1)))
     assert stray > 1e-4  # measured 2.9e-4 rad
     print(f"MuJoCo {mujoco.__version__}: past the stop {past:.3g} rad, creep {creep:.3g} rad, mimic {stray:.3g} rad")
+
+
+def test_a_mimic_of_a_missing_joint_is_refused_with_its_line():
+    """Found in a published robot (a hand whose mimics name 'index_q1' where the joint is 'Left_index_q1')."""
+    text = twin_urdf(1.0, 0.0).replace('<mimic joint="ja"', '<mimic joint="nope"')
+    with pytest.raises(URDFError, match=r"line 1, <mimic>: joint 'jb' mimics joint 'nope', which is not a joint"):
+        from_urdf(text)
+    assert from_urdf(text, constraints=False).mimics == {"jb": ("nope", 1.0, 0.0)}

@@ -146,3 +146,24 @@ def test_bench_of_one_engine_sweeps_its_settings_and_dt(tmp_path):
     assert 0.8 < slope < 1.2  # first order
     settings = {r["settings"] for r in rows if r["scene"] == "rolling_disc"}
     assert any("solver_iterations" in s for s in settings)
+
+
+def test_peer_table_reads_each_engine_off_its_curve():
+    """The README's peers table: a column per engine, its least cost at each level it reaches on its curve, '-'
+    for an engine that does not express the scene, 'never' for one swept that does not reach the level."""
+    from validation.bench.tables import peer_table
+
+    def curve(backend, settings, costs_errors):
+        return [Point("rod", backend, "m", settings, dt, error=e, seconds_per_sim_second=c)
+                for dt, (c, e) in zip((1e-1, 1e-2, 1e-3), costs_errors)]
+
+    points = (curve("rbody", "default", [(1e-5, 1e-4), (1e-4, 1e-8), (1e-3, 1e-12)])
+              + curve("mujoco", "default", [(1e-4, 1e-3), (1e-3, 1e-7), (1e-2, 1e-11)])
+              + curve("bullet", "solver_iterations=50", [(1e-3, 1e-2), (1e-2, 1e-3), (1e-1, 1e-4)]))
+    table = peer_table(points)
+    row = next(line for line in table.splitlines() if line.startswith("| rod | 1e-03 |"))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert cells[2].startswith("1e-05") and cells[3].startswith("0.0001 (MuJoCo") and cells[4] == "-"
+    assert cells[5].startswith("0.01 (m, solver_iterations=50")
+    row = next(line for line in table.splitlines() if line.startswith("| rod | 1e-06 |"))
+    assert row.rstrip().endswith("| never |")  # Bullet swept, never at 1e-6
