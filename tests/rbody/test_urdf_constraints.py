@@ -239,3 +239,23 @@ def test_a_mimic_of_a_missing_joint_is_refused_with_its_line():
     with pytest.raises(URDFError, match=r"line 1, <mimic>: joint 'jb' mimics joint 'nope', which is not a joint"):
         from_urdf(text)
     assert from_urdf(text, constraints=False).mimics == {"jb": ("nope", 1.0, 0.0)}
+
+
+def test_two_fingers_on_their_stops_tied_by_a_mimic_run():
+    """A gripper as published robots write it (Panda, PR2, Baxter, TALOS): two fingers, each with a stop at 0, the
+    second mimicking the first, both on their stops with gravity pressing the first onto its stop and the second
+    away from it. The stops and the mimic are redundant: one force holds both. rbody holds the first stop, leaves
+    the second (no force: the mimic keeps it there) and runs; both stay at their stops to round-off. (Before: the
+    minimum-norm split of the redundant set pulled on the second stop, and the run was refused at t = 0.)"""
+    finger = ('<link name="{0}"><inertial><mass value="0.1"/><inertia ixx="1e-4" iyy="1e-4" izz="1e-4" ixy="0" '
+              'ixz="0" iyz="0"/></inertial></link>')
+    text = ('<robot name="gripper"><link name="world"/>' + finger.format("hand") + finger.format("a")
+            + finger.format("b") +
+            '<joint name="tilt" type="fixed"><parent link="world"/><child link="hand"/><origin rpy="1.0 0 0"/></joint>'
+            '<joint name="j1" type="prismatic"><parent link="hand"/><child link="a"/><axis xyz="0 1 0"/>'
+            '<limit lower="0" upper="0.04" effort="1" velocity="1"/></joint>'
+            '<joint name="j2" type="prismatic"><parent link="hand"/><child link="b"/><axis xyz="0 -1 0"/>'
+            '<limit lower="0" upper="0.04" effort="1" velocity="1"/><mimic joint="j1"/></joint></robot>')
+    run = rbody.simulate(from_urdf(text, t_end=0.5), dt=1e-3)
+    assert np.max(np.abs(run["qpos"])) < 1e-15
+    assert np.all(run["active_limits"].sum(axis=1) >= 1)  # the first finger's stop holds
