@@ -63,7 +63,8 @@ environment variable ROS_PACKAGE_PATH, file://, or relative to the URDF's folder
 Mesh scale is noted (no mass comes from meshes). Shapes are named "<link>_collision_<i>" / "<link>_visual_<i>".
 
 Ignored with a note: <material>, <transmission>, <gazebo>, <ros2_control>, <mujoco> (MuJoCo's own compiler
-options), <sensor>, joints' <calibration> and <safety_controller>, links' <contact> (Bullet's), <self_filter>,
+options), <sensor>, joints' <calibration>, <safety_controller> and <joint_properties> (early URDF's, ignored by
+urdfdom, Pinocchio and Bullet; non-zero damping or friction there is named in a note), links' <contact> (Bullet's), <self_filter>,
 <collision_checking>, <kinematic> and a stray <origin>, collisions' <material> and <verbose>. Refused (URDFError):
 anything else, unknown joint types, a link with two parents (a loop), several root links, a joint naming a
 missing link, repeated names, malformed numbers or XML, a missing mesh, mass < 0, a mass of 0 with moments.
@@ -242,8 +243,16 @@ class _Reader:
                                 "dynamics": None, "mimic": None,
                                 "calibration": "joints' <calibration> ignored (sensor calibration)",
                                 "safety_controller": "joints' <safety_controller> ignored (controller "
-                                                     "soft limits)"}, self.notes)
+                                                     "soft limits)",
+                                "joint_properties": "joints' <joint_properties> ignored (an element of early URDF that "
+                                                    "urdfdom, Pinocchio and Bullet ignore; <dynamics> is URDF's)"},
+                               self.notes)
         name = element.text_attribute("name")
+        legacy = element.one("joint_properties")
+        if legacy is not None and any(legacy.number(key, 0.0) != 0 for key in ("damping", "friction")
+                                      if key in legacy.attrib):
+            self.note(f"joint {name!r}: <joint_properties> damping/friction NOT applied (ignored as urdfdom, Pinocchio "
+                      "and Bullet ignore them; write them in <dynamics>)")
         kind = element.text_attribute("type")
         if kind not in JOINT_TYPES:
             raise element.error(f"type={kind!r}: unknown joint type (URDF's are revolute, continuous, prismatic, "

@@ -259,3 +259,13 @@ def test_two_fingers_on_their_stops_tied_by_a_mimic_run():
     run = rbody.simulate(from_urdf(text, t_end=0.5), dt=1e-3)
     assert np.max(np.abs(run["qpos"])) < 1e-15
     assert np.all(run["active_limits"].sum(axis=1) >= 1)  # the first finger's stop holds
+
+
+def test_early_urdfs_joint_properties_are_ignored_as_pinocchio_ignores_them():
+    """<joint_properties damping friction> (early URDF, in pybullet's quadrupeds): urdfdom, Pinocchio and Bullet
+    ignore it; rbody too, with a note, naming non-zero values as not applied."""
+    text = rod_urdf(dynamics='<joint_properties damping="0.0" friction="0.0"/>', kind="continuous")
+    scene = from_urdf(text)
+    assert scene.tree.joints[0].damping == 0 and any("<joint_properties> ignored" in n for n in scene.import_notes)
+    loud = from_urdf(rod_urdf(dynamics='<joint_properties damping="0.5"/>', kind="continuous"))
+    assert loud.tree.joints[0].damping == 0 and any("NOT applied" in n for n in loud.import_notes)
