@@ -126,10 +126,12 @@ def try_pinocchio(out: dict) -> None:
             theirs = model.dynamics(q, v)
             ours = {"mass_matrix": scene.multibody.mass_matrix(q), "bias": scene.multibody.bias_forces(q, v),
                     "qacc": scene.multibody.forward_dynamics(q, v)}
+            floor = {"mass_matrix": 1e-300, "qacc": 1.0, "bias": float(np.max(np.abs(theirs["mass_matrix"])))}
             for key, value in ours.items():
-                # qacc: relative to its largest entry, or to 1 m/s^2 (rad/s^2) where every entry is below that (a
-                # robot whose joints feel no force at a state has qacc ~ 0 in both, at round-off levels of 1e-38)
-                scale = max(float(np.max(np.abs(theirs[key]))), 1.0 if key == "qacc" else 1e-300)
+                # relative to the largest entry, or where every entry is below that, to 1 m/s^2 (rad/s^2) for qacc
+                # and to the force of that acceleration (the largest entry of M) for bias: a robot whose joints feel
+                # no force at a state (wheels spinning about symmetric axes) has bias and qacc ~ 1e-38 in both
+                scale = max(float(np.max(np.abs(theirs[key]))), floor[key])
                 worst = max(worst, float(np.max(np.abs(value - theirs[key]))) / scale)
         out["pinocchio"] = f"{worst:.1e}"
     except Exception as error:  # Pinocchio's parse or the map between the models: said, not hidden
@@ -232,7 +234,7 @@ def markdown(rows: list[dict], collections: list[tuple[str, Path]], command: str
              "Every URDF of the collections below tried as a user would: `rbody.from_urdf(path, package_dirs=...)` "
              "(limits, dry friction and mimics held by the constraint layer, the root link welded to the world), "
              "its mass matrix, bias forces and forward dynamics against Pinocchio's own parse of the same file "
-             f"(largest difference relative to the largest entry, the forward dynamics relative to at least 1 m/s^2 or rad/s^2, at {STATES} random states), a {RUN_T_END:g} s run "
+             f"(largest difference relative to the largest entry; the forward dynamics relative to at least 1 m/s^2 or rad/s^2 and the bias forces to at least the force of that acceleration, at {STATES} random states), a {RUN_T_END:g} s run "
              f"at dt = 1 ms (wall time; stopped after {RUN_SECONDS} s), and the same file through MuJoCo's URDF "
              "loader and Bullet's (`pybullet.loadURDF`). No published file is copied into rbody.", "",
              f"- command: `{command}`",
