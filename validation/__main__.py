@@ -15,7 +15,7 @@ def _parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog="python -m validation",
         usage="%(prog)s [run | export | bench | hard | compare MODEL] [options]",
-        description="Run rbody's scenes in rbody, MuJoCo and pymunk and compare each with the exact solution.",
+        description="Run rbody's scenes in rbody, MuJoCo, pymunk, Pinocchio and Bullet and compare each with the exact solution.",
         epilog="Exit status: 0 all measures within their baselines; 1 a regression (a measure worse than its "
                "baseline); 2 a problem with the inputs, found before the run where it can be (a bad argument, "
                "--out not writable, a broken baseline file) or after it (a measure with no baseline: run "
@@ -29,8 +29,8 @@ def _parser() -> argparse.ArgumentParser:
         p.add_argument("--quick", action="store_true", help="short runs (a smoke test)")
         p.add_argument("--update-baselines", action="store_true",
                        help="rewrite validation/baselines/ from this run")
-        p.add_argument("--backend", action="append", choices=("rbody", "mujoco", "pymunk"),
-                       help="only these backends (repeatable)")
+        p.add_argument("--backend", action="append", choices=("rbody", "mujoco", "pymunk", "pinocchio", "bullet"),
+                       help="only these backends (repeatable; default: all five)")
     export = commands.add_parser(
         "export", prog="python -m validation export", usage="%(prog)s [options]",
         help="write the MJCF of every scene into models/")
@@ -42,6 +42,8 @@ def _parser() -> argparse.ArgumentParser:
                        help="only this scene, or 'batch' or 'growth' (repeatable; default: all)")
     bench.add_argument("--quick", action="store_true", help="short sweeps, under 2 minutes (the test suite's)")
     bench.add_argument("--out", type=Path, default=Path("report/bench"), help="folder (default: report/bench/)")
+    bench.add_argument("--engine", action="append", choices=("rbody", "mujoco", "pymunk", "pinocchio", "bullet"),
+                       help="only this engine's series (repeatable; default: every engine's)")
     bench.add_argument("--repeat", type=int, default=1, metavar="N",
                        help="run every sweep N times; the summary gives each ratio with its range (default: 1)")
     hard = commands.add_parser(
@@ -56,6 +58,8 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument("model", help="an MJCF file, a URDF file, or 'module:name' / 'file.py:name' naming an rbody "
                                        "Scene")
     compare.add_argument("--t-end", type=float, metavar="S", help="duration [s] (default: the model's)")
+    compare.add_argument("--no-constraints", action="store_true",
+                         help="a URDF's limits, friction and mimics recorded, not applied (as Pinocchio's aba runs it)")
     compare.add_argument("--dt", type=float, metavar="S", help="time step [s] (default: the model's timestep, else 1e-3)")
     compare.add_argument("--method", metavar="M", help="rbody's method (default: rk4 where it applies, MuJoCo's scheme)")
     compare.add_argument("--engines", default=None,
@@ -165,7 +169,7 @@ def run_all(out: Path, *, quick: bool, update: bool, backends: tuple[str, ...] |
     from rbody.files import replaced_folder
     from validation import baselines, report
     from validation.animations import chapter_animations
-    from validation.backends import BACKENDS
+    from validation.backends import BACKENDS, ENGINES
     from validation.cases import default_cases
     from validation.cluster import run_tasks
     from validation.evaluate import evaluate
@@ -173,10 +177,10 @@ def run_all(out: Path, *, quick: bool, update: bool, backends: tuple[str, ...] |
 
     directory = baselines.mode_dir(quick)
     if not update:  # read and checked before the run; --update-baselines rewrites them without reading them
-        baselines.check(directory, backends or BACKENDS)
+        baselines.check(directory, backends or ENGINES)
     started = time.perf_counter()
     cases = default_cases(quick)
-    chosen = backends or BACKENDS
+    chosen = backends or ENGINES
     tasks = [(f"{case.name} {backend}", evaluate, (case, (backend,))) for case in cases for backend in chosen]
     results = iter(run_tasks(client, tasks, what="validation"))
     rows, runs = [], {}
@@ -196,7 +200,7 @@ def run_all(out: Path, *, quick: bool, update: bool, backends: tuple[str, ...] |
     header = _header(quick, time.perf_counter() - started)
     with replaced_folder(out) as staging:  # the report and its figures: all old or all new
         figures = make_figures(runs, staging)
-        animations = chapter_animations(staging, runs, engines=chosen, quick=quick,
+        animations = chapter_animations(staging, runs, engines=tuple(e for e in chosen if e in BACKENDS), quick=quick,
                                         say=lambda line: print(f"animation: {line}", file=sys.stderr, flush=True))
         report.write(staging, rows, figures, header, found + missing, animations)
     print(f"\nreport: {out / 'report.md'}", file=sys.stderr)
@@ -211,7 +215,7 @@ def _header(quick: bool, seconds: float) -> str:
     from validation.baselines import versions
     from validation.machine import describe_machine
     lines = ["# rbody validation report", "",
-             "Each textbook scene run in rbody, MuJoCo and pymunk at the default settings of "
+             "Each textbook scene run in rbody, MuJoCo, pymunk, Pinocchio and Bullet (where each can express it) at the default settings of "
              "validation/cases.py, compared with the scene's exact solution.", "",
              f"- mode: {'quick' if quick else 'full'}; wall time {seconds:.1f} s",
              f"- machine: {describe_machine()}",

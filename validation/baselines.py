@@ -45,8 +45,21 @@ def versions() -> dict[str, str]:
     import mujoco
     import numba
     import pymunk
-    return {"mujoco": mujoco.__version__, "pymunk": pymunk.version, "numpy": np.__version__,
-            "numba": numba.__version__, "python": platform.python_version()}
+    found = {"mujoco": mujoco.__version__, "pymunk": pymunk.version, "numpy": np.__version__,
+             "numba": numba.__version__, "python": platform.python_version()}
+    try:
+        import pinocchio
+
+        found["pinocchio"] = pinocchio.__version__
+    except ImportError:
+        pass
+    try:
+        from importlib.metadata import version
+
+        found["pybullet"] = version("pybullet")
+    except Exception:  # not installed
+        pass
+    return found
 
 
 class BaselineError(ValueError):

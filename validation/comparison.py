@@ -458,8 +458,9 @@ def _method(scene: Scene, method: str | None) -> str | None:
 
 # ----- the model ----------------------------------------------------------------------------------------
 
-def load_model(source: str | Path, *, t_end: float | None = None) -> Scene:
-    """The Scene named by `source`: an MJCF file (rbody.from_mjcf, given t_end when set), or "module:name" / "file.py:name"
+def load_model(source: str | Path, *, t_end: float | None = None, constraints: bool = True) -> Scene:
+    """The Scene named by `source`: an MJCF file (rbody.from_mjcf, given t_end when set), a URDF file
+    (rbody.from_urdf; constraints=False: its limits, friction and mimics recorded, not applied), or "module:name" / "file.py:name"
     where name is a Scene or a function of no arguments returning one. Raises ValueError naming what is
     wrong (no such file, not an MJCF file, no such name, not a Scene) before any run."""
     if isinstance(source, Scene):
@@ -471,7 +472,7 @@ def load_model(source: str | Path, *, t_end: float | None = None) -> Scene:
     if path.suffix.lower() in URDF_SUFFIXES:
         if not path.is_file():
             raise ValueError(f"model {text!r}: no such file")
-        return rbody.from_urdf(path, **({} if t_end is None else {"t_end": t_end}))
+        return rbody.from_urdf(path, constraints=constraints, **({} if t_end is None else {"t_end": t_end}))
     if path.suffix.lower() in MJCF_SUFFIXES or (path.exists() and path.suffix.lower() != ".py"):
         if not path.is_file():
             raise ValueError(f"model {text!r}: no such file")
@@ -797,7 +798,7 @@ def main(args) -> int:
             remove_stale_temporaries(args.baseline)  # what an interrupted update left behind
         if args.baseline is not None and not args.update_baseline and not Path(args.baseline).is_dir():
             raise ValueError(f"--baseline {str(args.baseline)!r}: no such folder (record one with --update-baseline)")
-        scene = load_model(args.model, t_end=args.t_end)
+        scene = load_model(args.model, t_end=args.t_end, constraints=not getattr(args, "no_constraints", False))
         engines = _engine_names(args.engines, scene)
         if getattr(args, "animate", False):
             from rbody.animation import check_animatable

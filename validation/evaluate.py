@@ -33,6 +33,7 @@ class Case:
     metrics:   names of the measures in METRICS
     reference: for a scene with no closed form, the trajectory every backend is compared with is a
                tight native run with this method (else scene.exact)
+    skipped:   backend -> why the main command does not run it on this case (a refused row with the reason)
     """
 
     name: str
@@ -43,6 +44,7 @@ class Case:
     settings: Mapping[str, Mapping[str, Any]] = field(default_factory=dict)
     reference: str | None = None
     reference_dt: float | None = None
+    skipped: Mapping[str, str] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -102,8 +104,11 @@ def evaluate(case: Case, backends: tuple[str, ...] = BACKENDS) -> tuple[list[Row
     rows: list[Row] = []
     runs: dict[str, Trajectory] = {}
     for backend in backends:
-        module = get(backend)
+        if backend in case.skipped:
+            rows.append(Row(case.name, backend, "-", None, None, "refused", 0.0, case.skipped[backend]))
+            continue
         try:
+            module = get(backend)  # NotImplementedError: the engine's package is not installed
             module.check(case.scene)
         except NotImplementedError as reason:
             rows.append(Row(case.name, backend, "-", None, None, "refused", 0.0, str(reason)))

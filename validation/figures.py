@@ -10,7 +10,9 @@ from validation import report
 
 
 def make_figures(runs: dict, out: Path) -> list[tuple[str, str]]:
-    """runs: case name -> (case, {backend: Trajectory}). Returns (caption, file name) pairs."""
+    """runs: case name -> (case, {backend: Trajectory}). Returns (caption, file name) pairs; a case no backend ran
+    (e.g. the peers alone on a scene they refuse) has no figure."""
+    runs = {name: (case, by_backend) for name, (case, by_backend) in runs.items() if by_backend}
     figures = []
     if "rolling_race" in runs:
         case, by_backend = runs["rolling_race"]

@@ -14,8 +14,9 @@ import numpy as np  # noqa: E402
 from rbody.files import atomic_path, write_atomic  # noqa: E402
 from rbody.trajectory import Trajectory  # noqa: E402
 
-COLOURS = {"exact": "black", "rbody": "tab:blue", "mujoco": "tab:orange", "pymunk": "tab:green"}
-STYLES = {"exact": "-", "rbody": "--", "mujoco": "-.", "pymunk": ":"}
+COLOURS = {"exact": "black", "rbody": "tab:blue", "mujoco": "tab:orange", "pymunk": "tab:green",
+           "pinocchio": "tab:purple", "bullet": "tab:red"}
+STYLES = {"exact": "-", "rbody": "--", "mujoco": "-.", "pymunk": ":", "pinocchio": ":", "bullet": "-"}
 
 
 def format_value(value: float | None) -> str:

@@ -211,6 +211,11 @@ TOLERANCES: dict[tuple[str, str, str], Tolerance] = {
     ("collisions", "bullet", "energy_error"): Tolerance(1e-2, "restitution sqrt(e) per body, threshold lowered"),
     ("pi", "bullet", "count_error"): Tolerance(0, "the count is an integer (a finding: a sphere stops at a static "
                                                   "wall instead of bouncing, so every count is short)"),
+    ("stacked_balls", "bullet", "max_abs_error"): Tolerance(
+        0.05, "as pymunk's: impacts resolved at the step after contact (a finding: the small ball tops out at 8.41 m, "
+              "0.33 m above the exact 8.08 m, energy gained in the three-body contact; mechanism not isolated)"),
+    ("stacked_balls", "bullet", "energy_error"): Tolerance(
+        5e-3, "as pymunk's: the O(dt) height offset (a finding: 0.52 of the energy, largest during the contacts)"),
     ("scattering", "bullet", "max_abs_error"): Tolerance(1e-2, "impact at the step after contact (measured 4.2e-3 m)"),
     ("scattering", "bullet", "energy_error"): Tolerance(2e-2, "restitution per body (measured 1.2e-2)"),
 }

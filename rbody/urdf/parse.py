@@ -33,18 +33,21 @@ Joint order (qpos and qvel): MuJoCo's loader's, depth first from the root link, 
 their joints appear in the file. Pinocchio orders a link's children by joint name instead (urdfdom keeps
 joints in a sorted map); validation.backends.pinocchio maps the two by joint name.
 
-Declared, recorded and noted, not applied (rbody has no constraint layer yet; scene.import_notes says so):
+Limits, friction and mimics, applied through rbody's constraint layer (rbody.engine.constraints, rigid) when
+``constraints=True`` (the default; what MuJoCo's loader applies, softly there), recorded only when False (the bare
+tree, as Pinocchio's aba runs the file; validation's pinocchio backend compares like with like on such a scene):
 
-- <limit lower upper> of revolute and prismatic joints -> ``limits`` (as MJCFScene.limits: a run whose
-  coordinates leave a range raises SimulationError naming the joint and the time); effort and velocity ->
-  ``effort_limits``, ``velocity_limits`` [N m | N, rad/s | m/s] (MuJoCo's loader sets effort as an actuator
-  force range; no actuator here);
-- <dynamics damping> is joint damping (applied: -damping qvel); <dynamics friction> (dry friction) is kept as
-  a declared value in ``joint_friction`` [N m | N] for the constraint layer and NOT applied: as Pinocchio's
-  forward dynamics (aba) runs the file; MuJoCo's loader applies it as frictionloss;
-- <mimic joint multiplier offset> -> ``mimics``: joint -> (leader, multiplier, offset). The follower is run
-  as an independent joint, as Pinocchio's default parse (mimic=False) and MuJoCo's loader run it, until the
-  constraint layer's joint equality exists; noted.
+- <limit lower upper> of revolute and prismatic joints -> Joint.range (lower < upper; lower = upper is no range
+  and is ignored, as MuJoCo's loader ignores it) and ``limits`` (as MJCFScene.limits: validation reports an
+  engine's run that leaves one); limit impacts are plastic (restitution 0, the rigid limit of MuJoCo's critically
+  damped limit); effort and velocity -> ``effort_limits``, ``velocity_limits`` [N m | N, rad/s | m/s], recorded
+  only (MuJoCo's loader sets effort as an actuator force range; no actuator here);
+- <dynamics damping> is joint damping (applied: -damping qvel); <dynamics friction> -> Joint.frictionloss of each
+  degree of freedom the joint makes (Coulomb's law, as MuJoCo's loader's frictionloss) and ``joint_friction``;
+- <mimic joint multiplier offset> -> a joint Equality "mimic_<follower>": qpos[follower] = offset + multiplier
+  qpos[leader] (MuJoCo's loader makes the same equality, polycoef (offset, multiplier, 0, 0, 0)), and ``mimics``:
+  joint -> (leader, multiplier, offset). Follower and leader must be revolute, continuous or prismatic. The default
+  initial state puts each follower where its mimic does.
 
 Inertias that no body has (negative moments, or principal moments breaking A + B >= C) are loaded as the file
 gives them (Inertia.as_given: the dynamics a user compares are the file's, and Pinocchio loads them so), each
@@ -60,7 +63,8 @@ environment variable ROS_PACKAGE_PATH, file://, or relative to the URDF's folder
 Mesh scale is noted (no mass comes from meshes). Shapes are named "<link>_collision_<i>" / "<link>_visual_<i>".
 
 Ignored with a note: <material>, <transmission>, <gazebo>, <ros2_control>, <mujoco> (MuJoCo's own compiler
-options), <sensor>, joints' <calibration> and <safety_controller>, links' <contact> (Bullet's), <self_filter>,
+options), <sensor>, joints' <calibration>, <safety_controller> and <joint_properties> (early URDF's, ignored by
+urdfdom, Pinocchio and Bullet; non-zero damping or friction there is named in a note), links' <contact> (Bullet's), <self_filter>,
 <collision_checking>, <kinematic> and a stray <origin>, collisions' <material> and <verbose>. Refused (URDFError):
 anything else, unknown joint types, a link with two parents (a loop), several root links, a joint naming a
 missing link, repeated names, malformed numbers or XML, a missing mesh, mass < 0, a mass of 0 with moments.
@@ -77,13 +81,14 @@ from typing import Mapping
 import numpy as np
 
 from rbody.inertia import Inertia
-from rbody.layout import WORLD, Body, Joint, Layout, Shape
+from rbody.layout import WORLD, Body, Equality, Joint, Layout, Shape
 from rbody.mjcf.frames import quat_matrix, quat_product, z_to_quat
 from rbody.mjcf.parse import DEFAULT_T_END, MJCFScene
 from rbody.urdf.document import Element, URDFError, read_source, rpy_quaternion
 from rbody.urdf.geometry import MUJOCO_MESH_SUFFIXES, read_geometry
 
 ROOT_JOINT = "root_joint"      # the free joint of floating_base=True (Pinocchio's name)
+MIMIC_PREFIX = "mimic_"        # the joint equality of a <mimic> is called mimic_<follower joint>
 JOINT_TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar", "spherical")
 PLANAR_SUFFIXES = ("_TX", "_TY", "_RZ")   # MuJoCo's loader's names of a planar joint's three joints
 IGNORED_ROBOT_ELEMENTS = {
@@ -143,8 +148,8 @@ class URDFModel:
     qpos0, qvel0:    (nq,), (nv,) initial state in MuJoCo's layout
     limits:          joint -> (lower, upper) [rad | m] declared position limits
     effort_limits, velocity_limits: joint -> declared effort [N m | N] and velocity [rad/s | m/s] limits
-    joint_friction:  joint -> declared dry friction [N m | N] (not applied)
-    mimics:          joint -> (leader joint, multiplier, offset) (not enforced)
+    joint_friction:  joint -> declared dry friction [N m | N] (Joint.frictionloss with constraints on)
+    mimics:          joint -> (leader joint, multiplier, offset) (layout.equalities with constraints on)
     visuals:         body name (or "world") -> visual shapes in that body's frame
     notes:           what was ignored, recorded or changed, one line each
     source:          the file read, or "<string>"
@@ -177,8 +182,9 @@ def _conjugate(quat: np.ndarray) -> np.ndarray:
 
 class _Reader:
     def __init__(self, root: Element, folder: Path | None, package_dirs, floating_base: bool,
-                 balance_inertia: bool) -> None:
+                 balance_inertia: bool, constraints: bool = True) -> None:
         self.root, self.folder, self.package_dirs = root, folder, package_dirs
+        self.constraints = constraints
         self.floating_base, self.balance_inertia = floating_base, balance_inertia
         self.notes: list[str] = []
         self.limits: dict = {}
@@ -186,6 +192,7 @@ class _Reader:
         self.velocity: dict = {}
         self.friction: dict = {}
         self.mimics: dict = {}
+        self.mimic_elements: dict = {}
 
     def note(self, text: str) -> None:
         if text not in self.notes:
@@ -236,8 +243,16 @@ class _Reader:
                                 "dynamics": None, "mimic": None,
                                 "calibration": "joints' <calibration> ignored (sensor calibration)",
                                 "safety_controller": "joints' <safety_controller> ignored (controller "
-                                                     "soft limits)"}, self.notes)
+                                                     "soft limits)",
+                                "joint_properties": "joints' <joint_properties> ignored (an element of early URDF that "
+                                                    "urdfdom, Pinocchio and Bullet ignore; <dynamics> is URDF's)"},
+                               self.notes)
         name = element.text_attribute("name")
+        legacy = element.one("joint_properties")
+        if legacy is not None and any(legacy.number(key, 0.0) != 0 for key in ("damping", "friction")
+                                      if key in legacy.attrib):
+            self.note(f"joint {name!r}: <joint_properties> damping/friction NOT applied (ignored as urdfdom, Pinocchio "
+                      "and Bullet ignore them; write them in <dynamics>)")
         kind = element.text_attribute("type")
         if kind not in JOINT_TYPES:
             raise element.error(f"type={kind!r}: unknown joint type (URDF's are revolute, continuous, prismatic, "
@@ -257,69 +272,108 @@ class _Reader:
                 "child": element.one("child", required=True).text_attribute("link"),
                 "pos": pos, "quat": quat, "axis": axis}
 
-    def declared(self, joint: dict, names: list[str]) -> float:
-        """Record <limit>, <dynamics> and <mimic> of a moving joint (names: its rbody joints); the damping."""
-        element, kind = joint["element"], joint["kind"]
+    def declared(self, joint: dict) -> dict:
+        """Read <limit>, <dynamics> and <mimic> of a moving joint: the keywords of its rbody Joints (damping, and with
+        constraints on, range and frictionloss); the mimic is recorded in self.mimics (its Equality made in build)."""
+        element, kind, name = joint["element"], joint["kind"], joint["name"]
+        out: dict = {}
         limit = element.one("limit")
         if limit is not None:
             limit.check_children({}, self.notes)
             for key, table in (("effort", self.effort), ("velocity", self.velocity)):
                 if key in limit.attrib:
-                    table[joint["name"]] = limit.number(key)
+                    table[name] = limit.number(key)
             if any(key in limit.attrib for key in ("effort", "velocity")):
                 self.note("joint effort and velocity limits recorded (effort_limits, velocity_limits), not applied "
                           "(no actuator is modelled)")
             if kind in ("revolute", "prismatic") and ("lower" in limit.attrib or "upper" in limit.attrib):
                 lower, upper = limit.number("lower", 0.0), limit.number("upper", 0.0)
                 if lower < upper:
-                    self.limits[joint["name"]] = (lower, upper)
-                    self.note("joint position limits recorded (limits): rbody has no constraint layer yet; a run "
-                              "that leaves a range raises SimulationError")
+                    self.limits[name] = (lower, upper)
+                    if self.constraints:
+                        out["range"] = (lower, upper)
+                        self.note("joint position limits applied (Joint.range, held rigidly by the constraint layer; "
+                                  "MuJoCo's loader applies them as soft limits)")
+                    else:
+                        self.note("joint position limits recorded (limits), NOT applied (constraints=False: as "
+                                  "Pinocchio's aba runs the file); validation reports a run that leaves one")
                 else:
-                    self.note(f"joint {joint['name']!r}: <limit lower={lower:g} upper={upper:g}> is no range (lower "
-                              ">= upper): not recorded (MuJoCo's loader locks a joint with lower = upper)")
+                    self.note(f"joint {name!r}: <limit lower={lower:g} upper={upper:g}> is no range (lower >= upper): "
+                              "ignored (MuJoCo's loader ignores it too, with a warning)")
             elif kind not in ("revolute", "prismatic") and ("lower" in limit.attrib or "upper" in limit.attrib):
-                self.note(f"joint {joint['name']!r}: position limits of a {kind} joint ignored (URDF gives a "
-                          f"{kind} joint none)")
-        damping = 0.0
+                self.note(f"joint {name!r}: position limits of a {kind} joint ignored (URDF gives a {kind} joint "
+                          "none)")
         dynamics = element.one("dynamics")
         if dynamics is not None:
             dynamics.check_children({}, self.notes)
             damping = dynamics.number("damping", 0.0)
             if damping < 0:
                 raise dynamics.error(f"damping={damping!r}: must be >= 0")
+            out["damping"] = damping
             friction = dynamics.number("friction", 0.0)
+            if friction < 0:
+                raise dynamics.error(f"friction={friction!r}: a dry friction force must be >= 0 [N m | N]")
             if friction != 0:
-                self.friction[joint["name"]] = friction
-                self.note("joint dry friction (<dynamics friction>) recorded (joint_friction), NOT applied: rbody has "
-                          "no constraint layer yet (Pinocchio's aba ignores it too; MuJoCo's loader applies it as "
-                          "frictionloss)")
+                self.friction[name] = friction
+                if self.constraints:
+                    out["frictionloss"] = friction
+                    self.note("joint dry friction (<dynamics friction>) applied as Joint.frictionloss (Coulomb's law "
+                              "per degree of freedom, held rigidly; MuJoCo's loader applies it as frictionloss)")
+                else:
+                    self.note("joint dry friction (<dynamics friction>) recorded (joint_friction), NOT applied "
+                              "(constraints=False: as Pinocchio's aba runs the file)")
         mimic = element.one("mimic")
         if mimic is not None:
             mimic.check_children({}, self.notes)
-            self.mimics[joint["name"]] = (mimic.text_attribute("joint"), mimic.number("multiplier", 1.0),
-                                          mimic.number("offset", 0.0))
-            self.note(f"joint {joint['name']!r} mimics {mimic.attrib.get('joint')!r} in the file (mimics): run as an "
-                      "independent joint, as Pinocchio's default parse and MuJoCo's loader run it, until rbody's "
-                      "constraint layer ties it (a joint equality)")
-        return damping
+            self.mimics[name] = (mimic.text_attribute("joint"), mimic.number("multiplier", 1.0),
+                                 mimic.number("offset", 0.0))
+            self.mimic_elements[name] = mimic
+            if self.constraints:
+                self.note(f"joint {name!r} mimics {mimic.attrib.get('joint')!r}: held by a joint equality "
+                          f"'{MIMIC_PREFIX}{name}' (follower = multiplier * leader + offset, as MuJoCo's loader "
+                          "makes it)")
+            else:
+                self.note(f"joint {name!r} mimics {mimic.attrib.get('joint')!r} in the file (mimics): run as an "
+                          "independent joint (constraints=False: as Pinocchio's default parse runs it)")
+        return out
 
     def joints_of(self, joint: dict, body: str) -> list[Joint]:
         """The rbody joints of one moving URDF joint, in the child's (the body's) frame."""
         name, kind, axis = joint["name"], joint["kind"], joint["axis"]
-        damping = self.declared(joint, [name])
+        declared = self.declared(joint)
+        damping, friction = declared.get("damping", 0.0), declared.get("frictionloss", 0.0)
+        common = dict(damping=damping, frictionloss=friction)
         if kind in ("revolute", "continuous"):
-            return [Joint(name, "hinge", body, axis=tuple(axis.tolist()), damping=damping)]
+            return [Joint(name, "hinge", body, axis=tuple(axis.tolist()), range=declared.get("range"), **common)]
         if kind == "prismatic":
-            return [Joint(name, "slide", body, axis=tuple(axis.tolist()), damping=damping)]
+            return [Joint(name, "slide", body, axis=tuple(axis.tolist()), range=declared.get("range"), **common)]
         if kind == "spherical":
-            return [Joint(name, "ball", body, damping=damping)]
+            return [Joint(name, "ball", body, **common)]
         if kind == "floating":
-            return [Joint(name, "free", body, damping=damping)]
+            return [Joint(name, "free", body, **common)]
         frame = quat_matrix(z_to_quat(axis))   # planar: MuJoCo's loader's frame whose z is the axis
-        return [Joint(name + "_TX", "slide", body, axis=tuple(frame[:, 0].tolist()), damping=damping),
-                Joint(name + "_TY", "slide", body, axis=tuple(frame[:, 1].tolist()), damping=damping),
-                Joint(name + "_RZ", "hinge", body, axis=tuple(axis.tolist()), damping=damping)]
+        return [Joint(name + "_TX", "slide", body, axis=tuple(frame[:, 0].tolist()), **common),
+                Joint(name + "_TY", "slide", body, axis=tuple(frame[:, 1].tolist()), **common),
+                Joint(name + "_RZ", "hinge", body, axis=tuple(axis.tolist()), **common)]
+
+    def mimic_equalities(self, kinds: dict[str, str]) -> tuple[Equality, ...]:
+        """The joint equalities of the file's <mimic> elements (constraints on): qpos[follower] = offset +
+        multiplier qpos[leader] (MuJoCo's joint equality, polycoef (offset, multiplier, 0, 0, 0)). kinds: URDF
+        joint name -> type. A mimic of or by a joint other than revolute, continuous or prismatic is refused."""
+        out = []
+        for follower, (leader, multiplier, offset) in self.mimics.items():
+            if leader not in kinds:
+                raise self.mimic_elements[follower].error(
+                    f"joint {follower!r} mimics joint {leader!r}, which is not a joint of the robot; "
+                    "constraints=False loads the file with the mimic recorded only")
+            for joint in (follower, leader):
+                if kinds[joint] not in ("revolute", "continuous", "prismatic"):
+                    raise self.mimic_elements[follower].error(
+                        f"joint {joint!r} is {kinds[joint]}: a mimic ties revolute, continuous or prismatic joints "
+                        "(one coordinate each); constraints=False loads the file with the mimic recorded only")
+            out.append(Equality(MIMIC_PREFIX + follower, "joint", joint1=follower, joint2=leader,
+                                polycoef=(offset, multiplier, 0.0, 0.0, 0.0)))
+        return tuple(out)
 
     # ----- the tree -----
 
@@ -364,10 +418,6 @@ class _Reader:
                                     "trees")
             parent_joint[joint["child"]] = joint
             read_joints.append(joint)
-        for follower, (leader, _, _) in self.mimics.items():
-            if leader not in names:
-                element = next(j["element"] for j in read_joints if j["name"] == follower)
-                raise element.one("mimic").error(f"mimics joint {leader!r}, which is not a joint of the robot")
         return links, parent_joint, read_joints
 
     def build(self, qpos0, qvel0) -> URDFModel:
@@ -424,7 +474,8 @@ class _Reader:
         for link in links.values():
             if link.unmassed is not None and not any(link is part for c in carriers for part, _, _ in c.parts):
                 self.note(f"link {link.name!r} (welded to the world) has mass 0 and non-zero moments: not simulated")
-        layout, visuals = self.layout(world, carriers)
+        equalities = self.mimic_equalities({j["name"]: j["kind"] for j in joints}) if self.constraints else ()
+        layout, visuals = self.layout(world, carriers, equalities)
         qpos, qvel = _initial_state(layout, qpos0, qvel0, self.root.file)
         return URDFModel(layout=layout, name=self.name, root=root, floating_base=self.floating_base, qpos0=qpos,
                          qvel0=qvel, limits=self.limits, effort_limits=self.effort, velocity_limits=self.velocity,
@@ -485,7 +536,7 @@ class _Reader:
             del out[k]
         return out
 
-    def layout(self, world: _Carrier, carriers: list[_Carrier]) -> tuple[Layout, dict]:
+    def layout(self, world: _Carrier, carriers: list[_Carrier], equalities: tuple = ()) -> tuple[Layout, dict]:
         fixed, visuals = [], {}
         for shape, collision in self.shapes(world):
             (fixed if collision else visuals.setdefault(WORLD, [])).append(shape)
@@ -497,7 +548,7 @@ class _Reader:
             bodies.append(Body(carrier.name, self.inertia(carrier), tuple(shapes), parent=carrier.parent,
                                pos=tuple(carrier.pos.tolist()), quat=tuple(carrier.quat.tolist())))
             joints += carrier.joints
-        return (Layout(bodies=tuple(bodies), joints=tuple(joints), fixed=tuple(fixed)),
+        return (Layout(bodies=tuple(bodies), joints=tuple(joints), fixed=tuple(fixed), equalities=equalities),
                 {name: tuple(shapes) for name, shapes in visuals.items()})
 
     def shapes(self, carrier: _Carrier) -> list[tuple[Shape, bool]]:
@@ -571,7 +622,9 @@ def _violation(tensor: np.ndarray) -> str:
 
 
 def _initial_state(layout: Layout, qpos0, qvel0, file: str) -> tuple[np.ndarray, np.ndarray]:
-    """qpos0 (nq,), qvel0 (nv,) in MuJoCo's layout: the arguments, or the reference pose at rest."""
+    """qpos0 (nq,), qvel0 (nv,) in MuJoCo's layout: the arguments, or the reference pose at rest with every mimic
+    follower where its equality puts it (offset + multiplier leader; a given qpos0 off a mimic is projected onto it
+    at the run's start, its first event)."""
     from rbody.engine.multibody import Multibody
 
     try:
@@ -581,7 +634,13 @@ def _initial_state(layout: Layout, qpos0, qvel0, file: str) -> tuple[np.ndarray,
     out = []
     for value, default, what in ((qpos0, model.qpos0, "qpos0"), (qvel0, model.qvel0, "qvel0")):
         if value is None:
-            out.append(np.array(default, dtype=float))
+            array = np.array(default, dtype=float)
+            if what == "qpos0" and layout.equalities:
+                address = dict(zip(model.joint_names, (int(a) for a in model.arrays.qposadr)))
+                for _ in layout.equalities:  # a follower may lead another: settle the chain, one link per pass
+                    for tie in layout.equalities:
+                        array[address[tie.joint1]] = tie.polycoef[0] + tie.polycoef[1] * array[address[tie.joint2]]
+            out.append(array)
             continue
         try:
             array = np.array(value, dtype=float)
@@ -597,32 +656,42 @@ def _initial_state(layout: Layout, qpos0, qvel0, file: str) -> tuple[np.ndarray,
 # ----- public -------------------------------------------------------------------------------------------
 
 def layout_from_urdf(source, *, package_dirs=None, floating_base: bool = False, qpos0=None, qvel0=None,
-                     balance_inertia: bool = False) -> URDFModel:
+                     balance_inertia: bool = False, constraints: bool = True) -> URDFModel:
     """Read a URDF robot (a path or an XML string) into a URDFModel (see the module docstring).
 
     package_dirs: a folder or folders holding the packages that package:// mesh paths name (ROS_PACKAGE_PATH
     is searched after them); floating_base: the root link gets a free joint "root_joint" (else it is welded to
     the world); qpos0 (nq,), qvel0 (nv,): the initial state in MuJoCo's layout (default: the reference pose,
-    at rest); balance_inertia: MuJoCo's balanceinertia rule for bodies whose moments break A + B >= C.
+    at rest); balance_inertia: MuJoCo's balanceinertia rule for bodies whose moments break A + B >= C;
+    constraints: True (default) applies the file's position limits, dry friction and mimics through rbody's
+    constraint layer (as MuJoCo's loader applies them, rigidly here); False records them only and runs the bare
+    tree, as Pinocchio's aba runs the file (module docstring).
     """
-    for flag, value in (("floating_base", floating_base), ("balance_inertia", balance_inertia)):
+    for flag, value in (("floating_base", floating_base), ("balance_inertia", balance_inertia),
+                        ("constraints", constraints)):
         if not isinstance(value, (bool, np.bool_)):
             raise URDFError(f"{flag}={value!r}: expected True or False")
     root, folder = read_source(source)
-    reader = _Reader(root, folder, package_dirs, bool(floating_base), bool(balance_inertia))
+    reader = _Reader(root, folder, package_dirs, bool(floating_base), bool(balance_inertia), bool(constraints))
     return reader.build(qpos0, qvel0)
 
 
 def from_urdf(source, *, package_dirs=None, floating_base: bool = False, t_end: float | None = None, qpos0=None,
-              qvel0=None, balance_inertia: bool = False) -> "URDFScene":
+              qvel0=None, balance_inertia: bool = False, constraints: bool = True) -> "URDFScene":
     """The Scene of a URDF robot (a path or an XML string), run natively by rbody's general engine.
 
     t_end: duration [s] (default 1 s); the rest as layout_from_urdf. The scene is a URDFScene (a TreeScene
     with the declared limits, friction, mimics, visual shapes and import_notes). Gravity is 9.81 m/s^2 along
     -z (URDF has none of its own).
+
+    constraints=True (the default) holds the file's <limit lower upper> (revolute, prismatic), <dynamics friction>
+    and <mimic> rigidly (rbody.engine.constraints: a joint never passes its stop beyond round-off, friction sticks
+    exactly, a follower stays at multiplier * leader + offset), where MuJoCo's loader holds the same three softly.
+    constraints=False runs the file as Pinocchio's plain aba does (the three recorded on the scene, not applied):
+    use it to compare with Pinocchio like with like.
     """
     model = layout_from_urdf(source, package_dirs=package_dirs, floating_base=floating_base, qpos0=qpos0,
-                             qvel0=qvel0, balance_inertia=balance_inertia)
+                             qvel0=qvel0, balance_inertia=balance_inertia, constraints=constraints)
     dirs = () if package_dirs is None else ((str(package_dirs),) if isinstance(package_dirs, (str, Path))
                                             else tuple(str(d) for d in package_dirs))
     return URDFScene(name=model.name, t_end=DEFAULT_T_END if t_end is None else t_end, tree=model.layout,
@@ -631,18 +700,19 @@ def from_urdf(source, *, package_dirs=None, floating_base: bool = False, t_end: 
                      root=model.root, floating_base=model.floating_base, package_dirs=dirs,
                      balance_inertia=bool(balance_inertia), effort_limits=dict(model.effort_limits),
                      velocity_limits=dict(model.velocity_limits), joint_friction=dict(model.joint_friction),
-                     mimics=dict(model.mimics), visuals=dict(model.visuals))
+                     mimics=dict(model.mimics), visuals=dict(model.visuals), constraints=bool(constraints))
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
 class URDFScene(MJCFScene):
-    """A TreeScene read from URDF: MJCFScene's declared position limits (checked on every run), and what the
-    file declares that rbody does not apply yet.
+    """A TreeScene read from URDF: MJCFScene's declared position limits, and the rest of what the file declares.
 
     source:          the URDF file's absolute path (None for an XML string): validation's Pinocchio and Bullet
                      backends load the same file with their own parsers
-    root, floating_base, package_dirs, balance_inertia: how it was read (the root link's name)
-    effort_limits, velocity_limits, joint_friction, mimics, visuals: see URDFModel
+    root, floating_base, package_dirs, balance_inertia, constraints: how it was read (the root link's name)
+    effort_limits, velocity_limits, joint_friction, mimics, visuals: see URDFModel (limits, joint_friction and
+                     mimics are applied through tree's Joint.range, Joint.frictionloss and equalities when
+                     constraints is True, recorded only when False)
     """
 
     source: str | None = None
@@ -655,3 +725,4 @@ class URDFScene(MJCFScene):
     joint_friction: Mapping[str, float] = field(default_factory=dict)
     mimics: Mapping[str, tuple] = field(default_factory=dict)
     visuals: Mapping[str, tuple] = field(default_factory=dict)
+    constraints: bool = True

@@ -163,8 +163,9 @@ def test_masses_equal_pinocchio(tmp_path):
     assert upper.inertia.mass == 2.0
 
 
-def test_declared_values_recorded_not_applied(tmp_path):
-    scene = from_urdf(write(tmp_path, EVERY_JOINT))
+def test_declared_values_recorded_not_applied_without_constraints(tmp_path):
+    scene = from_urdf(write(tmp_path, EVERY_JOINT), constraints=False)
+    assert not scene.tree.constrained
     assert scene.limits == {"shoulder": (-3.0, 3.0), "rail": (-1.0, 1.0), "grip_a": (-0.1, 0.1),
                             "grip_b": (-0.1, 0.1), "tilt": (-3.0, 3.0)}
     assert scene.effort_limits["shoulder"] == 40.0 and scene.velocity_limits["shoulder"] == 5.0
@@ -177,6 +178,10 @@ def test_declared_values_recorded_not_applied(tmp_path):
     assert [j.body for j in scene.tree.joints if j.name.startswith(("tilt", "slide_plane"))] == ["puck"] * 4
     assert [s.name for s in scene.visuals["upper"]] == ["upper_visual_0"]
     assert [s.kind for s in scene.tree.fixed] == ["box"]
+    applied = from_urdf(write(tmp_path, EVERY_JOINT))  # the default: all three applied (tests/rbody/test_urdf_constraints.py)
+    joints = {j.name: j for j in applied.tree.joints}
+    assert joints["rail"].range == (-1.0, 1.0) and joints["shoulder"].frictionloss == 0.5
+    assert [(e.joint1, e.joint2) for e in applied.tree.equalities] == [("grip_b", "grip_a")]
 
 
 def test_rpy_is_fixed_axis_roll_pitch_yaw(tmp_path):

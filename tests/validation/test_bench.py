@@ -25,7 +25,12 @@ def test_quick_bench_writes_every_point_and_no_silent_nan(tmp_path):
     header = next(line for line in text.splitlines() if not line.startswith("#"))
     assert tuple(header.split(",")) == COLUMNS
     rows = read_csv(tmp_path / "bench.csv")
-    assert {r["backend"] for r in rows} == {"rbody", "mujoco", "pymunk"}
+    from rbody import scenes
+    from validation.backends import PEERS, supports
+
+    rod = scenes.swinging_rod(1.0, theta0=1.0, t_end=1.0)
+    installed = {peer for peer in PEERS if supports(rod, peer)[0]}
+    assert {r["backend"] for r in rows} == {"rbody", "mujoco", "pymunk"} | installed  # the peers where installed
     for row in rows:
         if math.isnan(row["error"]):  # a NaN error only with the reason for it
             assert row["failure"], row
@@ -121,3 +126,44 @@ def test_read_points_round_trips_bench_csv(tmp_path):
         got = getattr(back[0], name)
         assert got == value or (isinstance(value, float) and math.isnan(value) and math.isnan(got)), name
     assert back[1].failure == "refused: 2-D" and back[1].run == 2 and isinstance(back[1].repeats, int)
+
+
+@pytest.mark.crosssim
+def test_bench_of_one_engine_sweeps_its_settings_and_dt(tmp_path):
+    """--engine bullet: Bullet's series alone (the others not run); on contacts each solver setting is a series of
+    its own; on the rod its semi-implicit Euler is first order (the error falls with dt)."""
+    pytest.importorskip("pybullet")
+    from validation.bench.run import run_bench
+
+    import io
+
+    run_bench(tmp_path, names=["swinging_rod", "rolling_disc"], quick=True, engines=("bullet",), log=io.StringIO())
+    rows = read_csv(tmp_path / "bench.csv")
+    assert {r["backend"] for r in rows} == {"bullet"}
+    rod = sorted((r for r in rows if r["scene"] == "swinging_rod" and not r["failure"]), key=lambda r: -r["dt"])
+    assert len(rod) >= 5
+    slope = math.log(rod[0]["error"] / rod[-1]["error"]) / math.log(rod[0]["dt"] / rod[-1]["dt"])
+    assert 0.8 < slope < 1.2  # first order
+    settings = {r["settings"] for r in rows if r["scene"] == "rolling_disc"}
+    assert any("solver_iterations" in s for s in settings)
+
+
+def test_peer_table_reads_each_engine_off_its_curve():
+    """The README's peers table: a column per engine, its least cost at each level it reaches on its curve, '-'
+    for an engine that does not express the scene, 'never' for one swept that does not reach the level."""
+    from validation.bench.tables import peer_table
+
+    def curve(backend, settings, costs_errors):
+        return [Point("rod", backend, "m", settings, dt, error=e, seconds_per_sim_second=c)
+                for dt, (c, e) in zip((1e-1, 1e-2, 1e-3), costs_errors)]
+
+    points = (curve("rbody", "default", [(1e-5, 1e-4), (1e-4, 1e-8), (1e-3, 1e-12)])
+              + curve("mujoco", "default", [(1e-4, 1e-3), (1e-3, 1e-7), (1e-2, 1e-11)])
+              + curve("bullet", "solver_iterations=50", [(1e-3, 1e-2), (1e-2, 1e-3), (1e-1, 1e-4)]))
+    table = peer_table(points)
+    row = next(line for line in table.splitlines() if line.startswith("| rod | 1e-03 |"))
+    cells = [c.strip() for c in row.strip("|").split("|")]
+    assert cells[2].startswith("1e-05") and cells[3].startswith("0.0001 (MuJoCo") and cells[4] == "-"
+    assert cells[5].startswith("0.01 (m, solver_iterations=50")
+    row = next(line for line in table.splitlines() if line.startswith("| rod | 1e-06 |"))
+    assert row.rstrip().endswith("| never |")  # Bullet swept, never at 1e-6

@@ -14,7 +14,7 @@ def test_quick_run_writes_table_report_and_figures(tmp_path, capsys):
     status = main(["--quick", "--out", str(tmp_path)])
     printed = capsys.readouterr().out
     assert "scene" in printed and "verdict" in printed
-    for backend in ("rbody", "mujoco", "pymunk"):
+    for backend in ("rbody", "mujoco", "pymunk", "pinocchio", "bullet"):  # the peers where they express a scene
         assert backend in printed
     report = (tmp_path / "report.md").read_text()
     assert "## Results" in report and "| scene |" in report

@@ -71,7 +71,7 @@ def test_pinocchio_runs_the_users_urdf_file(arm):
     """The same file through Pinocchio's own parser: qpos, qvel and every body's state equal rbody's run to rk4's
     truncation error (the continuous elbow is integrated in Pinocchio's (cos, sin) embedding, rbody's as an angle:
     both fourth order, measured 3.6e-11 apart after 0.5 s at dt = 1e-3)."""
-    scene = rbody.from_urdf(arm, t_end=0.5, qvel0=[1.0, -2.0, 0.5])
+    scene = rbody.from_urdf(arm, t_end=0.5, qvel0=[1.0, -2.0, 0.5], constraints=False)  # the bare tree, as aba
     run = pin_backend.run(scene, 1e-3)
     ours = rbody.simulate(scene, dt=1e-3, method="rk4")
     assert run.meta["model_origin"] == "file"
@@ -84,7 +84,7 @@ def test_pinocchio_runs_the_users_urdf_file(arm):
 def test_pinocchio_floating_base_agrees_at_truncation_level(arm):
     """A floating base: rbody's Runge-Kutta-Munthe-Kaas and the embedded rk4 here are both fourth order; they
     agree to the truncation error."""
-    scene = rbody.from_urdf(arm, floating_base=True, t_end=0.5,
+    scene = rbody.from_urdf(arm, floating_base=True, t_end=0.5, constraints=False,
                             qvel0=[0.1, 0.0, 0.2, 0.5, -1.0, 2.0, 1.0, -1.0, 0.3])
     run = pin_backend.run(scene, 1e-3)
     ours = rbody.simulate(scene, dt=1e-3, method="rk4")
@@ -99,6 +99,16 @@ def test_pinocchio_floating_base_agrees_at_truncation_level(arm):
 def test_pinocchio_refuses_what_it_cannot_run(scene, reason):
     ok, why = supports(scene, "pinocchio")
     assert not ok and reason in why
+
+
+def test_pinocchio_refuses_a_urdf_read_with_its_limits_and_says_how_to_compare(arm):
+    """aba has no joint limits: a URDF read with its constraints (the default) is refused, with the way to run the
+    bare tree; its dynamics are still compared (build)."""
+    ok, why = supports(rbody.from_urdf(arm), "pinocchio")
+    assert not ok and "constraints=False" in why and "--no-constraints" in why
+    assert supports(rbody.from_urdf(arm, constraints=False), "pinocchio") == (True, "")
+    with pytest.raises(NotImplementedError, match="aba has none of them"):
+        pin_backend.run(rbody.from_urdf(arm, t_end=0.01), 1e-3)
 
 
 # ----- Bullet -----------------------------------------------------------------------------------------------
@@ -194,7 +204,12 @@ def test_compare_a_urdf_with_every_engine(arm, tmp_path):
     from validation.__main__ import main
     from validation.comparison import compare
 
-    c = compare(arm, t_end=0.3)
+    from validation.comparison import load_model
+
+    held = compare(arm, t_end=0.3)  # the file's limits held: rbody rigidly, MuJoCo softly, Bullet by its own
+    assert held.runs["pinocchio"].status == "refused" and "--no-constraints" in held.runs["pinocchio"].note
+    assert held.row("qpos", "rbody", "mujoco").largest < 1e-12  # no stop reached in 0.3 s: the same rk4
+    c = compare(load_model(arm, t_end=0.3, constraints=False))
     assert tuple(c.runs) == ENGINES
     assert c.runs["pinocchio"].status == "ran" and c.runs["mujoco"].status == "ran"
     assert c.runs["pymunk"].status == "refused"
@@ -202,5 +217,29 @@ def test_compare_a_urdf_with_every_engine(arm, tmp_path):
     assert c.row("qpos", "rbody", "mujoco").largest < 1e-12
     if c.runs["bullet"].status == "ran":
         assert c.row("qpos", "rbody", "bullet").largest < 1e-2
-    assert main(["compare", arm, "--t-end", "0.2", "--engines", "rbody,pinocchio", "--out", str(tmp_path / "o")]) == 0
+    assert main(["compare", arm, "--t-end", "0.2", "--engines", "rbody,pinocchio", "--no-constraints", "--out",
+                 str(tmp_path / "o")]) == 0
     assert (tmp_path / "o" / "arm.md").exists()
+
+
+# ----- the main command ---------------------------------------------------------------------------------------
+
+def test_the_main_command_runs_the_peers_where_they_can_express_a_scene():
+    """Pinocchio runs the contact-free trees (same rk4 as rbody: the same error to round-off), Bullet the trees and
+    the contacts (first order); a scene a peer cannot express, or one the main command skips, is a refused row with
+    the reason."""
+    from dataclasses import replace
+
+    from validation.cases import default_cases
+    from validation.evaluate import evaluate
+
+    cases = {c.name: c for c in default_cases(quick=True)}
+    rows, _ = evaluate(cases["swinging_rod"], ("rbody", "pinocchio"))
+    value = {(r.backend, r.metric): r for r in rows}
+    ours, theirs = value["rbody", "max_abs_error"], value["pinocchio", "max_abs_error"]
+    assert theirs.verdict == "ok" and theirs.value == pytest.approx(ours.value, rel=1e-3)
+    rows, _ = evaluate(cases["rolling_disc"], ("pinocchio",))
+    assert rows[0].verdict == "refused" and "contact" in rows[0].note
+    skipped = replace(cases["pi_collisions_0"], skipped={"bullet": "not run here: the reason"})
+    rows, _ = evaluate(skipped, ("bullet",))
+    assert [(r.verdict, r.note) for r in rows] == [("refused", "not run here: the reason")]

@@ -34,6 +34,11 @@ Bullet's traps, each undone here (and stated in the design notes):
 - a URDF joint axis that is not unit: Bullet's stepping uses it as written (calculateMassMatrix normalises it),
   so the joint's acceleration is wrong (measured 2 % on a (0.2, 1, 0) hinge, a 7.7e-3 rad offset after 0.5 s
   that does not shrink with dt); named in meta["notes"];
+- loadURDF applies the file's joint limits itself (a limit constraint with ERP: measured 2e-3 rad past a stop at
+  dt = 1 ms); a URDF scene read with constraints=False (the bare tree) has them removed here, one read with
+  constraints (the default) keeps them, holds <dynamics friction> by a velocity motor at target 0 whose maximum force
+  is the friction (Bullet's rigid Coulomb friction per joint, in its LCP) and a <mimic> by a gear constraint (Bullet's
+  loadURDF ignores mimics); limits, friction and equalities of scenes built from a Layout are not built (refused);
 - restitution needs restitutionVelocityThreshold lowered (default 0.2 m/s: slower impacts are inelastic) and
   ERP-based position correction (default on: penetration recovery adds energy): here splitImpulse on with
   the threshold at 1e-6 m/s.
@@ -92,12 +97,21 @@ def check(scene: Scene) -> None:
     if rolls:
         raise NotImplementedError(f"roll joints {rolls}: Bullet has no joint that ties a translation to a rotation")
     if _from_file(scene):
+        if getattr(scene, "constraints", False):
+            still = [f for f, (_, multiplier, _) in getattr(scene, "mimics", {}).items() if multiplier == 0]
+            if still:
+                raise NotImplementedError(f"mimic joints {still} with multiplier 0: Bullet's gear constraint ties "
+                                          "two joints' rates, it cannot hold one joint still")
         planar = [j.name for j in layout.joints if j.name.endswith("_TX")]
         inner_free = [j.name for j in layout.joints if j.kind == "free" and j.name != "root_joint"]
         if planar or inner_free:
             raise NotImplementedError(f"joints {planar + inner_free}: Bullet's URDF loader has no planar or floating "
                                       "joint between links")
         return
+    if layout.constrained:
+        raise NotImplementedError(f"scene {scene.name!r} has joint limits, dry friction or equalities: built for "
+                                  "Bullet from a URDF file only (loadURDF's limits, velocity motors as friction, gear "
+                                  "constraints as mimics)")
     for body in layout.bodies:
         for shape in body.shapes:
             if shape.kind == "mesh" and any(shape.name in (c.shape_a, c.shape_b) for c in layout.contacts):
@@ -191,6 +205,8 @@ class _Built:
         else:
             self._build()
         self._free_everything()
+        if _from_file(scene):
+            self._urdf_constraints(scene)
 
     def _load(self, scene) -> None:
         client = self.client
@@ -387,6 +403,35 @@ class _Built:
             a, b = self.shapes[contact.shape_a], self.shapes[contact.shape_b]
             pb.setCollisionFilterPair(a[0], b[0], a[1], b[1], 1, physicsClientId=client)
             self.pairs.append((a, b))
+
+    def _urdf_constraints(self, scene) -> None:
+        """The file's limits, dry friction and mimics as Bullet holds them when the scene applies them
+        (from_urdf(constraints=True)): loadURDF's own joint limit constraints (kept), a velocity motor at target 0
+        with maximum force = friction on each joint with dry friction (Bullet's rigid Coulomb friction in its LCP),
+        a gear constraint per mimic (q_leader - q_follower / m = -offset / m, position error corrected by ERP 0.2).
+        When the scene does not apply them (constraints=False, the bare tree): loadURDF's limits removed."""
+        client = self.client
+        if not getattr(scene, "constraints", False):
+            for uid, index, kind in self.joints.values():
+                if kind in (pb.JOINT_REVOLUTE, pb.JOINT_PRISMATIC):
+                    pb.changeDynamics(uid, index, jointLowerLimit=-1e10, jointUpperLimit=1e10, physicsClientId=client)
+            return
+        for joint in self.layout.joints:
+            if joint.frictionloss > 0 and joint.name in self.joints:
+                uid, index, kind = self.joints[joint.name]
+                if kind == pb.JOINT_SPHERICAL:
+                    pb.setJointMotorControlMultiDof(uid, index, pb.VELOCITY_CONTROL, targetVelocity=[0, 0, 0],
+                                                    force=[joint.frictionloss] * 3, physicsClientId=client)
+                else:
+                    pb.setJointMotorControl2(uid, index, pb.VELOCITY_CONTROL, targetVelocity=0,
+                                             force=joint.frictionloss, physicsClientId=client)
+        for follower, (leader, multiplier, offset) in scene.mimics.items():
+            (uid, lead, _), (_, follow, _) = self.joints[leader], self.joints[follower]
+            gear = pb.createConstraint(uid, lead, uid, follow, jointType=pb.JOINT_GEAR, jointAxis=[0, 0, 1],
+                                       parentFramePosition=[0, 0, 0], childFramePosition=[0, 0, 0],
+                                       physicsClientId=client)
+            pb.changeConstraint(gear, gearRatio=-1.0 / multiplier, relativePositionTarget=-offset / multiplier,
+                                erp=0.2, maxForce=1e10, physicsClientId=client)
 
     # ----- state -----
 

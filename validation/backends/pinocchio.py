@@ -66,7 +66,18 @@ DYNAMICS_SAMPLES = 5   # saved states at which meta["dynamics"] compares rbody's
 
 def check(scene: Scene) -> None:
     """Pinocchio runs an unbatched tree of bodies and joints (hinge, slide, ball, free) with no contact, no
-    varying mass and no applied force; its forward dynamics have no contacts and no rolling constraint."""
+    varying mass and no applied force; its forward dynamics (aba) have no contacts, no rolling constraint, and no
+    joint limits, dry friction or equalities (a URDF read with constraints=False runs as aba runs it)."""
+    _check_tree(scene)
+    if scene.layout.constrained:
+        way = (" (rbody.from_urdf(path, constraints=False), or compare --no-constraints, runs the file as aba does)"
+               if hasattr(scene, "floating_base") else "")
+        raise NotImplementedError(f"scene {scene.name!r} holds joint limits, dry friction or equalities: Pinocchio's "
+                                  f"aba has none of them{way}")
+
+
+def _check_tree(scene: Scene) -> None:
+    """What build() needs: a tree Pinocchio's model can hold (its dynamics comparable, constraints aside)."""
     if not isinstance(scene, Scene):
         raise ValueError(f"scene={scene!r}: expected an rbody.Scene (see rbody.scenes)")
     if scene.batch_shape:
@@ -439,9 +450,10 @@ def _gravity(scene: Scene) -> float:
 
 
 def build(scene: Scene) -> PinocchioModel:
-    """The PinocchioModel of `scene` (module docstring). Raises NotImplementedError for what Pinocchio cannot run,
-    ValueError when Pinocchio's model is not rbody's (other joints)."""
-    check(scene)
+    """The PinocchioModel of `scene` (module docstring): its tree, whatever limits, friction or equalities the scene
+    holds (run() refuses those). Raises NotImplementedError for a tree Pinocchio cannot hold, ValueError when
+    Pinocchio's model is not rbody's (other joints)."""
+    _check_tree(scene)
     return PinocchioModel(scene)
 
 
@@ -458,6 +470,7 @@ def run(scene: Scene, dt: float, t_end: float | None = None, *, method: str = "r
         raise ValueError(f"method={method!r}: expected one of {METHODS}")
     dt, t_end = run_times(scene.t_end, dt, t_end)
     whole_number(save_every, "save_every")
+    check(scene)
     model = build(scene)
     layout = scene.layout
     qpos0, qvel0 = _initial(scene, model)

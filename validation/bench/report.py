@@ -20,9 +20,9 @@ from validation.report import save_figure  # noqa: E402
 LEVELS = (1e-3, 1e-6, 1e-9, 1e-12)
 GOAL_RATIO = 10.0  # rbody at least this many times cheaper than the best other simulator
 FLOOR, CEILING = 1e-17, 1e2  # error axis: zero error is drawn at FLOOR, larger or NaN errors at CEILING
-COLOURMAPS = {"rbody": "Blues", "mujoco": "Oranges", "pymunk": "Greens"}
+COLOURMAPS = {"rbody": "Blues", "mujoco": "Oranges", "pymunk": "Greens", "pinocchio": "Purples", "bullet": "Reds"}
 MARKERS = "osD^v<>ph*"
-NAMES = {"rbody": "rbody", "mujoco": "MuJoCo", "pymunk": "pymunk",
+NAMES = {"rbody": "rbody", "mujoco": "MuJoCo", "pymunk": "pymunk", "pinocchio": "Pinocchio", "bullet": "Bullet",
          "mujoco reduced": "MuJoCo on rbody's reduction"}
 
 
@@ -275,7 +275,7 @@ def peer_settings(bench) -> str:
 def write_summary(out: Path, points: Sequence, benches: Sequence, figures: Sequence[str], batch, growth,
                   header: Sequence[str], *, quick: bool, seconds: float) -> Path:
     """summary.md: per scene the cheapest cost at each error level, the goals, batch and growth results."""
-    parts = ["# Speed against error: rbody, MuJoCo and pymunk", ""]
+    parts = ["# Speed against error: rbody, MuJoCo, pymunk and the peers Pinocchio and Bullet", ""]
     parts += [f"- {line}" for line in header]
     runs = sorted({int(p.run) for p in points}) or [1]
     parts += [f"- wall time of this benchmark: {seconds:.0f} s; runs of every sweep: {len(runs)}", "",
@@ -303,11 +303,16 @@ def write_summary(out: Path, points: Sequence, benches: Sequence, figures: Seque
               "where rbody integrates a reduced model (rolling), MuJoCo also runs the same reduction in its own "
               "column (slide + armature I/R^2; slide + hinge + joint equality), beside its contact model with "
               "the best contact settings found and with noslip iterations. pymunk: its defaults and more solver "
-              "work, per scene below. The last column takes the cheapest of all other columns.", ""]
+              "work, per scene below. Pinocchio: its aba by rk4, a Python loop over pin's bindings (its cost is "
+              "theirs as much as the algorithm's). Bullet: semi-implicit Euler over dt and, on contacts, its "
+              "solver iterations and contact ERP (validation/bench/scenes.py). The last column takes the cheapest "
+              "of all other columns.", ""]
     standings = []
     for bench, figure in zip(benches, figures):
         reduced = any(column(p) == "mujoco reduced" for p in points if p.scene == bench.name)
-        backends = ["rbody", "mujoco"] + (["mujoco reduced"] if reduced else []) + ["pymunk"]
+        backends = ["rbody", "mujoco"] + (["mujoco reduced"] if reduced else []) + ["pymunk"] + [
+            peer for peer in ("pinocchio", "bullet") if any(p.backend == peer and p.scene == bench.name
+                                                            and not math.isnan(p.dt) for p in points)]
         table, standing = level_table(points, bench.name, backends)
         standings += standing
         parts += [f"## {bench.name}", "", f"{bench.scene.describe()}. Error: max abs error of `{bench.measure}` "
@@ -340,7 +345,7 @@ def goals(standings: Sequence[dict], batch, growth, t_end: dict[str, float] | No
     lines = ["## Goals", ""]
     missed = [s for s in standings if 0 <= s["ratio"] < GOAL_RATIO]
     reached = [s for s in standings if s["rival"] is not None]
-    lines.append(f"- rbody >= {GOAL_RATIO:g}x cheaper than the best of MuJoCo and pymunk at every level they reach: "
+    lines.append(f"- rbody >= {GOAL_RATIO:g}x cheaper than the best of the other engines at every level they reach: "
                  + ("met" if reached and not missed else "not met" if missed else "no level reached by them")
                  + f" ({len(reached) - len(missed)} of {len(reached)} (scene, level) pairs).")
     serial = batch["single"]["one thread"]["call_us"] * 1e-6 if batch is not None else None

@@ -24,12 +24,13 @@ QUICK_DEFAULT = ("swinging_rod", "rolling_disc", "line_collisions", "pi_collisio
 
 
 def run_bench(out: Path, *, names: Iterable[str] | None = None, quick: bool = False, repeat: int = 1,
-              log=sys.stderr, client=None) -> Path:
+              log=sys.stderr, client=None, engines: Iterable[str] | None = None) -> Path:
     """Run the benchmark into folder `out` and return the path of summary.md.
 
     names: scene names of bench_scenes() and/or "batch", "growth" (default: all of them; quick: QUICK_DEFAULT).
     repeat: how many times every sweep is run (the `run` column of bench.csv); the summary gives each
     ratio's median and its range over the runs. Batch and growth are measured once.
+    engines: only these backends' series (default: every engine's; e.g. the peers alone, beside a full run);
     client: a dask.distributed.Client, or None: each series (backend x method x setting, its sweep of dt) of
     each run is then one timed task on its cluster, one at a time per worker (validation.cluster); the batch
     and growth measurements, which use every core, run here afterwards, with the cluster idle. bench.csv
@@ -37,6 +38,11 @@ def run_bench(out: Path, *, names: Iterable[str] | None = None, quick: bool = Fa
     """
     if isinstance(repeat, bool) or not isinstance(repeat, int) or repeat < 1:
         raise ValueError(f"repeat={repeat!r}: expected a whole number >= 1")
+    from validation.backends import ENGINES
+
+    engines = tuple(engines) if engines else None
+    if engines is not None and (not engines or any(e not in ENGINES for e in engines)):
+        raise ValueError(f"engines={list(engines)}: expected engines among {', '.join(ENGINES)}")
     benches = bench_scenes(quick)
     known = [b.name for b in benches] + list(EXTRA_WORK)
     names = list(names) if names else list(QUICK_DEFAULT if quick else known)
@@ -53,10 +59,10 @@ def run_bench(out: Path, *, names: Iterable[str] | None = None, quick: bool = Fa
                     if bench.name in names:
                         print(f"[bench] run {run} of {repeat}: {bench.name} ({bench.scene.describe()})", file=log,
                               flush=True)
-                        points += run_scene(bench, quick=quick, log=log, run=run)
+                        points += run_scene(bench, quick=quick, log=log, run=run, engines=engines)
         else:
             points = _sweeps_on_cluster(client, [b for b in benches if b.name in names], quick=quick, repeat=repeat,
-                                        log=log)
+                                        log=log, engines=engines)
         csv_name = write_csv(staging / "bench.csv", (asdict(p) for p in points), COLUMNS, header).name
         figures = [report.plot_scene(points, b, staging) for b in benches if b.name in names]
         batch_result = batch.run_batch(staging, quick=quick, header=header, log=log) if "batch" in names else None
@@ -70,17 +76,21 @@ def run_bench(out: Path, *, names: Iterable[str] | None = None, quick: bool = Fa
     return path
 
 
-def _sweeps_on_cluster(client, benches: list, *, quick: bool, repeat: int, log) -> list[Point]:
+def _sweeps_on_cluster(client, benches: list, *, quick: bool, repeat: int, log, engines=None) -> list[Point]:
     """The points of run_scene for every run and bench scene, in the same order, each series a timed task."""
+    def chosen(bench):
+        return [(index, series) for index, series in enumerate(bench.series)
+                if engines is None or series.backend in engines]
+
     tasks = [(f"run {run}: {bench.name} {series.backend} {series.method} [{series.settings}]", series_task,
               (quick, bench.name, index, run))
-             for run in range(1, repeat + 1) for bench in benches for index, series in enumerate(bench.series)]
+             for run in range(1, repeat + 1) for bench in benches for index, series in chosen(bench)]
     results = iter(run_tasks(client, tasks, what="bench", timed=True, log=log))
     points: list[Point] = []
     for run in range(1, repeat + 1):
         for bench in benches:
-            points += refusals(bench, run=run)
-            for _ in bench.series:
+            points += refusals(bench, run=run, engines=engines)
+            for _ in chosen(bench):
                 points += next(results)
     return points
 
@@ -91,6 +101,6 @@ def main(args) -> int:
 
     with connect(getattr(args, "scheduler", None), getattr(args, "workers", None)) as client:
         path = run_bench(args.out, names=args.scene, quick=args.quick, repeat=getattr(args, "repeat", 1),
-                         client=client)
+                         client=client, engines=getattr(args, "engine", None))
     print(path.read_text())
     return 0

@@ -32,7 +32,16 @@ shape; impacts: each shape's elasticity sqrt(e) so that the pair's product is e,
 as a second series, iterations 100 (pendulums, rolling, chain) or iterations 100 with collision_slop 0
 (impacts): the defaults were the best found on every scene, more solver work buys nothing measurable
 (on rolling, slop 0 makes the disc slip at coarse dt).
+The peers (validation.backends.pinocchio and .bullet), on the scenes each can express:
+- Pinocchio: its aba integrated by classical rk4 (the only scheme it is compared with: rbody's and MuJoCo's),
+  on the contact-free trees (pendulums, free rotation, the chains); each step is a Python loop over aba calls,
+  so its cost measures pin's Python bindings as much as its algorithm (stated in the summary).
+- Bullet: semi-implicit Euler, its only integrator, so dt is its accuracy knob; on the trees nothing else
+  matters (no constraint row reaches its solver: the same run at every solver setting), on contacts its
+  sequential-impulse solver is swept: numSolverIterations 50 (Bullet's default) and 200 (the backend's), each
+  at Bullet's contact ERP and at ERP 0.8 (split impulse on, restitution threshold 1e-6 m/s: the backend's).
 """
+
 
 from __future__ import annotations
 
@@ -165,6 +174,26 @@ def _mujoco_reduced(coarse: float, fine: float, n: int, sample: float, quick: bo
                    lambda dt, v=variant, i=integrator: dict(variant=v, integrator=i), dts, runner=reduced.run)
             for variant, integrators in variants.items() for integrator in integrators]
 IMPACT_BEST = ("solref=(-2/dt^2, 0): stiffer spring", lambda dt: dict(solref=(-2.0 / dt**2, 0.0)))
+BULLET_CONTACT_SETTINGS = (("solver_iterations=50 (Bullet's default)", dict(solver_iterations=50)),
+                           ("solver_iterations=200", dict(solver_iterations=200)),
+                           ("solver_iterations=50, erp=0.8", dict(solver_iterations=50, erp=0.8)),
+                           ("solver_iterations=200, erp=0.8", dict(solver_iterations=200, erp=0.8)))
+
+
+def _pinocchio(coarse: float, fine: float, n: int, sample: float) -> list[Series]:
+    """Pinocchio's aba by rk4 (the scheme rbody and MuJoCo RK4 run)."""
+    return [Series("pinocchio", "rk4", "default", _fixed(method="rk4"), sweep(coarse, fine, n, sample))]
+
+
+def _bullet(coarse: float, fine: float, n: int, sample: float, contacts: bool = False,
+            quick: bool = False) -> list[Series]:
+    """Bullet's semi-implicit Euler over dt; with contacts, each solver setting of BULLET_CONTACT_SETTINGS (quick:
+    the backend's 200 iterations only)."""
+    dts = sweep(coarse, fine, n, sample)
+    if not contacts:
+        return [Series("bullet", "semi-implicit Euler", "default", _fixed(), dts)]
+    chosen = BULLET_CONTACT_SETTINGS[1:2] if quick else BULLET_CONTACT_SETTINGS
+    return [Series("bullet", "semi-implicit Euler", label, _fixed(**kwargs), dts) for label, kwargs in chosen]
 
 
 def bench_scenes(quick: bool = False) -> list[BenchScene]:
@@ -188,7 +217,9 @@ def bench_scenes(quick: bool = False) -> list[BenchScene]:
     for name, scene in (("swinging_rod", rod), ("compound_pendulum", compound)):
         series = (_rbody(scene, pendulum_ranges, n, sample)
                   + _mujoco(1e-1, 1e-3 if quick else 1e-4, n, sample, quick=quick)
-                  + _pymunk(1e-1, 1e-4 if quick else 1e-5, n, sample, quick=quick))
+                  + _pymunk(1e-1, 1e-4 if quick else 1e-5, n, sample, quick=quick)
+                  + _pinocchio(2e-1, 2e-3 if quick else 1e-3, n, sample)
+                  + _bullet(1e-2, 1e-4 if quick else 1e-5, n, sample))
         out.append(BenchScene(name, scene, "theta", "rad", tuple(series)))
 
     # --- rolling: constant accelerations, exact ---------------------------------------------------------
@@ -203,7 +234,8 @@ def bench_scenes(quick: bool = False) -> list[BenchScene]:
         series = (_rbody(scene, exact_ranges, n, sample)
                   + _mujoco(1e-2, 1e-4 if quick else 1e-5, n, sample, ROLLING_BEST, ROLLING_NOSLIP, quick=quick)
                   + _mujoco_reduced(1e-1, 1e-4 if quick else 1e-5, n, sample, quick)
-                  + _pymunk(1e-2, 1e-4 if quick else 1e-5, n, sample, quick=quick))
+                  + _pymunk(1e-2, 1e-4 if quick else 1e-5, n, sample, quick=quick)
+                  + _bullet(1e-2, 1e-4 if quick else 2e-5, n, sample, contacts=True, quick=quick))
         out.append(BenchScene(name, scene, "distance", "m", tuple(series), rolling=True))
 
     # --- impacts: event-driven and exact -----------------------------------------------------------------
@@ -218,7 +250,8 @@ def bench_scenes(quick: bool = False) -> list[BenchScene]:
         events = {"events": (scene.t_end / 20, scene.t_end / (200 if quick else 2000))}
         series = (_rbody(scene, events, n, sample)
                   + _mujoco(3e-3, 3e-4 if quick else 1e-4, n, sample, IMPACT_BEST, quick=quick)
-                  + _pymunk(3e-3, 1e-4 if quick else 3e-5, n, sample, impacts=True, quick=quick))
+                  + _pymunk(3e-3, 1e-4 if quick else 3e-5, n, sample, impacts=True, quick=quick)
+                  + _bullet(3e-3, 1e-4 if quick else 3e-5, n, sample, contacts=True, quick=quick))
         out.append(BenchScene(name, scene, "positions", "m", tuple(series), counted=True,
                               note=f"Exact count {int(scene.exact([scene.t_end])['collisions'][-1])} impacts; a run "
                                    "with another count is a failure"))
@@ -231,7 +264,9 @@ def bench_scenes(quick: bool = False) -> list[BenchScene]:
     rotation_ranges = {"euler": (1e-2, 1e-5 if quick else 1e-6), "splitting": (1e-1, 1e-5),
                        "rk4": (1e-1, 1e-4), "yoshida6": (1e-1, 1e-3), "gauss6": (1e-1, 1e-3), "*": (1e-1, 1e-4)}
     series = (_rbody(rotation, rotation_ranges, n, sample)
-              + _mujoco(3e-2, 3e-4 if quick else 3e-5, n, sample, quick=quick))
+              + _mujoco(3e-2, 3e-4 if quick else 3e-5, n, sample, quick=quick)
+              + _pinocchio(1e-1, 2e-3 if quick else 1e-3, n, sample)
+              + _bullet(1e-2, 1e-4 if quick else 1e-5, n, sample))
     out.append(BenchScene("free_rotation", rotation, "omega_body", "rad/s", tuple(series)))
 
     # --- the chain: no closed form, truth from the tight reference run --------------------------------
@@ -242,7 +277,9 @@ def bench_scenes(quick: bool = False) -> list[BenchScene]:
                     "*": (1e-1, 1e-4)}
     series = (_rbody(chain, chain_ranges, n, sample)
               + _mujoco(1e-2, 1e-4 if quick else 3e-5, n, sample, quick=quick)
-              + _pymunk(1e-2, 1e-4 if quick else 1e-5, n, sample, quick=quick))
+              + _pymunk(1e-2, 1e-4 if quick else 1e-5, n, sample, quick=quick)
+              + _pinocchio(1e-1, 2e-3 if quick else 1e-3, n, sample)
+              + _bullet(1e-2, 1e-4 if quick else 1e-5, n, sample))
     out.append(BenchScene("pendulum_chain", chain, "theta", "rad", tuple(series), reference=True,
                           note="Truth: rbody's reference run (scipy DOP853, rtol 1e-13); the finest gauss6, rk4 and "
                                "MuJoCo RK4 runs agree with it to about 6e-14 rad, the floor of this measure"))
@@ -252,7 +289,7 @@ def bench_scenes(quick: bool = False) -> list[BenchScene]:
     series = (_rbody(general, chain_ranges, n, sample)
               + _mujoco(1e-2, 1e-4 if quick else 3e-5, n, sample, quick=quick))
     if quick:  # the smoke test: rk4 and gauss6 against MuJoCo's RK4
-        series = tuple(s for s in series if s.method in ("rk4", "gauss6", "RK4"))
+        series = tuple(s for s in series if s.method in ("rk4", "gauss6", "RK4") and s.backend != "pinocchio")
     out.append(BenchScene("chain_general", general, "qpos", "rad", tuple(series), reference=True,
                           note="The three-link chain above as a user's model: Scene.from_layout(chain.layout), run by "
                                "rbody's general engine (articulated-body algorithm) instead of the chain's own kernel; "

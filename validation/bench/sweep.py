@@ -15,7 +15,7 @@ import rbody
 from rbody.errors import SimulationError
 from rbody.trajectory import Trajectory
 from validation.tolerances import energy_error, max_abs_error, max_slip
-from validation.backends import BACKENDS, get, supports
+from validation.backends import ENGINES, get, supports
 from validation.bench.scenes import SAMPLES, BenchScene, Series, bench_scenes
 
 LEVELS = (1e-3, 1e-6, 1e-9, 1e-12)
@@ -147,7 +147,10 @@ def _first_line(error: BaseException) -> str:
 
 
 def run_series(bench: BenchScene, series: Series, truth: Truth, *, quick: bool, run: int = 1) -> list[Point]:
-    """Every dt of a series, coarse to fine, after one warm-up run at the coarsest dt (not recorded)."""
+    """Every dt of a series, coarse to fine, after one warm-up run at the coarsest dt (not recorded); none for a
+    backend that cannot run the scene (refusals gives its row, with the reason: e.g. its package not installed)."""
+    if series.runner is None and not supports(bench.scene, series.backend)[0]:
+        return []
     try:
         with np.errstate(all="ignore"):
             _runner(series)(bench.scene, series.dts[0], None, **series.kwargs(series.dts[0]))
@@ -169,12 +172,14 @@ def run_series(bench: BenchScene, series: Series, truth: Truth, *, quick: bool, 
     return points
 
 
-def run_scene(bench: BenchScene, *, quick: bool, log=None, run: int = 1) -> list[Point]:
+def run_scene(bench: BenchScene, *, quick: bool, log=None, run: int = 1, engines=None) -> list[Point]:
     """Every series of a scene, and one row per backend that refuses it (with its reason); run: the number
-    of this run of the benchmark (1, 2, ...), written in every row."""
-    points = refusals(bench, run=run)
+    of this run of the benchmark (1, 2, ...), written in every row; engines: only these backends' series."""
+    points = refusals(bench, run=run, engines=engines)
     truth = Truth(bench)
     for series in bench.series:
+        if engines is not None and series.backend not in engines:
+            continue
         start = time.perf_counter()
         points += run_series(bench, series, truth, quick=quick, run=run)
         if log:
@@ -183,10 +188,10 @@ def run_scene(bench: BenchScene, *, quick: bool, log=None, run: int = 1) -> list
     return points
 
 
-def refusals(bench: BenchScene, *, run: int = 1) -> list[Point]:
-    """One row per backend that cannot run the scene, with its reason."""
+def refusals(bench: BenchScene, *, run: int = 1, engines=None) -> list[Point]:
+    """One row per backend (of `engines`, default all) that cannot run the scene, with its reason."""
     points: list[Point] = []
-    for backend in BACKENDS:
+    for backend in engines or ENGINES:
         ok, reason = supports(bench.scene, backend)
         if not ok:
             points.append(Point(bench.name, backend, "-", "-", math.nan, run=run,

@@ -9,6 +9,9 @@
   successive runs (their `run` numbers renumbered);
 - the goals of summary.md's "## Goals" section (of the first --bench folder) replace the lines between
   <!-- bench-goals:start --> and <!-- bench-goals:end -->;
+- with --peers DIR (a run of the peers beside the others, e.g. `python -m validation bench --out DIR`), the cost
+  of rbody, of the best of MuJoCo and pymunk, of Pinocchio and of Bullet at each error level replaces the lines
+  between <!-- bench-peers:start --> and <!-- bench-peers:end -->;
 - the digits of pi each engine counts exactly (hard case 1's finding "Digits right ...") replace the
   lines between <!-- hard-pi:start --> and <!-- hard-pi:end -->;
 - with --docs, the run's files (bench.csv, batch.csv, growth.csv, summary.md, the figures; hard.md and
@@ -28,7 +31,7 @@ import sys
 from pathlib import Path
 
 from rbody.files import atomic_path, write_atomic
-from validation.bench.report import GOAL_RATIO, LEVELS, column, level_table
+from validation.bench.report import GOAL_RATIO, LEVELS, NAMES, cheapest, column, level_table
 from validation.bench.sweep import Point, read_points
 
 README_FIGURES = ("wp_swinging_rod.png", "wp_rolling_race.png")
@@ -56,7 +59,7 @@ def ratio_table(points: list[Point]) -> str:
              "|---|" + "---|" * len(LEVELS)]
     for scene in scenes:
         mine = [p for p in points if p.scene == scene]
-        columns = ["rbody"] + [c for c in ("mujoco", "mujoco reduced", "pymunk")
+        columns = ["rbody"] + [c for c in ("mujoco", "mujoco reduced", "pymunk", "pinocchio", "bullet")
                                if any(column(p) == c and not math.isnan(p.dt) for p in mine)]
         _table, standing = level_table(mine, scene, columns)
         cells = []
@@ -76,6 +79,41 @@ def ratio_table(points: list[Point]) -> str:
     note += ("bold: under the 10x goal; \"only rbody\": no other column reaches the level anywhere in its sweep "
              "(MuJoCo and pymunk at every setting swept, MuJoCo also on rbody's reduction where there is one).")
     return "\n".join(lines + ["", note])
+
+
+PEER_LEVELS = LEVELS[:3]
+
+
+def peer_table(points: list[Point]) -> str:
+    """Markdown: per scene and error level that some engine reaches, the least cost [wall s per simulated s] of
+    rbody, of the best of MuJoCo (its contact model or rbody's reduction) and pymunk, of Pinocchio and of Bullet,
+    each read off its work-precision curves (report.cheapest; Bullet's solver setting named where it is not the
+    default); "never": swept, not reached; "-": the engine does not express the scene."""
+    scenes = list(dict.fromkeys(p.scene for p in points))
+    lines = ["| scene | error <= | rbody | best of MuJoCo, pymunk | Pinocchio | Bullet |", "|---|---|---|---|---|---|"]
+
+    def cell(scene: str, keys: tuple[str, ...], level: float) -> str:
+        swept = any(column(p) in keys and p.scene == scene and not math.isnan(p.dt) for p in points)
+        if not swept:
+            return "-"
+        readings = [r for key in keys if (r := cheapest(points, scene, key, level)) is not None]
+        if not readings:
+            return "never"
+        best = min(readings, key=lambda r: r.seconds_per_sim_second)
+        label = NAMES.get(column(best), best.backend) if len(keys) > 1 else ""
+        setting = "" if best.settings in ("default",) or best.settings.startswith("exact") else best.settings
+        detail = ", ".join(x for x in (label, best.method, setting,
+                                       f"dt {best.dt:.2g}") if x)
+        return f"{best.seconds_per_sim_second:.2g} ({detail})"
+
+    for scene in scenes:
+        for level in PEER_LEVELS:
+            cells = [cell(scene, ("rbody",), level), cell(scene, ("mujoco", "mujoco reduced", "pymunk"), level),
+                     cell(scene, ("pinocchio",), level), cell(scene, ("bullet",), level)]
+            if all(c in ("-", "never") for c in cells):
+                continue
+            lines.append(f"| {scene} | {level:.0e} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
 
 
 def goals_lines(summary_md: Path) -> str:
@@ -125,14 +163,27 @@ def _copy_run(folder: Path, into: Path, patterns: tuple[str, ...]) -> list[Path]
 
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m validation.bench.tables", description=__doc__.split("\n\n")[0])
-    parser.add_argument("--bench", type=Path, action="append", required=True, metavar="DIR",
+    parser.add_argument("--bench", type=Path, action="append", metavar="DIR",
                         help="a benchmark output folder (repeatable: merged as successive runs)")
+    parser.add_argument("--peers", type=Path, metavar="DIR",
+                        help="a benchmark output folder with the peers' series: the bench-peers table")
     parser.add_argument("--hard", type=Path, metavar="DIR", help="the hard-case output folder (holds hard.md)")
     parser.add_argument("--readme", type=Path, default=Path("README.md"))
     parser.add_argument("--docs", type=Path, help="copy the runs into DOCS/bench, DOCS/hard, DOCS/figures")
     args = parser.parse_args(argv)
-    points = merged_points(args.bench)
+    if not args.bench and args.peers is None:
+        parser.error("give --bench DIR, --peers DIR or both")
     readme = args.readme.read_text()
+    if args.peers is not None:
+        readme = replace_block(readme, "bench-peers", peer_table(merged_points([args.peers])))
+        if args.docs is not None:
+            copied = _copy_run(args.peers, args.docs / "bench-peers", ("*.csv", "*.png", "summary.md"))
+            print(f"{len(copied)} files copied into {args.docs / 'bench-peers'}", file=sys.stderr)
+        if not args.bench:
+            write_atomic(args.readme, readme)
+            print(f"{args.readme}: the peers' table rewritten", file=sys.stderr)
+            return 0
+    points = merged_points(args.bench)
     readme = replace_block(readme, "bench-ratios", ratio_table(points))
     readme = replace_block(readme, "bench-goals", goals_lines(args.bench[0] / "summary.md"))
     if args.hard is not None:

@@ -1,4 +1,4 @@
-"""The numerical-stability suite: hard cases that break naive engines, run on rbody, MuJoCo and pymunk.
+"""The numerical-stability suite: hard cases that break naive engines, run on rbody, MuJoCo, pymunk, Pinocchio and Bullet.
 
     python -m validation hard [--quick] [--out DIR] [--case N ...]
 

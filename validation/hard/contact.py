@@ -21,7 +21,7 @@ EPS = float(np.finfo(np.float64).eps)
 PI_BUDGET = 60.0      # seconds of stepping per run, as the issue asks
 PI_COARSE = 1e-2      # MuJoCo's and pymunk's first step [s]; then down by 10 and bisection (_pi_rows_other)
 PI_RESOLUTION = 1.5   # the bisection stops when the failing and passing steps are within this factor
-STEP_COST = {"mujoco": 6e-6, "pymunk": 4e-6}  # first guess of the wall time per step [s]; then measured
+STEP_COST = {"mujoco": 6e-6, "pymunk": 4e-6, "bullet": 2e-4}  # Bullet: stepSimulation and a contact query  # first guess of the wall time per step [s]; then measured
 
 
 def _pi_rows_rbody(digits: range, result: CaseResult, points: dict) -> None:
@@ -122,8 +122,9 @@ def case_pi(quick: bool, out: Path) -> CaseResult:
         "Their times are the stepping alone (MuJoCo's rollout, pymunk's space.step).")
     points: dict[str, list] = {}
     _pi_rows_rbody(range(0, 8 if quick else 10), result, points)
-    for backend in ("mujoco", "pymunk"):
-        _pi_rows_other(backend, (0, 1) if quick else (0, 1, 2, 3, 4), result, points)
+    for backend in ("mujoco", "pymunk", "bullet"):  # Bullet: by the same rule (Pinocchio has no contacts)
+        _pi_rows_other(backend, (0,) if quick and backend == "bullet" else (0, 1) if quick else (0, 1, 2, 3, 4),
+                       result, points)
 
     phases = _pi_phase(range(1, 7 if quick else 9))
     for d, impacts, phase, energy, margin in phases:
@@ -159,7 +160,7 @@ def case_pi(quick: bool, out: Path) -> CaseResult:
         "refuses N > 11), "
         "and the heavy ball's change per impact, 2 x 10^-N of its speed, stays far above eps until N ~ 15.",
     ]
-    for backend in ("mujoco", "pymunk"):
+    for backend in ("mujoco", "pymunk", "bullet"):
         rows = [r for r in result.rows if r.backend == backend and r.measure.startswith("impacts")]
         exact = [r for r in rows if r.outcome == "exact"]
         wrong = [r for r in rows if r.outcome == "wrong count"]
@@ -216,7 +217,8 @@ def case_friction_limit(quick: bool, out: Path) -> CaseResult:
             should_roll = factor >= 1.0
             exact = None
             runs = ([("rbody", "verlet", {"method": "verlet"})]
-                    + [("mujoco", label, settings) for label, settings in ROLL_MUJOCO] + [("pymunk", "default", {})])
+                    + [("mujoco", label, settings) for label, settings in ROLL_MUJOCO] + [("pymunk", "default", {})]
+                    + [("bullet", "200 solver iterations", {})])
             for backend, setting, settings in runs:
                 trajectory, error, seconds = attempt(validation.run, scene, backend, dt=ROLL_DT, **settings)
                 if error is not None:

@@ -12,7 +12,7 @@ from validation.report import COLOURS, plt, save_figure
 METHOD_COLOURS = {"euler": "tab:red", "symplectic_euler": "tab:pink", "verlet": "tab:blue", "rk4": "tab:orange",
                   "yoshida6": "tab:green", "gauss6": "tab:purple", "splitting": "tab:cyan", "reference": "black",
                   "Euler": "tab:brown", "RK4": "tab:olive", "implicit": "tab:gray", "implicitfast": "gold",
-                  "pymunk": "darkgreen", "mujoco": "tab:orange"}
+                  "pymunk": "darkgreen", "mujoco": "tab:orange", "Pinocchio": "indigo", "Bullet": "darkred"}
 # MuJoCo's integrators dashed, pymunk dotted, rbody's methods solid.
 MUJOCO_LABELS = ("Euler", "RK4", "implicit", "implicitfast")
 
@@ -20,7 +20,7 @@ MUJOCO_LABELS = ("Euler", "RK4", "implicit", "implicitfast")
 def _style(label: str) -> tuple[str, str]:
     """(colour, line style) of a curve labelled '<method or integrator or backend> ...'."""
     key = label.split(" ")[0]
-    style = "--" if key in MUJOCO_LABELS else ":" if key == "pymunk" else "-"
+    style = "--" if key in MUJOCO_LABELS else ":" if key == "pymunk" else "-." if key in ("Pinocchio", "Bullet") else "-"
     return METHOD_COLOURS.get(key, "black"), style
 FLOOR = 1e-17  # below round-off: drawn at the floor of the log axis
 

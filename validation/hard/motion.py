@@ -144,13 +144,17 @@ def case_near_top(quick: bool, out: Path) -> CaseResult:
         short_scene = swinging_rod(1.0, theta0=theta0, t_end=other_periods * period)
         for backend, settings, label in (("mujoco", {"integrator": "RK4"}, "RK4"),
                                          ("mujoco", {"integrator": "Euler"}, "Euler"),
-                                         ("pymunk", {}, "pymunk")):
+                                         ("pymunk", {}, "pymunk"), ("bullet", {}, "Bullet")):
             (outcome, value, note, seconds, _extra), curve = _near_top_run(
                 short_scene, backend, OTHER_DT, period, dict(settings, save_every=10))
             if curve is not None:
-                curves[f"{label} (dt={OTHER_DT:g})" if backend == "mujoco" else f"pymunk (dt={OTHER_DT:g})"] = curve
+                curves[f"{label} (dt={OTHER_DT:g})"] = curve
             result.rows.append(HardRow(variant, backend, f"{label} dt={OTHER_DT:g}", outcome, value,
                                        f"period rel. error ({other_periods} periods)", seconds, "", note))
+        result.rows.append(HardRow(variant, "pinocchio", f"rk4 dt={OTHER_DT:g}", "not run", None, "-", 0.0, "",
+                                   f"{round(short_scene.t_end / OTHER_DT):d} steps of a Python loop over pin's aba "
+                                   "(~60 us a step here, minutes per gap: over the case's budget); on the rod its rk4 "
+                                   "is rbody's rk4 to round-off (the main command's swinging_rod: both 4.43e-11 rad)"))
         if curves:
             panels.append((f"theta0 = pi - {gap:g}", curves))
     if panels:
@@ -256,6 +260,25 @@ def case_intermediate_axis(quick: bool, out: Path) -> CaseResult:
         momentum_curves[integrator] = envelope(trajectory.t, momentum / momentum[0] - 1)
     result.rows.append(HardRow("energy, |L|, flips", "pymunk", "-", "refused", None, "-", 0.0, "",
                                "pymunk is 2-D: a body turning about three axes cannot be expressed"))
+    trajectory, error, seconds = run_backend(scene, "bullet", ROTATION_DT, save_every=10)
+    if error is not None:
+        result.rows.append(HardRow("energy, |L|, flips", "bullet", f"dt={ROTATION_DT:g}", error_outcome(error), None,
+                                   "energy drift", seconds, "", short(error)))
+    else:
+        drift_e, drift_l, period_error, count = _rotation_measures(scene, trajectory)
+        result.rows.append(HardRow("energy, |L|, flips", "bullet", f"semi-implicit Euler dt={ROTATION_DT:g}", "error",
+                                   drift_e, "energy drift", seconds, "",
+                                   f"|L| drift {drift_l:.3g}; flip period rel. error {period_error:.3g} over "
+                                   f"{count} flips"))
+        result.rows.append(HardRow("energy, |L|, flips", "bullet", f"semi-implicit Euler dt={ROTATION_DT:g}", "error",
+                                   period_error, "flip period rel. error", 0.0))
+        energy_curves["Bullet"] = envelope(trajectory.t, trajectory["energy"] / trajectory["energy"][0] - 1)
+        momentum = np.linalg.norm(trajectory["L_world"], axis=-1)
+        momentum_curves["Bullet"] = envelope(trajectory.t, momentum / momentum[0] - 1)
+    result.rows.append(HardRow("energy, |L|, flips", "pinocchio", f"rk4 dt={ROTATION_DT:g}", "not run", None, "-",
+                               0.0, "", f"{round(t_end / ROTATION_DT):d} steps of a Python loop over pin's aba "
+                               "(~270 us a step here: over the case's budget); its rk4 is rbody's rk4 on this body "
+                               "(the main command's free_rotation: 7.9e-13 rad/s from the closed form)"))
 
     # Where MuJoCo's Euler diverges: the time at which the energy has doubled, or MuJoCo reports an unstable state.
     scan_end = 100.0 if quick else 1000.0

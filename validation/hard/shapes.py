@@ -158,7 +158,8 @@ def case_extreme_shapes(quick: bool, out: Path) -> CaseResult:
                                        "pass" if ok else "FAIL", f"energy rel. error {energy:.3g}"
                                        + ("" if ok else f"; above {ACCURATE[method]:g}")))
         _export_rows(f"{label}, pendulum", pendulum, result)
-        for backend, settings, name in (("mujoco", {"integrator": "RK4"}, "RK4"), ("pymunk", {}, "pymunk")):
+        for backend, settings, name in (("mujoco", {"integrator": "RK4"}, "RK4"), ("pymunk", {}, "pymunk"),
+                                        ("pinocchio", {"method": "rk4"}, "Pinocchio rk4"), ("bullet", {}, "Bullet")):
             extra = {"min_inertia": MIN_INERTIA} if backend == "mujoco" and "ideal" in label else {}
             trajectory, error, seconds = run_backend(pendulum, backend, SHAPE_DT, save_every=10, **settings, **extra)
             setting = f"pendulum, {name} dt={SHAPE_DT:g}" + (f" min_inertia={MIN_INERTIA:g}" if extra else "")

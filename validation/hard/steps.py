@@ -97,7 +97,8 @@ def case_large_steps(quick: bool, out: Path) -> CaseResult:
                                                                  f"{main:.3g}", why) if x)))
         # The other simulators at the same multiples of 2/w (verlet's limit), for comparison.
         for backend, settings, name in (("mujoco", {"integrator": "RK4"}, "RK4"),
-                                        ("mujoco", {"integrator": "Euler"}, "Euler"), ("pymunk", {}, "pymunk")):
+                                        ("mujoco", {"integrator": "Euler"}, "Euler"), ("pymunk", {}, "pymunk"),
+                                        ("pinocchio", {"method": "rk4"}, "Pinocchio rk4"), ("bullet", {}, "Bullet")):
             for factor in (2.0, 10.0):
                 dt = factor * 2.0 / rate
                 trajectory, error, seconds = run_backend(scene, backend, dt, **settings)
@@ -194,13 +195,14 @@ def case_time_reversal(quick: bool, out: Path) -> CaseResult:
         9, "Time reversal",
         "forward N steps, velocities reversed, N steps back: the symmetric methods (verlet, yoshida6, gauss6, "
         f"splitting) return to the start to round-off (below {ROUND_OFF:g}); rk4 and symplectic_euler, which are not "
-        "symmetric, miss by their truncation error (shown for contrast, as are MuJoCo and pymunk).")
+        "symmetric, miss by their truncation error (shown for contrast, as are MuJoCo, pymunk and the peers).")
     steps = 500 if quick else 2000
     cases = []
     for method in ("verlet", "yoshida6", "gauss6", "rk4", "symplectic_euler"):
         cases.append((f"swinging rod, {steps} steps", "rbody", method,
                       lambda method=method: _rod_round_trip("rbody", method, 1e-2, steps, {})))
-    for backend, settings, name in (("mujoco", {"integrator": "RK4"}, "RK4"), ("pymunk", {}, "pymunk")):
+    for backend, settings, name in (("mujoco", {"integrator": "RK4"}, "RK4"), ("pymunk", {}, "pymunk"),
+                                    ("pinocchio", {"method": "rk4"}, "rk4"), ("bullet", {}, "semi-implicit Euler")):
         cases.append((f"swinging rod, {steps} steps", backend, name,
                       lambda backend=backend, settings=settings: _rod_round_trip(backend, None, 1e-2, steps, settings)))
     links = 2 if quick else 8

@@ -127,7 +127,7 @@ def write_markdown(out: Path, results: list[CaseResult], *, quick: bool, seconds
 
     parts = ["# Numerical stability on hard cases", "",
              "Each case is built to expose one failure mode; rbody must come through it correctly or refuse "
-             "with a clear error, and the same case is run in MuJoCo and pymunk wherever they can express it. "
+             "with a clear error, and the same case is run in MuJoCo, pymunk, Pinocchio and Bullet wherever they can express it. "
              "Outcomes: exact, error (value given), wrong count, blew up, refused, not run (over the time "
              "budget). The rbody column says whether rbody met the case's requirement.", "",
              f"- command: `python -m validation hard{' --quick' if quick else ''}`",

@@ -421,6 +421,28 @@ class EventRun:
                 mode[k] = 0.0 if abs(w[i]) <= tolerance else math.copysign(1.0, w[i])
                 if k in breaking and abs(lam[i]) >= (1 - 1e-9) * hi[i]:
                     mode[k] = -math.copysign(1.0, lam[i])
+        return self.drop_redundant_stops(mode, W, lam, lo, units, merged, tolerance)
+
+    def drop_redundant_stops(self, mode, W, lam, lo, units, merged, tolerance) -> np.ndarray:
+        """A stop at rest with no force (lambda at its bound 0) whose row is a combination of the other held rows
+        (in the metric of W: its Schur complement against them vanishes) is not held: the others keep it at its
+        stop, and holding it too would leave its share of the force undetermined (the minimum-norm split of a
+        redundant set can pull on a stop: two coupled fingers on their stops, a mimic with a limit on each joint).
+        Its distance stays a guard, as for any stop that is not held."""
+        for i, k in enumerate(units):
+            if (self.codes[k] not in UNILATERAL or mode[k] != 1.0 or k in merged
+                    or lam[i] > lo[i] + tolerance + 1e-9 * abs(lo[i])):
+                continue
+            others = [j for j, u in enumerate(units) if j != i and (self.codes[u] in EQUALITY_KINDS or
+                      (self.codes[u] in UNILATERAL and mode[u] == 1.0)
+                      or (self.codes[u] == FRICTION and mode[u] == 0.0))]
+            if not others:
+                continue
+            block = W[np.ix_(others, others)]
+            coupling = W[others, i]
+            solution = np.linalg.lstsq(block, coupling, rcond=1e-12)[0]
+            if W[i, i] - coupling @ solution <= 1e-9 * W[i, i]:
+                mode[k] = 0.0
         return mode
 
 
