@@ -379,11 +379,17 @@ class Layout:
     equalities: tuple[Equality, ...] = ()
 
     @property
+    def joint_constraints(self) -> bool:
+        """True when a joint has a range or frictionloss or an equality is active (the constraints between joints
+        and bodies, contacts aside)."""
+        return (any(j.range is not None or j.frictionloss > 0 for j in self.joints)
+                or any(e.active for e in self.equalities))
+
+    @property
     def constrained(self) -> bool:
         """True when a joint has a range or frictionloss, an equality is active or contacts are listed: the model
         then runs through the constraint layer (rbody.engine.constraints)."""
-        return (any(j.range is not None or j.frictionloss > 0 for j in self.joints)
-                or any(e.active for e in self.equalities) or bool(self.contacts))
+        return self.joint_constraints or bool(self.contacts)
 
     def __post_init__(self) -> None:
         """Each field checked to be a tuple (or list) of its kind (ValueError naming the field and the item)."""

@@ -50,7 +50,7 @@ def check(xml: str, **kwargs):
     return read, model
 
 
-FEATURES = f"""<mujoco model="features">
+FEATURES = """<mujoco model="features">
 <compiler angle="degree" eulerseq="zyx"/>
 <option timestep="0.001" integrator="RK4" gravity="0 0 -9.7"><flag contact="disable"/></option>
 <default><geom density="500"/>

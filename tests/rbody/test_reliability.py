@@ -7,7 +7,6 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-import rbody
 from rbody import Inertia, simulate
 from rbody.errors import SimulationError
 from rbody.motion import quat_to_matrix

@@ -108,7 +108,7 @@ def check(scene: Scene) -> None:
             raise NotImplementedError(f"joints {planar + inner_free}: Bullet's URDF loader has no planar or floating "
                                       "joint between links")
         return
-    if layout.constrained:
+    if layout.joint_constraints:  # contacts are built below
         raise NotImplementedError(f"scene {scene.name!r} has joint limits, dry friction or equalities: built for "
                                   "Bullet from a URDF file only (loadURDF's limits, velocity motors as friction, gear "
                                   "constraints as mimics)")

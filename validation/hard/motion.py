@@ -9,7 +9,6 @@ from pathlib import Path
 import numpy as np
 
 import rbody
-import validation
 from rbody import stability
 from rbody.engine.methods import SYMPLECTIC
 from rbody.scenes import free_rotation, swinging_rod

@@ -100,7 +100,7 @@ def test_against_mujoco_on_random_poses(kind_a, size_a, kind_b, size_b):
     mujoco = pytest.importorskip("mujoco")
     rng = np.random.default_rng(7)
     if kind_a == "plane":
-        first = f'<geom name="a" type="plane" size="0 0 1" margin="100" pos="0.1 -0.2 0.3" quat="0.9 0.2 -0.1 0.3"/>'
+        first = '<geom name="a" type="plane" size="0 0 1" margin="100" pos="0.1 -0.2 0.3" quat="0.9 0.2 -0.1 0.3"/>'
     else:
         first = f'<body name="A"><freejoint/>{_geom("a", kind_a, size_a)}</body>'
     xml = (f'<mujoco><worldbody>{first}<body name="B"><freejoint/>{_geom("b", kind_b, size_b)}</body>'

@@ -17,7 +17,7 @@ from rbody.motion import quat_normalize, quat_to_matrix
 from rbody.scene import BodyStates, TreeScene
 
 sys.path.insert(0, str(Path(__file__).parent))
-from trees import random_inertia, random_tree  # noqa: E402
+from trees import random_tree  # noqa: E402
 
 ALL_KINDS = ("hinge", "slide", "ball", "free", "weld", "multi")
 _OFF = mujoco.mjtDisableBit.mjDSBL_CONTACT | mujoco.mjtDisableBit.mjDSBL_CONSTRAINT
