@@ -7,19 +7,19 @@ centre of mass with products of inertia carrying the minus sign (I_ab = sum m (|
 from rbody.inertia import Inertia
 from rbody.motion import RigidMotion, point_velocity
 from rbody.particles import Particles, reduced_mass, two_body
-from rbody.layout import Body, Contact, Joint, Layout, Shape
+from rbody.layout import Actuator, Body, Contact, Joint, Layout, Shape, Tendon
 from rbody.scene import Scene
 from rbody.trajectory import Trajectory
 from rbody.errors import MethodNotApplicable, SimulationError
 from rbody.engine import METHODS, METHOD_ORDER, stability
 from rbody.simulation import simulate
-from rbody.engine.multibody import Multibody
+from rbody.engine.system import Multibody
 from rbody.mjcf import from_mjcf, to_mjcf
 from rbody import scenes
 
 __all__ = [
     "Inertia", "RigidMotion", "point_velocity", "Particles", "reduced_mass", "two_body",
-    "Body", "Contact", "Joint", "Layout", "Scene", "Shape", "Trajectory",
+    "Actuator", "Body", "Contact", "Joint", "Layout", "Scene", "Shape", "Tendon", "Trajectory",
     "SimulationError", "MethodNotApplicable", "METHODS", "METHOD_ORDER", "simulate", "scenes",
     "to_mjcf", "from_mjcf", "Multibody", "stability",
 ]

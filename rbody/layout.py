@@ -211,14 +211,157 @@ class Contact:
         in_interval(self.restitution, "restitution", 0.0, 1.0, closed=True)
 
 
+TENDON_KINDS = ("fixed", "spatial")
+
+
+@dataclass(frozen=True)
+class Tendon:
+    """A tendon: a length L(q) that springs, dampers and actuators act along (MuJoCo's <tendon>).
+
+    kind:    "fixed": L = sum coef_i q_i over `joints`, ((joint name, coef), ...), hinge and slide joints only
+             (MuJoCo's <fixed>: q itself, not q - ref);
+             "spatial": the length of the straight path through `sites`, ((body name or "world", point (3,) in
+             that body's frame [m]), ...), at least two (MuJoCo's <spatial> with sites only, no wrapping)
+    stiffness [N/m], damping [N s/m]: passive force along the tendon -stiffness x - damping L', x the distance
+             of L outside [springlength[0], springlength[1]] (a dead band; equal ends: a plain spring);
+             springlength None: both ends at the length in the reference pose at the joints' springref
+             (MuJoCo's springlength="-1 -1")
+    Units: L in m for a spatial tendon, in the units of coef * q for a fixed one.
+    """
+
+    name: str
+    kind: str = "fixed"
+    joints: tuple[tuple[str, float], ...] = ()
+    sites: tuple[tuple[str, tuple[float, float, float]], ...] = ()
+    stiffness: float = 0.0
+    damping: float = 0.0
+    springlength: tuple[float, float] | None = None
+
+    def __post_init__(self) -> None:
+        what = f"tendon {self.name!r}"
+        if self.kind not in TENDON_KINDS:
+            raise ValueError(f"{what}: kind={self.kind!r}, expected one of {TENDON_KINDS}")
+        joints = tuple((str(name), float(finite_array(coef, f"{what}: coef of joint {name!r}", shape=())))
+                       for name, coef in self.joints)
+        sites = tuple((str(body), tuple(finite_array(point, f"{what}: site point on {body!r}", shape=(3,)).tolist()))
+                      for body, point in self.sites)
+        object.__setattr__(self, "joints", joints)
+        object.__setattr__(self, "sites", sites)
+        if self.kind == "fixed" and (not joints or sites):
+            raise ValueError(f"{what}: a fixed tendon needs joints=((joint, coef), ...) and no sites")
+        if self.kind == "spatial" and (len(sites) < 2 or joints):
+            raise ValueError(f"{what}: a spatial tendon needs at least two sites=((body, point), ...) and no joints")
+        for name in ("stiffness", "damping"):
+            value = finite_array(getattr(self, name), f"{what}: {name}", shape=())
+            object.__setattr__(self, name, float(nonnegative(value, f"{what}: {name}")))
+        if self.springlength is not None:
+            low, high = finite_array(self.springlength, f"{what}: springlength", shape=(2,)).tolist()
+            if low > high:
+                raise ValueError(f"{what}: springlength={self.springlength!r}: expected (low, high) with low <= high")
+            object.__setattr__(self, "springlength", (low, high))
+
+
+ACTUATOR_DYNAMICS = ("none", "integrator", "filter", "filterexact")
+ACTUATOR_GAINS = ("fixed", "affine")
+ACTUATOR_BIASES = ("none", "affine")
+TRANSMISSIONS = ("joint", "tendon")
+
+
+def _range(value, what: str) -> tuple[float, float] | None:
+    if value is None:
+        return None
+    low, high = finite_array(value, what, shape=(2,)).tolist()
+    if not low <= high:
+        raise ValueError(f"{what}={value!r}: expected (low, high) with low <= high")
+    return (low, high)
+
+
+@dataclass(frozen=True)
+class Actuator:
+    """MuJoCo's general actuator (its XML reference, <general>; engine_forward.c mj_fwdActuation).
+
+    One control u [-] per actuator. The force along the transmission (N or N m) is
+        force = gain * (u, or the activation act where dynamics != "none") + bias,
+        gain  = gainprm[0]                                   ("fixed")
+              = gainprm[0] + gainprm[1] L + gainprm[2] L'    ("affine")
+        bias  = 0 ("none") or biasprm[0] + biasprm[1] L + biasprm[2] L' ("affine"),
+    clamped to forcerange, with u first clamped to ctrlrange. L is the actuator length: gear[0] q for a hinge
+    or slide (q itself, not q - ref), gear . (the rotation vector of the ball's quaternion) for a ball, 0 for a
+    free joint, gear[0] times the tendon length for a tendon; L' = moment . qvel. The generalised force is
+    moment^T force, the moment being gear[0] (hinge, slide, tendon: times the tendon's coefficients), gear[:3]
+    (ball: body-frame torque), gear (free: world force, then body-frame torque).
+    Activation dynamics, act' = u ("integrator"), (u - act) / dynprm ("filter", "filterexact": the same
+    equation; MuJoCo's own integrators advance "filterexact" by its exact solution over a step), clamped to
+    actrange after every step. actearly: the force uses the activation at the end of the step, act + h act'
+    (clamped; MuJoCo's rule), h the run's time step.
+    ctrlrange, forcerange, actrange: (low, high), or None for no limit (MuJoCo's ctrllimited="false").
+    disabled: the actuator applies no force and its activation stays (MuJoCo's <flag actuation="disable"/>
+    and actuatorgroupdisable).
+    """
+
+    name: str
+    target: str
+    transmission: str = "joint"
+    gear: tuple[float, ...] = (1.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    dynamics: str = "none"
+    dynprm: float = 1.0
+    gain: str = "fixed"
+    gainprm: tuple[float, float, float] = (1.0, 0.0, 0.0)
+    bias: str = "none"
+    biasprm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    ctrlrange: tuple[float, float] | None = None
+    forcerange: tuple[float, float] | None = None
+    actrange: tuple[float, float] | None = None
+    actearly: bool = False
+    disabled: bool = False
+
+    def __post_init__(self) -> None:
+        what = f"actuator {self.name!r}"
+        for field_name, choices in (("transmission", TRANSMISSIONS), ("dynamics", ACTUATOR_DYNAMICS),
+                                    ("gain", ACTUATOR_GAINS), ("bias", ACTUATOR_BIASES)):
+            if getattr(self, field_name) not in choices:
+                raise ValueError(f"{what}: {field_name}={getattr(self, field_name)!r}, expected one of {choices}")
+        gear = finite_array(self.gear, f"{what}: gear", ndim=1)
+        if gear.size > 6 or gear.size == 0:
+            raise ValueError(f"{what}: gear={self.gear!r}: expected 1 to 6 numbers")
+        object.__setattr__(self, "gear", tuple(np.concatenate([gear, np.zeros(6 - gear.size)]).tolist()))
+        for field_name in ("gainprm", "biasprm"):
+            values = finite_array(getattr(self, field_name), f"{what}: {field_name}", ndim=1)
+            if values.size > 3:
+                if np.any(values[3:] != 0):
+                    raise ValueError(f"{what}: {field_name}={getattr(self, field_name)!r}: only the first three "
+                                     "(const, kp, kv) are read by fixed and affine gains and biases")
+                values = values[:3]
+            object.__setattr__(self, field_name, tuple(np.concatenate([values, np.zeros(3 - values.size)]).tolist()))
+        dynprm = float(finite_array(self.dynprm, f"{what}: dynprm (time constant)", shape=()))
+        if self.dynamics in ("filter", "filterexact") and not dynprm >= 0:
+            raise ValueError(f"{what}: dynprm={self.dynprm!r}: a filter's time constant must be >= 0 [s]")
+        object.__setattr__(self, "dynprm", dynprm)
+        for field_name in ("ctrlrange", "forcerange", "actrange"):
+            object.__setattr__(self, field_name, _range(getattr(self, field_name), f"{what}: {field_name}"))
+        object.__setattr__(self, "actearly", bool(self.actearly))
+        object.__setattr__(self, "disabled", bool(self.disabled))
+
+    @property
+    def stateful(self) -> bool:
+        """True when the actuator has an activation state (dynamics other than "none")."""
+        return self.dynamics != "none"
+
+
 @dataclass(frozen=True)
 class Layout:
-    """The physical model of an unbatched scene: what MuJoCo, pymunk and the MJCF exporter build."""
+    """The physical model of an unbatched scene: what MuJoCo, pymunk and the MJCF exporter build.
+
+    tendons and actuators: MuJoCo's tendons and general actuators, in MuJoCo's order (the controls u of a run
+    follow the order of `actuators`; the activations that of the actuators with dynamics).
+    """
 
     bodies: tuple[Body, ...]
     joints: tuple[Joint, ...]
     fixed: tuple[Shape, ...] = ()
     contacts: tuple[Contact, ...] = ()
+    tendons: tuple[Tendon, ...] = ()
+    actuators: tuple[Actuator, ...] = ()
 
 
 # ----- the one tree order ------------------------------------------------------------------------------

@@ -227,19 +227,28 @@ class TreeScene(Scene):
     qpos0:  (..., nq) initial qpos, MuJoCo's layout, or None (the joints' own qpos0); leading axes: a batch
     qvel0:  (..., nv) initial qvel (free joints: world linear velocity of the body-frame origin, then the
             body-frame angular velocity; ball: body-frame angular velocity), or None (the joints' qvel0)
-    import_notes, timestep, integrator: what an MJCF importer records (no effect on the dynamics)
+    act0:   (..., na) initial activations of the actuators with dynamics (MuJoCo's act), default 0
+    ctrl0:  (..., nu) the control a run holds when simulate is given none (a keyframe's ctrl), default 0
+    import_notes, integrator: what an MJCF importer records (no effect on the dynamics)
+    timestep: the model's time step [s] (MJCF's option timestep), or None; the h that actearly's next activation
+            uses outside a run (rbody.Multibody.actuation); a run uses its own dt
 
     Observables: qpos (T, *batch, nq), qvel (T, *batch, nv), energy (T, *batch) [J] (kinetic + gravity +
     springs), and per body "<body>.com" (T, *batch, 3) [m], "<body>.quat" (T, *batch, 4),
     "<body>.velocity" (T, *batch, 3) [m/s] of the centre of mass, "<body>.omega" (T, *batch, 3) [rad/s],
-    world frame. The native state is (qpos, qvel, phi): each ball or free joint's rotation within a step is
-    q_n (x) exp(phi) (Runge-Kutta-Munthe-Kaas), folded into q_n after every step, so quaternions stay unit
-    by construction and every method keeps its order.
+    world frame; with actuators also ctrl (T, *batch, nu) (the control held through the step that starts at each
+    saved time; at the last, the last step's), actuator_force (T, *batch, nu) [N or N m] (MuJoCo's
+    actuator_force at that state and control) and act (T, *batch, na). The native state is (qpos, qvel, phi[,
+    act]): each ball or free joint's rotation within a step is q_n (x) exp(phi) (Runge-Kutta-Munthe-Kaas),
+    folded into q_n after every step, so quaternions stay unit by construction and every method keeps its
+    order. A tree with tendons or actuators runs on the 3-D path (rbody.engine.system), never the planar one.
     """
 
     tree: Layout
     qpos0: Any = None
     qvel0: Any = None
+    act0: Any = None
+    ctrl0: Any = None
     import_notes: tuple[str, ...] = ()
     timestep: float | None = None
     integrator: str | None = None
@@ -252,7 +261,9 @@ class TreeScene(Scene):
         if not isinstance(self.tree, Layout):
             raise ValueError(f"layout={self.tree!r}: expected an rbody.Layout")
         model = self.multibody  # validates the tree (ValueError before any work)
-        for field_name, size, default in (("qpos0", model.nq, model.qpos0), ("qvel0", model.nv, model.qvel0)):
+        for field_name, size, default in (("qpos0", model.nq, model.qpos0), ("qvel0", model.nv, model.qvel0),
+                                          ("act0", model.na, np.zeros(model.na)),
+                                          ("ctrl0", model.nu, np.zeros(model.nu))):
             value = getattr(self, field_name)
             array = default.copy() if value is None else np.array(value, dtype=np.float64)
             if array.ndim == 0 or array.shape[-1] != size:
@@ -263,10 +274,10 @@ class TreeScene(Scene):
             array.setflags(write=False)
             object.__setattr__(self, field_name, array)
         try:
-            np.broadcast_shapes(self.qpos0.shape[:-1], self.qvel0.shape[:-1])
+            np.broadcast_shapes(*(getattr(self, name).shape[:-1] for name in ("qpos0", "qvel0", "act0", "ctrl0")))
         except ValueError:
-            raise ValueError(f"qpos0 of shape {self.qpos0.shape} and qvel0 of shape {self.qvel0.shape} do not "
-                             "broadcast to one batch") from None
+            raise ValueError(f"qpos0 {self.qpos0.shape}, qvel0 {self.qvel0.shape}, act0 {self.act0.shape} and ctrl0 "
+                             f"{self.ctrl0.shape} do not broadcast to one batch") from None
         quats = self._quaternion_columns()
         if quats:
             norms = np.stack([np.linalg.norm(self.qpos0[..., c:c + 4], axis=-1) for c in quats])
@@ -277,10 +288,10 @@ class TreeScene(Scene):
 
     @cached_property
     def multibody(self):
-        """rbody.Multibody of the tree (validated on first use)."""
-        from rbody.engine.multibody import Multibody
+        """rbody.Multibody of the tree with its tendons and actuators (validated on first use)."""
+        from rbody.engine.system import DEFAULT_TIMESTEP, Multibody
 
-        return Multibody(self.tree, gravity=self.gravity)
+        return Multibody(self.tree, gravity=self.gravity, timestep=self.timestep or DEFAULT_TIMESTEP)
 
     def _quaternion_columns(self) -> list[int]:
         model = self.multibody
@@ -296,29 +307,43 @@ class TreeScene(Scene):
 
     @cached_property
     def batch_shape(self) -> tuple[int, ...]:
-        return tuple(np.broadcast_shapes(self.qpos0.shape[:-1], self.qvel0.shape[:-1]))
+        return tuple(np.broadcast_shapes(*(getattr(self, name).shape[:-1]
+                                           for name in ("qpos0", "qvel0", "act0", "ctrl0"))))
+
+    def _rows(self, value: np.ndarray, size: int) -> np.ndarray:
+        """value (..., size) broadcast to the batch, as (B, size) (B explicit: size may be 0)."""
+        count = int(np.prod(self.batch_shape)) if self.batch_shape else 1
+        return np.broadcast_to(value, self.batch_shape + (size,)).reshape(count, size)
 
     def _state0(self) -> tuple[np.ndarray, np.ndarray]:
         """qpos0 (B, nq), qvel0 (B, nv)."""
         model = self.multibody
-        return (np.broadcast_to(self.qpos0, self.batch_shape + (model.nq,)).reshape(-1, model.nq),
-                np.broadcast_to(self.qvel0, self.batch_shape + (model.nv,)).reshape(-1, model.nv))
+        return self._rows(self.qpos0, model.nq), self._rows(self.qvel0, model.nv)
+
+    def _controls0(self) -> tuple[np.ndarray, np.ndarray]:
+        """act0 (B, na), ctrl0 (B, nu)."""
+        model = self.multibody
+        return self._rows(self.act0, model.na), self._rows(self.ctrl0, model.nu)
 
     def item(self, index: int | tuple = ()) -> "TreeScene":
         if not self.batch_shape:
             return self
         qpos0, qvel0 = self._state0()
+        act0, ctrl0 = self._controls0()
         flat = np.arange(qpos0.shape[0]).reshape(self.batch_shape)[index]
         if np.ndim(flat) != 0:
             raise ValueError(f"index={index!r} picks {np.shape(flat)} trees from batch {self.batch_shape}: expected one")
-        return dataclasses.replace(self, qpos0=qpos0[int(flat)].copy(), qvel0=qvel0[int(flat)].copy())
+        k = int(flat)
+        return dataclasses.replace(self, qpos0=qpos0[k].copy(), qvel0=qvel0[k].copy(), act0=act0[k].copy(),
+                                   ctrl0=ctrl0[k].copy())
 
     def __eq__(self, other: object) -> bool:
         if type(other) is not type(self):
             return NotImplemented
         return (self.name, self.t_end, self.gravity, self.tree, self.import_notes, self.timestep, self.integrator) == (
             other.name, other.t_end, other.gravity, other.tree, other.import_notes, other.timestep,
-            other.integrator) and np.array_equal(self.qpos0, other.qpos0) and np.array_equal(self.qvel0, other.qvel0)
+            other.integrator) and all(np.array_equal(getattr(self, name), getattr(other, name))
+                                      for name in ("qpos0", "qvel0", "act0", "ctrl0"))
 
     __hash__ = None  # type: ignore[assignment]
 
@@ -326,13 +351,18 @@ class TreeScene(Scene):
 
     @property
     def observables(self) -> tuple[str, ...]:  # type: ignore[override]
+        model = self.multibody
         names = ["qpos", "qvel", "energy"]
-        for body in self.multibody.body_names:
+        if model.nu:
+            names += ["ctrl", "actuator_force"] + (["act"] if model.na else [])
+        for body in model.body_names:
             names += [f"{body}.com", f"{body}.quat", f"{body}.velocity", f"{body}.omega"]
         return tuple(names)
 
-    def _observables(self, qpos: np.ndarray, qvel: np.ndarray) -> dict[str, Any]:
-        """From qpos (T, B, nq) and qvel (T, B, nv): qpos and qvel as given, the rest lazily (callables)."""
+    def _observables(self, qpos: np.ndarray, qvel: np.ndarray, act: np.ndarray | None = None,
+                     ctrl: np.ndarray | None = None, step: float | None = None) -> dict[str, Any]:
+        """From qpos (T, B, nq) and qvel (T, B, nv) (with actuators, act (T, B, na), ctrl (T, B, nu) and the run's
+        step [s]): qpos, qvel, act and ctrl as given, the rest lazily (callables)."""
         model = self.multibody
         states: dict[str, np.ndarray] = {}
 
@@ -345,6 +375,15 @@ class TreeScene(Scene):
             return model.kinetic_energy(qpos, qvel) + model.potential_energy(qpos)
 
         data: dict[str, Any] = {"qpos": qpos, "qvel": qvel, "energy": energy}
+        if model.nu and ctrl is not None:
+            act = np.zeros(qpos.shape[:-1] + (0,)) if act is None else act
+
+            def actuator_force():
+                return model.actuation(qpos, qvel, ctrl, act, timestep=step)["force"]
+
+            data.update(ctrl=ctrl, actuator_force=actuator_force)
+            if model.na:
+                data["act"] = act
         for i, body in enumerate(model.body_names):
             for what in ("com", "quat", "velocity", "omega"):
                 data[f"{body}.{what}"] = (lambda i=i, what=what: body_states()[what][..., i, :])
@@ -368,6 +407,8 @@ class TreeScene(Scene):
         from rbody.engine.multibody import BALL, D_PARENT, DOF_SIZE, FREE, H_DOF, HINGE, KIND_CODE, ROLL
 
         model = self.multibody
+        if model.has_elements:
+            return "the tree has tendons or actuators (forces that depend on velocities and controls)"
         kinds = [KIND_CODE[k] for k in model.arrays.joint_kinds]
         if any(k in (BALL, FREE) for k in kinds):
             return "the tree has a ball or free joint (its mass matrix and gyroscopic forces depend on the state)"
@@ -419,6 +460,8 @@ class TreeScene(Scene):
 
         model = self.multibody
         qpos0, qvel0 = self._state0()
+        if model.has_elements:
+            return self._native_with_elements()
         planar = planar_model(model)
         if planar is not None:
             nv = model.nv
@@ -440,6 +483,30 @@ class TreeScene(Scene):
         return NativeModel(y0=y0, params=params, rhs=mb.tree_rhs, observe=observe,
                            accel=None if self.symplectic_applies else mb.tree_accel,
                            finish=mb.tree_finish if model.nrot else None, rate_from_jacobian=True)
+
+    def _native_with_elements(self) -> NativeModel:
+        """The compiled model of a tree with tendons or actuators (rbody.engine.system): y = (qpos, qvel, phi,
+        act), the controls ctrl0 written into every params row; the observables take the controls a run held
+        (rbody.control passes them, with the run's step), else read them from the rows."""
+        from rbody.engine import system
+
+        model = self.multibody
+        qpos0, qvel0 = self._state0()
+        act0, ctrl0 = self._controls0()
+        slots = model.control_slots()
+        y0 = np.concatenate([qpos0, qvel0, np.zeros((qpos0.shape[0], 3 * model.nrot)), act0], axis=1)
+        params = np.tile(np.asarray(model.params), (qpos0.shape[0], 1))
+        params[:, slots.ctrl:slots.ctrl + model.nu] = ctrl0
+        nq, nv, a0, na = model.nq, model.nv, slots.act, model.na
+
+        def observe(t, y, ctrl=None, step=None):
+            if ctrl is None:
+                ctrl = np.broadcast_to(params[None, :, slots.ctrl:slots.ctrl + model.nu], y.shape[:-1] + (model.nu,))
+            return self._observables(y[..., :nq], y[..., nq:nq + nv], y[..., a0:a0 + na], ctrl, step)
+
+        return NativeModel(y0=y0, params=params, rhs=system.system_rhs, observe=observe, accel=None,
+                           finish=system.system_finish, rate_from_jacobian=True, controls=slots,
+                           split={})
 
     # ----- what other simulators build -----------------------------------------------------------------
 

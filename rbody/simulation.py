@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from rbody import control
 from rbody.checks import run_times, whole_number
 from rbody.engine.methods import BY_NAME, Method, method as method_record
 from rbody.engine.runner import crosses_break, failure, integrate_model, step_count
@@ -31,7 +32,7 @@ EVENT_METHOD = "events"
 
 def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float | None = None,
              save_every: int = 1, allow_large: bool = False, client: Any = None,
-             chunk: int | None = None) -> Trajectory:
+             chunk: int | None = None, ctrl: Any = None) -> Trajectory:
     """Run `scene` natively.
 
     dt:         time step [s] (event-driven scenes: the sampling interval of the trajectory only)
@@ -48,6 +49,10 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
                 (default: about 4 tasks per worker thread, at least a few thousand rows; see
                 rbody.engine.distributed); the result equals the serial run's bit for bit. Event-driven
                 scenes run here. None (default): everything runs here and Dask is not imported.
+    ctrl:       the controls of a scene with actuators (rbody.control): None (the scene's ctrl0), a constant
+                (nu,) or (*batch, nu), a schedule (n_steps, [*batch,] nu) whose row k is held during step k, or
+                a callable ctrl(t, qpos, qvel) -> (nu,) called at the start of every step (one Python call per
+                step). A control is held through a whole step, as in MuJoCo.
     Returns a Trajectory whose observables have shape (T, *scene.batch_shape, ...).
     Raises ValueError for bad arguments, a run too large to start (above), a closed client or a chunk
     without a client; MethodNotApplicable when the method cannot run the scene; SimulationError, before
@@ -72,6 +77,12 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
 
     model = scene.native_model  # built once per scene
     nsteps = step_count(t_end, dt, save_every)
+    controls = control.plan(scene, model, ctrl, dt, nsteps, method)  # the run's own rows, controls written in
+    if client is not None and (controls.stepwise is not None or controls.history is not None
+                               or ctrl is not None):
+        raise ValueError("ctrl with client=: a run with a given control goes in this process (the cluster's tasks "
+                         "rebuild the scene's own model); leave client out")
+    model = controls.model
     if model.break_time is not None and 0 < model.break_time < dt:
         raise SimulationError(
             f"scene {scene.describe()}: its right-hand side jumps at t = {model.break_time:.6g} s (e.g. a "
@@ -82,11 +93,14 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
     if client is not None:  # the batch's rows as tasks on a Dask cluster, each as below
         from rbody.engine.distributed import integrate_on_cluster
         failed = integrate_on_cluster(client, scene, model, method, dt, nsteps, save_every, out, chunk)
+    elif controls.stepwise is not None:
+        failed = control.run_stepwise(controls, record, dt, nsteps, save_every, out)
     else:
         failed = integrate_model(model, record, dt, nsteps, save_every, out)
     if failed.size and failed.max() >= 0:
         raise failure(scene.describe(), model, record, dt, save_every, out, failed)
     t = np.arange(out.shape[0]) * (dt * save_every)
+    model = control.observing(controls, save_every, out.shape[0], dt)
     try:  # every state is finite here; one the observables cannot take (a quaternion of zero length) is a failure
         data = model.observe(t, out)
     except (ValueError, FloatingPointError) as error:

@@ -613,8 +613,7 @@ def tree_rhs(y, p, out):
     """y' for y = (qpos (nq), qvel (nv), phi (3 per ball/free joint)): hinge, slide and free-position
     coordinates move with qvel, quaternion entries stand still within a step, phi' = dexp^-1_phi(omega_body),
     qvel' = forward dynamics at the turned quaternions. A singular mass matrix gives NaN (the run fails)."""
-    nj, nq, nv = int(p[H_JOINTS]), int(p[H_NQ]), int(p[H_DOFS])
-    jo = int(p[H_JOINT])
+    nq, nv = int(p[H_NQ]), int(p[H_DOFS])
     size = workspace_size(p)
     # the workspace on this function's stack (no allocation per evaluation), on the heap for huge trees
     w = carray(stack_floats(size), size) if size <= STACK_FLOATS else np.empty(size)
@@ -624,6 +623,15 @@ def tree_rhs(y, p, out):
     _frames(p, q, y[nq:nq + nv], w)
     passive(p, q, y[nq:nq + nv], ws.tau)
     articulated_body(p, w, out[nq:nq + nv])
+    coordinate_rates(p, y, out)
+
+
+@njit(cache=True)
+def coordinate_rates(p, y, out):
+    """The qpos and phi parts of y' (tree_rhs): hinge, slide, roll and free-position coordinates move with qvel,
+    quaternion entries stand still within a step, phi' = dexp^-1_phi(omega_body)."""
+    nj, nq, nv = int(p[H_JOINTS]), int(p[H_NQ]), int(p[H_DOFS])
+    jo = int(p[H_JOINT])
     for j in range(nj):
         r = jo + j * JOINT_SIZE
         kind = int(p[r + J_KIND])

@@ -58,6 +58,9 @@ class NativeModel:
     # diagnose(y (n,), y0 (n,), dt) -> str: why the motion cannot go on from state y, started from y0 ("" when nothing
     # is found), for the message of a failed run (a tree: the body and joint whose mass-matrix pivot vanished).
     diagnose: Any = None
+    # Where a run writes its controls, time step and control schedule into params, and where act sits in y
+    # (rbody.engine.system.ControlSlots), for a model driven by controls (a tree with actuators); None otherwise.
+    controls: Any = None
 
 
 @runtime_checkable

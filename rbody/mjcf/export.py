@@ -88,6 +88,7 @@ from rbody.inertia import Inertia
 from rbody.motion import quat_from_matrix, quat_normalize, quat_to_matrix
 from rbody.layout import WORLD, depth_first, joint_order, Body, Contact, Joint, Layout, Shape, already_unit
 from rbody.scene import Scene
+from rbody.mjcf import actuators as mjcf_actuators
 
 DEFAULT_TIMESTEP = 0.002            # MuJoCo's own default step [s], used when dt is not given
 MUJOCO_MIN_MOMENT = 1e-14           # MuJoCo refuses a fullinertia whose smallest eigenvalue is below (mjEPS)
@@ -367,6 +368,8 @@ def _check_layout(layout: Layout) -> None:
             + [j.name + ROLL_SLIDE_SUFFIX for j in layout.joints if j.kind == "roll"])
     shapes = list(layout.fixed) + [s for b in layout.bodies for s in b.shapes]
     _unique("shape", [s.name for s in shapes])
+    _unique("tendon", [t.name for t in layout.tendons])
+    _unique("actuator", [a.name for a in layout.actuators])
     if any(b.name == WORLD for b in layout.bodies):
         raise ValueError(f"a body is called {WORLD!r}: MuJoCo reserves that name for the world body")
     names = {b.name for b in layout.bodies}
@@ -514,6 +517,22 @@ def _roll_equality(joint: Joint, dt: float, indent: str) -> str:
     return f"{indent}<joint {attrs}/>"
 
 
+def _spring_lengths(scene) -> dict[str, tuple[float, float]]:
+    """Each tendon's spring dead band as the engine resolved it (rbody.engine.system.Multibody), so that MuJoCo reads
+    the same lengths whatever pose it would compute them at."""
+    from rbody.engine.elements import T_HIGH, T_LOW, TEN_SIZE, X_TEN
+
+    model = getattr(scene, "multibody", None)
+    if model is None or not getattr(model, "ntendon", 0):
+        return {}
+    row, start = model.params, model.arrays.row.size
+    out = {}
+    for t, name in enumerate(model.tendon_names):
+        r = int(row[start + X_TEN]) + t * TEN_SIZE
+        out[name] = (float(row[r + T_LOW]), float(row[r + T_HIGH]))
+    return out
+
+
 def _comment(text: str) -> str:
     return text.replace("--", "- -")
 
@@ -620,7 +639,9 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
            '  <compiler angle="radian" inertiafromgeom="false" alignfree="false" autolimits="true"/>']
     option = {"timestep": _num(dt), "gravity": _vec((0.0, 0.0, -gravity)), "integrator": integrator,
               "cone": cone, "impratio": None if impratio is None else _num(impratio),
-              "noslip_iterations": None if noslip_iterations is None else str(int(noslip_iterations))}
+              "noslip_iterations": None if noslip_iterations is None else str(int(noslip_iterations)),
+              "actuatorgroupdisable": (str(mjcf_actuators.DISABLED_GROUP)
+                                       if any(a.disabled for a in layout.actuators) else None)}
     out.append(f"  <option {_attrs(**option)}/>")
     meshes = [s for s in list(layout.fixed) + [s for b in order for s in b.shapes] if s.kind == "mesh"]
     if meshes:
@@ -632,6 +653,8 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
     out.append("  <worldbody>")
     for shape in layout.fixed:
         out.append(_geom(shape, "    "))
+    for name, point in mjcf_actuators.tendon_sites(layout.tendons, WORLD):
+        out.append(f"    <site {_attrs(name=name, pos=_vec(point))}/>")
     children: dict[str, list[Body]] = {}
     for body in layout.bodies:
         children.setdefault(body.parent, []).append(body)
@@ -645,6 +668,8 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
         out.append(_inertial(exported[body.name], indent + "  "))
         for shape in body.shapes:
             out.append(_geom(shape, indent + "  "))
+        for name, point in mjcf_actuators.tendon_sites(layout.tendons, body.name):
+            out.append(f"{indent}  <site {_attrs(name=name, pos=_vec(point))}/>")
         for child in children.get(body.name, ()):
             write(child, indent + "  ")
         out.append(f"{indent}</body>")
@@ -659,13 +684,27 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
                                              friction=_vec(p["friction"]), solref=_vec(p["solref"]),
                                              solimp=_vec(p["solimp"])) + "/>")
         out.append("  </contact>")
+    if layout.tendons:
+        springs = _spring_lengths(scene)
+        out.append("  <tendon>")
+        for tendon in layout.tendons:
+            out.extend(mjcf_actuators.tendon_xml(tendon, springs.get(tendon.name), _attrs, _vec, _num, "    "))
+        out.append("  </tendon>")
+    if layout.actuators:
+        out.append("  <actuator>")
+        out.extend(mjcf_actuators.actuator_xml(a, _attrs, _vec, _num, "    ") for a in layout.actuators)
+        out.append("  </actuator>")
     if rolls:
         out.append("  <equality>")
         out.extend(_roll_equality(joint, dt, "    ") for joint in joint_order(layout) if joint.kind == "roll")
         out.append("  </equality>")
-    if qpos.size:
+    if qpos.size or layout.actuators:
+        controls = {}
+        if layout.actuators and hasattr(scene, "_controls0"):  # a TreeScene's first batch element's act0, ctrl0
+            act0, ctrl0 = scene._controls0()
+            controls = {"ctrl": _vec(ctrl0[0])} | ({"act": _vec(act0[0])} if act0.shape[1] else {})
         out.append("  <keyframe>")
-        out.append(f"    <key {_attrs(name=INITIAL_KEY, qpos=_vec(qpos), qvel=_vec(qvel))}/>")
+        out.append(f"    <key {_attrs(name=INITIAL_KEY, qpos=_vec(qpos), qvel=_vec(qvel), **controls)}/>")
         out.append("  </keyframe>")
     out.append("</mujoco>")
     return "\n".join(out) + "\n"

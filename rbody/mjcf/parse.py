@@ -87,6 +87,7 @@ from rbody.mjcf.frames import MJ_EPS, frame_to_quat, normalize, quat_matrix, qua
 from rbody.mjcf.geoms import (MESH_INERTIA_MODES, GeomMass, MeshMass, mesh_mass, mujoco_principal, primitive_moments,
                               primitive_volume, principal_tensor, sum_geoms)
 from rbody.layout import WORLD, Body, Joint, Layout, Shape
+from rbody.mjcf import actuators as mjcf_actuators
 from rbody.engine.native import NativeModel
 from rbody.scene import TreeScene
 
@@ -196,6 +197,7 @@ class MJCFModel:
     limits:     joint name -> (lo, hi) declared range [rad | m] (ball: (0, largest angle) [rad])
     notes:      what was ignored, one line each
     source:     the file read, or "<string>"
+    act0, ctrl0: (na,), (nu,) the chosen keyframe's activations and controls (zeros without one)
     """
 
     layout: Layout
@@ -209,6 +211,8 @@ class MJCFModel:
     limits: dict
     notes: tuple
     source: str
+    act0: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    ctrl0: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 class _Reader:
@@ -228,6 +232,10 @@ class _Reader:
         self.mesh_paths: dict[str, str] = {}                 # mesh name -> absolute file path
         self.plane_bodies: list[tuple[Element, _Body]] = []  # planes on bodies (only static ones may hold them)
         self.key_elements: list[Element] = []
+        self.actuator_defaults: dict[str, mjcf_actuators.ActuatorSpec] = {}   # class -> its one actuator default
+        self.actuator_specs: list[tuple[str, mjcf_actuators.ActuatorSpec]] = []
+        self.tendon_specs: list[tuple[str, mjcf_actuators.TendonSpec]] = []
+        self.sites: dict[str, tuple[_Body, np.ndarray]] = {}   # site name -> (body, position in its frame)
 
     # ----- helpers -----
 
@@ -413,7 +421,11 @@ class _Reader:
         for key in ("density", "viscosity"):
             if number(where, key, attrib, 0.0) != 0:
                 raise where.error(f"{key}={attrib[key]!r}: fluid forces are not supported (set {key}=\"0\")")
-        ignored = sorted(set(attrib) - {"timestep", "integrator", "gravity", "density", "viscosity"})
+        self.disabled_groups = set()
+        if "actuatorgroupdisable" in attrib:
+            self.disabled_groups = {int(g) for g in numbers(where, "actuatorgroupdisable", attrib)}
+        ignored = sorted(set(attrib) - {"timestep", "integrator", "gravity", "density", "viscosity",
+                                        "actuatorgroupdisable"})
         if ignored:
             self.note("option", f"<option> {', '.join(ignored)} ignored (constraint-solver and sensor settings; "
                                 "the model has no active constraint)")
@@ -428,6 +440,7 @@ class _Reader:
         self.limits_on = self.constraints_on and on("limit")
         self.frictionloss_on = self.constraints_on and on("frictionloss")
         self.spring_on, self.damper_on = on("spring"), on("damper")
+        self.actuation_on, self.clampctrl_on = on("actuation"), on("clampctrl")
         self.filterparent = on("filterparent")
         if not on("gravity"):
             gravity = np.zeros(3)
@@ -446,16 +459,22 @@ class _Reader:
         values = {tag: dict(attrs) for tag, attrs in self.classes.get(parent, {}).items()} if parent else {}
         if top and name == "main":
             values = self.classes.get("main", {})
+        inherited = self.actuator_defaults.get(parent if parent else "main")
+        actuator = inherited.copy() if inherited is not None else mjcf_actuators.ActuatorSpec()
         for child in element.children:
             if child.tag == "default":
                 continue
             if child.tag not in _DEFAULT_CHILDREN:
                 raise child.error(f"unknown element <{child.tag}> in <default>")
+            if child.tag in _ACTUATORS:  # MuJoCo: every actuator element of a class writes its one default
+                mjcf_actuators.apply_actuator(actuator, child, child.attrib)
+                continue
             known = {"joint": _JOINT_ATTRS, "geom": _GEOM_ATTRS, "mesh": _MESH_ATTRS}.get(child.tag)
             if known is not None:
                 self.check_attrs(child, known - {"name", "class"})
             values.setdefault(child.tag, {}).update(child.attrib)
         self.classes[name] = values
+        self.actuator_defaults[name] = actuator
         for child in element.children:
             if child.tag == "default":
                 self.read_default(child, name)
@@ -504,6 +523,14 @@ class _Reader:
                 self.check_attrs(child, _INERTIAL_ATTRS)
                 body.inertial = child
             elif tag in _VISUAL_ELEMENTS:
+                if tag == "site" and "name" in child.attrib:  # a spatial tendon may pass through it
+                    attrib = self.attrs(child, "site", childclass)
+                    if "fromto" in attrib:
+                        fromto = numbers(child, "fromto", attrib, 6)
+                        position = (fromto[:3] + fromto[3:]) / 2
+                    else:
+                        position = numbers(child, "pos", attrib, 3) if "pos" in attrib else np.zeros(3)
+                    self.sites[child.attrib["name"]] = (body, position)
                 self.note(tag, f"<{tag}> elements ignored (they do not change the dynamics)")
             elif tag in _REFUSED_IN_BODY:
                 raise child.error(_REFUSED_IN_BODY[tag])
@@ -628,37 +655,28 @@ class _Reader:
             self.note("equality", "equality constraints ignored (disabled)")
 
     def read_tendons(self, element: Element) -> None:
+        """<fixed> and <spatial> tendons (rbody.mjcf.actuators: what is read, what is refused)."""
         self.check_attrs(element, set())
         for child in element.children:
             if child.tag not in ("spatial", "fixed"):
                 raise child.error(f"unknown element <{child.tag}> in <tendon>")
             attrib = self.attrs(child, "tendon", None)
-            active = []
-            for key in ("stiffness", "damping", "frictionloss"):
-                if number(child, key, attrib, 0.0) != 0 and (key != "frictionloss" or self.frictionloss_on):
-                    active.append(key)
-            limited = attrib.get("limited", "auto")
-            if self.limits_on and (limited == "true" or (limited == "auto" and self.autolimits and "range" in attrib)):
-                active.append("range (a limit)")
-            if active:
-                raise child.error(f"tendons with {', '.join(active)} are not supported (they apply forces)")
-            self.note("tendon", "tendons ignored (none has stiffness, damping, friction or limits)")
+            name = attrib.get("name") or f"tendon{len(self.tendon_specs)}"
+            self.tendon_specs.append((name, mjcf_actuators.read_tendon(child, attrib)))
 
     def read_actuators(self, element: Element) -> None:
+        """Each actuator over its class's one actuator default (rbody.mjcf.actuators)."""
         self.check_attrs(element, set())
         for child in element.children:
             if child.tag not in _ACTUATORS and child.tag != "plugin":
                 raise child.error(f"unknown element <{child.tag}> in <actuator>")
-            attrib = self.attrs(child, child.tag, None)
-            passive = [key for key in ("damping", "armature") if key in attrib and
-                       np.any(numbers(child, key, attrib) != 0)]
-            pushes = child.tag not in ("motor", "general") or (
-                child.tag == "general" and attrib.get("biastype", "none") != "none")
-            if pushes or passive:
-                what = f"its {' and '.join(passive)}" if passive else "its bias (a force with zero control)"
-                raise child.error(f"a <{child.tag}> actuator applies a force through {what}, even with zero "
-                                  "control: not supported (only motor and unbiased general actuators are ignored)")
-            self.note("actuator", "actuators ignored: their controls are zero, so they apply no force")
+            name = child.attrib.get("class", "main")
+            if name not in self.classes:
+                raise child.error(f"class={name!r} is not a <default> class of the model")
+            spec = self.actuator_defaults.get(name, mjcf_actuators.ActuatorSpec()).copy()
+            mjcf_actuators.apply_actuator(spec, child, {k: v for k, v in child.attrib.items() if k != "class"})
+            label = child.attrib.get("name") or f"actuator{len(self.actuator_specs)}"
+            self.actuator_specs.append((label, spec))
 
     # ----- mass properties -----
 
@@ -1012,10 +1030,71 @@ class _Reader:
             state_qvel = _state_vector(qvel0, "qvel0", nv)
         state_qpos = self.unit_quaternions(joints, state_qpos)
         joints = self.joints_at(joints, state_qpos, state_qvel)
-        layout = self.layout(joints)
+        layout = self.force_elements(self.layout(joints), model_qpos0)
+        na = sum(a.stateful for a in layout.actuators)
+        state_act, state_ctrl = np.zeros(na), np.zeros(len(layout.actuators))
+        if keyframe is not None:
+            state_act, state_ctrl = self.key_controls(keyframe, keyframes, na, len(layout.actuators))
         return MJCFModel(layout=layout, name=self.name, gravity=self.gravity, timestep=self.timestep,
                          integrator=self.integrator, qpos0=state_qpos.copy(), qvel0=state_qvel.copy(),
-                         keyframes=keyframes, limits=limits, notes=tuple(self.notes), source=self.root.file)
+                         keyframes=keyframes, limits=limits, notes=tuple(self.notes), source=self.root.file,
+                         act0=state_act, ctrl0=state_ctrl)
+
+    def force_elements(self, layout: Layout, reference_qpos: np.ndarray) -> Layout:
+        """The layout with the model's tendons and actuators (rbody.mjcf.actuators), every damping ratio of a
+        position servo resolved against the mass matrix at the reference pose, as MuJoCo's compiler does."""
+        if not self.tendon_specs and not self.actuator_specs:
+            return layout
+        sites = {}
+        for name, (body, position) in self.sites.items():
+            carrier, pos, quat = self.frames[body.index]
+            sites[name] = (carrier, tuple((pos + quat_matrix(quat) @ position).tolist()))
+        tendons, ranges = [], {}
+        for name, spec in self.tendon_specs:
+            if any(t.name == name for t in tendons):
+                raise spec.element.error(f"two tendons are called {name!r}")
+            tendons.append(mjcf_actuators.tendon_of(spec, name, sites, self.spring_on, self.damper_on, self.limits_on,
+                                                    self.frictionloss_on, self.autolimits, self.note))
+            if "range" in spec.attrib:
+                ranges[name] = tuple(numbers(spec.element, "range", spec.attrib, 2).tolist())
+        for body in self.bodies:
+            for element, attrib in body.joints:
+                if element.tag == "joint" and "range" in attrib:
+                    low, high = numbers(element, "range", attrib, 2)
+                    if self.degree and attrib.get("type", "hinge") == "hinge":
+                        low, high = low / 180.0 * math.pi, high / 180.0 * math.pi
+                    ranges[attrib["name"]] = (float(low), float(high))
+        kinds = {joint.name: joint.kind for joint in layout.joints}
+        actuators = []
+        for name, spec in self.actuator_specs:
+            if any(a.name == name for a in actuators):
+                raise spec.element.error(f"two actuators are called {name!r}")
+            actuators.append(mjcf_actuators.actuator_of(spec, name, kinds, ranges, {t.name for t in tendons},
+                                                        self.autolimits, self.disabled_groups, self.actuation_on,
+                                                        self.clampctrl_on))
+        if actuators and not self.actuation_on:
+            self.note("actuation", "actuators apply no force (<flag actuation=\"disable\"/>): kept, disabled")
+        elif any(a.disabled for a in actuators):
+            self.note("actuatorgroupdisable", "actuators of the groups in actuatorgroupdisable apply no force")
+        if actuators and not self.clampctrl_on:
+            self.note("clampctrl", "controls are not clamped to ctrlrange (<flag clampctrl=\"disable\"/>)")
+        layout = dataclasses.replace(layout, tendons=tuple(tendons), actuators=tuple(actuators))
+        if any(mjcf_actuators.dampratio_pending(a) for a in actuators):
+            from rbody.engine.system import Multibody
+
+            model = Multibody(layout, gravity=self.gravity)
+            layout = dataclasses.replace(layout, actuators=mjcf_actuators.resolve_dampratio(
+                layout.actuators, model, reference_qpos))
+        return layout
+
+    def key_controls(self, keyframe, keyframes: dict, na: int, nu: int) -> tuple[np.ndarray, np.ndarray]:
+        """(act (na,), ctrl (nu,)) of the chosen keyframe (zeros where it gives none)."""
+        names = list(keyframes)
+        index = int(keyframe) if isinstance(keyframe, (int, np.integer)) else names.index(keyframe)
+        key = self.key_elements[index]
+        act = numbers(key, "act", key.attrib, na) if "act" in key.attrib else np.zeros(na)
+        ctrl = numbers(key, "ctrl", key.attrib, nu) if "ctrl" in key.attrib else np.zeros(nu)
+        return act, ctrl
 
     def read_keyframes(self, qpos0: np.ndarray, nv: int) -> dict:
         keys = {}
@@ -1023,8 +1102,6 @@ class _Reader:
             attrib = key.attrib
             qpos = numbers(key, "qpos", attrib, len(qpos0)) if "qpos" in attrib else qpos0.copy()
             qvel = numbers(key, "qvel", attrib, nv) if "qvel" in attrib else np.zeros(nv)
-            if "ctrl" in attrib and np.any(numbers(key, "ctrl", attrib) != 0):
-                self.note("ctrl", "keyframe controls ignored (actuators are ignored)")
             name = attrib.get("name") or f"key{i}"
             if name in keys:
                 raise key.error(f"two keyframes are called {name!r}")
@@ -1103,6 +1180,7 @@ class _Reader:
                 shapes[body.name].extend(self.shapes_of(geom, np.zeros(3), np.array([1.0, 0, 0, 0])))
             bodies.append(Body(body.name, inertia, parent=carrier, pos=tuple(pos.tolist()),
                                quat=tuple(quat.tolist())))
+        self.frames = kept
         bodies = [dataclasses.replace(b, shapes=tuple(shapes[b.name])) for b in bodies]
         return Layout(bodies=tuple(bodies), joints=tuple(joints), fixed=tuple(shapes[WORLD]))
 
@@ -1165,7 +1243,8 @@ def from_mjcf(source, *, t_end: float | None = None, qpos0=None, qvel0=None, key
                              overlapping_geoms=overlapping_geoms)
     return MJCFScene(name=model.name, t_end=DEFAULT_T_END if t_end is None else t_end, gravity=model.gravity,
                      tree=model.layout, qpos0=model.qpos0, qvel0=model.qvel0, import_notes=model.notes,
-                     timestep=model.timestep, integrator=model.integrator, limits=dict(model.limits))
+                     timestep=model.timestep, integrator=model.integrator, limits=dict(model.limits),
+                     act0=model.act0, ctrl0=model.ctrl0)
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -1208,8 +1287,8 @@ class MJCFScene(TreeScene):
             return model
         observe = model.observe
 
-        def observe_within_limits(t: np.ndarray, y: np.ndarray) -> dict:
-            data = observe(t, y)
+        def observe_within_limits(t: np.ndarray, y: np.ndarray, *controls) -> dict:
+            data = observe(t, y, *controls)  # controls: a run's (ctrl, dt) for a scene with actuators
             violation = self.limit_violation(t, data["qpos"])
             if violation:
                 raise SimulationError(f"scene {self.name!r}: {violation}; rbody does not model joint limits: remove "

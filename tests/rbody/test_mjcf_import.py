@@ -103,8 +103,10 @@ def test_features_compile_to_mujocos_bodies_joints_and_options():
     np.testing.assert_allclose([lo, hi], model.jnt_range[0], rtol=1e-15)
     assert set(read.limits) == {"h"}
     notes = " ".join(read.notes)
-    for word in ("light", "camera", "site", "sensor", "actuator", "rgba", "ellipsoid"):
+    for word in ("light", "camera", "site", "sensor", "rgba", "ellipsoid"):
         assert word in notes, word
+    (motor,) = read.layout.actuators  # actuators are modelled (tests/rbody/engine/test_actuation.py)
+    assert (motor.target, motor.gain, motor.bias, motor.gainprm[0]) == ("h", "fixed", "none", 1.0)
 
 
 def test_keyframe_by_name_and_index_and_explicit_state():
@@ -335,16 +337,16 @@ BODY = '<body name="b"><joint/><geom size="0.1"/></body>'
      r"line 1, <geom name='floor'>.*'floor' and 'b_geom0'.*can collide.*contype"),
     (f"<mujoco>{OFF}<worldbody>{BODY}</worldbody><equality>\n<weld body1='b'/></equality></mujoco>",
      r"line 2, <weld>: equality constraints"),
-    (f"<mujoco>{OFF}<worldbody>{BODY}</worldbody><tendon>\n<fixed stiffness='2'><joint joint='b_joint0' coef='1'/>"
-     "</fixed></tendon></mujoco>", r"line 2, <fixed>: tendons with stiffness"),
+    (f"<mujoco>{OFF}<worldbody>{BODY}</worldbody><tendon>\n<fixed range='0 1'><joint joint='b_joint0' coef='1'/>"
+     "</fixed></tendon></mujoco>", r"line 2, <fixed>: tendon limits"),
     (f"<mujoco><option density='1.2'><flag contact='disable'/></option><worldbody>{BODY}</worldbody></mujoco>",
      "fluid forces"),
     (f"<mujoco>{OFF}<worldbody><body><joint/><geom size='0.1' fluidshape='ellipsoid'/></body></worldbody></mujoco>",
      "fluid"),
     (f"<mujoco><option gravity='0 -9.81 0'><flag contact='disable'/></option><worldbody>{BODY}</worldbody></mujoco>",
      r"gravity=0.0 -9.81 0.0.*-z"),
-    (f"<mujoco>{OFF}<worldbody>{BODY}</worldbody><actuator>\n<position joint='b_joint0' kp='10'/></actuator></mujoco>",
-     r"line 2, <position>.*zero control"),
+    (f"<mujoco>{OFF}<worldbody>{BODY}</worldbody><actuator>\n<muscle joint='b_joint0'/></actuator></mujoco>",
+     r"line 2, <muscle>: muscle actuators"),
     (f"<mujoco><worldbody>{BODY}</worldbody><contact><pair geom1='a' geom2='b'/></contact></mujoco>",
      "explicit contact pairs"),
     (f"<mujoco>{OFF}<worldbody><body><joint frictionloss='1'/><geom size='0.1'/></body></worldbody></mujoco>",
