@@ -202,20 +202,23 @@ class Scene:
 
     @classmethod
     def from_layout(cls, layout: Layout, *, t_end: float, name: str = "model", qpos0=None, qvel0=None,
-                    gravity: float = 9.81) -> "TreeScene":
+                    gravity: float = 9.81, act0=None, ctrl0=None, timestep: float | None = None) -> "TreeScene":
         """Any Layout (a tree of Body and Joint) as a Scene that simulate runs natively: a TreeScene.
 
         qpos0 (..., nq), qvel0 (..., nv): initial coordinates in MuJoCo's layout (rbody.Multibody), default
-        the joints' qpos0/qvel0; leading axes make a batch. Observables: qpos, qvel, energy, and for every
-        body "<body>.com", "<body>.quat", "<body>.velocity", "<body>.omega" (world frame).
+        the joints' qpos0/qvel0; leading axes make a batch. act0 (..., na), ctrl0 (..., nu): the actuators'
+        initial activations and the control a run holds when given none (default 0); timestep [s]: the model's
+        step (actearly's h outside a run). Observables: qpos, qvel, energy, and for every body "<body>.com",
+        "<body>.quat", "<body>.velocity", "<body>.omega" (world frame); with actuators ctrl, act, actuator_force.
         Raises ValueError (before any work) for a layout that is not a tree rbody can run.
         """
-        return TreeScene(name=name, t_end=t_end, gravity=gravity, tree=layout, qpos0=qpos0, qvel0=qvel0)
+        return TreeScene(name=name, t_end=t_end, gravity=gravity, tree=layout, qpos0=qpos0, qvel0=qvel0, act0=act0,
+                         ctrl0=ctrl0, timestep=timestep)
 
 
 # ----- any tree of bodies and joints, as a scene -------------------------------------------------------
 
-TREE_GENERAL_METHODS = ("rk4", "gauss6", "euler", "reference")
+TREE_GENERAL_METHODS = ("rk4", "gauss6", "euler", "mujoco_euler", "implicitfast", "implicit", "reference")
 TREE_SYMPLECTIC_METHODS = ("verlet", "symplectic_euler", "yoshida6")
 
 
@@ -454,15 +457,75 @@ class TreeScene(Scene):
     def native(self) -> NativeModel:
         """The compiled model of the tree: the planar kernels (rbody.engine.planar: 3-component spatial
         algebra) when the tree is planar, decided from its structure, else the 3-D engine's. Observables and
-        energies use the 3-D Multibody either way (once per saved sample, not per evaluation)."""
+        energies use the 3-D Multibody either way (once per saved sample, not per evaluation). MuJoCo's
+        integrators (mujoco_euler, implicitfast, implicit: rbody.engine.mujoco_steps) run the 3-D rows
+        (native_model_for); their stability rate is the stiffness's (_rates)."""
+        model = self.multibody
+        native = self._native_with_elements() if model.has_elements else self._native_tree()
+        return dataclasses.replace(native, rate=self._rates(native))
+
+    def native_model_for(self, method: str | None) -> NativeModel:
+        """The native model a run by `method` integrates: native_model, except that a planar tree runs MuJoCo's
+        integrators on the 3-D engine's rows (rbody.engine.mujoco_steps reads those)."""
+        from rbody.engine.mujoco_steps import MUJOCO_METHODS
+        from rbody.engine.planar import planar_rhs
+
+        model = self.native_model
+        if method in MUJOCO_METHODS and model.rhs is planar_rhs:
+            return dataclasses.replace(self._native_tree(planar=False), rate=model.rate)
+        return model
+
+    def _rates(self, native: NativeModel):
+        """rate(method) -> (B,) [1/s] for the stability check: the spectral radius of df/dy at y0 (every method but
+        MuJoCo's); for MuJoCo's integrators, whose velocity terms are implicit or only damp, the fastest undamped
+        frequency w = sqrt(rho(d qacc / d q)), from the block of the same Jacobian (q the coordinates tangent to the
+        configuration: hinge, slide and free translations, each ball and free rotation's phi)."""
+        from rbody.engine.mujoco_steps import MUJOCO_METHODS
+        from rbody.engine.planar import planar_rhs
+        from rbody.engine.stability import jacobian_matrices, jacobian_rate
+
+        model = self.multibody
+        if native.rhs is planar_rhs:
+            rows, columns = np.arange(model.nv, 2 * model.nv), np.arange(model.nv)
+        else:
+            rows, columns = np.arange(model.nq, model.nq + model.nv), self._tangent_columns()
+
+        def rate(method):
+            if method not in MUJOCO_METHODS:
+                return jacobian_rate(native.rhs, native.y0, native.params)
+            if model.nv == 0:
+                return np.zeros(native.y0.shape[0])
+            jacobians = jacobian_matrices(native.rhs, native.y0, native.params)
+            block = jacobians[:, rows][:, :, columns]
+            if not np.all(np.isfinite(block)):
+                return np.full(native.y0.shape[0], np.inf)
+            return np.sqrt(np.max(np.abs(np.linalg.eigvals(block)), axis=-1))
+        return rate
+
+    def _tangent_columns(self) -> np.ndarray:
+        """(nv,) the columns of the 3-D state y that move each degree of freedom's coordinate (module docstring of
+        rbody.engine.multibody: hinge, slide, roll and free translations in qpos, rotations as phi)."""
+        model = self.multibody
+        columns, slot = [], 0
+        for kind, address in zip(model.arrays.joint_kinds, model.arrays.qposadr):
+            if kind == "free":
+                columns += [int(address) + k for k in range(3)]
+            if kind in ("free", "ball"):
+                columns += [model.nq + model.nv + 3 * slot + k for k in range(3)]
+                slot += 1
+            elif kind != "free":
+                columns.append(int(address))
+        return np.array(columns, dtype=np.int64)
+
+    def _native_tree(self, planar: bool = True) -> NativeModel:
+        """The compiled model of a tree without force elements: planar where it can be (and `planar`), else 3-D."""
         from rbody.engine import multibody as mb
+        from rbody.engine.mujoco_steps import mujoco_steps
         from rbody.engine.planar import planar_accel, planar_model, planar_rhs
 
         model = self.multibody
         qpos0, qvel0 = self._state0()
-        if model.has_elements:
-            return self._native_with_elements()
-        planar = planar_model(model)
+        planar = planar_model(model) if planar else None
         if planar is not None:
             nv = model.nv
 
@@ -472,7 +535,7 @@ class TreeScene(Scene):
             return NativeModel(y0=np.concatenate([qpos0, qvel0], axis=1),
                                params=np.tile(planar.row, (qpos0.shape[0], 1)), rhs=planar_rhs,
                                observe=observe_planar, accel=None if self.symplectic_applies else planar_accel,
-                               rate_from_jacobian=True)
+                               rate_from_jacobian=True, split=mujoco_steps(False))
         y0 = np.concatenate([qpos0, qvel0, np.zeros((qpos0.shape[0], 3 * model.nrot))], axis=1)
         params = np.tile(np.asarray(model.params), (qpos0.shape[0], 1))
         nq, nv = model.nq, model.nv
@@ -482,13 +545,15 @@ class TreeScene(Scene):
 
         return NativeModel(y0=y0, params=params, rhs=mb.tree_rhs, observe=observe,
                            accel=None if self.symplectic_applies else mb.tree_accel,
-                           finish=mb.tree_finish if model.nrot else None, rate_from_jacobian=True)
+                           finish=mb.tree_finish if model.nrot else None, rate_from_jacobian=True,
+                           split=mujoco_steps(False))
 
     def _native_with_elements(self) -> NativeModel:
         """The compiled model of a tree with tendons or actuators (rbody.engine.system): y = (qpos, qvel, phi,
         act), the controls ctrl0 written into every params row; the observables take the controls a run held
         (rbody.control passes them, with the run's step), else read them from the rows."""
         from rbody.engine import system
+        from rbody.engine.mujoco_steps import mujoco_steps
 
         model = self.multibody
         qpos0, qvel0 = self._state0()
@@ -506,7 +571,7 @@ class TreeScene(Scene):
 
         return NativeModel(y0=y0, params=params, rhs=system.system_rhs, observe=observe, accel=None,
                            finish=system.system_finish, rate_from_jacobian=True, controls=slots,
-                           split={})
+                           split=mujoco_steps(True))
 
     # ----- what other simulators build -----------------------------------------------------------------
 

@@ -75,7 +75,7 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
         return scene.run_events(t_end, dt * save_every)
     check_step(scene, method, dt, t_end)  # beyond the method's stability limit: refuse before any step
 
-    model = scene.native_model  # built once per scene
+    model = getattr(scene, "native_model_for", lambda _method: scene.native_model)(method)  # built once per scene
     nsteps = step_count(t_end, dt, save_every)
     controls = control.plan(scene, model, ctrl, dt, nsteps, method)  # the run's own rows, controls written in
     if client is not None and (controls.stepwise is not None or controls.history is not None

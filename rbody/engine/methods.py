@@ -22,6 +22,9 @@ scenes read (no parallel tables):
                                     fixed-point iteration, which contracts by dt w rho(A) per sweep
                   splitting         2, a second-order symmetric splitting's (the yoshida6 composition of a
                                     scene's flow takes yoshida6's)
+                  mujoco_euler, implicitfast, implicit   2: semi-implicit Euler's on an undamped oscillation (their
+                                    implicit velocity terms only damp; rbody.engine.mujoco_steps); the rate they are
+                                    checked against is the stiffness's, sqrt of the spectral radius of d qacc/d q
                   reference         inf (scipy's DOP853 at rtol 1e-13, adaptive)
     run         run(model, flow, y0, params, dt, nsteps, save_every, out) -> failed (B,): the compiled loop
                 (rbody.engine.integrators); flow is the scene's own (step, weights) for this method, or None
@@ -42,7 +45,8 @@ from rbody.engine import integrators
 
 NEEDS = {"rhs": "y' = f(y) (the model's rhs)",
          "accel": "q'' = a(q) with y = (q, q'), a separable Hamiltonian (the model's accel)",
-         "split": "the scene's own symmetric one-step map (the model's split flows)"}
+         "split": "the scene's own symmetric one-step map (the model's split flows)",
+         "mujoco": "a tree's MuJoCo step (rbody.engine.mujoco_steps: its mass matrix, forces and velocity derivatives)"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -188,6 +192,15 @@ RECORDS: tuple[Method, ...] = (
                    "(dt |df/dy| too large)"),
     Method("splitting", 2, "split", symplectic=True, symmetric=True, explicit=True, beta=lambda: 2.0,
            run=_splitting, summary="the scene's own symmetric splitting into exact flows"),
+    Method("mujoco_euler", 1, "mujoco", symplectic=False, symmetric=False, explicit=False, beta=lambda: 2.0,
+           run=_splitting, summary="MuJoCo's Euler (MJCF's default): (M + h B) qacc = f with the joints' damping B "
+                                   "implicit, qvel += h qacc, then qpos with the new qvel (semi-implicit)"),
+    Method("implicitfast", 1, "mujoco", symplectic=False, symmetric=False, explicit=False, beta=lambda: 2.0,
+           run=_splitting, summary="MuJoCo's implicitfast: (M - h D) qacc = f, D = d(passive + actuator)/d qvel "
+                                   "symmetrised (Coriolis left out), then as mujoco_euler"),
+    Method("implicit", 1, "mujoco", symplectic=False, symmetric=False, explicit=False, beta=lambda: 2.0,
+           run=_splitting, summary="MuJoCo's implicit: D with the Coriolis and centrifugal derivative, solved by "
+                                   "LU, then as mujoco_euler"),
     Method("reference", None, "rhs", symplectic=False, symmetric=False, explicit=True, beta=lambda: math.inf,
            run=_reference, summary="scipy DOP853 at rtol 1e-13: for checks only, never for speed",
            failure="a failed solve (scipy's DOP853 could not reach its tolerance)"),

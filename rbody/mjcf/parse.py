@@ -94,6 +94,7 @@ from rbody.scene import TreeScene
 DEFAULT_T_END = 1.0        # [s] duration of a scene read from MJCF when t_end is not given
 OVERLAP_CHOICES = ("refuse", "sum")
 INTEGRATORS = {"Euler": "Euler", "RK4": "RK4", "implicit": "implicit", "implicitfast": "implicitfast"}
+FILE_METHODS = {"Euler": "mujoco_euler", "RK4": "rk4", "implicit": "implicit", "implicitfast": "implicitfast"}
 ORIENTATIONS = ("quat", "axisangle", "xyaxes", "zaxis", "euler")
 PRINCIPAL_NOTE_RTOL = 1e-12  # a tensor MuJoCo's eigen-solver moves by more than this (relative) is noted
 
@@ -441,6 +442,10 @@ class _Reader:
         self.frictionloss_on = self.constraints_on and on("frictionloss")
         self.spring_on, self.damper_on = on("spring"), on("damper")
         self.actuation_on, self.clampctrl_on = on("actuation"), on("clampctrl")
+        if not on("eulerdamp") and self.integrator == "Euler":
+            self.note("eulerdamp", "<flag eulerdamp=\"disable\"/>: MuJoCo's Euler then takes the joints' damping "
+                                   "explicitly; rbody's mujoco_euler keeps it implicit (a difference at O(h) where joints "
+                                   "are damped)")
         self.filterparent = on("filterparent")
         if not on("gravity"):
             gravity = np.zeros(3)
@@ -1258,6 +1263,13 @@ class MJCFScene(TreeScene):
     """
 
     limits: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+
+    @property
+    def file_method(self) -> str:
+        """The rbody method that is the model's own <option integrator> (MuJoCo's Euler: "mujoco_euler"; RK4:
+        "rk4"; implicit, implicitfast: the same names): simulate(scene, dt=scene.timestep, method=scene.file_method)
+        runs the file as MuJoCo runs it."""
+        return FILE_METHODS[self.integrator or "Euler"]
 
     def limit_violation(self, t: np.ndarray, qpos: np.ndarray) -> str:
         """The first place a run leaves a declared range: qpos (T, ..., nq) at times t (T,) [s] from any engine;
