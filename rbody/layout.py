@@ -64,6 +64,8 @@ class Body:
     pos (3,) [m] and quat (4,) place the body frame in the parent's frame in the reference pose,
     where every hinge and slide coordinate is zero (as MJCF's body pos/quat); the joints' qpos0 then
     set the initial state. A free body starts at pos/quat.
+    gravcomp: the fraction of the body's weight that an upward force at its centre of mass cancels (MuJoCo's
+    body gravcomp: 1 floats it; a passive force, or an actuator force on joints with actuatorgravcomp).
     """
 
     name: str
@@ -72,6 +74,7 @@ class Body:
     parent: str = WORLD
     pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
     quat: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+    gravcomp: float = 0.0
 
 
 def already_unit(vector: np.ndarray) -> bool:
@@ -146,6 +149,10 @@ class Joint:
             a (q - ref) along l = axis x normal, then turns by q - ref about `axis` through anchor: the
             contact point anchor - a e is at rest (v_centre = a q' l). Exported to MJCF as a slide and a
             hinge tied by a joint equality.
+    actuatorgravcomp: the gravity compensation of the bodies it moves reaches this joint as an actuator force
+            (MuJoCo's qfrc_actuator, subject to actuatorfrcrange) instead of a passive one.
+    actuatorfrcrange: (low, high) [N or N m] the clamp of the actuators' total generalised force on the joint's
+            (first) degree of freedom (MuJoCo's actuatorfrcrange), or None.
     """
 
     name: str
@@ -162,8 +169,13 @@ class Joint:
     ref: float = 0.0
     radius: float = 0.0
     normal: tuple[float, float, float] = (0.0, 0.0, 1.0)
+    actuatorgravcomp: bool = False
+    actuatorfrcrange: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
+        object.__setattr__(self, "actuatorgravcomp", bool(self.actuatorgravcomp))
+        object.__setattr__(self, "actuatorfrcrange", _range(self.actuatorfrcrange,
+                                                            f"joint {self.name!r}: actuatorfrcrange"))
         if self.kind not in JOINT_KINDS:
             raise ValueError(f"joint {self.name!r}: kind={self.kind!r}, expected one of {JOINT_KINDS}")
         object.__setattr__(self, "axis", tuple(_direction(self.axis).tolist()))

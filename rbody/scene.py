@@ -491,10 +491,10 @@ class TreeScene(Scene):
             rows, columns = np.arange(model.nq, model.nq + model.nv), self._tangent_columns()
 
         def rate(method):
+            if model.nv == 0:  # nothing moves (a model of fixed bodies): no rate, any step
+                return np.zeros(native.y0.shape[0])
             if method not in MUJOCO_METHODS:
                 return jacobian_rate(native.rhs, native.y0, native.params)
-            if model.nv == 0:
-                return np.zeros(native.y0.shape[0])
             jacobians = jacobian_matrices(native.rhs, native.y0, native.params)
             block = jacobians[:, rows][:, :, columns]
             if not np.all(np.isfinite(block)):

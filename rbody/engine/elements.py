@@ -16,6 +16,8 @@ without force elements is the same numbers as before. Offsets in the section are
       X_NSCHED  rows of the schedule
       X_GRAVCOMP offset of the bodies' gravity compensation (nb), -1 without any (rbody.engine.passive)
       X_FLUID   offset of the fluid section, -1 without fluid forces (rbody.engine.fluid)
+      X_ACTGC   offset of a flag per degree of freedom (nv): 1 where gravity compensation is an actuator force
+      X_JNTLIM  offset of the joints' actuator force clamps (nj records: limited, low, high)
     actuator record (ACT_SIZE): transmission (0 joint, 1 tendon), target (joint or tendon index), the target
       joint's kind code (-1 for a tendon), its qpos and qvel addresses, dynamics, gain and bias codes, dynprm,
       gainprm (3), biasprm (3), gear (6), ctrl limited and range (2), force limited and range (2), act limited
@@ -39,7 +41,7 @@ from numba import njit
 from rbody.engine.multibody import DOF_SIZE, H_DOF, H_DOFS, KIND_CODE, TreeArrays
 from rbody.layout import ACTUATOR_BIASES, ACTUATOR_DYNAMICS, ACTUATOR_GAINS, JOINTS, WORLD, Layout
 
-X_NU, X_NA, X_NTEN, X_ACT, X_TEN, X_CTRL, X_STEP, X_SCHED, X_NSCHED, X_GRAVCOMP, X_FLUID = range(11)
+X_NU, X_NA, X_NTEN, X_ACT, X_TEN, X_CTRL, X_STEP, X_SCHED, X_NSCHED, X_GRAVCOMP, X_FLUID, X_ACTGC, X_JNTLIM = range(13)
 X_HEADER = 16
 
 A_TRN, A_ID, A_JKIND, A_QADR, A_DADR, A_DYN, A_GAIN, A_BIAS, A_DYNPRM = range(9)
@@ -87,7 +89,8 @@ class ElementArrays:
 
 def has_elements(layout: Layout) -> bool:
     """Whether the layout holds anything of this section (else the tree's row is the whole model)."""
-    return bool(layout.actuators or layout.tendons or any(getattr(b, "gravcomp", 0.0) for b in layout.bodies))
+    return bool(layout.actuators or layout.tendons or any(b.gravcomp for b in layout.bodies)
+                or any(j.actuatorfrcrange is not None for j in layout.joints))
 
 
 def build_elements(layout: Layout, arrays: TreeArrays, start: int) -> ElementArrays:
@@ -113,10 +116,26 @@ def build_elements(layout: Layout, arrays: TreeArrays, start: int) -> ElementArr
     ten_at = act_at + nu * ACT_SIZE
     path_at = ten_at + ntendon * TEN_SIZE
     ctrl_at = path_at + entries * PATH_SIZE
-    size = ctrl_at + nu - start
+    nb, nj, nv = len(arrays.names), len(arrays.joint_names), arrays.nv
+    gravcomp_at = ctrl_at + nu
+    actgc_at = gravcomp_at + nb
+    jntlim_at = actgc_at + nv
+    size = jntlim_at + 3 * nj - start
     row = np.zeros(size)
     row[X_NU], row[X_NTEN], row[X_ACT], row[X_TEN], row[X_CTRL] = nu, ntendon, act_at, ten_at, ctrl_at
-    row[X_STEP], row[X_SCHED], row[X_GRAVCOMP], row[X_FLUID] = 0.002, -1, -1, -1
+    row[X_STEP], row[X_SCHED], row[X_FLUID] = 0.002, -1, -1
+    row[X_GRAVCOMP], row[X_ACTGC], row[X_JNTLIM] = gravcomp_at, actgc_at, jntlim_at
+    by_name = {body.name: body for body in layout.bodies}
+    for i, name in enumerate(arrays.names):
+        row[gravcomp_at - start + i] = float(by_name[name].gravcomp)
+    joint_of = {joint.name: joint for joint in layout.joints}
+    for j, name in enumerate(arrays.joint_names):
+        joint = joint_of[name]
+        if joint.actuatorgravcomp:
+            first = int(arrays.dofadr[j])
+            row[actgc_at - start + first:actgc_at - start + first + JOINTS[joint.kind].nv] = 1.0
+        if joint.actuatorfrcrange is not None:
+            row[jntlim_at - start + 3 * j:jntlim_at - start + 3 * j + 3] = (1.0,) + joint.actuatorfrcrange
 
     pending = []
     at = path_at

@@ -931,7 +931,8 @@ class Multibody:
     def _batch(self, *pairs) -> tuple[tuple[int, ...], list[np.ndarray]]:
         arrays = [self._state(value, size, what) for value, size, what in pairs]
         shape = np.broadcast_shapes(*(a.shape[:-1] for a in arrays))
-        flat = [np.ascontiguousarray(np.broadcast_to(a, shape + a.shape[-1:]).reshape(-1, a.shape[-1]))
+        count = int(np.prod(shape)) if shape else 1  # explicit: a tree with nothing that moves has nq = 0
+        flat = [np.ascontiguousarray(np.broadcast_to(a, shape + a.shape[-1:]).reshape(count, a.shape[-1]))
                 for a in arrays]
         return shape, flat
 

@@ -27,10 +27,10 @@ from numba import carray, njit
 from rbody.engine import multibody as mb
 from rbody.engine.actuation import actuator_forces, clip, tendon_kinematics, transmission
 from rbody.engine.elements import (A_ACTADR, A_ACTLIM, A_ACTRANGE, A_DISABLED, ACT_SIZE, T_HIGH, T_LOW, TEN_SIZE,
-                                   X_ACT, X_CTRL, X_NA, X_NSCHED, X_NTEN, X_NU, X_SCHED, X_STEP, X_TEN,
-                                   build_elements, extension_start, has_elements)
+                                   X_ACT, X_ACTGC, X_CTRL, X_JNTLIM, X_NA, X_NSCHED, X_NTEN, X_NU, X_SCHED, X_STEP,
+                                   X_TEN, build_elements, extension_start, has_elements)
 from rbody.engine.memory import address, stack_floats
-from rbody.engine.passive import tendon_passive
+from rbody.engine.passive import gravity_compensation, tendon_passive
 
 DEFAULT_TIMESTEP = 0.002  # [s] MuJoCo's default step: what actearly's next activation assumes outside a run
 
@@ -38,7 +38,7 @@ DEFAULT_TIMESTEP = 0.002  # [s] MuJoCo's default step: what actearly's next acti
 # per actuator length, velocity, ctrl (as applied), force (nu,), moment (nu, nv); act_dot (na,); qfrc (nv,) the
 # actuators' generalised force.
 ForceWork = namedtuple("ForceWork", ["ten_length", "ten_velocity", "ten_J", "length", "velocity", "ctrl", "force",
-                                     "moment", "act_dot", "qfrc"])
+                                     "moment", "act_dot", "qfrc", "gravcomp"])
 
 
 @njit(cache=True)
@@ -46,7 +46,7 @@ def force_size(p) -> int:
     """Floats of the force elements' workspace of one evaluation (_force_views)."""
     E = extension_start(p)
     nu, na, nten, nv = int(p[E + X_NU]), int(p[E + X_NA]), int(p[E + X_NTEN]), int(p[mb.H_DOFS])
-    return nten * (2 + nv) + nu * (4 + nv) + na + nv
+    return nten * (2 + nv) + nu * (4 + nv) + na + 2 * nv
 
 
 @njit(cache=True)
@@ -63,8 +63,9 @@ def _force_views(p, w, at):
     at += 4 * nu
     moment = carray(address(w, at), (nu, nv))
     at += nu * nv
-    act_dot, qfrc = carray(address(w, at), na), carray(address(w, at + na), nv)
-    return ForceWork(ten_length, ten_velocity, ten_J, length, velocity, ctrl, force, moment, act_dot, qfrc)
+    act_dot, qfrc, gravcomp = carray(address(w, at), na), carray(address(w, at + na), nv), carray(
+        address(w, at + na + nv), nv)
+    return ForceWork(ten_length, ten_velocity, ten_J, length, velocity, ctrl, force, moment, act_dot, qfrc, gravcomp)
 
 
 @njit(cache=True)
@@ -78,7 +79,21 @@ def element_forces(p, q, v, act, w, at):
     tendon_passive(p, fw.ten_length, fw.ten_velocity, fw.ten_J, ws.tau)
     transmission(p, q, v, fw.ten_length, fw.ten_J, fw.length, fw.velocity, fw.moment)
     actuator_forces(p, act, fw.length, fw.velocity, fw.moment, fw.ctrl, fw.force, fw.act_dot, fw.qfrc)
-    nv = int(p[mb.H_DOFS])
+    E = extension_start(p)
+    nv, nj = int(p[mb.H_DOFS]), int(p[mb.H_JOINTS])
+    gravity_compensation(p, ws.S, ws.h, ws.scratch, fw.gravcomp)
+    actgc = int(p[E + X_ACTGC])
+    for d in range(nv):  # MuJoCo: a passive force, or an actuator force where the joint says so
+        if p[actgc + d] != 0.0:
+            fw.qfrc[d] += fw.gravcomp[d]
+        else:
+            ws.tau[d] += fw.gravcomp[d]
+    limits = int(p[E + X_JNTLIM])
+    jo = int(p[mb.H_JOINT])
+    for j in range(nj):  # the joints' clamp of the actuators' force (on each joint's first degree of freedom)
+        if p[limits + 3 * j] != 0.0:
+            d = int(p[jo + j * mb.JOINT_SIZE + mb.J_DADR])
+            fw.qfrc[d] = clip(fw.qfrc[d], p[limits + 3 * j + 1], p[limits + 3 * j + 2])
     for d in range(nv):
         ws.tau[d] += fw.qfrc[d]
 
@@ -193,6 +208,11 @@ def _passive_batch(p, Q, V, out):
         fw = _force_views(p, w, tree)
         tendon_kinematics(p, Q[b], V[b], w, fw.ten_length, fw.ten_velocity, fw.ten_J)
         tendon_passive(p, fw.ten_length, fw.ten_velocity, fw.ten_J, ws.tau)
+        gravity_compensation(p, ws.S, ws.h, ws.scratch, fw.gravcomp)
+        actgc = int(p[extension_start(p) + X_ACTGC])
+        for d in range(ws.tau.shape[0]):
+            if p[actgc + d] == 0.0:
+                ws.tau[d] += fw.gravcomp[d]
         out[b] = ws.tau
 
 
@@ -375,7 +395,8 @@ class Multibody(mb.Multibody):
     # ----- the tree's algorithms with the elements ------------------------------------------------------
 
     def passive_forces(self, q, v) -> np.ndarray:
-        """(..., nv) MuJoCo's qfrc_passive: joint and tendon springs and dampers."""
+        """(..., nv) MuJoCo's qfrc_passive: joint and tendon springs and dampers, gravity compensation (but on the
+        joints with actuatorgravcomp)."""
         if not self.has_elements:
             return super().passive_forces(q, v)
         shape, (Q, V) = self._batch((q, self.nq, "q"), (v, self.nv, "v"))

@@ -489,6 +489,10 @@ def _inertial(exported: ExportedInertia, indent: str) -> str:
 
 def _joint(joint: Joint, indent: str, limit: tuple[float, float] | None = None) -> str:
     extra = {name: _num(getattr(joint, name)) for name in _JOINT_ATTRIBUTES if getattr(joint, name, 0.0) != 0.0}
+    if joint.actuatorgravcomp:
+        extra["actuatorgravcomp"] = "true"
+    if joint.actuatorfrcrange is not None:
+        extra.update(actuatorfrclimited="true", actuatorfrcrange=_vec(joint.actuatorfrcrange))
     if limit is not None and joint.kind != "free":  # a scene's declared range (MJCFScene.limits) [rad | m]
         extra.update(limited="true", range=_vec(limit))
     if joint.kind == "free":
@@ -661,7 +665,8 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
 
     def write(body: Body, indent: str) -> None:
         quat = _unit_quat(body.quat)
-        out.append(f"{indent}<body {_attrs(name=body.name, pos=_vec(body.pos), quat=_vec(quat))}>")
+        gravcomp = _num(body.gravcomp) if body.gravcomp else None
+        out.append(f"{indent}<body {_attrs(name=body.name, pos=_vec(body.pos), quat=_vec(quat), gravcomp=gravcomp)}>")
         for joint in layout.joints:
             if joint.body == body.name:
                 out.append(_joint(joint, indent + "  ", limits.get(joint.name)))

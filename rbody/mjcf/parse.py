@@ -97,13 +97,13 @@ INTEGRATORS = {"Euler": "Euler", "RK4": "RK4", "implicit": "implicit", "implicit
 FILE_METHODS = {"Euler": "mujoco_euler", "RK4": "rk4", "implicit": "implicit", "implicitfast": "implicitfast"}
 ORIENTATIONS = ("quat", "axisangle", "xyaxes", "zaxis", "euler")
 PRINCIPAL_NOTE_RTOL = 1e-12  # a tensor MuJoCo's eigen-solver moves by more than this (relative) is noted
+MJ_MINVAL = 1e-15            # MuJoCo's mjMINVAL: the floor of its divisions (mj_setTotalmass, AutoSpringDamper)
 
 
 # ----- the reader --------------------------------------------------------------------------------------
 
 _VISUAL_ELEMENTS = ("light", "camera", "site")
 _REFUSED_IN_BODY = {
-    "frame": "<frame> is not supported: write its transform into the bodies and geoms it holds",
     "replicate": "<replicate> is not supported: write the copies out",
     "attach": "<attach> (model composition) is not supported",
     "composite": "composites are not supported (they make many bodies, joints and constraints)",
@@ -175,6 +175,7 @@ class _Body:
     com: np.ndarray = field(default_factory=lambda: np.zeros(3))
     tensor: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
     weld: int = 0
+    gravcomp: float = 0.0
 
     @property
     def dofs(self) -> int:
@@ -389,8 +390,7 @@ class _Reader:
         for key, default in (("boundmass", 0.0), ("boundinertia", 0.0)):
             if number(where, key, attrib, default) != default:
                 raise where.error(f"{key} is not supported: it changes bodies' masses; give the masses explicitly")
-        if number(where, "settotalmass", attrib, -1.0) > 0:
-            raise where.error("settotalmass is not supported: it rescales every mass; give the masses explicitly")
+        self.settotalmass = number(where, "settotalmass", attrib, -1.0)
         if boolean(where, "fusestatic", attrib, False):
             raise where.error("fusestatic is not supported: rbody keeps one body per MJCF body")
         if boolean(where, "alignfree", attrib, False):
@@ -449,6 +449,7 @@ class _Reader:
         self.filterparent = on("filterparent")
         if not on("gravity"):
             gravity = np.zeros(3)
+            self.note("gravity", "gravity off (<flag gravity=\"disable\"/>): g = 0")
         if gravity[0] != 0 or gravity[1] != 0 or gravity[2] > 0:
             raise where.error(f"gravity={' '.join(map(repr, gravity.tolist()))}: rbody's scenes have gravity along "
                               "-z (0 0 -g); rotate the model so that gravity points down z")
@@ -509,13 +510,20 @@ class _Reader:
 
     # ----- bodies -----
 
-    def read_body_contents(self, body: _Body, childclass: str | None) -> None:
-        for child in body.element.children:
+    def read_body_contents(self, body: _Body, childclass: str | None, children: list | None = None,
+                           frame: tuple | None = None) -> None:
+        """The children of a body (or of a <frame> in it, placed by `frame` = (pos, quat) in the body's frame)."""
+        for child in body.element.children if children is None else children:
             tag = child.tag
-            if tag == "body":
-                self.read_body(child, body, childclass)
+            if tag == "frame":
+                self.read_frame(child, body, childclass, frame)
+            elif tag == "body":
+                self.read_body(child, body, childclass, frame)
             elif tag == "geom":
-                self.read_geom(child, body, childclass)
+                self.read_geom(child, body, childclass, frame)
+            elif tag in ("joint", "freejoint", "inertial") and frame is not None:
+                raise child.error(f"a <{tag}> inside a <frame>: MuJoCo's frames hold bodies, geoms, sites, cameras, "
+                                  "lights and frames")
             elif tag in ("joint", "freejoint"):
                 if body.index == 0:
                     raise child.error("the world body cannot have joints")
@@ -535,6 +543,8 @@ class _Reader:
                         position = (fromto[:3] + fromto[3:]) / 2
                     else:
                         position = numbers(child, "pos", attrib, 3) if "pos" in attrib else np.zeros(3)
+                    if frame is not None:
+                        position = frame[0] + quat_matrix(frame[1]) @ position
                     self.sites[child.attrib["name"]] = (body, position)
                 self.note(tag, f"<{tag}> elements ignored (they do not change the dynamics)")
             elif tag in _REFUSED_IN_BODY:
@@ -542,20 +552,36 @@ class _Reader:
             else:
                 raise child.error(f"unknown element <{tag}> in a body")
 
-    def read_body(self, element: Element, parent: _Body, childclass: str | None) -> None:
+    def read_frame(self, element: Element, body: _Body, childclass: str | None, outer: tuple | None) -> None:
+        """A <frame>: its children placed by its pos and orientation (composed with any frame around it), read
+        with its childclass, as MuJoCo reads them."""
+        self.check_attrs(element, {"name", "childclass", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler"})
+        if "childclass" in element.attrib:
+            childclass = element.attrib["childclass"]
+            if childclass not in self.classes:
+                raise element.error(f"childclass={childclass!r} is not a <default> class of the model")
+        pos = numbers(element, "pos", element.attrib, 3) if "pos" in element.attrib else np.zeros(3)
+        quat = self.orientation(element, element.attrib)
+        if outer is not None:
+            pos, quat = outer[0] + quat_matrix(outer[1]) @ pos, quat_product(outer[1], quat)
+        self.note("frame", "<frame> elements read: their poses composed into the bodies, geoms and sites they hold")
+        self.read_body_contents(body, childclass, element.children, (pos, quat))
+
+    def read_body(self, element: Element, parent: _Body, childclass: str | None, frame: tuple | None = None) -> None:
         self.check_attrs(element, _BODY_ATTRS)
         attrib = element.attrib
         if "childclass" in attrib:
             childclass = attrib["childclass"]
             if childclass not in self.classes:
                 raise element.error(f"childclass={childclass!r} is not a <default> class of the model")
-        if number(element, "gravcomp", attrib, 0.0) != 0:
-            raise element.error("gravcomp is not supported: it cancels gravity on the body")
         if boolean(element, "mocap", attrib, False):
             self.note("mocap", "mocap bodies are held fixed (nothing moves them in a run)")
         pos = numbers(element, "pos", attrib, 3) if "pos" in attrib else np.zeros(3)
-        body = _Body(element, attrib.get("name", ""), len(self.bodies) + 1, parent, pos,
-                     self.orientation(element, attrib))
+        quat = self.orientation(element, attrib)
+        if frame is not None:
+            pos, quat = frame[0] + quat_matrix(frame[1]) @ pos, quat_product(frame[1], quat)
+        body = _Body(element, attrib.get("name", ""), len(self.bodies) + 1, parent, pos, quat,
+                     gravcomp=number(element, "gravcomp", attrib, 0.0))
         self.bodies.append(body)
         self.read_body_contents(body, childclass)
 
@@ -570,13 +596,16 @@ class _Reader:
         attrib = self.attrs(element, "joint", childclass)
         kind = choice(element, "type", attrib, ("hinge", "slide", "ball", "free"), "hinge")
         attrib["type"] = kind
-        if "springdamper" in attrib and np.any(numbers(element, "springdamper", attrib, 2) != 0):
-            raise element.error("springdamper is not supported: give stiffness and damping")
+        if "springdamper" in attrib:
+            timeconst, dampratio = numbers(element, "springdamper", attrib, 2)
+            if timeconst > 0 and dampratio > 0 and kind in ("ball", "free"):
+                raise element.error("springdamper on a ball or free joint (MuJoCo's averaged inverse weights and "
+                                    "quaternion spring) is not modelled: use it on hinge and slide joints")
         if self.frictionloss_on and number(element, "frictionloss", attrib, 0.0) != 0:
             raise element.error("frictionloss (dry joint friction) is not supported")
         body.joints.append((element, attrib))
 
-    def read_geom(self, element: Element, body: _Body, childclass: str | None) -> None:
+    def read_geom(self, element: Element, body: _Body, childclass: str | None, frame: tuple | None = None) -> None:
         self.check_attrs(element, _GEOM_ATTRS)
         attrib = self.attrs(element, "geom", childclass)
         kind = choice(element, "type", attrib, _GEOM_KINDS, "sphere")
@@ -620,6 +649,8 @@ class _Reader:
             quat = z_to_quat(vector)
         else:
             quat = self.orientation(element, attrib)
+        if frame is not None:
+            pos, quat = frame[0] + quat_matrix(frame[1]) @ pos, quat_product(frame[1], quat)
         if kind != "plane" and kind != "mesh" and np.any(size[:_SIZES[kind]] <= 0):
             raise element.error(f"size={attrib.get('size', '')!r}: a {kind} needs sizes > 0")
         if kind == "plane" and body.index != 0:
@@ -685,10 +716,11 @@ class _Reader:
 
     # ----- mass properties -----
 
-    def mesh_of(self, geom: _Geom) -> MeshMass:
-        name = geom.mesh
-        if name in self.mesh_cache:
-            return self.mesh_cache[name]
+    def mesh_path(self, name: str) -> str:
+        """The absolute path of mesh asset `name`'s file (checked to exist); no file is read here, so that a mesh
+        whose mass an explicit <inertial> makes unused costs nothing to load."""
+        if name in self.mesh_paths:
+            return self.mesh_paths[name]
         element, attrib = self.meshes[name]
         if "file" not in attrib:
             raise element.error("meshes given by vertices in the XML are not supported: save them in a file")
@@ -700,6 +732,15 @@ class _Reader:
         path = (self.meshdir / file).resolve()
         if not path.is_file():
             raise element.error(f"mesh file {str(path)!r} does not exist")
+        self.mesh_paths[name] = str(path)
+        return str(path)
+
+    def mesh_of(self, geom: _Geom) -> MeshMass:
+        name = geom.mesh
+        if name in self.mesh_cache:
+            return self.mesh_cache[name]
+        path = Path(self.mesh_path(name))
+        element, attrib = self.meshes[name]
         mode = choice(element, "inertia", attrib, MESH_INERTIA_MODES, "legacy")
         import trimesh
 
@@ -719,7 +760,6 @@ class _Reader:
         except ValueError as error:
             raise element.error(f"mesh {name!r} ({str(path)!r}): {error}") from None
         self.mesh_cache[name] = result
-        self.mesh_paths[name] = str(path)
         return result
 
     def geom_mass(self, geom: _Geom) -> GeomMass | None:
@@ -824,6 +864,11 @@ class _Reader:
                 verdict = overlapping(self.solid(first), self.solid(second))
                 if verdict:
                     label = lambda g: g.name or f"geom at line {g.element.line}"  # noqa: E731
+                    if body.weld == 0:  # welded to the world: its mass moves nothing
+                        self.note(f"overlap {body.name}", f"body {body.name!r} is welded to the world and its geoms "
+                                  f"{label(first)!r} and {label(second)!r} {verdict}: their masses are summed as "
+                                  "MuJoCo sums them (the body does not move, so nothing depends on it)")
+                        return
                     raise body.element.error(
                         f"geoms {label(first)!r} and {label(second)!r} {verdict}: their masses would be counted twice "
                         "where they overlap (MuJoCo sums geom masses). Make the parts meet without overlapping, give "
@@ -919,6 +964,31 @@ class _Reader:
                 "contact-free models only. Set contype=\"0\" conaffinity=\"0\" on the geoms that must not collide, "
                 "or disable contacts with <option><flag contact=\"disable\"/></option>")
 
+    def gravcomp_of(self, body: _Body) -> float:
+        """The body's gravcomp as MuJoCo applies it: none where gravity is off, or where <flag spring> and <flag
+        damper> are both disabled (MuJoCo then skips every passive force, gravity compensation included)."""
+        if body.gravcomp == 0.0:
+            return 0.0
+        if not self.spring_on and not self.damper_on:
+            self.note("gravcomp", "gravcomp ignored: <flag spring> and <flag damper> are both disabled, and MuJoCo "
+                                  "then applies no passive force at all")
+            return 0.0
+        self.note("gravcomp bodies", "body gravcomp applied as MuJoCo applies it (an upward force gravcomp m g at "
+                                     "the centre of mass)")
+        return float(body.gravcomp)
+
+    def actuator_joint(self, element: Element, attrib: dict) -> dict:
+        """actuatorgravcomp and actuatorfrcrange (limited by actuatorfrclimited, "auto": where a range is given)."""
+        values = {"actuatorgravcomp": boolean(element, "actuatorgravcomp", attrib, False)}
+        limited = choice(element, "actuatorfrclimited", attrib, ("true", "false", "auto"), "auto")
+        has_range = "actuatorfrcrange" in attrib and np.any(numbers(element, "actuatorfrcrange", attrib, 2) != 0)
+        if limited == "true" or (limited == "auto" and self.autolimits and has_range):
+            low, high = numbers(element, "actuatorfrcrange", attrib, 2)
+            if not low < high:
+                raise element.error(f"actuatorfrcrange={attrib.get('actuatorfrcrange')!r}: needs low < high")
+            values["actuatorfrcrange"] = (float(low), float(high))
+        return values
+
     def passive(self, element: Element, attrib: dict) -> dict:
         """damping, stiffness, armature of a joint, >= 0; stiffness and damping 0 where the flags disable them."""
         values = {key: number(element, key, attrib, 0.0) for key in ("damping", "stiffness", "armature")}
@@ -948,7 +1018,7 @@ class _Reader:
             if kind == "free":
                 values = self.passive(element, attrib)
                 values.pop("stiffness")  # MuJoCo gives a free joint no spring
-                joint = Joint(name, "free", body.name, **values)
+                joint = Joint(name, "free", body.name, **values, **self.actuator_joint(element, attrib))
                 qpos = np.concatenate([body.pos, body.quat])
                 nv = 6
             else:
@@ -965,12 +1035,13 @@ class _Reader:
                         raise element.error("stiffness on a ball joint (MuJoCo's quaternion spring) is not supported")
                     qpos = np.array([1.0, 0.0, 0.0, 0.0])
                     joint = Joint(name, "ball", body.name, anchor=tuple(pos.tolist()), qpos0=(1.0, 0.0, 0.0, 0.0),
-                                  qvel0=(0.0, 0.0, 0.0), **values)
+                                  qvel0=(0.0, 0.0, 0.0), **values, **self.actuator_joint(element, attrib))
                     nv = 3
                 else:
                     qpos = np.array([ref])
                     joint = Joint(name, kind, body.name, axis=tuple(axis.tolist()), anchor=tuple(pos.tolist()),
-                                  qpos0=ref, ref=ref, springref=springref, **values)
+                                  qpos0=ref, ref=ref, springref=springref, **values,
+                                  **self.actuator_joint(element, attrib))
                     nv = 1
             limit = None
             if kind != "free" and self.limits_on:
@@ -996,6 +1067,14 @@ class _Reader:
         self.welds()
         for body in self.bodies:
             self.body_mass(body)
+        if self.settotalmass > 0:  # MuJoCo's mj_setTotalmass, after compiling, before its constants
+            total = sum(body.mass for body in self.bodies)
+            scale = max(MJ_MINVAL, self.settotalmass / max(MJ_MINVAL, total))
+            for body in self.bodies:
+                body.mass *= scale
+                body.tensor = body.tensor * scale
+            self.note("settotalmass", f"settotalmass={self.settotalmass!r}: every body's mass and inertia scaled by "
+                                      f"{scale:.17g}, as MuJoCo scales them")
         for body in self.bodies:
             kinds = body.joint_kinds
             if "free" in kinds and (len(kinds) > 1 or body.parent.index != 0):
@@ -1035,7 +1114,7 @@ class _Reader:
             state_qvel = _state_vector(qvel0, "qvel0", nv)
         state_qpos = self.unit_quaternions(joints, state_qpos)
         joints = self.joints_at(joints, state_qpos, state_qvel)
-        layout = self.force_elements(self.layout(joints), model_qpos0)
+        layout = self.force_elements(self.spring_dampers(self.layout(joints), model_qpos0), model_qpos0)
         na = sum(a.stateful for a in layout.actuators)
         state_act, state_ctrl = np.zeros(na), np.zeros(len(layout.actuators))
         if keyframe is not None:
@@ -1044,6 +1123,38 @@ class _Reader:
                          integrator=self.integrator, qpos0=state_qpos.copy(), qvel0=state_qvel.copy(),
                          keyframes=keyframes, limits=limits, notes=tuple(self.notes), source=self.root.file,
                          act0=state_act, ctrl0=state_ctrl)
+
+    def spring_dampers(self, layout: Layout, reference_qpos: np.ndarray) -> Layout:
+        """The joints with springdamper="timeconst dampratio" given their stiffness and damping as MuJoCo's
+        compiler forms them (AutoSpringDamper): with I = 1 / (M^-1)_dd at the reference pose (MuJoCo's
+        dof_invweight0 of a hinge or slide), stiffness = I / (timeconst dampratio)^2, damping = 2 I / timeconst."""
+        wanted = {}
+        for body in self.bodies:
+            for element, attrib in body.joints:
+                if element.tag == "joint" and "springdamper" in attrib:
+                    timeconst, dampratio = numbers(element, "springdamper", attrib, 2)
+                    if timeconst > 0 and dampratio > 0:
+                        wanted[attrib["name"]] = (float(timeconst), float(dampratio))
+        if not wanted:
+            return layout
+        from rbody.engine.multibody import Multibody
+
+        model = Multibody(layout, gravity=self.gravity)
+        inverse = np.linalg.inv(model.mass_matrix(reference_qpos))
+        dofs = dict(zip(model.joint_names, model.arrays.dofadr))
+        joints = []
+        for joint in layout.joints:
+            if joint.name in wanted:
+                timeconst, dampratio = wanted[joint.name]
+                inertia = 1.0 / max(MJ_MINVAL, inverse[dofs[joint.name], dofs[joint.name]])
+                stiffness = inertia / max(MJ_MINVAL, timeconst * timeconst * dampratio * dampratio)
+                damping = 2 * inertia / max(MJ_MINVAL, timeconst)
+                joint = dataclasses.replace(joint, stiffness=stiffness if self.spring_on else 0.0,
+                                            damping=damping if self.damper_on else 0.0)
+            joints.append(joint)
+        self.note("springdamper", "joint springdamper turned into stiffness and damping as MuJoCo's compiler does "
+                                  "(from the mass matrix at the reference pose)")
+        return dataclasses.replace(layout, joints=tuple(joints))
 
     def force_elements(self, layout: Layout, reference_qpos: np.ndarray) -> Layout:
         """The layout with the model's tendons and actuators (rbody.mjcf.actuators), every damping ratio of a
@@ -1184,7 +1295,7 @@ class _Reader:
             for geom in body.geoms:
                 shapes[body.name].extend(self.shapes_of(geom, np.zeros(3), np.array([1.0, 0, 0, 0])))
             bodies.append(Body(body.name, inertia, parent=carrier, pos=tuple(pos.tolist()),
-                               quat=tuple(quat.tolist())))
+                               quat=tuple(quat.tolist()), gravcomp=self.gravcomp_of(body)))
         self.frames = kept
         bodies = [dataclasses.replace(b, shapes=tuple(shapes[b.name])) for b in bodies]
         return Layout(bodies=tuple(bodies), joints=tuple(joints), fixed=tuple(shapes[WORLD]))
@@ -1198,8 +1309,7 @@ class _Reader:
             self.note("ellipsoid", "ellipsoid geoms are not drawn (rbody Shapes have no ellipsoid); their mass counts")
             return []
         if geom.kind == "mesh":
-            self.mesh_of(geom)
-            return [Shape(geom.name, "mesh", (), mesh=self.mesh_paths[geom.mesh], **common)]
+            return [Shape(geom.name, "mesh", (), mesh=self.mesh_path(geom.mesh), **common)]
         count = {"sphere": 1, "capsule": 2, "cylinder": 2, "box": 3, "plane": 3}[geom.kind]
         size = tuple(float(s) for s in geom.size[:count])
         if geom.kind == "plane":

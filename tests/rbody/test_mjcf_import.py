@@ -354,9 +354,11 @@ BODY = '<body name="b"><joint/><geom size="0.1"/></body>'
     (f"<mujoco>{OFF}<worldbody><body>\n<joint type='ball' stiffness='2'/><geom size='0.1'/></body>"
      "</worldbody></mujoco>",
      r"line 2, <joint>: stiffness on a ball joint"),
-    (f"<mujoco><compiler settotalmass='3'/>{OFF}<worldbody>{BODY}</worldbody></mujoco>", "settotalmass"),
+    (f"<mujoco>{OFF}<worldbody><body>\n<joint type='ball' springdamper='0.1 1'/><geom size='0.1'/></body>"
+     "</worldbody></mujoco>", r"line 2, <joint>: springdamper on a ball"),
     (f"<mujoco>{OFF}<worldbody><body><geom class='nope' size='0.1'/></body></worldbody></mujoco>", "class='nope'|nope"),
-    (f"<mujoco>{OFF}<worldbody><frame><body/></frame></worldbody></mujoco>", "<frame>"),
+    (f"<mujoco>{OFF}<worldbody><body><geom size='0.1'/><frame>\n<joint/></frame></body></worldbody></mujoco>",
+     r"line 2, <joint>: a <joint> inside a <frame>"),
 ])
 def test_bad_input_names_file_line_and_element(xml, match):
     with pytest.raises(MJCFError, match=match) as error:
