@@ -360,12 +360,62 @@ class Actuator:
         return self.dynamics != "none"
 
 
+FLUID_COEFFICIENTS = (0.5, 0.25, 1.5, 1.0, 1.0)  # MuJoCo's fluidcoef: blunt, slender, angular drag, Kutta, Magnus
+
+
+@dataclass(frozen=True)
+class FluidBox:
+    """A body under MuJoCo's inertia-box fluid model: the box of its mass with its principal moments, axes `axes`
+    (4,) (the quaternion of its principal axes in the body frame, MuJoCo's body_iquat; which axes matter where two
+    moments are equal)."""
+
+    body: str
+    axes: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class FluidEllipsoid:
+    """A geom under MuJoCo's ellipsoid fluid model (fluidshape="ellipsoid"): frame pos (3,) [m], quat (4,) in its
+    body's frame; semiaxes (3,) [m]; coefficients (blunt drag, slender drag, angular drag, Kutta lift, Magnus
+    lift) (MJCF's fluidcoef); virtual_mass (3,) [m^3] and virtual_inertia (3,) [m^5] the added-mass factors (times
+    the density), as MuJoCo's compiler forms them from the semiaxes (rbody.mjcf.fluid)."""
+
+    body: str
+    pos: tuple[float, float, float]
+    quat: tuple[float, float, float, float]
+    semiaxes: tuple[float, float, float]
+    virtual_mass: tuple[float, float, float]
+    virtual_inertia: tuple[float, float, float]
+    coefficients: tuple[float, float, float, float, float] = FLUID_COEFFICIENTS
+
+
+@dataclass(frozen=True)
+class Fluid:
+    """MuJoCo's fluid forces (<option density viscosity wind>, engine_passive.c mj_fluid): a passive force on every
+    body of `boxes` (the inertia-box model: linear viscous and quadratic drag forces and torques of the box of its
+    inertia) and every geom of `ellipsoids` (added mass, viscous and quadratic drag, Kutta and Magnus lift).
+    density [kg/m^3], viscosity [Pa s], wind (3,) [m/s] the fluid's velocity (world frame)."""
+
+    density: float = 0.0
+    viscosity: float = 0.0
+    wind: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    boxes: tuple[FluidBox, ...] = ()
+    ellipsoids: tuple[FluidEllipsoid, ...] = ()
+
+    def __post_init__(self) -> None:
+        for name in ("density", "viscosity"):
+            value = finite_array(getattr(self, name), f"fluid {name}", shape=())
+            object.__setattr__(self, name, float(nonnegative(value, f"fluid {name}")))
+        object.__setattr__(self, "wind", tuple(finite_array(self.wind, "fluid wind", shape=(3,)).tolist()))
+
+
 @dataclass(frozen=True)
 class Layout:
     """The physical model of an unbatched scene: what MuJoCo, pymunk and the MJCF exporter build.
 
     tendons and actuators: MuJoCo's tendons and general actuators, in MuJoCo's order (the controls u of a run
     follow the order of `actuators`; the activations that of the actuators with dynamics).
+    fluid: MuJoCo's fluid forces (Fluid), or None.
     """
 
     bodies: tuple[Body, ...]
@@ -374,6 +424,7 @@ class Layout:
     contacts: tuple[Contact, ...] = ()
     tendons: tuple[Tendon, ...] = ()
     actuators: tuple[Actuator, ...] = ()
+    fluid: Fluid | None = None
 
 
 # ----- the one tree order ------------------------------------------------------------------------------

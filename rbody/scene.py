@@ -449,7 +449,16 @@ class TreeScene(Scene):
 
     preferred_methods: ClassVar[tuple[str, ...]] = TREE_SYMPLECTIC_METHODS + TREE_GENERAL_METHODS
 
+    @property
+    def _ellipsoid_fluid(self) -> bool:
+        """Whether a geom feels MuJoCo's ellipsoid fluid model (whose velocity derivative rbody does not form)."""
+        return bool(self.tree.fluid is not None and self.tree.fluid.ellipsoids)
+
     def why_not(self, method: str) -> str:
+        if method in ("implicit", "implicitfast") and self._ellipsoid_fluid:
+            return (f"{method!r} differentiates MuJoCo's ellipsoid fluid model analytically (engine_derivative.c "
+                    "mjd_ellipsoidFluid), which rbody does not (the inertia-box model's it does): use mujoco_euler or "
+                    "rk4")
         if method in TREE_SYMPLECTIC_METHODS:
             return f"{method!r} needs q'' = a(q) with a constant mass matrix, and {self.symplectic_applies}"
         return f"{method!r} is not a method of a general tree (no splitting into exact flows)"
@@ -571,7 +580,8 @@ class TreeScene(Scene):
 
         return NativeModel(y0=y0, params=params, rhs=system.system_rhs, observe=observe, accel=None,
                            finish=system.system_finish, rate_from_jacobian=True, controls=slots,
-                           split=mujoco_steps(True))
+                           split={name: step for name, step in mujoco_steps(True).items()
+                                  if name == "mujoco_euler" or not self._ellipsoid_fluid})
 
     # ----- what other simulators build -----------------------------------------------------------------
 

@@ -50,6 +50,10 @@ A_CTRLLIM, A_CTRLRANGE, A_FORCELIM, A_FORCERANGE, A_ACTLIM, A_ACTRANGE = 21, 22,
 A_ACTEARLY, A_ACTADR, A_DISABLED = 30, 31, 32
 ACT_SIZE = 33
 
+FLUID_HEADER = 9   # nbox, nell, density, viscosity, wind (3), box and ellipsoid offsets (rbody.engine.fluid)
+BOX_SIZE = 8       # body, axes (4), sides (3)
+ELL_SIZE = 22      # body, pos (3), quat (4), semiaxes (3), virtual mass (3), virtual inertia (3), coefficients (5)
+
 T_KIND, T_N, T_PATH, T_STIFF, T_DAMP, T_LOW, T_HIGH = range(7)
 TEN_SIZE = 7
 PATH_SIZE = 4
@@ -90,7 +94,13 @@ class ElementArrays:
 def has_elements(layout: Layout) -> bool:
     """Whether the layout holds anything of this section (else the tree's row is the whole model)."""
     return bool(layout.actuators or layout.tendons or any(b.gravcomp for b in layout.bodies)
-                or any(j.actuatorfrcrange is not None for j in layout.joints))
+                or any(j.actuatorfrcrange is not None for j in layout.joints) or has_fluid(layout))
+
+
+def has_fluid(layout: Layout) -> bool:
+    """Whether the layout's fluid applies a force (MuJoCo: density or viscosity > 0, and something in it)."""
+    fluid = layout.fluid
+    return bool(fluid is not None and (fluid.density > 0 or fluid.viscosity > 0) and (fluid.boxes or fluid.ellipsoids))
 
 
 def build_elements(layout: Layout, arrays: TreeArrays, start: int) -> ElementArrays:
@@ -120,10 +130,16 @@ def build_elements(layout: Layout, arrays: TreeArrays, start: int) -> ElementArr
     gravcomp_at = ctrl_at + nu
     actgc_at = gravcomp_at + nb
     jntlim_at = actgc_at + nv
-    size = jntlim_at + 3 * nj - start
+    fluid_at = jntlim_at + 3 * nj
+    fluid = fluid_row(layout, arrays, fluid_at) if has_fluid(layout) else np.zeros(0)
+    size = fluid_at + fluid.size - start
     row = np.zeros(size)
+    if fluid.size:
+        row[fluid_at - start:] = fluid
+        row[X_FLUID] = fluid_at
     row[X_NU], row[X_NTEN], row[X_ACT], row[X_TEN], row[X_CTRL] = nu, ntendon, act_at, ten_at, ctrl_at
-    row[X_STEP], row[X_SCHED], row[X_FLUID] = 0.002, -1, -1
+    row[X_STEP], row[X_SCHED] = 0.002, -1
+    row[X_FLUID] = fluid_at if fluid.size else -1
     row[X_GRAVCOMP], row[X_ACTGC], row[X_JNTLIM] = gravcomp_at, actgc_at, jntlim_at
     by_name = {body.name: body for body in layout.bodies}
     for i, name in enumerate(arrays.names):
@@ -223,5 +239,46 @@ def build_elements(layout: Layout, arrays: TreeArrays, start: int) -> ElementArr
                          spring_pending=tuple(pending))
 
 
-__all__ = ["ElementArrays", "build_elements", "has_elements", "extension_start", "X_HEADER", "ACT_SIZE",
+def fluid_row(layout: Layout, arrays: TreeArrays, at: int) -> np.ndarray:
+    """The fluid section (rbody.engine.fluid) of `layout` starting at offset `at` of the row: each box with its sides
+    sqrt(6 (I_{k+1} + I_{k+2} - I_k) / m) from the principal moments I_k = e_k . I e_k along its axes e_k (MuJoCo's
+    mj_inertiaBoxFluidModel), each ellipsoid's frame, semiaxes, added-mass factors and coefficients."""
+    from rbody.motion import quat_to_matrix
+
+    fluid = layout.fluid
+    bodies = {name: i for i, name in enumerate(arrays.names)}
+    by_name = {body.name: body for body in layout.bodies}
+    for record in tuple(fluid.boxes) + tuple(fluid.ellipsoids):
+        if record.body not in bodies:
+            raise ValueError(f"fluid: body {record.body!r} is not a body of the layout")
+    nbox, nell = len(fluid.boxes), len(fluid.ellipsoids)
+    row = np.zeros(FLUID_HEADER + nbox * BOX_SIZE + nell * ELL_SIZE)
+    row[0:4] = nbox, nell, fluid.density, fluid.viscosity
+    row[4:7] = fluid.wind
+    row[7], row[8] = at + FLUID_HEADER, at + FLUID_HEADER + nbox * BOX_SIZE
+    for k, box in enumerate(fluid.boxes):
+        r = FLUID_HEADER + k * BOX_SIZE
+        body = by_name[box.body]
+        axes = np.asarray(box.axes, dtype=np.float64) / np.linalg.norm(box.axes)
+        rotation = quat_to_matrix(axes)
+        moments = np.einsum("ak,ab,bk->k", rotation, np.asarray(body.inertia.tensor), rotation)
+        mass = body.inertia.mass
+        sides = [np.sqrt(max(MJ_MINVAL, moments[(k + 1) % 3] + moments[(k + 2) % 3] - moments[k]) / mass * 6.0)
+                 if mass > 0 else 0.0 for k in range(3)]
+        row[r] = bodies[box.body]
+        row[r + 1:r + 5] = axes
+        row[r + 5:r + 8] = sides
+    for k, shape in enumerate(fluid.ellipsoids):
+        r = FLUID_HEADER + nbox * BOX_SIZE + k * ELL_SIZE
+        row[r] = bodies[shape.body]
+        row[r + 1:r + 4] = shape.pos
+        row[r + 4:r + 8] = np.asarray(shape.quat) / np.linalg.norm(shape.quat)
+        row[r + 8:r + 11] = shape.semiaxes
+        row[r + 11:r + 14] = shape.virtual_mass
+        row[r + 14:r + 17] = shape.virtual_inertia
+        row[r + 17:r + 22] = shape.coefficients
+    return row
+
+
+__all__ = ["ElementArrays", "fluid_row", "has_fluid", "build_elements", "has_elements", "extension_start", "X_HEADER", "ACT_SIZE",
            "TEN_SIZE", "PATH_SIZE"]

@@ -33,6 +33,7 @@ from rbody.engine import multibody as mb
 from rbody.engine.actuation import actuator_velocity_derivative, next_activation
 from rbody.engine.elements import A_ACTADR, A_DISABLED, ACT_SIZE, X_ACT, X_CTRL, X_NA, X_NU, extension_start
 from rbody.engine.memory import address
+from rbody.engine.fluid import box_velocity_derivative
 from rbody.engine.passive import tendon_damping_derivative
 from rbody.engine.system import _force_views, act_offset, element_forces, force_size, next_control
 
@@ -218,6 +219,7 @@ def mujoco_step(y, p, h, mode, elements):
             actuator_velocity_derivative(p, act, fw.act_dot, p[ctrl_at:ctrl_at + int(p[E + X_NU])], fw.force,
                                          fw.moment, D)
             tendon_damping_derivative(p, fw.ten_J, D)
+            box_velocity_derivative(p, ws.S, ws.xpos, ws.xmat, ws.vel, ws.h, D)
         _related(p, related)
         if mode == IMPLICIT:  # B = d qfrc_bias / d qvel: D - B on MuJoCo's sparsity
             _bias_derivative(p, q, v, 0, nv, B, w, zero, vplus, plus, minus)

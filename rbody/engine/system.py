@@ -30,6 +30,7 @@ from rbody.engine.elements import (A_ACTADR, A_ACTLIM, A_ACTRANGE, A_DISABLED, A
                                    X_ACT, X_ACTGC, X_CTRL, X_JNTLIM, X_NA, X_NSCHED, X_NTEN, X_NU, X_SCHED, X_STEP,
                                    X_TEN, build_elements, extension_start, has_elements)
 from rbody.engine.memory import address, stack_floats
+from rbody.engine.fluid import fluid_forces
 from rbody.engine.passive import gravity_compensation, tendon_passive
 
 DEFAULT_TIMESTEP = 0.002  # [s] MuJoCo's default step: what actearly's next activation assumes outside a run
@@ -81,6 +82,7 @@ def element_forces(p, q, v, act, w, at):
     actuator_forces(p, act, fw.length, fw.velocity, fw.moment, fw.ctrl, fw.force, fw.act_dot, fw.qfrc)
     E = extension_start(p)
     nv, nj = int(p[mb.H_DOFS]), int(p[mb.H_JOINTS])
+    fluid_forces(p, ws.S, ws.xpos, ws.xmat, ws.vel, ws.h, ws.tau)
     gravity_compensation(p, ws.S, ws.h, ws.scratch, fw.gravcomp)
     actgc = int(p[E + X_ACTGC])
     for d in range(nv):  # MuJoCo: a passive force, or an actuator force where the joint says so
@@ -208,6 +210,7 @@ def _passive_batch(p, Q, V, out):
         fw = _force_views(p, w, tree)
         tendon_kinematics(p, Q[b], V[b], w, fw.ten_length, fw.ten_velocity, fw.ten_J)
         tendon_passive(p, fw.ten_length, fw.ten_velocity, fw.ten_J, ws.tau)
+        fluid_forces(p, ws.S, ws.xpos, ws.xmat, ws.vel, ws.h, ws.tau)
         gravity_compensation(p, ws.S, ws.h, ws.scratch, fw.gravcomp)
         actgc = int(p[extension_start(p) + X_ACTGC])
         for d in range(ws.tau.shape[0]):
@@ -395,8 +398,8 @@ class Multibody(mb.Multibody):
     # ----- the tree's algorithms with the elements ------------------------------------------------------
 
     def passive_forces(self, q, v) -> np.ndarray:
-        """(..., nv) MuJoCo's qfrc_passive: joint and tendon springs and dampers, gravity compensation (but on the
-        joints with actuatorgravcomp)."""
+        """(..., nv) MuJoCo's qfrc_passive: joint and tendon springs and dampers, fluid forces, gravity compensation
+        (but on the joints with actuatorgravcomp)."""
         if not self.has_elements:
             return super().passive_forces(q, v)
         shape, (Q, V) = self._batch((q, self.nq, "q"), (v, self.nv, "v"))

@@ -487,6 +487,20 @@ def _inertial(exported: ExportedInertia, indent: str) -> str:
     return f"{indent}<inertial {attrs}/>"
 
 
+def _fluid_box_inertial(exported: ExportedInertia, axes, indent: str) -> str:
+    """A fluid box body's inertial in the principal form on its own axes (MuJoCo's inertia box takes its sides along
+    them; from a full tensor its solver could pick others where two moments are equal), when the tensor is diagonal
+    on them; otherwise the usual form."""
+    rotation = quat_to_matrix(np.asarray(axes, dtype=np.float64))
+    local = rotation.T @ exported.inertia.tensor @ rotation
+    off = np.abs(local - np.diag(np.diag(local)))
+    if exported.note or np.max(off) > 1e-12 * np.max(np.abs(local)):
+        return _inertial(exported, indent)
+    attrs = _attrs(pos=_vec(exported.inertia.com), quat=_vec(axes), mass=_num(exported.inertia.mass),
+                   diaginertia=_vec(np.diag(local)))
+    return f"{indent}<inertial {attrs}/>"
+
+
 def _joint(joint: Joint, indent: str, limit: tuple[float, float] | None = None) -> str:
     extra = {name: _num(getattr(joint, name)) for name in _JOINT_ATTRIBUTES if getattr(joint, name, 0.0) != 0.0}
     if joint.actuatorgravcomp:
@@ -646,6 +660,11 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
               "noslip_iterations": None if noslip_iterations is None else str(int(noslip_iterations)),
               "actuatorgroupdisable": (str(mjcf_actuators.DISABLED_GROUP)
                                        if any(a.disabled for a in layout.actuators) else None)}
+    if layout.fluid is not None:  # MuJoCo's fluid forces: the option, each box body's axes, each ellipsoid
+        option.update(density=_num(layout.fluid.density), viscosity=_num(layout.fluid.viscosity),
+                      wind=_vec(layout.fluid.wind))
+    box_axes = {box.body: box.axes for box in layout.fluid.boxes} if layout.fluid is not None else {}
+    ellipsoids = list(layout.fluid.ellipsoids) if layout.fluid is not None else []
     out.append(f"  <option {_attrs(**option)}/>")
     meshes = [s for s in list(layout.fixed) + [s for b in order for s in b.shapes] if s.kind == "mesh"]
     if meshes:
@@ -670,9 +689,15 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
         for joint in layout.joints:
             if joint.body == body.name:
                 out.append(_joint(joint, indent + "  ", limits.get(joint.name)))
-        out.append(_inertial(exported[body.name], indent + "  "))
+        out.append(_fluid_box_inertial(exported[body.name], box_axes[body.name], indent + "  ")
+                   if body.name in box_axes else _inertial(exported[body.name], indent + "  "))
         for shape in body.shapes:
             out.append(_geom(shape, indent + "  "))
+        for k, shape in enumerate(e for e in ellipsoids if e.body == body.name):
+            attrs = _attrs(name=f"{body.name}_fluid{k}", type="ellipsoid", size=_vec(shape.semiaxes),
+                           pos=_vec(shape.pos), quat=_vec(shape.quat), contype="0", conaffinity="0",
+                           fluidshape="ellipsoid", fluidcoef=_vec(shape.coefficients))
+            out.append(f"{indent}  <geom {attrs}/>")
         for name, point in mjcf_actuators.tendon_sites(layout.tendons, body.name):
             out.append(f"{indent}  <site {_attrs(name=name, pos=_vec(point))}/>")
         for child in children.get(body.name, ()):

@@ -158,6 +158,8 @@ class _Geom:
     group: int
     mesh: str | None = None
     mass: GeomMass | None = None
+    ellipsoid: bool = False     # fluidshape="ellipsoid"
+    axes: np.ndarray | None = None  # its principal axes (quat, body frame), as MuJoCo's compiler holds them
 
 
 @dataclass
@@ -176,6 +178,7 @@ class _Body:
     tensor: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
     weld: int = 0
     gravcomp: float = 0.0
+    axes: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))  # principal axes (body_iquat)
 
     @property
     def dofs(self) -> int:
@@ -419,13 +422,15 @@ class _Reader:
             raise where.error(f"timestep={self.timestep!r}: must be > 0 [s]")
         self.integrator = choice(where, "integrator", attrib, tuple(INTEGRATORS), "Euler")
         gravity = numbers(where, "gravity", attrib, 3) if "gravity" in attrib else np.array([0.0, 0.0, -9.81])
+        self.density, self.viscosity = number(where, "density", attrib, 0.0), number(where, "viscosity", attrib, 0.0)
         for key in ("density", "viscosity"):
-            if number(where, key, attrib, 0.0) != 0:
-                raise where.error(f"{key}={attrib[key]!r}: fluid forces are not supported (set {key}=\"0\")")
+            if getattr(self, key) < 0:
+                raise where.error(f"{key}={attrib[key]!r}: must be >= 0")
+        self.wind = numbers(where, "wind", attrib, 3) if "wind" in attrib else np.zeros(3)
         self.disabled_groups = set()
         if "actuatorgroupdisable" in attrib:
             self.disabled_groups = {int(g) for g in numbers(where, "actuatorgroupdisable", attrib)}
-        ignored = sorted(set(attrib) - {"timestep", "integrator", "gravity", "density", "viscosity",
+        ignored = sorted(set(attrib) - {"timestep", "integrator", "gravity", "density", "viscosity", "wind",
                                         "actuatorgroupdisable"})
         if ignored:
             self.note("option", f"<option> {', '.join(ignored)} ignored (constraint-solver and sensor settings; "
@@ -611,8 +616,10 @@ class _Reader:
         kind = choice(element, "type", attrib, _GEOM_KINDS, "sphere")
         if kind in ("hfield", "sdf"):
             raise element.error(f"{kind} geoms are not supported")
-        if attrib.get("fluidshape", "none") != "none":
-            raise element.error("fluidshape: fluid forces are not supported (remove it or set it to \"none\")")
+        fluidshape = choice(element, "fluidshape", attrib, ("none", "ellipsoid"), "none")
+        if fluidshape == "ellipsoid" and kind in ("mesh", "plane"):
+            raise element.error(f'fluidshape="ellipsoid" on a {kind} geom (MuJoCo sizes its ellipsoid from the '
+                                "geom's size, which rbody does not form for meshes and planes) is not modelled")
         if "mesh" in attrib and kind != "mesh":
             raise element.error(f"a {kind} fitted to a mesh is not supported: use type=\"mesh\" or give its size")
         if any(key in attrib for key in ("rgba", "material")):
@@ -657,7 +664,7 @@ class _Reader:
             self.plane_bodies.append((element, body))
         geom = _Geom(element, attrib, name, kind, size, pos, quat, int(number(element, "contype", attrib, 1)),
                      int(number(element, "conaffinity", attrib, 1)), int(number(element, "group", attrib, 0)),
-                     mesh=attrib.get("mesh"))
+                     mesh=attrib.get("mesh"), ellipsoid=fluidshape == "ellipsoid")
         if kind == "mesh" and geom.mesh is None:
             raise element.error("a mesh geom needs mesh=\"name of a <mesh> asset\"")
         if kind == "mesh" and geom.mesh not in self.meshes:
@@ -791,11 +798,13 @@ class _Reader:
         if geom.kind == "mesh":
             # MuJoCo moves the mesh to its centre of mass and principal axes, and the geom frame with it
             pos = geom.pos + rotation @ mesh.com
-            tensor = principal_tensor(mesh.moments(mass), quat_product(geom.quat, mesh.principal()[1]))
+            geom.axes = quat_product(geom.quat, mesh.principal()[1])
+            tensor = principal_tensor(mesh.moments(mass), geom.axes)
             exact = rotation @ (mesh.tensor * (mass / volume)) @ rotation.T
             self.compare_exact(geom.element, f"mesh geom {geom.name!r}", tensor, exact)
         else:
             pos = geom.pos
+            geom.axes = geom.quat
             tensor = principal_tensor(primitive_moments(geom.kind, geom.size, mass, shell), geom.quat)
         return GeomMass(geom.name, mass, pos, tensor)
 
@@ -824,16 +833,18 @@ class _Reader:
                 raise element.error("fullinertia with an orientation: the full tensor is already in the body axes")
             xx, yy, zz, xy, xz, yz = numbers(element, "fullinertia", attrib, 6)
             exact = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
-            tensor = principal_tensor(*mujoco_principal(exact))
+            moments, axes = mujoco_principal(exact)
+            tensor = principal_tensor(moments, axes)
             self.compare_exact(element, f"body {body.name!r} fullinertia", tensor, exact)
         elif "diaginertia" in attrib:
-            rotation = quat_matrix(self.orientation(element, attrib))
+            axes = self.orientation(element, attrib)
+            rotation = quat_matrix(axes)
             tensor = rotation @ np.diag(numbers(element, "diaginertia", attrib, 3)) @ rotation.T
         else:
             raise element.error("<inertial> needs diaginertia or fullinertia")
         if mass < 0:
             raise element.error(f"mass={mass!r}: must be >= 0 [kg]")
-        return mass, pos, 0.5 * (tensor + tensor.T)
+        return mass, pos, 0.5 * (tensor + tensor.T), axes
 
     def body_mass(self, body: _Body) -> None:
         from_geoms = self.inertiafromgeom == "true" or (self.inertiafromgeom == "auto" and body.inertial is None)
@@ -846,13 +857,15 @@ class _Reader:
                     parts.append(geom)
             if parts:
                 body.mass, body.com, body.tensor = sum_geoms([g.mass for g in parts])
+                body.axes = parts[0].axes
                 if len(parts) > 1:
                     exact = body.tensor
-                    body.tensor = principal_tensor(*mujoco_principal(exact))
+                    moments, body.axes = mujoco_principal(exact)
+                    body.tensor = principal_tensor(moments, body.axes)
                     self.compare_exact(body.element, f"body {body.name!r}", body.tensor, exact)
                     self.check_overlaps(body, parts)
         elif body.inertial is not None:
-            body.mass, body.com, body.tensor = self.inertial_mass(body)
+            body.mass, body.com, body.tensor, body.axes = self.inertial_mass(body)
 
     def check_overlaps(self, body: _Body, parts: list[_Geom]) -> None:
         from rbody.mjcf.overlap import overlapping
@@ -1298,7 +1311,37 @@ class _Reader:
                                quat=tuple(quat.tolist()), gravcomp=self.gravcomp_of(body)))
         self.frames = kept
         bodies = [dataclasses.replace(b, shapes=tuple(shapes[b.name])) for b in bodies]
-        return Layout(bodies=tuple(bodies), joints=tuple(joints), fixed=tuple(shapes[WORLD]))
+        return Layout(bodies=tuple(bodies), joints=tuple(joints), fixed=tuple(shapes[WORLD]), fluid=self.fluid())
+
+    def fluid(self):
+        """rbody.layout.Fluid of the model (rbody.mjcf.fluid), or None without density or viscosity."""
+        from rbody.layout import Fluid, FluidBox, FluidEllipsoid
+        from rbody.mjcf import fluid as mjcf_fluid
+
+        if self.density <= 0 and self.viscosity <= 0:
+            return None
+        if not self.spring_on and not self.damper_on:
+            self.note("fluid", "fluid forces ignored: <flag spring> and <flag damper> are both disabled, and MuJoCo "
+                               "then applies no passive force at all")
+            return None
+        boxes, ellipsoids = [], []
+        for body in self.bodies:
+            if body.mass < MJ_MINVAL or self.frames[body.index][0] != body.name:
+                continue  # massless (MuJoCo skips it; a folded body is massless)
+            own = [g for g in body.geoms if g.ellipsoid]
+            if not own:
+                boxes.append(FluidBox(body.name, tuple(np.asarray(body.axes, dtype=np.float64).tolist())))
+                continue
+            for geom in own:
+                axes = mjcf_fluid.semiaxes(geom.kind, geom.size)
+                mass, inertia = mjcf_fluid.added_mass(axes)
+                ellipsoids.append(FluidEllipsoid(body.name, tuple(geom.pos.tolist()), tuple(geom.quat.tolist()), axes,
+                                                 mass, inertia,
+                                                 mjcf_fluid.coefficients(geom.element, geom.attrib, numbers)))
+        self.note("fluid forces", f"fluid forces as MuJoCo's (density {self.density:g}, viscosity {self.viscosity:g}): "
+                                  f"{len(boxes)} bodies by the inertia box, {len(ellipsoids)} geoms by the ellipsoid model")
+        return Fluid(density=self.density, viscosity=self.viscosity, wind=tuple(self.wind.tolist()), boxes=tuple(boxes),
+                     ellipsoids=tuple(ellipsoids))
 
     def shapes_of(self, geom: _Geom, pos: np.ndarray, quat: np.ndarray) -> list[Shape]:
         """The rbody Shape of a geom, in the frame (pos, quat) of the body that carries it."""
