@@ -507,7 +507,7 @@ class _Reader:
             elif child.tag in ("texture", "material", "skin"):
                 self.note(child.tag, f"<{child.tag}> assets ignored (appearance only)")
             elif child.tag == "hfield":
-                self.note("hfield", "<hfield> assets ignored (a geom that uses one is refused)")
+                self.note("hfield", "<hfield> assets: a geom using one is read only as world-fixed terrain")
             elif child.tag == "model":
                 raise child.error("<model> assets (model composition) are not supported")
             else:
@@ -614,8 +614,17 @@ class _Reader:
         self.check_attrs(element, _GEOM_ATTRS)
         attrib = self.attrs(element, "geom", childclass)
         kind = choice(element, "type", attrib, _GEOM_KINDS, "sphere")
-        if kind in ("hfield", "sdf"):
-            raise element.error(f"{kind} geoms are not supported")
+        if kind == "sdf" or (kind == "hfield" and body.index != 0):
+            raise element.error(f"{kind} geoms are not supported" + (" on a body (only a world-fixed height field, "
+                                                                    "which moves nothing, is read)" if kind == "hfield"
+                                                                    else ""))
+        if kind == "hfield":  # on the world: static terrain, massless; the contact check still sees it
+            self.note("hfield geom", "a world-fixed height field read as static terrain (no rbody Shape draws it)")
+            body.geoms.append(_Geom(element, attrib, attrib.get("name", ""), kind, np.zeros(3), np.zeros(3),
+                                    np.array([1.0, 0.0, 0.0, 0.0]), int(number(element, "contype", attrib, 1)),
+                                    int(number(element, "conaffinity", attrib, 1)),
+                                    int(number(element, "group", attrib, 0))))
+            return
         fluidshape = choice(element, "fluidshape", attrib, ("none", "ellipsoid"), "none")
         if fluidshape == "ellipsoid" and kind in ("mesh", "plane"):
             raise element.error(f'fluidshape="ellipsoid" on a {kind} geom (MuJoCo sizes its ellipsoid from the '
@@ -1350,6 +1359,8 @@ class _Reader:
         common = dict(pos=tuple(gpos.tolist()), quat=tuple(gquat.tolist()))
         if geom.kind == "ellipsoid":
             self.note("ellipsoid", "ellipsoid geoms are not drawn (rbody Shapes have no ellipsoid); their mass counts")
+            return []
+        if geom.kind == "hfield":
             return []
         if geom.kind == "mesh":
             return [Shape(geom.name, "mesh", (), mesh=self.mesh_path(geom.mesh), **common)]
