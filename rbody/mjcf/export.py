@@ -535,6 +535,23 @@ def _roll_equality(joint: Joint, dt: float, indent: str) -> str:
     return f"{indent}<joint {attrs}/>"
 
 
+def mesh_inertia_mode(path: str) -> str:
+    """The inertia mode to_mjcf writes for a mesh asset: "exact" (MuJoCo's exact volume integrals: right for any
+    closed mesh, should a user switch inertiafromgeom on) where MuJoCo's compiler accepts it, a mesh whose faces
+    are consistently oriented and enclose a positive volume; else "legacy", which it always accepts (MuJoCo refuses
+    "exact" for an open or inside-out mesh: "inconsistent orientation", "mesh volume is negative"). The body's mass
+    properties are the explicit <inertial> either way."""
+    try:
+        import trimesh
+
+        mesh = trimesh.load(path, force="mesh", process=False)
+        if mesh.is_winding_consistent and mesh.is_watertight and float(mesh.volume) > 1e-15:
+            return "exact"
+    except Exception:  # a file trimesh cannot read: MuJoCo reads it by its own rules
+        pass
+    return "legacy"
+
+
 def _spring_lengths(scene) -> dict[str, tuple[float, float]]:
     """Each tendon's spring dead band as the engine resolved it (rbody.engine.system.Multibody), so that MuJoCo reads
     the same lengths whatever pose it would compute them at."""
@@ -671,7 +688,8 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
         out.append("  <asset>")
         for shape in meshes:
             # an absolute path: the model compiles from any folder (the mesh file stays where it is)
-            out.append(f"    <mesh {_attrs(name=shape.name, file=os.path.abspath(shape.mesh), inertia='exact')}/>")
+            mode = mesh_inertia_mode(shape.mesh)
+            out.append(f"    <mesh {_attrs(name=shape.name, file=os.path.abspath(shape.mesh), inertia=mode)}/>")
         out.append("  </asset>")
     out.append("  <worldbody>")
     for shape in layout.fixed:
