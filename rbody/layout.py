@@ -276,7 +276,7 @@ class Tendon:
 ACTUATOR_DYNAMICS = ("none", "integrator", "filter", "filterexact")
 ACTUATOR_GAINS = ("fixed", "affine")
 ACTUATOR_BIASES = ("none", "affine")
-TRANSMISSIONS = ("joint", "tendon")
+TRANSMISSIONS = ("joint", "tendon", "site")
 
 
 def _range(value, what: str) -> tuple[float, float] | None:
@@ -299,9 +299,11 @@ class Actuator:
         bias  = 0 ("none") or biasprm[0] + biasprm[1] L + biasprm[2] L' ("affine"),
     clamped to forcerange, with u first clamped to ctrlrange. L is the actuator length: gear[0] q for a hinge
     or slide (q itself, not q - ref), gear . (the rotation vector of the ball's quaternion) for a ball, 0 for a
-    free joint, gear[0] times the tendon length for a tendon; L' = moment . qvel. The generalised force is
-    moment^T force, the moment being gear[0] (hinge, slide, tendon: times the tendon's coefficients), gear[:3]
-    (ball: body-frame torque), gear (free: world force, then body-frame torque).
+    free joint, gear[0] times the tendon length for a tendon, 0 for a site; L' = moment . qvel. The generalised
+    force is moment^T force, the moment being gear[0] (hinge, slide, tendon: times the tendon's coefficients),
+    gear[:3] (ball: body-frame torque), gear (free: world force, then body-frame torque), and for a site
+    (transmission "site": target the body, `site` = (pos (3), quat (4)) the site's frame in it) the wrench of force
+    gear[:3] and torque gear[3:] in the site's axes, applied at the site (MuJoCo's site transmission without refsite).
     Activation dynamics, act' = u ("integrator"), (u - act) / dynprm ("filter", "filterexact": the same
     equation; MuJoCo's own integrators advance "filterexact" by its exact solution over a step), clamped to
     actrange after every step. actearly: the force uses the activation at the end of the step, act + h act'
@@ -326,9 +328,19 @@ class Actuator:
     actrange: tuple[float, float] | None = None
     actearly: bool = False
     disabled: bool = False
+    site: tuple | None = None
 
     def __post_init__(self) -> None:
         what = f"actuator {self.name!r}"
+        if (self.transmission == "site") != (self.site is not None):
+            raise ValueError(f"{what}: a site transmission needs site=(pos (3), quat (4)) in the target body's frame, "
+                             "and only it")
+        if self.site is not None:
+            pos = finite_array(self.site[0], f"{what}: site pos", shape=(3,))
+            quat = finite_array(self.site[1], f"{what}: site quat", shape=(4,))
+            if np.linalg.norm(quat) == 0:
+                raise ValueError(f"{what}: site quat {quat.tolist()} must be non-zero")
+            object.__setattr__(self, "site", (tuple(pos.tolist()), tuple((quat / np.linalg.norm(quat)).tolist())))
         for field_name, choices in (("transmission", TRANSMISSIONS), ("dynamics", ACTUATOR_DYNAMICS),
                                     ("gain", ACTUATOR_GAINS), ("bias", ACTUATOR_BIASES)):
             if getattr(self, field_name) not in choices:

@@ -28,7 +28,8 @@ from rbody.engine.elements import (A_ACTADR, A_ACTEARLY, A_ACTLIM, A_ACTRANGE, A
                                    A_CTRLRANGE, A_DADR, A_DISABLED, A_DYN, A_DYNPRM, A_FORCELIM, A_FORCERANGE,
                                    A_GAIN, A_GAINPRM, A_GEAR, A_ID, A_JKIND, A_QADR, A_TRN, ACT_SIZE, BIAS_AFFINE,
                                    DYN_FILTER, DYN_FILTEREXACT, DYN_INTEGRATOR, DYN_NONE, GAIN_AFFINE, MJ_MINVAL,
-                                   PATH_SIZE, T_KIND, T_N, T_PATH, TEN_FIXED, TEN_SIZE, TRN_JOINT, X_ACT, X_CTRL,
+                                   A_SITEPOS, A_SITEQUAT, PATH_SIZE, T_KIND, T_N, T_PATH, TEN_FIXED, TEN_SIZE,
+                                   TRN_JOINT, TRN_SITE, X_ACT, X_CTRL,
                                    X_NTEN, X_NU, X_STEP, X_TEN, extension_start)
 from rbody.engine.multibody import (B_DOF0, B_NDOF, B_PARENT, BALL, BODY_SIZE, D_PARENT, DOF_SIZE, FREE, H_BODY,
                                     H_DOF, H_DOFS, _views)
@@ -130,9 +131,10 @@ def clip(value, low, high):
 
 
 @njit(cache=True)
-def transmission(p, q, v, ten_length, ten_J, length, velocity, moment):
+def transmission(p, q, v, w, ten_length, ten_J, length, velocity, moment):
     """length (nu,), velocity (nu,) and moment (nu, nv) of every actuator (module docstring) at qpos q (the
-    quaternions as used: unit or made unit here), qvel v, from the tendons' lengths and Jacobians."""
+    quaternions as used: unit or made unit here), qvel v, from the tendons' lengths and Jacobians and the tree's
+    workspace w (poses and motion subspaces: site transmissions)."""
     E = extension_start(p)
     nu, nv = int(p[E + X_NU]), int(p[H_DOFS])
     for i in range(nu):
@@ -143,16 +145,16 @@ def transmission(p, q, v, ten_length, ten_J, length, velocity, moment):
         if int(p[r + A_TRN]) == TRN_JOINT:
             kind, qa, da = int(p[r + A_JKIND]), int(p[r + A_QADR]), int(p[r + A_DADR])
             if kind == BALL:
-                w, x, y, z = q[qa], q[qa + 1], q[qa + 2], q[qa + 3]
-                norm = np.sqrt(w * w + x * x + y * y + z * z)
+                qw, qx, qy, qz = q[qa], q[qa + 1], q[qa + 2], q[qa + 3]
+                norm = np.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
                 if norm >= MJ_MINVAL and abs(norm - 1.0) > MJ_MINVAL:  # mju_normalize4
-                    w, x, y, z = w / norm, x / norm, y / norm, z / norm
-                sine = np.sqrt(x * x + y * y + z * z)
+                    qw, qx, qy, qz = qw / norm, qx / norm, qy / norm, qz / norm
+                sine = np.sqrt(qx * qx + qy * qy + qz * qz)
                 if sine < MJ_MINVAL:  # mju_normalize3 of a zero axis: (1, 0, 0)
                     ax, ay, az = 1.0, 0.0, 0.0
                 else:
-                    ax, ay, az = x / sine, y / sine, z / sine
-                angle = 2.0 * np.arctan2(sine, w)
+                    ax, ay, az = qx / sine, qy / sine, qz / sine
+                angle = 2.0 * np.arctan2(sine, qw)
                 if angle > np.pi:
                     angle -= 2.0 * np.pi
                 length[i] = angle * (ax * p[r + A_GEAR] + ay * p[r + A_GEAR + 1] + az * p[r + A_GEAR + 2])
@@ -165,6 +167,9 @@ def transmission(p, q, v, ten_length, ten_J, length, velocity, moment):
             else:  # hinge, slide, roll: one coordinate
                 length[i] = q[qa] * gear0
                 moment[i, da] = gear0
+        elif int(p[r + A_TRN]) == TRN_SITE:
+            _site_moment(p, r, w, moment[i])
+            length[i] = 0.0
         else:
             t = int(p[r + A_ID])
             length[i] = ten_length[t] * gear0
@@ -174,6 +179,41 @@ def transmission(p, q, v, ten_length, ten_J, length, velocity, moment):
         for d in range(nv):
             rate += moment[i, d] * v[d]
         velocity[i] = rate
+
+
+@njit(cache=True)
+def _site_moment(p, r, w, row):
+    """row (nv,) = J_pos^T (R gear[:3]) + J_rot^T (R gear[3:]) at a site (MuJoCo's site transmission without
+    refsite), R the site's world axes, J its point and rotation Jacobians."""
+    ws = _views(p, w)
+    S, xpos, xmat, scratch = ws.S, ws.xpos, ws.xmat, ws.scratch
+    body = int(p[r + A_ID])
+    x, force, torque, local = scratch[9:12], scratch[12:15], scratch[15:18], scratch[18:27]
+    at = r + A_SITEQUAT
+    qw, qx, qy, qz = p[at], p[at + 1], p[at + 2], p[at + 3]
+    local[0], local[1], local[2] = qw * qw + qx * qx - qy * qy - qz * qz, 2 * (qx * qy - qw * qz), 2 * (qx * qz + qw * qy)
+    local[3], local[4], local[5] = 2 * (qx * qy + qw * qz), qw * qw - qx * qx + qy * qy - qz * qz, 2 * (qy * qz - qw * qx)
+    local[6], local[7], local[8] = 2 * (qx * qz - qw * qy), 2 * (qy * qz + qw * qx), qw * qw - qx * qx - qy * qy + qz * qz
+    for a in range(3):
+        x[a] = xpos[body, a]
+        force[a] = 0.0
+        torque[a] = 0.0
+        for c in range(3):
+            x[a] += xmat[body, a, c] * p[r + A_SITEPOS + c]
+            axis = (xmat[body, a, 0] * local[c] + xmat[body, a, 1] * local[3 + c] + xmat[body, a, 2] * local[6 + c])
+            force[a] += axis * p[r + A_GEAR + c]
+            torque[a] += axis * p[r + A_GEAR + 3 + c]
+    for d in range(row.shape[0]):
+        row[d] = 0.0
+    do = int(p[H_DOF])
+    d = last_dof(p, body)
+    while d >= 0:
+        w0, w1, w2 = S[d, 0], S[d, 1], S[d, 2]
+        jx = S[d, 3] + w1 * x[2] - w2 * x[1]
+        jy = S[d, 4] + w2 * x[0] - w0 * x[2]
+        jz = S[d, 5] + w0 * x[1] - w1 * x[0]
+        row[d] = force[0] * jx + force[1] * jy + force[2] * jz + torque[0] * w0 + torque[1] * w1 + torque[2] * w2
+        d = int(p[do + d * DOF_SIZE + D_PARENT])
 
 
 @njit(cache=True, inline="always")

@@ -21,7 +21,7 @@ without force elements is the same numbers as before. Offsets in the section are
     actuator record (ACT_SIZE): transmission (0 joint, 1 tendon), target (joint or tendon index), the target
       joint's kind code (-1 for a tendon), its qpos and qvel addresses, dynamics, gain and bias codes, dynprm,
       gainprm (3), biasprm (3), gear (6), ctrl limited and range (2), force limited and range (2), act limited
-      and range (2), actearly, the activation's index in act (-1 none), disabled
+      and range (2), actearly, the activation's index in act (-1 none), disabled, a site's pos (3) and quat (4)
     tendon record (TEN_SIZE): kind (0 fixed, 1 spatial), entries, offset of the entries, stiffness, damping,
       spring length low and high
     tendon entries (PATH_SIZE each): fixed (qpos address, qvel address, coef, 0); spatial (body index, -1 for the
@@ -47,8 +47,8 @@ X_HEADER = 16
 A_TRN, A_ID, A_JKIND, A_QADR, A_DADR, A_DYN, A_GAIN, A_BIAS, A_DYNPRM = range(9)
 A_GAINPRM, A_BIASPRM, A_GEAR = 9, 12, 15
 A_CTRLLIM, A_CTRLRANGE, A_FORCELIM, A_FORCERANGE, A_ACTLIM, A_ACTRANGE = 21, 22, 24, 25, 27, 28
-A_ACTEARLY, A_ACTADR, A_DISABLED = 30, 31, 32
-ACT_SIZE = 33
+A_ACTEARLY, A_ACTADR, A_DISABLED, A_SITEPOS, A_SITEQUAT = 30, 31, 32, 33, 36
+ACT_SIZE = 40
 
 FLUID_HEADER = 9   # nbox, nell, density, viscosity, wind (3), box and ellipsoid offsets (rbody.engine.fluid)
 BOX_SIZE = 8       # body, axes (4), sides (3)
@@ -58,7 +58,7 @@ T_KIND, T_N, T_PATH, T_STIFF, T_DAMP, T_LOW, T_HIGH = range(7)
 TEN_SIZE = 7
 PATH_SIZE = 4
 
-TRN_JOINT, TRN_TENDON = 0, 1
+TRN_JOINT, TRN_TENDON, TRN_SITE = 0, 1, 2
 TEN_FIXED, TEN_SPATIAL = 0, 1
 DYN_NONE, DYN_INTEGRATOR, DYN_FILTER, DYN_FILTEREXACT = (ACTUATOR_DYNAMICS.index(k) for k in ACTUATOR_DYNAMICS)
 GAIN_FIXED, GAIN_AFFINE = (ACTUATOR_GAINS.index(k) for k in ACTUATOR_GAINS)
@@ -204,6 +204,14 @@ def build_elements(layout: Layout, arrays: TreeArrays, start: int) -> ElementArr
                                  f"{used} gear component(s) (MuJoCo reads no more)")
             row[r + A_TRN], row[r + A_ID], row[r + A_JKIND] = TRN_JOINT, j, KIND_CODE[kind]
             row[r + A_QADR], row[r + A_DADR] = arrays.qposadr[j], arrays.dofadr[j]
+        elif actuator.transmission == "site":
+            if actuator.target not in bodies:
+                raise ValueError(f"{what}: target={actuator.target!r} is not a body of the layout (a site transmission "
+                                 "names the body that carries the site)")
+            row[r + A_TRN], row[r + A_ID], row[r + A_JKIND] = TRN_SITE, bodies[actuator.target], -1
+            row[r + A_QADR], row[r + A_DADR] = -1, -1
+            row[r + A_SITEPOS:r + A_SITEPOS + 3] = actuator.site[0]
+            row[r + A_SITEQUAT:r + A_SITEQUAT + 4] = actuator.site[1]
         else:
             if actuator.target not in tendons:
                 raise ValueError(f"{what}: target={actuator.target!r} is not a tendon of the layout")

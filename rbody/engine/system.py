@@ -78,7 +78,7 @@ def element_forces(p, q, v, act, w, at):
     fw = _force_views(p, w, at)
     tendon_kinematics(p, q, v, w, fw.ten_length, fw.ten_velocity, fw.ten_J)
     tendon_passive(p, fw.ten_length, fw.ten_velocity, fw.ten_J, ws.tau)
-    transmission(p, q, v, fw.ten_length, fw.ten_J, fw.length, fw.velocity, fw.moment)
+    transmission(p, q, v, w, fw.ten_length, fw.ten_J, fw.length, fw.velocity, fw.moment)
     actuator_forces(p, act, fw.length, fw.velocity, fw.moment, fw.ctrl, fw.force, fw.act_dot, fw.qfrc)
     E = extension_start(p)
     nv, nj = int(p[mb.H_DOFS]), int(p[mb.H_JOINTS])

@@ -301,13 +301,17 @@ def _limited(spec: ActuatorSpec, key: str, autolimits: bool) -> bool:
 
 
 def actuator_of(spec: ActuatorSpec, name: str, joint_kinds: dict, ranges: dict, tendon_names: set,
-                autolimits: bool, disabled_groups: set, actuation_on: bool, clampctrl_on: bool) -> Actuator:
+                autolimits: bool, disabled_groups: set, actuation_on: bool, clampctrl_on: bool,
+                sites: dict | None = None) -> Actuator:
     """The rbody Actuator of a resolved spec (a dampratio still pending stays positive in biasprm[2]: resolve
     it with resolve_dampratio once the model's mass matrix is known). joint_kinds: joint name -> kind; ranges:
-    joint or tendon name -> (lo, hi) declared range (for inheritrange)."""
+    joint or tendon name -> (lo, hi) declared range (for inheritrange); sites: site name -> (body, pos, quat) in
+    the body's frame (site transmissions)."""
     element = spec.element
-    if spec.trntype in ("site", "body", "cranksite"):
-        raise element.error(f"a {spec.trntype} transmission is not modelled (rbody drives joints and tendons)")
+    if spec.trntype in ("body", "cranksite"):
+        raise element.error(f"a {spec.trntype} transmission is not modelled (rbody drives joints, tendons and sites)")
+    if spec.trntype == "site" and "refsite" in element.attrib:
+        raise element.error("a site transmission with refsite (a length relative to another site) is not modelled")
     if not spec.trntype:
         raise element.error("the actuator names no transmission (joint=, jointinparent= or tendon=)")
     for key, value, choices in (("dyntype", spec.dyntype, ("none", "integrator", "filter", "filterexact")),
@@ -321,7 +325,14 @@ def actuator_of(spec: ActuatorSpec, name: str, joint_kinds: dict, ranges: dict, 
         raise element.error("actuator delay (a history of controls) is not modelled")
     if spec.actdim not in (-1, int(spec.dyntype != "none")):
         raise element.error(f"actdim={spec.actdim} is not modelled (one activation with dynamics, none without)")
-    if spec.trntype in ("joint", "jointinparent"):
+    site = None
+    if spec.trntype == "site":
+        if sites is None or spec.target not in sites:
+            raise element.error(f"site={spec.target!r} is not a <site> of the model")
+        body, pos, quat = sites[spec.target]
+        kind, transmission, site = "site", "site", (pos, quat)
+        target = body
+    elif spec.trntype in ("joint", "jointinparent"):
         if spec.target not in joint_kinds:
             raise element.error(f"{spec.trntype}={spec.target!r} is not a joint of the model")
         kind = joint_kinds[spec.target]
@@ -333,6 +344,8 @@ def actuator_of(spec: ActuatorSpec, name: str, joint_kinds: dict, ranges: dict, 
         if spec.target not in tendon_names:
             raise element.error(f"tendon={spec.target!r} is not a tendon of the model")
         kind, transmission = "tendon", "tendon"
+    if spec.trntype != "site":
+        target = spec.target
     if spec.inheritrange > 0:
         position_like = spec.gaintype == "fixed" and spec.gainprm[0] == -spec.biasprm[1] and spec.biastype == "affine"
         if not position_like:
@@ -353,16 +366,17 @@ def actuator_of(spec: ActuatorSpec, name: str, joint_kinds: dict, ranges: dict, 
     forcelimited = _limited(spec, "force", autolimits)
     actlimited = _limited(spec, "act", autolimits)
     gear = list(spec.gear)
-    used = {"ball": 3, "free": 6}.get(kind, 1)
+    used = {"ball": 3, "free": 6, "site": 6}.get(kind, 1)
     if any(gear[used:]):
         raise element.error(f"gear={gear}: a {kind} transmission takes {used} gear component(s)")
     disabled = not actuation_on or (0 <= spec.group <= 30 and spec.group in disabled_groups)
-    return Actuator(name, spec.target, transmission=transmission, gear=tuple(gear[:used]), dynamics=spec.dyntype,
+    return Actuator(name, target, transmission=transmission, gear=tuple(gear[:used]), dynamics=spec.dyntype,
                     dynprm=spec.dynprm[0], gain=spec.gaintype, gainprm=tuple(spec.gainprm[:3]), bias=spec.biastype,
                     biasprm=tuple(spec.biasprm[:3]),
                     ctrlrange=tuple(spec.ctrlrange) if ctrllimited and clampctrl_on else None,
                     forcerange=tuple(spec.forcerange) if forcelimited else None,
-                    actrange=tuple(spec.actrange) if actlimited else None, actearly=spec.actearly, disabled=disabled)
+                    actrange=tuple(spec.actrange) if actlimited else None, actearly=spec.actearly, disabled=disabled,
+                    site=site)
 
 
 def dampratio_pending(actuator: Actuator) -> bool:
@@ -403,10 +417,13 @@ def site_name(tendon: Tendon, k: int) -> str:
     return f"{tendon.name}_site{k}"
 
 
-def tendon_sites(tendons, body: str) -> list[tuple[str, tuple]]:
-    """(site name, point) of every spatial tendon site on `body` (or "world"), for to_mjcf."""
-    return [(site_name(t, k), point) for t in tendons if t.kind == "spatial"
-            for k, (owner, point) in enumerate(t.sites) if owner == body]
+def tendon_sites(tendons, body: str, actuators=()) -> list[tuple[str, tuple, tuple]]:
+    """(site name, point, quat) of every spatial tendon site and actuator site on `body` (or "world"), for
+    to_mjcf."""
+    out = [(site_name(t, k), point, (1.0, 0.0, 0.0, 0.0)) for t in tendons if t.kind == "spatial"
+           for k, (owner, point) in enumerate(t.sites) if owner == body]
+    return out + [(f"{a.name}_site", a.site[0], a.site[1]) for a in actuators
+                  if a.transmission == "site" and a.target == body]
 
 
 def tendon_xml(tendon: Tendon, springlength, attrs, vec, num, indent: str) -> list[str]:
@@ -429,7 +446,8 @@ def tendon_xml(tendon: Tendon, springlength, attrs, vec, num, indent: str) -> li
 
 def actuator_xml(actuator: Actuator, attrs, vec, num, indent: str) -> str:
     """One <general> element holding every parameter of the actuator (MuJoCo's general actuator is its model)."""
-    values = {"name": actuator.name, actuator.transmission: actuator.target, "gear": vec(actuator.gear),
+    target = f"{actuator.name}_site" if actuator.transmission == "site" else actuator.target
+    values = {"name": actuator.name, actuator.transmission: target, "gear": vec(actuator.gear),
               "dyntype": actuator.dynamics, "gaintype": actuator.gain, "biastype": actuator.bias,
               "dynprm": num(actuator.dynprm), "gainprm": vec(actuator.gainprm), "biasprm": vec(actuator.biasprm)}
     for key in ("ctrl", "force", "act"):

@@ -694,8 +694,8 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
     out.append("  <worldbody>")
     for shape in layout.fixed:
         out.append(_geom(shape, "    "))
-    for name, point in mjcf_actuators.tendon_sites(layout.tendons, WORLD):
-        out.append(f"    <site {_attrs(name=name, pos=_vec(point))}/>")
+    for name, point, quat in mjcf_actuators.tendon_sites(layout.tendons, WORLD, layout.actuators):
+        out.append(f"    <site {_attrs(name=name, pos=_vec(point), quat=_vec(quat))}/>")
     children: dict[str, list[Body]] = {}
     for body in layout.bodies:
         children.setdefault(body.parent, []).append(body)
@@ -716,8 +716,8 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
                            pos=_vec(shape.pos), quat=_vec(shape.quat), contype="0", conaffinity="0",
                            fluidshape="ellipsoid", fluidcoef=_vec(shape.coefficients))
             out.append(f"{indent}  <geom {attrs}/>")
-        for name, point in mjcf_actuators.tendon_sites(layout.tendons, body.name):
-            out.append(f"{indent}  <site {_attrs(name=name, pos=_vec(point))}/>")
+        for name, point, quat in mjcf_actuators.tendon_sites(layout.tendons, body.name, layout.actuators):
+            out.append(f"{indent}  <site {_attrs(name=name, pos=_vec(point), quat=_vec(quat))}/>")
         for child in children.get(body.name, ()):
             write(child, indent + "  ")
         out.append(f"{indent}</body>")

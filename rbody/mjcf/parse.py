@@ -541,16 +541,19 @@ class _Reader:
                 self.check_attrs(child, _INERTIAL_ATTRS)
                 body.inertial = child
             elif tag in _VISUAL_ELEMENTS:
-                if tag == "site" and "name" in child.attrib:  # a spatial tendon may pass through it
+                if tag == "site" and "name" in child.attrib:  # a tendon or an actuator may use it
                     attrib = self.attrs(child, "site", childclass)
                     if "fromto" in attrib:
                         fromto = numbers(child, "fromto", attrib, 6)
                         position = (fromto[:3] + fromto[3:]) / 2
+                        orientation = z_to_quat(normalize(fromto[:3] - fromto[3:])[0])
                     else:
                         position = numbers(child, "pos", attrib, 3) if "pos" in attrib else np.zeros(3)
+                        orientation = self.orientation(child, attrib)
                     if frame is not None:
                         position = frame[0] + quat_matrix(frame[1]) @ position
-                    self.sites[child.attrib["name"]] = (body, position)
+                        orientation = quat_product(frame[1], orientation)
+                    self.sites[child.attrib["name"]] = (body, position, orientation)
                 self.note(tag, f"<{tag}> elements ignored (they do not change the dynamics)")
             elif tag in _REFUSED_IN_BODY:
                 raise child.error(_REFUSED_IN_BODY[tag])
@@ -1183,10 +1186,11 @@ class _Reader:
         position servo resolved against the mass matrix at the reference pose, as MuJoCo's compiler does."""
         if not self.tendon_specs and not self.actuator_specs:
             return layout
-        sites = {}
-        for name, (body, position) in self.sites.items():
+        sites, frames = {}, {}
+        for name, (body, position, orientation) in self.sites.items():
             carrier, pos, quat = self.frames[body.index]
             sites[name] = (carrier, tuple((pos + quat_matrix(quat) @ position).tolist()))
+            frames[name] = (carrier, sites[name][1], tuple(quat_product(quat, orientation).tolist()))
         tendons, ranges = [], {}
         for name, spec in self.tendon_specs:
             if any(t.name == name for t in tendons):
@@ -1209,7 +1213,7 @@ class _Reader:
                 raise spec.element.error(f"two actuators are called {name!r}")
             actuators.append(mjcf_actuators.actuator_of(spec, name, kinds, ranges, {t.name for t in tendons},
                                                         self.autolimits, self.disabled_groups, self.actuation_on,
-                                                        self.clampctrl_on))
+                                                        self.clampctrl_on, frames))
         if actuators and not self.actuation_on:
             self.note("actuation", "actuators apply no force (<flag actuation=\"disable\"/>): kept, disabled")
         elif any(a.disabled for a in actuators):

@@ -278,7 +278,7 @@ REFUSED = [
     ('<actuator>\n<muscle joint="j"/></actuator>', r"line 2, <muscle>: muscle actuators"),
     ('<actuator>\n<cylinder joint="j"/></actuator>', r"line 2, <cylinder>: cylinder actuators"),
     ('<actuator>\n<adhesion body="b"/></actuator>', r"line 2, <adhesion>: adhesion"),
-    ('<actuator>\n<motor site="s"/></actuator>', r"line 2, <motor>: a site transmission"),
+    ('<actuator>\n<motor site="s" refsite="s"/></actuator>', r"line 2, <motor>: a site transmission with refsite"),
     ('<actuator>\n<motor body="b"/></actuator>', r"line 2, <motor>: a body transmission"),
     ('<actuator>\n<general cranksite="s" slidersite="s" cranklength="1"/></actuator>', r"line 2, <general>: a cranksite"),
     ('<actuator>\n<general joint="j" dyntype="muscle"/></actuator>', r"line 2, <general>: dyntype=\"muscle\""),
@@ -305,3 +305,41 @@ def test_what_rbody_cannot_model_is_refused_with_file_line_and_reason(section, m
     with pytest.raises(MJCFError, match=match) as error:
         layout_from_mjcf(xml)
     assert "<string>" in str(error.value)
+
+
+DRONE = """<mujoco><option timestep="0.01" density="1.225" viscosity="1.8e-5"><flag contact="disable"/></option>
+<worldbody><body name="frame" pos="0 0 0.1"><freejoint/><geom type="box" size=".06 .027 .02" pos=".04 0 .02" mass="0.5"/>
+  <geom type="ellipsoid" size=".13 .13 .01" pos="-.14 -.18 .05" mass=".25"/>
+  <site name="thrust" pos="-.14 -.18 .05" euler="5 0 0"/>
+  <body name="arm" pos="0.1 0 0"><joint name="j" axis="0 1 0"/><geom size="0.03" mass="0.1"/>
+    <site name="tip" pos="0.05 0 0" euler="10 20 30"/></body></body></worldbody>
+<actuator><motor name="rotor" site="thrust" gear="0 0 1 0 0 -.0201" ctrlrange="0 13"/>
+  <motor name="wrench" site="tip" gear="0.1 0.2 0.3 0.01 0.02 0.03"/></actuator>
+<keyframe><key qpos="0 0 .3 1 0 0 0 0.2" ctrl="3.2 0.5"/></keyframe></mujoco>"""
+
+
+def test_site_transmissions_drive_a_drone_as_mujoco_drives_it():
+    """A wrench at a site, in the site's axes (MuJoCo's site transmission without refsite): the forces, a run at
+    the file's step with its own integrator, and the export."""
+    scene = rbody.from_mjcf(DRONE, keyframe=0, t_end=1.0)
+    model = scene.multibody
+    m = mujoco.MjModel.from_xml_string(DRONE)
+    d = mujoco.MjData(m)
+    exported = mujoco.MjModel.from_xml_string(rbody.to_mjcf(scene))
+    d2 = mujoco.MjData(exported)
+    rng = np.random.default_rng(4)
+    for q, v, ctrl, act in random_states(model, rng, 3):
+        theirs = mujoco_at(m, d, q, v, ctrl, act)
+        mine = model.actuation(q, v, ctrl)
+        assert np.max(np.abs(mine["qfrc"] - theirs.qfrc_actuator)) < 1e-14 * max(1, np.max(np.abs(theirs.qfrc_actuator)))
+        np.testing.assert_array_equal(mine["length"], theirs.actuator_length)
+        assert np.max(np.abs(mine["velocity"] - theirs.actuator_velocity)) < 1e-14
+        mujoco_at(exported, d2, q, v, ctrl, act)
+        assert np.max(np.abs(d2.qfrc_actuator - theirs.qfrc_actuator)) < 1e-14
+    run = rbody.simulate(scene, dt=0.01, method=scene.file_method)
+    mujoco.mj_resetDataKeyframe(m, d, 0)
+    qpos = [d.qpos.copy()]
+    for _ in range(100):
+        mujoco.mj_step(m, d)
+        qpos.append(d.qpos.copy())
+    assert np.max(np.abs(run["qpos"] - np.array(qpos))) < 1e-11
