@@ -486,9 +486,11 @@ class TreeScene(Scene):
 
     def _rates(self, native: NativeModel):
         """rate(method) -> (B,) [1/s] for the stability check: the spectral radius of df/dy at y0 (every method but
-        MuJoCo's); for MuJoCo's integrators, whose velocity terms are implicit or only damp, the fastest undamped
-        frequency w = sqrt(rho(d qacc / d q)), from the block of the same Jacobian (q the coordinates tangent to the
-        configuration: hinge, slide and free translations, each ball and free rotation's phi)."""
+        MuJoCo's); for MuJoCo's integrators, whose damping is implicit where they solve for it, 2 / h* with h* the
+        largest step their linearised one-step map stays stable at (rbody.engine.mujoco_stability), from the blocks
+        d qacc / d q and d qacc / d qvel of the same Jacobian (q the coordinates tangent to the configuration:
+        hinge, slide and free translations, each ball and free rotation's phi)."""
+        from rbody.engine.mujoco_stability import step_rate, unclamped
         from rbody.engine.mujoco_steps import MUJOCO_METHODS
         from rbody.engine.planar import planar_rhs
         from rbody.engine.stability import jacobian_matrices, jacobian_rate
@@ -496,19 +498,23 @@ class TreeScene(Scene):
         model = self.multibody
         if native.rhs is planar_rhs:
             rows, columns = np.arange(model.nv, 2 * model.nv), np.arange(model.nv)
+            velocities = np.arange(model.nv, 2 * model.nv)
         else:
             rows, columns = np.arange(model.nq, model.nq + model.nv), self._tangent_columns()
+            velocities = np.arange(model.nq, model.nq + model.nv)
 
         def rate(method):
             if model.nv == 0:  # nothing moves (a model of fixed bodies): no rate, any step
                 return np.zeros(native.y0.shape[0])
             if method not in MUJOCO_METHODS:
                 return jacobian_rate(native.rhs, native.y0, native.params)
-            jacobians = jacobian_matrices(native.rhs, native.y0, native.params)
-            block = jacobians[:, rows][:, :, columns]
-            if not np.all(np.isfinite(block)):
-                return np.full(native.y0.shape[0], np.inf)
-            return np.sqrt(np.max(np.abs(np.linalg.eigvals(block)), axis=-1))
+            stepped = self._native_tree(planar=False) if native.rhs is planar_rhs else native
+            rates = []
+            for params in (native.params, unclamped(native.params)) if model.has_elements else (native.params,):
+                jacobians = jacobian_matrices(native.rhs, native.y0, params)[:, rows]
+                rates.append(step_rate(method, jacobians[:, :, columns], jacobians[:, :, velocities], stepped.y0,
+                                       params if model.has_elements else stepped.params, model.has_elements))
+            return np.max(rates, axis=0)
         return rate
 
     def _tangent_columns(self) -> np.ndarray:

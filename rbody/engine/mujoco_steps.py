@@ -168,6 +168,18 @@ def _solve(H, b, x, nv):
 def mujoco_step(y, p, h, mode, elements):
     """One step of MuJoCo's integrator `mode` (EULER, IMPLICITFAST, IMPLICIT) on y = (qpos, qvel, phi = 0, act[,
     steps]) in place (module docstring); elements: whether the row holds force elements (rbody.engine.elements)."""
+    _mujoco_step(y, p, h, mode, elements, np.empty((0, 0, 0)))
+
+
+@njit(cache=True)
+def step_matrices(y, p, mode, elements, out):
+    """out (2, nv, nv) <- (M, D) of the step of `mode` from y (module docstring: H = M - h D), y unchanged."""
+    _mujoco_step(y.copy(), p, 0.0, mode, elements, out)
+
+
+@njit(cache=True)
+def _mujoco_step(y, p, h, mode, elements, matrices):
+    """mujoco_step; with matrices of shape (2, nv, nv), M and D are written there and y is left as it is."""
     nq, nv = int(p[mb.H_NQ]), int(p[mb.H_DOFS])
     do = int(p[mb.H_DOF])
     tree = mb.workspace_size(p)
@@ -246,6 +258,12 @@ def mujoco_step(y, p, h, mode, elements):
             for a in range(nv):
                 for c in range(nv):
                     D[a, c] = H[a, c]
+    if matrices.shape[0] == 2:
+        for a in range(nv):
+            for c in range(nv):
+                matrices[0, a, c] = M[a, c]
+                matrices[1, a, c] = D[a, c]
+        return
     for a in range(nv):
         for c in range(nv):
             H[a, c] = M[a, c] - h * D[a, c]
@@ -309,4 +327,4 @@ def mujoco_steps(elements: bool) -> dict:
     return {name: (step, ONE) for name, step in zip(MUJOCO_METHODS, steps)}
 
 
-__all__ = ["mujoco_step", "mujoco_steps", "integrate_positions", "MUJOCO_METHODS"]
+__all__ = ["mujoco_step", "step_matrices", "mujoco_steps", "integrate_positions", "MUJOCO_METHODS"]

@@ -127,4 +127,36 @@ def test_the_stability_check_reads_the_stiffness_not_the_implicit_damping():
         rbody.simulate(damped, dt=0.01, method="rk4")
     run = rbody.simulate(damped, dt=0.01, method="implicitfast")
     assert np.all(np.abs(run["qpos"]) <= 1.0 + 1e-12)  # creeps towards the target without overshoot
-    assert math.isclose(rbody.stability.stability_limit(damped, "implicitfast"), 2 / math.sqrt(20 / 0.2), rel_tol=1e-6)
+
+
+def implicit_limit(w: float, c: float) -> float:
+    """The largest stable step of semi-implicit Euler on q'' = -w^2 q - c q' with the damping implicit: the
+    map's trace 1 + a - h^2 w^2 a and determinant a = 1 / (1 + h c) meet Jury's bound at h^2 w^2 = 4 + 2 h c."""
+    return (c + math.sqrt(c * c + 4 * w * w)) / (w * w)
+
+
+def explicit_limit(w: float, c: float) -> float:
+    """The same with the damping explicit: trace 2 - h c - h^2 w^2, determinant 1 - h c: h^2 w^2 = 4 - 2 h c."""
+    return (math.sqrt(c * c + 4 * w * w) - c) / (w * w)
+
+
+@pytest.mark.parametrize("method, kv, damping, limit", [
+    ("implicitfast", 60.0, 0.0, implicit_limit),    # kv implicit under implicitfast
+    ("implicit", 60.0, 0.0, implicit_limit),
+    ("mujoco_euler", 0.0, 60.0, implicit_limit),    # the joint's damping implicit under Euler
+    ("mujoco_euler", 60.0, 0.0, explicit_limit),    # an actuator's kv explicit under Euler
+    ("implicitfast", 0.0, 0.0, lambda w, c: 2 / w),
+])
+def test_the_stability_limit_of_a_damped_servo_is_the_closed_form(method, kv, damping, limit):
+    """A servo of w = sqrt(kp / I) = 10 rad/s, damped by c = 60 / I = 300 / s: the limit differs from 2 / w by the
+    damping each integrator solves for (rbody.engine.mujoco_stability), and a run just within it decays (near the
+    limit the map is far from normal: the swing about the target first exceeds its start)."""
+    scene = servo_rotor(kp=20.0, kv=kv, damping=damping)
+    w, c = math.sqrt(20.0 / 0.2), (kv + damping) / 0.2
+    expected = limit(w, c)
+    assert math.isclose(rbody.stability.stability_limit(scene, method), expected, rel_tol=1e-6)
+    assert expected != pytest.approx(2 / w, rel=0.1) or c == 0.0
+    swing = np.abs(rbody.simulate(scene, t_end=400 * expected, dt=0.99 * expected, method=method)["qpos"][:, 0] - 1)
+    quarter = len(swing) // 4
+    if c > 0.0:  # a damped mode decays at any stable step (an undamped one keeps a bounded, sampled, swing)
+        assert np.max(swing[-quarter:]) < np.max(swing[:quarter])
