@@ -74,8 +74,8 @@ def plan(scene, model: NativeModel, ctrl: Any, dt: float, nsteps: int, method: s
     array = np.asarray(ctrl, dtype=np.float64)
     if array.ndim == 0 or array.shape[-1] != nu:
         raise ValueError(f"ctrl has shape {array.shape}: expected (nu,) = ({nu},), (*batch, nu), (n_steps, nu) or "
-                         f"(n_steps, *batch, nu) for scene {scene.describe()} (batch {batch_shape}, {nsteps} steps), or "
-                         "a callable ctrl(t, qpos, qvel)")
+                         f"(n_steps, *batch, nu) for scene {scene.describe()} (batch {batch_shape}, {nsteps} steps), "
+                         "or a callable ctrl(t, qpos, qvel)")
     if not np.all(np.isfinite(array)):
         raise ValueError("ctrl holds NaN or inf: expected finite controls")
     if array.shape == (nu,) or (batch_shape and array.shape == batch_shape + (nu,)):

@@ -7,8 +7,13 @@
     found = check_baseline(comparison, "tests/baselines")       # [] or one message per regression
 
 The model is an rbody Scene (one of rbody.scenes, a Scene.from_layout, or a user's subclass), a path to an
-MJCF file (read by rbody.from_mjcf), or "module:name" / "file.py:name" naming a Scene or a function
-returning one. Every engine that can express the model runs it at the same dt over the same duration;
+MJCF file, or "module:name" / "file.py:name" naming a Scene or a function returning one. A file is run as the
+user runs it (validation.mujoco_file): MuJoCo compiles the file itself (not rbody's re-export), at its own step
+with its own integrator, and rbody reads it (rbody.from_mjcf) and runs it with the file's integrator
+(scene.file_method: mujoco_euler, implicitfast, implicit or rk4), both from the same state (reference pose,
+keyframe=, qpos0=, qvel0=) under the same controls (ctrl=: a constant, an (n_steps, nu) array or a callable
+ctrl(t, qpos, qvel)); when rbody refuses the file, the reason is rbody's row and MuJoCo still
+runs. Every engine that can express the model runs it at the same dt over the same duration;
 an engine that cannot is listed as refused with its reason (validation.backends.supports), an engine
 whose run fails (a blow-up) as failed with its error: nothing is dropped.
 
@@ -19,8 +24,9 @@ see a quaternion's sign. Where the scene has a closed form (rbody's own scenes, 
 is also compared with it, as the pair (engine, "exact").
 
 Defaults, chosen to compare like with like: dt is the scene's own timestep when it has one (an MJCF
-<option timestep>), else 1 ms; rbody's method is "rk4" wherever it applies, the scheme MuJoCo's RK4 uses on
-contact-free models, so that rbody and MuJoCo differ by their models, not by their integrators. MuJoCo and
+<option timestep>), else 1 ms; for a file, both engines run the file's integrator; otherwise rbody's method is
+"rk4" wherever it applies, the scheme MuJoCo's RK4 uses on contact-free models, so that rbody and MuJoCo differ
+by their models, not by their integrators. MuJoCo and
 pymunk run at their backends' documented defaults (validation/backends).
 """
 

@@ -191,9 +191,10 @@ def _site_moment(p, r, w, row):
     x, force, torque, local = scratch[9:12], scratch[12:15], scratch[15:18], scratch[18:27]
     at = r + A_SITEQUAT
     qw, qx, qy, qz = p[at], p[at + 1], p[at + 2], p[at + 3]
-    local[0], local[1], local[2] = qw * qw + qx * qx - qy * qy - qz * qz, 2 * (qx * qy - qw * qz), 2 * (qx * qz + qw * qy)
-    local[3], local[4], local[5] = 2 * (qx * qy + qw * qz), qw * qw - qx * qx + qy * qy - qz * qz, 2 * (qy * qz - qw * qx)
-    local[6], local[7], local[8] = 2 * (qx * qz - qw * qy), 2 * (qy * qz + qw * qx), qw * qw - qx * qx - qy * qy + qz * qz
+    ww, xx, yy, zz = qw * qw, qx * qx, qy * qy, qz * qz
+    local[0], local[1], local[2] = ww + xx - yy - zz, 2 * (qx * qy - qw * qz), 2 * (qx * qz + qw * qy)
+    local[3], local[4], local[5] = 2 * (qx * qy + qw * qz), ww - xx + yy - zz, 2 * (qy * qz - qw * qx)
+    local[6], local[7], local[8] = 2 * (qx * qz - qw * qy), 2 * (qy * qz + qw * qx), ww - xx - yy + zz
     for a in range(3):
         x[a] = xpos[body, a]
         force[a] = 0.0

@@ -288,5 +288,5 @@ def fluid_row(layout: Layout, arrays: TreeArrays, at: int) -> np.ndarray:
     return row
 
 
-__all__ = ["ElementArrays", "fluid_row", "has_fluid", "build_elements", "has_elements", "extension_start", "X_HEADER", "ACT_SIZE",
-           "TEN_SIZE", "PATH_SIZE"]
+__all__ = ["ElementArrays", "fluid_row", "has_fluid", "build_elements", "has_elements", "extension_start",
+           "X_HEADER", "ACT_SIZE", "TEN_SIZE", "PATH_SIZE"]

@@ -20,9 +20,9 @@ q'' = -w^2 q - c q' this is, in closed form:
 - c = 0: h < 2 / w, the limit of semi-implicit Euler.
 A servo whose force sits at its forcerange bound at the state has neither stiffness nor damping there, but gains
 both back as it nears its target: the scene's rate is the larger of the rates with the force clamps as they are
-and with them lifted (unclamped). The largest stable step h* is found by doubling from 2 / w (w^2 the spectral radius of Jq) and bisection; an
-unstable equilibrium (sigma > 0) also bounds it by 2 / sigma. The rate handed to the stability check is
-2 / h*, so that its rule h <= 2 / rate (the records' interval beta = 2) reads h <= h*.
+and with them lifted (unclamped). The largest stable step h* is found by doubling from 2 / w (w^2 the spectral
+radius of Jq) and bisection; an unstable equilibrium (sigma > 0) also bounds it by 2 / sigma. The rate handed to
+the stability check is 2 / h*, so that its rule h <= 2 / rate (the records' interval beta = 2) reads h <= h*.
 """
 
 from __future__ import annotations

@@ -360,10 +360,10 @@ class Multibody(mb.Multibody):
 
     def actuation(self, q, v, ctrl=None, act=None, *, timestep: float | None = None) -> dict[str, np.ndarray]:
         """The actuators at states (q, v), controls ctrl (..., nu) (default 0) and activations act (..., na)
-        (default 0), as MuJoCo's mj_fwdActuation (timestep [s]: the h of actearly, default the model's): "qfrc" (..., nv) qfrc_actuator, "force" (..., nu)
-        actuator_force [N or N m], "act_dot" (..., na), "length" (..., nu) actuator_length, "velocity" (..., nu)
-        actuator_velocity, "ctrl" (..., nu) the controls as applied (clamped to ctrlrange), "moment" (..., nu, nv)
-        actuator_moment (d length / d qvel)."""
+        (default 0), as MuJoCo's mj_fwdActuation (timestep [s]: the h of actearly, default the model's):
+        "qfrc" (..., nv) qfrc_actuator, "force" (..., nu) actuator_force [N or N m], "act_dot" (..., na),
+        "length" (..., nu) actuator_length, "velocity" (..., nu) actuator_velocity, "ctrl" (..., nu) the controls as
+        applied (clamped to ctrlrange), "moment" (..., nu, nv) actuator_moment (d length / d qvel)."""
         shape, (Q, V) = self._batch((q, self.nq, "q"), (v, self.nv, "v"))
         C, A = self._controls(ctrl, act, shape)
         count, nu, na, nv = Q.shape[0], self.nu, self.na, self.nv

@@ -40,7 +40,8 @@ def semiaxes(kind: str, size) -> tuple[float, float, float]:
 
 
 def _kappa(dx: float, dy: float, dz: float) -> float:
-    """MuJoCo's GetAddedMassKappa: int_0^inf dx dy dz / sqrt((dx^2 + l)^3 (dy^2 + l) (dz^2 + l)) dl by its quadrature."""
+    """MuJoCo's GetAddedMassKappa: int_0^inf dx dy dz / sqrt((dx^2 + l)^3 (dy^2 + l) (dz^2 + l)) dl by its
+    quadrature."""
     invdx2, invdy2, invdz2 = 1.0 / (dx * dx), 1.0 / (dy * dy), 1.0 / (dz * dz)
     scale = (dx * dx * dx * dy * dz) ** 0.4
     kappa = 0.0

@@ -29,32 +29,47 @@ equal MuJoCo's body_mass, body_ipos and body_inertia/body_iquat to round-off):
   more than round-off (a small rotation left undone); rbody takes MuJoCo's, noting any difference
   beyond 1e-12, so that both engines run the same bodies;
 - joints hinge, slide, ball, free and ``<freejoint>``, with pos, axis, ref, damping, stiffness,
-  springref, armature, range and limited;
-- ``<option>``: timestep, gravity (along -z: rbody's scenes have gravity -g z), integrator; flags
-  contact, constraint, equality, limit, frictionloss, gravity (disable: g = 0), spring and damper
-  (disable: the joints' stiffness or damping become 0);
-- ``<keyframe>``: qpos and qvel of a key chosen by name or index (``keyframe=``);
+  springref, armature, range and limited; springdamper (MuJoCo's stiffness and damping from a time constant and
+  damping ratio at the reference pose, hinge and slide); actuatorgravcomp, actuatorfrcrange/actuatorfrclimited;
+- body gravcomp (a force against gravity on a fraction of the body's weight, passive or through the joints'
+  actuators); compiler settotalmass (every mass and inertia scaled as MuJoCo's mj_setTotalmass);
+- ``<frame>``: nested, with pos/orientation and childclass, around bodies, geoms, sites, joints' bodies;
+- actuators (rbody.mjcf.actuators): <general>, <motor>, <position> (kp, kv, dampratio, timeconst, inheritrange),
+  <velocity>, <intvelocity>, <damper>, with their one-default-per-class rule, ctrl/force/act ranges, actearly,
+  gear, through a joint, a tendon or a site (no refsite); <fixed> and <spatial> tendons (through sites, no
+  wrapping) with stiffness, damping and springlength;
+- ``<option>``: timestep, gravity (along -z: rbody's scenes have gravity -g z), integrator (the scene's
+  file_method: Euler -> "mujoco_euler", implicitfast, implicit, RK4 -> "rk4"), density, viscosity and wind
+  (fluid forces: MuJoCo's inertia-box model, or its ellipsoid model on geoms with fluidshape="ellipsoid",
+  rbody.mjcf.fluid), actuatorgroupdisable; flags contact, constraint, equality, limit, frictionloss, gravity
+  (disable: g = 0), spring and damper (disable: the joints' and tendons' stiffness or damping become 0),
+  actuation (disable: actuators apply no force), clampctrl (disable: controls are not clamped), each noted;
+- ``<keyframe>``: qpos, qvel, act and ctrl of a key chosen by name or index (``keyframe=``);
+- a world-fixed height field, read as static terrain (noted);
 - one rbody Body per MJCF body, with its name (an unnamed body is called ``body<id>``, id as MuJoCo's;
   unnamed joints ``<body>_joint<i>``, geoms ``<body>_geom<i>``), except that a body with neither mass
   nor joints (a pure frame) is folded into its parent, its children and shapes moved there (noted).
 
-Ignored, and named in ``MJCFModel.notes`` (``scene.import_notes``): light, camera, site, material,
-texture, skin, skybox, visual, statistic, size, custom, geoms' appearance (rgba, material, group),
-sensors, contact parameters of geoms that cannot collide, solver settings (only constraints use them),
-motor actuators and general actuators without bias (their controls are zero, so they apply no force),
-tendons without stiffness, damping, friction or limits.
+Cheap loading: a mesh's mass properties are computed only where they count (a body with an explicit <inertial>
+under inertiafromgeom="auto" keeps only the mesh's path).
+
+Ignored, and named in ``MJCFModel.notes`` (``scene.import_notes``): light, camera, site (but a tendon's or
+actuator's site is read), material, texture, skin, skybox, visual, statistic, size, custom, geoms' appearance
+(rgba, material, group), sensors, contact parameters of geoms that cannot collide, solver settings (only
+constraints use them); overlapping geoms of a body welded to the world (it never moves: their mass is unused).
 
 Refused (MJCFError, naming the element, its file and line): contacts that can happen (two geoms on
 different bodies, not welded together nor parent and child, whose contype/conaffinity match, or an
 explicit <pair>, while the contact flag is on: set contype="0" conaffinity="0" on the geoms, or
-<flag contact="disable"/>); equality constraints; tendons with stiffness, damping, friction or limits;
-actuators that push with a zero control (position, velocity, damper, ... or damping/armature on the
-actuator); fluid forces (option density or viscosity, geom fluidshape); joint frictionloss and
-springdamper; body gravcomp; heightfields, flexes, composites, plugins, <frame>, <replicate>,
-<attach>; gravity not along -z; stiffness on a ball joint; boundmass, boundinertia, settotalmass,
-fusestatic, alignfree; a body
-with a joint but no mass; an orientation given twice; unknown elements or attributes; geoms of one body
-that overlap, which MuJoCo would count twice (``overlapping_geoms="sum"`` sums them as MuJoCo does).
+<flag contact="disable"/>); equality constraints (a tendon coupling, a joint coupling, welds, connects);
+tendon limits, frictionloss and armature, wrapping tendons (geoms, pulleys); actuators that rbody does not
+model (muscle, cylinder, adhesion, pid, dcmotor, orientation; user dynamics, gains or biases; actuator damping
+or armature; body, slider-crank or refsite transmissions; see rbody.mjcf.actuators); joint frictionloss;
+springdamper on a ball or free joint; fluidshape="ellipsoid" on a mesh or plane geom; a height field on
+a moving body, flexes, composites, plugins, <replicate>, <attach>; gravity not along -z; stiffness on a ball
+joint; boundmass, boundinertia, fusestatic, alignfree; a body with a joint but no mass; an orientation given
+twice; unknown elements or attributes; geoms of one moving body that overlap, which MuJoCo would count twice
+(``overlapping_geoms="sum"`` sums them as MuJoCo does).
 
 Joint limits: a limited joint's range (less its margin) is kept (``MJCFModel.limits``, ``MJCFScene.limits``:
 joint name -> (lo, hi) [rad | m]; ball: (0, largest rotation angle)). A limit declared but never reached
@@ -449,8 +464,8 @@ class _Reader:
         self.actuation_on, self.clampctrl_on = on("actuation"), on("clampctrl")
         if not on("eulerdamp") and self.integrator == "Euler":
             self.note("eulerdamp", "<flag eulerdamp=\"disable\"/>: MuJoCo's Euler then takes the joints' damping "
-                                   "explicitly; rbody's mujoco_euler keeps it implicit (a difference at O(h) where joints "
-                                   "are damped)")
+                                   "explicitly; rbody's mujoco_euler keeps it implicit (a difference at O(h) where "
+                                   "joints are damped)")
         self.filterparent = on("filterparent")
         if not on("gravity"):
             gravity = np.zeros(3)
@@ -1352,7 +1367,8 @@ class _Reader:
                                                  mass, inertia,
                                                  mjcf_fluid.coefficients(geom.element, geom.attrib, numbers)))
         self.note("fluid forces", f"fluid forces as MuJoCo's (density {self.density:g}, viscosity {self.viscosity:g}): "
-                                  f"{len(boxes)} bodies by the inertia box, {len(ellipsoids)} geoms by the ellipsoid model")
+                                  f"{len(boxes)} bodies by the inertia box, "
+                                  f"{len(ellipsoids)} geoms by the ellipsoid model")
         return Fluid(density=self.density, viscosity=self.viscosity, wind=tuple(self.wind.tolist()), boxes=tuple(boxes),
                      ellipsoids=tuple(ellipsoids))
 
