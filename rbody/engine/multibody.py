@@ -631,8 +631,7 @@ def tree_rhs(y, p, out):
     """y' for y = (qpos (nq), qvel (nv), phi (3 per ball/free joint)): hinge, slide and free-position
     coordinates move with qvel, quaternion entries stand still within a step, phi' = dexp^-1_phi(omega_body),
     qvel' = forward dynamics at the turned quaternions. A singular mass matrix gives NaN (the run fails)."""
-    nj, nq, nv = int(p[H_JOINTS]), int(p[H_NQ]), int(p[H_DOFS])
-    jo = int(p[H_JOINT])
+    nq, nv = int(p[H_NQ]), int(p[H_DOFS])
     size = workspace_size(p)
     # the workspace on this function's stack (no allocation per evaluation), on the heap for huge trees
     w = carray(stack_floats(size), size) if size <= STACK_FLOATS else np.empty(size)
@@ -642,6 +641,15 @@ def tree_rhs(y, p, out):
     _frames(p, q, y[nq:nq + nv], w)
     passive(p, q, y[nq:nq + nv], ws.tau)
     articulated_body(p, w, out[nq:nq + nv])
+    coordinate_rates(p, y, out)
+
+
+@njit(cache=True)
+def coordinate_rates(p, y, out):
+    """The qpos and phi parts of y' (tree_rhs): hinge, slide, roll and free-position coordinates move with qvel,
+    quaternion entries stand still within a step, phi' = dexp^-1_phi(omega_body)."""
+    nj, nq, nv = int(p[H_JOINTS]), int(p[H_NQ]), int(p[H_DOFS])
+    jo = int(p[H_JOINT])
     for j in range(nj):
         r = jo + j * JOINT_SIZE
         kind = int(p[r + J_KIND])
@@ -926,10 +934,7 @@ class Multibody:
         qpos0.setflags(write=False)
         qvel0.setflags(write=False)
         self.qpos0, self.qvel0 = qpos0, qvel0
-        if self.nv == 0:
-            raise ValueError(f"the tree has no degree of freedom ({len(self.body_names)} bodies, no joint): nothing in it "
-                             "moves; give a body a joint (a free joint for a body that flies)")
-        self.check_pivots(qpos0)
+        self.check_pivots(qpos0)  # a tree with no degree of freedom (nq = nv = 0, as MuJoCo compiles it) is a model too
 
     # ----- arguments ---------------------------------------------------------------------------------
 
@@ -945,8 +950,10 @@ class Multibody:
         arrays = [self._state(value, size, what) for value, size, what in pairs]
         shape = np.broadcast_shapes(*(a.shape[:-1] for a in arrays))
         # writable C arrays, as the integrators pass: a read-only state (a broadcast view) is another numba type,
-        # which would compile every algorithm a second time (seconds on a first run)
-        flat = [np.require(np.broadcast_to(a, shape + a.shape[-1:]).reshape(-1, a.shape[-1]), np.float64, ["C", "W"])
+        # which would compile every algorithm a second time (seconds on a first run); the count explicit: a tree
+        # with nothing that moves has nq = 0
+        count = int(np.prod(shape)) if shape else 1
+        flat = [np.require(np.broadcast_to(a, shape + a.shape[-1:]).reshape(count, a.shape[-1]), np.float64, ["C", "W"])
                 for a in arrays]
         return shape, flat
 

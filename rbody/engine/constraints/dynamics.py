@@ -28,7 +28,9 @@ from numba import njit
 from rbody.engine.multibody import (D_DAMPING, DOF_SIZE, FREE, H_BODIES, H_DOF, H_DOFS, H_JOINT, H_JOINTS, H_NQ, H_ROT, HINGE, J_DADR, J_KIND, J_QADR,
                                     J_ROT, JOINT_SIZE, ROLL, SLIDE, _effective_qpos, inverse_one, mass_matrix_one,
                                     passive, tree_finish, workspace_size)
+from rbody.engine.elements import X_ACTIVE, extension_start
 from rbody.engine.spatial import dexp_inverse, quat_exp, quat_multiply
+from rbody.engine.system import add_element_forces
 from rbody.engine.constraints.jacobians import (all_rows, bias_accelerations, some_rows, mode_at, row_count, unit_at,
                                                 unit_count)
 from rbody.engine.constraints.solver import symmetric_solve
@@ -48,7 +50,9 @@ def sizes(p):
 
 @njit(cache=True)
 def snapshot(p, q, v, M, f, J, jdot, g, w, acc, rows_wanted=None):
-    """At qpos q (nq,) and qvel v (nv,): M (nv, nv); f (nv,) = passive - bias (gravity included); every unit's rows
+    """At qpos q (nq,) and qvel v (nv,): M (nv, nv); f (nv,) = passive - bias (gravity included; with force elements
+    also the actuators' forces at the controls written in p, the tendons', fluid and gravity compensation:
+    rbody.engine.system.add_element_forces); every unit's rows
     J (rows, nv), jdot (rows,) and g (rows,) (rbody.engine.constraints.jacobians), or only the units with a row
     flagged in rows_wanted (rows,). w: the tree's workspace; acc (nb, 6) scratch."""
     nv = int(p[H_DOFS])
@@ -62,6 +66,8 @@ def snapshot(p, q, v, M, f, J, jdot, g, w, acc, rows_wanted=None):
         some_rows(p, q, v, w, acc, J, jdot, g, rows_wanted)
     held = np.empty(nv)
     passive(p, q, v, held)
+    if p[extension_start(p) + X_ACTIVE] != 0.0:  # actuators, tendons, gravity compensation, fluid
+        add_element_forces(p, q, v, held)
     for d in range(nv):
         f[d] = held[d] - f[d]
 
