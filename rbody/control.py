@@ -42,6 +42,7 @@ class ControlPlan:
     stepwise: Callable[[int, float, np.ndarray], np.ndarray] | None
     history: np.ndarray | None          # (n_steps, B, nu) the controls of every step (schedule or recorded)
     constant: np.ndarray | None         # (B, nu) the controls of a constant run
+    scheduled: bool = False             # stepwise reads a given schedule (history), rather than calling the user
 
     def samples(self, save_every: int, count: int) -> np.ndarray:
         """(count, B, nu): the control held through the step that starts at each saved time (the last: the last
@@ -102,7 +103,8 @@ def plan(scene, model: NativeModel, ctrl: Any, dt: float, nsteps: int, method: s
     history = np.ascontiguousarray(history)
     if method == "reference" or model.constraints is not None:  # DOP853 between samples, or the constraint
         # layer's own runs (rbody.engine.constraints.runner): the schedule's row written in before each step
-        return ControlPlan(dataclasses.replace(model, params=params), lambda k, t, y: history[k], history, None)
+        return ControlPlan(dataclasses.replace(model, params=params), lambda k, t, y: history[k], history, None,
+                           scheduled=True)
     width = params.shape[1]
     rows = np.empty((batch, width + nsteps * nu))
     rows[:, :width] = params
@@ -171,7 +173,7 @@ def step_controls(plan_: ControlPlan):
     slots = plan_.model.controls
 
     def control(k: int, b: int, t: float, y: np.ndarray) -> np.ndarray:
-        if plan_.history is not None and plan_.history.shape[1] > 1:  # a schedule of a batch: its row for b
+        if plan_.scheduled:  # a schedule: its row for step k and element b
             return plan_.history[k, b]
         value = plan_.stepwise(k, t, np.asarray(y)[None])[0]
         plan_.history[k, b] = value

@@ -328,7 +328,8 @@ class TreeScene(Scene):
                                  f"{np.unique(np.round(norms, 12)).tolist()}: expected unit quaternions")
         from rbody.engine.precision import angle_spacing_problem
 
-        problem = angle_spacing_problem(model, qpos0.reshape(-1, model.nq))
+        count = int(np.prod(qpos0.shape[:-1])) if qpos0.ndim > 1 else 1  # explicit: nq may be 0
+        problem = angle_spacing_problem(model, qpos0.reshape(count, model.nq))
         if problem:
             raise ValueError(f"tree {self.name!r} cannot be carried in float64 by this engine: {problem}")
         model.check_pivots(qpos0)
@@ -566,12 +567,12 @@ class TreeScene(Scene):
         algebra) when the tree is planar, decided from its structure, else the 3-D engine's. Observables and
         energies use the 3-D Multibody either way (once per saved sample, not per evaluation). MuJoCo's
         integrators (mujoco_euler, implicitfast, implicit: rbody.engine.mujoco_steps) run the 3-D rows
-        (native_model_for); their stability rate is the stiffness's (_rates)."""
+        (native_model_for); their stability rate is the stiffness's (rates_for)."""
         model = self.multibody
         if self.tree.constrained:  # the constraint layer's own schemes and stability check (rbody.engine.constraints)
             return self._constrained_native()
         native = self._native_with_elements() if model.has_elements else self._native_tree()
-        return dataclasses.replace(native, rate=self._rates(native))
+        return dataclasses.replace(native, rate=self.rates_for(native))
 
     def native_model_for(self, method: str | None) -> NativeModel:
         """The native model a run by `method` integrates: native_model, except that a planar tree runs MuJoCo's
@@ -584,8 +585,9 @@ class TreeScene(Scene):
             return dataclasses.replace(self._native_tree(planar=False), rate=model.rate)
         return model
 
-    def _rates(self, native: NativeModel):
-        """rate(method) -> (B,) [1/s] for the stability check: the spectral radius of df/dy at y0 (every method but
+    def rates_for(self, native: NativeModel):
+        """rate(method) -> (B,) [1/s] for the stability check of `native` (this tree's native model, or one whose y0 a
+        prepared run replaced): the spectral radius of df/dy at its y0 (every method but
         MuJoCo's); for MuJoCo's integrators, whose damping is implicit where they solve for it, 2 / h* with h* the
         largest step their linearised one-step map stays stable at (rbody.engine.mujoco_stability), from the blocks
         d qacc / d q and d qacc / d qvel of the same Jacobian (q the coordinates tangent to the configuration:
@@ -698,27 +700,20 @@ class TreeScene(Scene):
         return build_table(self.tree, self.multibody) if self.tree.constrained else None
 
     def _constrained_native(self) -> NativeModel:
-        """The tree with its limits, dry friction and equalities: state (qpos, qvel, phi, dissipated), params the
+        """The tree with its limits, dry friction and equalities: state (qpos, qvel, phi, act, dissipated), params the
         tree's row, its force elements (actuators with the controls ctrl0 written in, tendons, gravity
         compensation, fluid: part of the smooth forces) and the constraint table, run by the constraint layer
-        (rbody.engine.constraints). Raises MethodNotApplicable for actuators with activation dynamics (act is not
-        yet part of a constrained tree's state)."""
+        (rbody.engine.constraints)."""
         from rbody.engine.constraints.dynamics import constrained_rhs
-        from rbody.errors import MethodNotApplicable
 
         model, table = self.multibody, self.constraint_table
-        if model.na:
-            stateful = [a.name for a in self.tree.actuators if a.stateful]
-            raise MethodNotApplicable(
-                f"scene {self.describe()}: actuators {stateful} have activation dynamics (integrator or filter), and "
-                "a tree with limits, dry friction or equalities runs through the constraint layer, whose state has "
-                "no activations yet; no method runs it: drop the joints' range/frictionloss and the equalities "
-                "(rk4, mujoco_euler, implicitfast and implicit then run it), or give the actuators dynamics='none'")
         qpos0, qvel0 = self._state0()
+        act0, _ctrl0 = self._controls0()
         count = qpos0.shape[0]
-        y0 = np.concatenate([qpos0, qvel0, np.zeros((count, 3 * model.nrot + 1))], axis=1)
+        y0 = np.concatenate([qpos0, qvel0, np.zeros((count, 3 * model.nrot)), act0, np.zeros((count, 1))], axis=1)
         params = np.tile(table.row(model.params), (count, 1))
-        nq, nv = model.nq, model.nv
+        nq, nv, na = model.nq, model.nv, model.na
+        a0 = nq + nv + 3 * model.nrot
         slots = model.control_slots() if model.nu else None
         if slots is not None:
             _act0, ctrl0 = self._controls0()
@@ -727,7 +722,7 @@ class TreeScene(Scene):
         def observe(t, y, ctrl=None, step=None):
             if slots is not None and ctrl is None:
                 ctrl = np.broadcast_to(params[None, :, slots.ctrl:slots.ctrl + model.nu], y.shape[:-1] + (model.nu,))
-            return self._observables(y[..., :nq], y[..., nq:nq + nv], None, ctrl, step)
+            return self._observables(y[..., :nq], y[..., nq:nq + nv], y[..., a0:a0 + na], ctrl, step)
 
         return NativeModel(y0=y0, params=params, rhs=constrained_rhs, observe=observe, rate_from_jacobian=True,
                            constraints=table, controls=slots)

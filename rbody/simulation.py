@@ -283,8 +283,11 @@ class PreparedRun:
             raise ValueError(f"qpos0/qvel0 give a batch of {y0.shape[0]} states: this run was prepared for "
                              f"{self.y0.shape[0]} (the scene's batch shape {self.scene.batch_shape}); prepare the "
                              "scene with that batch")
-        check_state(dataclasses.replace(self.model, y0=y0), self.scene.describe(), self.method, self.dt,
-                    self.t_end)
+        model = dataclasses.replace(self.model, y0=y0)
+        rates_for = getattr(self.scene, "rates_for", None)
+        if rates_for is not None and self.model.rate is not None:  # the rates at the state given, not the scene's
+            model = dataclasses.replace(model, rate=rates_for(model))
+        check_state(model, self.scene.describe(), self.method, self.dt, self.t_end)
         return y0
 
     def _constrained_run(self, plan: "control.ControlPlan") -> Trajectory:

@@ -101,21 +101,42 @@ def element_forces(p, q, v, act, w, at):
 
 
 @njit(cache=True)
-def add_element_forces(p, q, v, tau):
-    """tau (nv,) += the force elements' generalised forces at the effective qpos q and qvel v, with the controls
-    written in p and no activation (na = 0): tendon springs and dampers, fluid forces, gravity compensation and the
-    actuators' qfrc (element_forces): the smooth forces the constraint layer adds to a constrained tree's
-    (rbody.engine.constraints.dynamics.snapshot)."""
+def _element_workspace(p, q, v, act):
+    """A workspace with the tree's quantities at (q, v) and the force elements' at act (tau: the elements' alone)."""
     tree = mb.workspace_size(p)
-    size = tree + force_size(p)
-    w = np.empty(size)
+    w = np.empty(tree + force_size(p))
     ws = mb._views(p, w)
     mb._frames(p, q, v, w)
     for d in range(ws.tau.shape[0]):
         ws.tau[d] = 0.0
-    element_forces(p, q, v, np.zeros(0), w, tree)
+    element_forces(p, q, v, act, w, tree)
+    return w
+
+
+@njit(cache=True)
+def add_element_forces(p, q, v, act, tau):
+    """tau (nv,) += the force elements' generalised forces at the effective qpos q, qvel v and activations act (na,),
+    with the controls written in p: tendon springs and dampers, fluid forces, gravity compensation and the
+    actuators' qfrc (element_forces): the smooth forces the constraint layer adds to a constrained tree's
+    (rbody.engine.constraints.dynamics.snapshot)."""
+    w = _element_workspace(p, q, v, act)
+    ws = mb._views(p, w)
     for d in range(tau.shape[0]):
         tau[d] += ws.tau[d]
+
+
+@njit(cache=True)
+def actuator_rates(p, q, v, act, out):
+    """out (na,) = act' at (q, v, act) with the controls written in p, 0 for a disabled actuator's activation (as
+    system_rhs forms it): a constrained tree's activations (rbody.engine.constraints.dynamics)."""
+    w = _element_workspace(p, q, v, act)
+    fw = _force_views(p, w, mb.workspace_size(p))
+    E = extension_start(p)
+    for i in range(int(p[E + X_NU])):
+        r = int(p[E + X_ACT]) + i * ACT_SIZE
+        adr = int(p[r + A_ACTADR])
+        if adr >= 0:
+            out[adr] = 0.0 if p[r + A_DISABLED] != 0.0 else fw.act_dot[adr]
 
 
 @njit(cache=True, inline="always")
@@ -459,6 +480,7 @@ class Multibody(mb.Multibody):
         return base[:-1] + f", nu={self.nu}, na={self.na}, tendons={self.ntendon})"
 
 
-__all__ = ["Multibody", "ControlSlots", "system_rhs", "system_finish", "element_forces", "add_element_forces",
+__all__ = ["Multibody", "ControlSlots", "system_rhs", "system_finish", "element_forces", "add_element_forces", "actuator_rates",
+           "clamp_activations",
            "force_size",
            "DEFAULT_TIMESTEP"]

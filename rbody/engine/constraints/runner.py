@@ -29,6 +29,7 @@ def sample_rows(table: ConstraintTable, params: np.ndarray, samples: np.ndarray,
     0 for friction rows."""
     p = np.array(params, dtype=np.float64)
     nq, nv, _n = dyn.sizes(p)
+    a0, na = dyn.act_range(p)
     forces = np.empty((samples.shape[0], table.rows))
     errors = np.empty((samples.shape[0], table.rows))
     qacc = np.empty(nv)
@@ -39,7 +40,7 @@ def sample_rows(table: ConstraintTable, params: np.ndarray, samples: np.ndarray,
     for s in range(samples.shape[0]):
         p[table.mode_slice()] = modes[s]
         _effective_qpos(p, samples[s], q, turn)
-        dyn.mode_accel(p, q, samples[s, nq:nq + nv], qacc, forces[s], errors[s])
+        dyn.mode_accel(p, q, samples[s, nq:nq + nv], samples[s, a0:a0 + na], qacc, forces[s], errors[s])
     limits = np.isin(codes, UNILATERAL)
     errors[:, limits] = np.minimum(errors[:, limits], 0.0)
     errors[:, codes == FRICTION] = 0.0

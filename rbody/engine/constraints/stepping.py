@@ -61,6 +61,10 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included):
     jdot = np.empty(rows)
     g = np.empty(rows)
     dyn.state_rows(p, y, M, f, J, jdot, g)
+    at, na = dyn.act_range(p)
+    rates = np.empty(na)
+    if na:  # the activations' rates at the step's start (advanced by explicit Euler below, as MuJoCo's Euler does)
+        dyn.actuator_rates(p, y[:nq], y[nq:nq + nv], y[at:at + na], rates)
     L = np.linalg.cholesky(M)
     v = y[nq:nq + nv]
     a0 = dyn.upper_solve(L, dyn.lower_solve(L, f))
@@ -141,6 +145,10 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included):
     for d in range(nv):
         delta[d] = h * v[d]
     dyn.displace(p, y, delta)
+    if na:
+        for i in range(na):
+            y[at + i] += h * rates[i]
+        dyn.clamp_activations(p, y[at:at + na])
     # positions onto the equalities and onto every stop passed or touched (a projection in the metric of M moves
     # every dof: a stop it pushes past joins the set, and the projection is repeated), velocities onto the equalities
     position_rows = np.zeros(rows)

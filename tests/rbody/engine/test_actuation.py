@@ -107,7 +107,9 @@ def test_actuators_and_tendons_equal_mujocos_own_computation():
         assert np.max(np.abs(mine["velocity"] - theirs.actuator_velocity)) < 1e-14
         tendons = model.tendons(q, v)
         assert np.max(np.abs(tendons["length"] - theirs.ten_length)) < 1e-15
-        assert np.max(np.abs(tendons["velocity"] - theirs.ten_velocity)) < 1e-15
+        # as the actuators' velocities above (1e-14): point velocities now come from the tree's own origin (main's
+        # far-from-origin work), which rounds a spatial tendon's sum of O(1) terms differently (measured 1.2e-15)
+        assert np.max(np.abs(tendons["velocity"] - theirs.ten_velocity)) < 1e-14
         assert np.max(np.abs(model.passive_forces(q, v) - theirs.qfrc_passive)) < 1e-14
         assert np.max(np.abs(model.actuator_forces(q, v, ctrl, act) - theirs.qfrc_actuator)) < 1e-14 * scale
         qacc = model.forward_dynamics(q, v, ctrl=ctrl, act=act)
