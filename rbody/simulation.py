@@ -384,7 +384,7 @@ def _estimate_error(scene: Scene, record: Method, trajectory: Trajectory, dt: fl
         warnings.simplefilter("ignore", AccuracyWarning)  # said once, for the run itself
         finer = simulate(scene, dt=dt / 2, method=record.name, t_end=t_end, save_every=2 * save_every,
                          allow_large=True, client=client, chunk=chunk, progress=progress,
-                         ctrl=_finer_controls(ctrl))
+                         ctrl=_finer_controls(scene, ctrl))
     factor = 2.0**record.order / (2.0**record.order - 1.0)
     estimates = {}
     for name in trajectory.observables:
@@ -402,13 +402,15 @@ def _estimate_error(scene: Scene, record: Method, trajectory: Trajectory, dt: fl
                                   "of the run's own error, in the observable's unit")
 
 
-def _finer_controls(ctrl):
-    """The controls of the step-doubled run: a schedule's rows each held for two steps of dt/2 (a constant or a
-    callable as they are)."""
+def _finer_controls(scene: Scene, ctrl):
+    """The controls of the step-doubled run: a schedule's rows each held for two steps of dt/2 (a constant, one per
+    batch element or not, and a callable as they are; rbody.control tells them apart the same way)."""
     if ctrl is None or callable(ctrl):
         return ctrl
     array = np.asarray(ctrl, dtype=np.float64)
-    return array if array.ndim < 2 else np.repeat(array, 2, axis=0)
+    if array.ndim < 2 or array.shape[:-1] == tuple(scene.batch_shape):
+        return array
+    return np.repeat(array, 2, axis=0)
 
 
 def _check_precision(scene: Scene, dt: float, t_end: float) -> None:
