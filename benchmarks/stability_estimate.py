@@ -9,7 +9,9 @@ on Jacobian-vector products, krylov_rate, above DENSE_STATE_LIMIT numbers of sta
 evaluations it took, the rate found, the seconds of a whole simulate call of one rk4 step on a fresh scene
 (its checks: work estimate, precision, stability, accuracy; then the step and the observables), and, up to
 --dense-up-to bodies, the dense Jacobian's spectral radius and its
-cost (the estimate before issue 23: 2n evaluations and a cubic eigenproblem) for comparison.
+cost (the estimate before issue 23: 2n evaluations and a cubic eigenproblem) for comparison. Then the cost per
+element of the free rotation's own estimate (rbody.scenes.free_rotation.rotation_rates: its exact motion sampled
+over a period, Euler's equations linearised) on a batch of --rotations random spins.
 Prints the machine and versions first. Not a test: run it on an idle machine and compare figures of one run.
 """
 
@@ -29,7 +31,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import numba  # noqa: E402
 import scipy  # noqa: E402
 
-from rbody import Body, Inertia, Joint, Layout, Scene, simulate  # noqa: E402
+from rbody import Body, Inertia, Joint, Layout, Scene, scenes, simulate  # noqa: E402
 from rbody.engine import integrators, stability  # noqa: E402
 from validation.machine import describe_machine  # noqa: E402
 
@@ -63,6 +65,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--sizes", type=int, nargs="+", default=[100, 300, 1000])
     parser.add_argument("--dense-up-to", type=int, default=300)
+    parser.add_argument("--rotations", type=int, default=1000)
     args = parser.parse_args()
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"machine {describe_machine()}; numba threads {numba.get_num_threads()}; load avg {load:.2f}")
@@ -106,6 +109,14 @@ def main() -> None:
             dense = f"{dense_rate:11.6g} {dense_seconds:8.3f} {dense_peak:9.1f}"
         print(f"{size:7d} {model.y0.shape[1]:7d} {seconds:8.3f} {peak:8.1f} {calls[0]:6d} {rate:11.6g} {whole:10.3f}   "
               f"{dense}", flush=True)
+    spins = np.random.default_rng(2).normal(size=(args.rotations, 3)) * 3.0
+    rotations = scenes.free_rotation(Inertia(1.0, (0.1, 0.0, 0.0), np.diag([1.0, 2.0, 2.5])), omega0=spins, t_end=5.0)
+    rotations._tops  # the exact motions, built with the scene's first closed-form call, outside the timing
+    for method in ("rk4", "splitting"):
+        start = time.perf_counter()
+        stability.fastest_rate(rotations, method)
+        seconds = time.perf_counter() - start
+        print(f"free rotation, batch of {args.rotations}, {method}: {1e3 * seconds / args.rotations:.3f} ms per element")
 
 
 _ORIGINAL_JVP = stability._jvp

@@ -638,7 +638,7 @@ class TreeScene(Scene):
         """The compiled model of a tree without force elements: planar where it can be (and `planar`), else 3-D."""
         from rbody.engine import multibody as mb
         from rbody.engine.mujoco_steps import mujoco_steps
-        from rbody.engine.planar import planar_accel, planar_rhs
+        from rbody.engine.planar import planar_accel, planar_rhs, planar_rhs_lanes
 
         model = self.multibody
         qpos0, qvel0 = self._state0()
@@ -653,7 +653,7 @@ class TreeScene(Scene):
 
             return NativeModel(y0=y0, params=np.tile(planar.row, (qpos0.shape[0], 1)), rhs=planar_rhs,
                                observe=observe_planar, accel=None if self.symplectic_applies else planar_accel,
-                               rate_from_jacobian=True, split=mujoco_steps(False))
+                               rate_from_jacobian=True, rhs_lanes=planar_rhs_lanes, split=mujoco_steps(False))
         params = np.tile(np.asarray(model.params), (qpos0.shape[0], 1))
         nq, nv = model.nq, model.nv
 
@@ -664,6 +664,7 @@ class TreeScene(Scene):
         return NativeModel(y0=y0, params=params, rhs=mb.tree_rhs, observe=observe,
                            accel=None if self.symplectic_applies else mb.tree_accel,
                            finish=mb.tree_finish if model.nrot else None, rate_from_jacobian=True,
+                           rhs_lanes=mb.tree_rhs_lanes if mb.runs_in_lanes(model) else None,
                            split=mujoco_steps(False))
 
     def _native_with_elements(self) -> NativeModel:

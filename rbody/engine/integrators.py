@@ -36,6 +36,10 @@ from numba import carray, cfunc, get_num_threads, njit, prange, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
+from rbody.engine import pointers
+from rbody.engine.memory import address
+from rbody.engine.simd import WIDTH as LANES
+
 
 # Yoshida (1990), 6th order, solution A: weights w3 w2 w1 w0 w1 w2 w3 of the symmetric base step.
 _W1, _W2, _W3 = -1.17767998417887, 0.235573213359357, 0.784513610477560
@@ -94,11 +98,16 @@ _finish_at = _function_at(types.FunctionType(FINISH_SIGNATURE))
 
 
 def pointer_function(function, kind: str = "rhs") -> int:
-    """The address of the scene's jitted function(y, p, out) ("rhs", also accel) or step(y, p, h) ("step") behind a
-    C function pointer taking (address, address, address or h, len(y), len(p)); made once per function and kept
-    alive here, so that the address stays valid."""
+    """The address of the scene's jitted function(y, p, out) ("rhs", also accel; "lanes": the same over LANES states
+    side by side, y and out of LANES len(y) numbers) or step(y, p, h) ("step") behind a C function pointer taking
+    (address, address, address or h, len(y), len(p)); made once per function and kept alive here, so that the address
+    stays valid."""
     key = (id(function), kind)
     if key not in _POINTER_FUNCTIONS:
+        cached = pointers.wrapper(function, kind)  # the engine's kernels: a wrapper kept in numba's disk cache
+        if cached is not None:
+            _POINTER_FUNCTIONS[key] = (function, cached)
+            return cached.address
         if kind == "rhs":
             @cfunc(RHS_SIGNATURE)
             def wrapper(y, p, out, n, m):
@@ -111,8 +120,12 @@ def pointer_function(function, kind: str = "rhs") -> int:
             @cfunc(FINISH_SIGNATURE)
             def wrapper(y, p, n, m):
                 function(carray(y, n), carray(p, m))
+        elif kind == "lanes":  # f over LANES states side by side: y, out (n LANES,) structures of arrays
+            @cfunc(RHS_SIGNATURE)
+            def wrapper(y, p, out, n, m):
+                function(carray(y, n * LANES), carray(p, m), carray(out, n * LANES))
         else:
-            raise ValueError(f"kind={kind!r}: expected 'rhs', 'step' or 'finish'")
+            raise ValueError(f"kind={kind!r}: expected 'rhs', 'step', 'finish' or 'lanes'")
         _POINTER_FUNCTIONS[key] = (function, wrapper)  # holding the function keeps its id unique
     return _POINTER_FUNCTIONS[key][1].address
 
@@ -120,6 +133,16 @@ def pointer_function(function, kind: str = "rhs") -> int:
 @njit(cache=True)
 def no_finish(y, p):
     """The finish hook of every scene that has none: nothing (the loops do not even call it)."""
+
+
+def _no_finish_pointer():
+    @cfunc(FINISH_SIGNATURE, cache=True)
+    def no_finish_c(y, p, n, m):
+        no_finish(carray(y, n), carray(p, m))
+    return no_finish_c
+
+
+pointers.register(no_finish, "finish", _no_finish_pointer)
 
 
 def finish_pointer(finish):
@@ -159,6 +182,25 @@ def _finite_row(y, b):
         if not np.isfinite(y[b, j]):
             return False
     return True
+
+
+@njit(cache=True, inline="always")
+def _unfailed(batch):
+    """(batch,) int64 of -1 (no element failed yet): np.empty and a loop, whose compilation is a fraction of np.full's."""
+    failed = np.empty(batch, dtype=np.int64)
+    for b in range(batch):
+        failed[b] = -1
+    return failed
+
+
+@njit(cache=True, inline="always")
+def _rows_of(y0, lo, width):
+    """A copy of y0[lo:lo + width] (element by element: no slicing and copying machinery to compile)."""
+    y = np.empty((width, y0.shape[1]))
+    for b in range(width):
+        for j in range(y0.shape[1]):
+            y[b, j] = y0[lo + b, j]
+    return y
 
 
 # ----- the compiled loops ------------------------------------------------------------------------------
@@ -216,11 +258,11 @@ def _rk4_loop(rhs_address, finish_address, finishing, y0, params, dt, nsteps, sa
     rhs, finish = _rhs_at(rhs_address), _finish_at(finish_address)
     batch, n = y0.shape
     m = params.shape[1]
-    failed = np.full(batch, -1, dtype=np.int64)
+    failed = _unfailed(batch)
     for c in prange(-(-batch // size)):
         lo = c * size
         width = min(batch, lo + size) - lo
-        y = y0[lo:lo + width].copy()
+        y = _rows_of(y0, lo, width)
         k1, k2, k3, k4 = np.empty((width, n)), np.empty((width, n)), np.empty((width, n)), np.empty((width, n))
         tmp = np.empty((width, n))
         running = width
@@ -259,6 +301,76 @@ def _rk4_loop(rhs_address, finish_address, finishing, y0, params, dt, nsteps, sa
             if i % save_every == 0:
                 for b in range(width):
                     _save(out, i // save_every, lo + b, y, b)
+    return failed
+
+
+@njit(cache=True, parallel=True)
+def _rk4_lanes_loop(rhs_address, y0, params, dt, nsteps, save_every, out, size):
+    """rk4 as _rk4_loop, LANES elements at a time through the model's rhs over lanes (NativeModel.rhs_lanes), every
+    element with the one parameter row params[0]; a chunk (size, a multiple of LANES) holds its states as a structure
+    of arrays (entry j of lane l of group g at (g n + j) LANES + l), a last partial group repeating its last element.
+    Each element does the arithmetic it does in _rk4_loop, so its bits are the same; an element that fails keeps its
+    first non-finite state, as there (its lanes go on computing, unseen)."""
+    rhs = _rhs_at(rhs_address)
+    batch, n = y0.shape
+    m = params.shape[1]
+    failed = np.full(batch, -1, dtype=np.int64)
+    for c in prange(-(-batch // size)):
+        lo = c * size
+        width = min(batch, lo + size) - lo
+        groups = -(-width // LANES)
+        block = n * LANES
+        y = np.empty(groups * block)
+        k1, k2, k3, k4, tmp = (np.empty(groups * block), np.empty(groups * block), np.empty(groups * block),
+                               np.empty(groups * block), np.empty(groups * block))
+        frozen = np.empty((width, n))
+        for g in range(groups):
+            for l in range(LANES):
+                b = lo + min(g * LANES + l, width - 1)
+                for j in range(n):
+                    y[(g * n + j) * LANES + l] = y0[b, j]
+        for b in range(width):
+            _save(out, 0, lo + b, y0, lo + b)
+        running = width
+        for i in range(1, nsteps + 1):
+            for g in range(groups):
+                rhs(address(y, g * block), _row(params, 0), address(k1, g * block), n, m)
+            for g in range(groups):
+                for e in range(g * block, (g + 1) * block):
+                    tmp[e] = y[e] + 0.5 * dt * k1[e]
+                rhs(address(tmp, g * block), _row(params, 0), address(k2, g * block), n, m)
+            for g in range(groups):
+                for e in range(g * block, (g + 1) * block):
+                    tmp[e] = y[e] + 0.5 * dt * k2[e]
+                rhs(address(tmp, g * block), _row(params, 0), address(k3, g * block), n, m)
+            for g in range(groups):
+                for e in range(g * block, (g + 1) * block):
+                    tmp[e] = y[e] + dt * k3[e]
+                rhs(address(tmp, g * block), _row(params, 0), address(k4, g * block), n, m)
+            for g in range(groups):
+                for e in range(g * block, (g + 1) * block):
+                    y[e] += dt / 6.0 * (k1[e] + 2.0 * k2[e] + 2.0 * k3[e] + k4[e])
+            for b in range(width):
+                if failed[lo + b] >= 0:
+                    continue
+                g, l = b // LANES, b % LANES
+                finite = True
+                for j in range(n):
+                    if not np.isfinite(y[(g * n + j) * LANES + l]):
+                        finite = False
+                if not finite:
+                    failed[lo + b] = i
+                    running -= 1
+                    for j in range(n):
+                        frozen[b, j] = y[(g * n + j) * LANES + l]
+            if running == 0:
+                break
+            if i % save_every == 0:
+                for b in range(width):
+                    g, l = b // LANES, b % LANES
+                    for j in range(n):
+                        out[i // save_every, lo + b, j] = frozen[b, j] if failed[lo + b] >= 0 else y[
+                            (g * n + j) * LANES + l]
     return failed
 
 
@@ -473,7 +585,7 @@ def _serial_twin(loop):
     return njit(cache=True)(twin)
 
 
-_SERIAL = {loop: _serial_twin(loop) for loop in (_euler_loop, _rk4_loop, _symplectic_euler_loop,
+_SERIAL = {loop: _serial_twin(loop) for loop in (_euler_loop, _rk4_loop, _rk4_lanes_loop, _symplectic_euler_loop,
                                                  _composed_verlet_loop, _gauss_loop, _composed_flow_loop)}
 
 
@@ -556,9 +668,36 @@ def bind_euler(rhs, batch, dt, nsteps, save_every, finish=None) -> Bound:
     return Bound(_euler_loop, (pointer_function(rhs), *finish_pointer(finish)), dt, nsteps, save_every, batch)
 
 
-def bind_rk4(rhs, batch, dt, nsteps, save_every, finish=None) -> Bound:
-    """Classical Runge-Kutta."""
-    return Bound(_rk4_loop, (pointer_function(rhs), *finish_pointer(finish)), dt, nsteps, save_every, batch)
+def bind_rk4(rhs, batch, dt, nsteps, save_every, finish=None, lanes=None) -> Bound:
+    """Classical Runge-Kutta. lanes: the model's rhs over LANES states side by side (NativeModel.rhs_lanes), used
+    for a batch of at least LANES elements with no finish hook whose parameter rows are all one (LanesBound)."""
+    scalar = Bound(_rk4_loop, (pointer_function(rhs), *finish_pointer(finish)), dt, nsteps, save_every, batch)
+    if lanes is None or finish is not None or batch < LANES:
+        return scalar
+    return LanesBound(_rk4_lanes_loop, (pointer_function(lanes, "lanes"),), dt, nsteps, save_every, batch, scalar)
+
+
+class LanesBound(Bound):
+    """A Bound running a loop over lanes (one parameter row for every element) where the batch's parameter rows are
+    all equal, and the scalar loop (`scalar`, a Bound) otherwise; chunks of a multiple of LANES elements."""
+
+    __slots__ = ("scalar",)
+
+    def __init__(self, loop, head: tuple, dt: float, nsteps: int, save_every: int, batch: int, scalar: Bound) -> None:
+        super().__init__(loop, head, dt, nsteps, save_every, batch)
+        self.size = LANES * max(1, min(CHUNK, -(-batch // (LANES * get_num_threads()))))
+        self.loop = _pick(loop, batch, self.size)
+        self.scalar = scalar
+
+    def launch(self, y0: np.ndarray, params: np.ndarray, out: np.ndarray) -> np.ndarray:
+        if not np.all(params == params[:1]):
+            return self.scalar.launch(y0, params, out)
+        return super().launch(y0, params, out)
+
+    def __call__(self, y0: np.ndarray, params: np.ndarray, out: np.ndarray) -> np.ndarray:
+        if not np.all(params == params[:1]):
+            return self.scalar(y0, params, out)
+        return super().__call__(y0, params, out)
 
 
 def bind_symplectic_euler(accel, batch, dt, nsteps, save_every) -> Bound:
@@ -599,9 +738,9 @@ def run_euler(rhs, y0, params, dt, nsteps, save_every, out, finish=None):
     return bind_euler(rhs, y0.shape[0], dt, nsteps, save_every, finish).launch(y0, params, out)
 
 
-def run_rk4(rhs, y0, params, dt, nsteps, save_every, out, finish=None):
+def run_rk4(rhs, y0, params, dt, nsteps, save_every, out, finish=None, lanes=None):
     y0, params = _c(y0), _c(params)
-    return bind_rk4(rhs, y0.shape[0], dt, nsteps, save_every, finish).launch(y0, params, out)
+    return bind_rk4(rhs, y0.shape[0], dt, nsteps, save_every, finish, lanes).launch(y0, params, out)
 
 
 def run_symplectic_euler(accel, y0, params, dt, nsteps, save_every, out):

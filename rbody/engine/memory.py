@@ -1,8 +1,9 @@
 """Raw memory for the compiled kernels: a buffer on the stack of an evaluation, the address of an element.
 
 An evaluation of a tree's right-hand side runs millions of times per simulation; an array allocated in it
-(np.empty: the allocator, reference counting) would cost more than the arithmetic of a small tree. These two
-numba intrinsics let a kernel work in memory it never allocates on the heap.
+(np.empty: the allocator, reference counting) would cost more than the arithmetic of a small tree. These numba
+intrinsics let a kernel work in memory it never allocates on the heap (stack_floats), read arrays through raw
+pointers (address, data), and keep an array of its own alive while it reads it through one (keep_alive).
 """
 
 from __future__ import annotations
@@ -38,3 +39,28 @@ def address(typingctx, array, offset):
         data = context.make_array(signature.args[0])(context, builder, args[0]).data
         return builder.gep(data, [context.cast(builder, args[1], signature.args[1], types.intp)])
     return F64P(array, offset), codegen
+
+
+@intrinsic
+def data(typingctx, array):
+    """float64* to the first element of a C-contiguous float64 array of any rank (its data pointer)."""
+    if not (isinstance(array, types.Array) and array.dtype == types.float64 and array.layout == "C"):
+        return None
+
+    def codegen(context, builder, signature, args):
+        return context.make_array(signature.args[0])(context, builder, args[0]).data
+    return F64P(array), codegen
+
+
+@intrinsic
+def keep_alive(typingctx, array):
+    """Nothing at run time; a use of `array` by name. numba frees a function's own array after the last statement
+    that names it, and a raw pointer taken from it (address, data) does not count: a kernel that works in an
+    array of its own through such a pointer calls keep_alive(array) after its last access, or it writes into
+    freed memory (a workspace on the heap, beyond malloc's mmap threshold, is unmapped: a segmentation fault)."""
+    if not isinstance(array, types.Array):
+        return None
+
+    def codegen(context, builder, signature, args):
+        return context.get_dummy_value()
+    return types.none(array), codegen

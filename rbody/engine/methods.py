@@ -132,7 +132,7 @@ def _bind_euler(model, flow, batch, dt, nsteps, save_every):
 
 
 def _bind_rk4(model, flow, batch, dt, nsteps, save_every):
-    return integrators.bind_rk4(model.rhs, batch, dt, nsteps, save_every, finish=model.finish)
+    return integrators.bind_rk4(model.rhs, batch, dt, nsteps, save_every, finish=model.finish, lanes=model.rhs_lanes)
 
 
 def _bind_gauss6(model, flow, batch, dt, nsteps, save_every):

@@ -32,7 +32,7 @@ from numba import carray, njit
 from rbody.engine import multibody as mb
 from rbody.engine.actuation import actuator_velocity_derivative, next_activation
 from rbody.engine.elements import A_ACTADR, A_DISABLED, ACT_SIZE, X_ACT, X_CTRL, X_NA, X_NU, extension_start
-from rbody.engine.memory import address
+from rbody.engine.memory import address, keep_alive
 from rbody.engine.fluid import box_velocity_derivative
 from rbody.engine.passive import tendon_damping_derivative
 from rbody.engine.system import _force_views, act_offset, element_forces, force_size, next_control
@@ -263,6 +263,7 @@ def _mujoco_step(y, p, h, mode, elements, matrices):
             for c in range(nv):
                 matrices[0, a, c] = M[a, c]
                 matrices[1, a, c] = D[a, c]
+        keep_alive(w)
         return
     for a in range(nv):
         for c in range(nv):
@@ -278,6 +279,7 @@ def _mujoco_step(y, p, h, mode, elements, matrices):
             if adr >= 0:
                 rate = 0.0 if p[r + A_DISABLED] != 0.0 else fw.act_dot[adr]
                 act[adr] = next_activation(p, r, act[adr], rate, h)
+    keep_alive(w)  # read through views only above: the heap workspace must outlive them
     for d in range(nv):
         y[nq + d] = v[d] + h * qacc[d]
     integrate_positions(p, q, y[nq:nq + nv], h)

@@ -3,7 +3,8 @@
 The model (built once in numpy from a Layout) is one flat float64 row, `params`: a header, then one
 record per body (parent, fixed placement in the parent, mass properties, its joints and degrees of
 freedom), per joint (kind, axis, anchor, qpos/qvel addresses, ref, stiffness, springref) and per degree
-of freedom (damping, armature). Every algorithm is an @njit(cache=True) free function of (params, q, v,
+of freedom (damping, armature), each record declared once below as a rbody.engine.schema.Record (TREE_HEADER,
+BODY, JOINT, DOF), from which its offsets follow. Every algorithm is an @njit(cache=True) free function of (params, q, v,
 ...): a new model is new numbers in the same row, never new compiled code, and the same row is what the
 integrators hand to the right-hand side of a TreeScene (rbody.scene).
 
@@ -27,7 +28,10 @@ massless virtual links with no transform between them, and nothing is ever moved
   degrees of freedom. Chosen over the composite-rigid-body algorithm and a dense Cholesky (cubic in n)
   because the goal is long chains and big batches; for the tree's sparsity it needs no factorisation.
   Armature adds to the pivot D of its degree of freedom, which is exactly (M + diag(armature)) qdd.
-  Articulated inertias are symmetric: only their upper triangles are updated and summed (21 of 36).
+  Articulated inertias are symmetric: only their upper triangles are updated and summed (21 of 36). The
+  inward sweep is a chain of dependent eliminations; each one's rank-one update is left pending and applied
+  while the next pivot is formed, and a body hands its inertia to its parent in registers where the parent
+  comes next (_sweeps).
 - inverse dynamics and the bias forces: the recursive Newton-Euler algorithm (RNEA), gravity entering
   as an upward acceleration of the world.
 - the mass matrix: the composite-rigid-body algorithm (CRBA), inertias added towards the root
@@ -39,12 +43,20 @@ A ball joint's degrees of freedom are rotations about the body's final axes (MuJ
 subsequent rotations"), so a ball joint must be the last joint of its body; a free joint is the only
 joint of a child of the world.
 
-Cost: an evaluation of the right-hand side allocates nothing: its workspace is an array on its own stack
-(stack_floats, an alloca), cut by _views into arrays over that memory (numba carrays: no reshape, no
-reference counting), and each algorithm takes (params, state, workspace) and cuts its own arrays, so that
-calls pass a few pointers. Only small spatial functions are inlined; each algorithm is compiled once (a
-first compilation of a minute, cached on disk after it). numba's cache does not follow imports: after
-editing spatial.py, delete rbody/engine/__pycache__/multibody*.nb[ci].
+Cost: an evaluation of the right-hand side allocates nothing: its workspace lives on its own stack
+(stack_floats, an alloca) and every algorithm reads it, the model row and the state through raw pointers by
+index (Offsets: where each workspace array starts; numba's array indexing would test every index for a negative
+value), in two compiled functions shared by every entry point: _outward (pose, motion subspaces, velocities,
+world inertia and the ABA's start, body after body in one pass) and _sweeps (the ABA's inward and outward
+sweeps). Sums of products fuse into fused multiply-adds (FMA), which shortens the chains of dependent
+operations. _views still cuts the workspace into named arrays for the other algorithms and for callers.
+The same source compiles for one state (float64 pointers) and for eight side by side
+(rbody.engine.simd.LanePointer: each workspace entry then holds eight lanes): tree_rhs_lanes steps a batch of a
+tree without ball or free joints eight elements per instruction, each lane with tree_rhs's bits. The cosines
+and sines of every hinge's half angle are formed first by a polynomial that LLVM vectorises
+(rbody.engine.spatial.sin_cos). Measured by benchmarks/engine_core_speed.py against MuJoCo and Pinocchio.
+numba's cache does not follow imports: after editing spatial.py, simd.py or memory.py, delete
+rbody/engine/__pycache__/multibody*.nb[ci].
 
 Precision: spatial quantities about a point lose digits in proportion to a body's distance from it
 (|x| / size of the tree), so each tree (the bodies below one child of the world) is written about its own
@@ -60,13 +72,15 @@ from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
-from numba import carray, njit
+from numba import carray, cfunc, njit
 
-from rbody.engine.memory import address, stack_floats
+from rbody.engine import pointers
+from rbody.engine.memory import address, data, keep_alive, stack_floats
+from rbody.engine.schema import FLOAT, INT, Record
 from rbody.layout import JOINTS, WORLD, coordinate_addresses, joint_order, tree_order
-from rbody.engine.spatial import (cross3, dexp_inverse, dot6, force_cross, inertia_apply, inertia_in_world,
-                                  inertia_matrix, motion_cross, quat_axis_angle, quat_exp, quat_multiply,
-                                  quat_rotate, quat_to_matrix, symmetric_apply)
+from rbody.engine.simd import (WIDTH, choose, equals, lane_pointer, maximum_of, number, positive_beyond,
+                               sines_and_cosines as _sines_and_cosines)
+from rbody.engine.spatial import dexp_inverse3, dot6, force_cross, inertia_apply, quat_exp, quat_multiply
 
 # Joint codes, sizes and which kinds are scalar: the one joint table (rbody.layout.JOINTS), as numba constants.
 HINGE, SLIDE, BALL, FREE, ROLL = (JOINTS[k].code for k in ("hinge", "slide", "ball", "free", "roll"))
@@ -75,23 +89,66 @@ NQ = {kind.code: kind.nq for kind in JOINTS.values()}
 NV = {kind.code: kind.nv for kind in JOINTS.values()}
 SCALAR_KINDS = tuple(kind.code for kind in JOINTS.values() if kind.scalar)  # one coordinate, displacement q - ref
 
-# Header of the params row.
-H_BODIES, H_JOINTS, H_DOFS, H_NQ, H_ROT, H_GRAVITY, H_BODY, H_JOINT, H_DOF = range(9)
-HEADER = 9
-# Body record: parent (-1 world), pos (3), quat (4), mass, com (3), tensor (9), first dof, dofs, first joint,
-# joints.
-B_PARENT, B_POS, B_QUAT, B_MASS, B_COM, B_TENSOR, B_DOF0, B_NDOF, B_JNT0, B_NJNT = 0, 1, 4, 8, 9, 12, 21, 22, 23, 24
-BODY_SIZE = 25
-# Joint record: kind, body, axis (3), anchor (3), qpos address, qvel address, ref, stiffness, springref,
-# rotation slot (index of the joint's rotation vector phi among the ball and free joints, -1 otherwise),
-# rolling radius a and rolling line l = axis x normal (3, body frame) of a roll joint (0 for the others).
-J_KIND, J_BODY, J_AXIS, J_ANCHOR, J_QADR, J_DADR, J_REF, J_STIFF, J_SPRINGREF, J_ROT = 0, 1, 2, 5, 8, 9, 10, 11, 12, 13
-J_RADIUS, J_LINE = 14, 15
-JOINT_SIZE = 18
-# Degree-of-freedom record: joint, index within the joint, starts a group (1: the velocity its bias uses
-# is the body's velocity so far; 0: the same as the dof before), damping, armature, parent dof (-1 none).
-D_JOINT, D_INDEX, D_GROUP, D_DAMPING, D_ARMATURE, D_PARENT = 0, 1, 2, 3, 4, 5
-DOF_SIZE = 6
+# The params row (rbody.engine.schema): a header, then one record per body, joint and degree of freedom.
+TREE_HEADER = Record("tree header", [
+    ("bodies", 1, INT, "number of bodies nb"),
+    ("joints", 1, INT, "number of joints nj"),
+    ("dofs", 1, INT, "degrees of freedom nv"),
+    ("nq", 1, INT, "position coordinates nq"),
+    ("rotations", 1, INT, "ball and free joints (rotation vectors phi in the state)"),
+    ("gravity", 1, FLOAT, "g [m/s^2], along -z"),
+    ("body", 1, INT, "where the body records start"),
+    ("joint", 1, INT, "where the joint records start"),
+    ("dof", 1, INT, "where the degree-of-freedom records start"),
+])
+H_BODIES, H_JOINTS, H_DOFS, H_NQ, H_ROT, H_GRAVITY, H_BODY, H_JOINT, H_DOF = TREE_HEADER.offsets()
+HEADER = TREE_HEADER.size
+BODY = Record("body", [
+    ("parent", 1, INT, "parent body (-1: the world)"),
+    ("pos", 3, FLOAT, "placement in the parent's frame [m]"),
+    ("quat", 4, FLOAT, "orientation in the parent's frame (w, x, y, z)"),
+    ("mass", 1, FLOAT, "[kg]"),
+    ("com", 3, FLOAT, "centre of mass, body frame [m]"),
+    ("tensor", 9, FLOAT, "inertia tensor about the centre of mass, body axes [kg m^2]"),
+    ("dof0", 1, INT, "first degree of freedom"),
+    ("ndof", 1, INT, "degrees of freedom of its joints"),
+    ("jnt0", 1, INT, "first joint"),
+    ("njnt", 1, INT, "joints"),
+])
+B_PARENT, B_POS, B_QUAT, B_MASS, B_COM, B_TENSOR, B_DOF0, B_NDOF, B_JNT0, B_NJNT = BODY.offsets()
+BODY_SIZE = BODY.size
+JOINT = Record("joint", [
+    ("kind", 1, INT, "joint code (rbody.layout.JOINTS)"),
+    ("body", 1, INT, "the body it moves"),
+    ("axis", 3, FLOAT, "unit axis, body frame (hinge, slide, roll)"),
+    ("anchor", 3, FLOAT, "anchor, body frame [m]"),
+    ("qadr", 1, INT, "qpos address"),
+    ("dadr", 1, INT, "qvel address"),
+    ("ref", 1, FLOAT, "reference coordinate [rad | m]"),
+    ("stiffness", 1, FLOAT, "spring stiffness [N m/rad | N/m]"),
+    ("springref", 1, FLOAT, "spring rest coordinate [rad | m]"),
+    ("rotation", 1, INT, "slot of its rotation vector phi among ball and free joints (-1: none)"),
+    ("radius", 1, FLOAT, "rolling radius a of a roll joint [m] (0 for the others)"),
+    ("line", 3, FLOAT, "rolling line l = axis x normal of a roll joint, body frame"),
+])
+(J_KIND, J_BODY, J_AXIS, J_ANCHOR, J_QADR, J_DADR, J_REF, J_STIFF, J_SPRINGREF, J_ROT, J_RADIUS,
+ J_LINE) = JOINT.offsets()
+JOINT_SIZE = JOINT.size
+DOF = Record("degree of freedom", [
+    ("joint", 1, INT, "its joint"),
+    ("index", 1, INT, "index within the joint"),
+    ("group", 1, INT, "1: starts a group (the velocity its bias uses is the body's velocity so far); 0: as the "
+                      "dof before"),
+    ("damping", 1, FLOAT, "viscous damping [N m s/rad | N s/m]"),
+    ("armature", 1, FLOAT, "armature inertia added to M's diagonal [kg m^2 | kg]"),
+    ("parent", 1, INT, "parent degree of freedom (-1: none)"),
+])
+D_JOINT, D_INDEX, D_GROUP, D_DAMPING, D_ARMATURE, D_PARENT = DOF.offsets()
+DOF_SIZE = DOF.size
+
+# The 3-D algorithms let LLVM fuse a product and a sum into one rounding (fused multiply-add): fewer
+# instructions and a shorter chain of dependent ones, and results at least as accurate.
+FMA = {"contract"}
 
 PIVOT_RTOL = 1e-12  # a pivot D of the ABA below this fraction of its scale leaves M singular
 NEARLY_SINGULAR = 1e-6  # a pivot below this fraction of its value at the start: the mass matrix is (nearly) singular
@@ -121,230 +178,32 @@ def body_offset(p, i):
     return int(p[H_BODY]) + i * BODY_SIZE
 
 
-# ----- kinematics -------------------------------------------------------------------------------------------
-
-@njit(cache=True, inline="always")
-def _is_identity(p, at):
-    """Whether p[at:at + 4] is the identity quaternion (1, 0, 0, 0) exactly."""
-    return p[at] == 1.0 and p[at + 1] == 0.0 and p[at + 2] == 0.0 and p[at + 3] == 0.0
-
-
-@njit(cache=True)
-def kinematics(p, q, w):
-    """World poses of every body from qpos q (nq,), as MuJoCo's mj_kinematics, into the workspace w (_views):
-    xpos (nb, 3) body-frame origins [m] relative to the origin of their tree, xorigin (nb, 3) that origin (the
-    world placement of the tree's root body, or its free joint's position), xquat (nb, 4), xmat (nb, 3, 3); per
-    joint its world axis and anchor (nj, 3) [m] relative to the tree's origin (a roll joint's anchor after its
-    slide) and a roll joint's world rolling line l (nj, 3).
-
-    Positions relative to each tree's own origin: the spatial algebra of a tree is written about that point
-    (module docstring, "Precision"), so a tree a million metres from the world origin computes as it would at it."""
-    ws = _views(p, w)
-    xpos, xquat, xmat, scratch, xorigin = ws.xpos, ws.xquat, ws.xmat, ws.scratch, ws.xorigin
-    xaxis, xanchor, xline = ws.xaxis, ws.xanchor, ws.xline
-    nb = int(p[H_BODIES])
-    bo, jo = int(p[H_BODY]), int(p[H_JOINT])
-    qloc, quat, previous, vec = scratch[0:4], scratch[4:8], scratch[8:12], scratch[12:15]
-    for i in range(nb):
-        b = bo + i * BODY_SIZE
-        parent = int(p[b + B_PARENT])
-        j0, nj = int(p[b + B_JNT0]), int(p[b + B_NJNT])
-        if nj == 1 and int(p[jo + j0 * JOINT_SIZE + J_KIND]) == FREE:
-            qa = int(p[jo + j0 * JOINT_SIZE + J_QADR])
-            for a in range(3):  # a free joint's body is a child of the world: the origin of its own tree
-                xorigin[i, a] = q[qa + a]
-                xpos[i, a] = 0.0
-                xanchor[j0, a] = 0.0
-                xaxis[j0, a] = p[jo + j0 * JOINT_SIZE + J_AXIS + a]
-            for a in range(4):
-                quat[a] = q[qa + 3 + a]
-        else:
-            if parent >= 0:
-                for a in range(3):
-                    xorigin[i, a] = xorigin[parent, a]
-                    xpos[i, a] = xpos[parent, a] + (xmat[parent, a, 0] * p[b + B_POS] + xmat[parent, a, 1]
-                                                    * p[b + B_POS + 1] + xmat[parent, a, 2] * p[b + B_POS + 2])
-                if _is_identity(p, b + B_QUAT):  # the common case: the body's axes are its parent's
-                    for a in range(4):
-                        quat[a] = xquat[parent, a]
-                else:
-                    quat_multiply(xquat[parent], p[b + B_QUAT:b + B_QUAT + 4], quat)
-            else:  # a child of the world: the origin of its own tree
-                for a in range(3):
-                    xorigin[i, a] = p[b + B_POS + a]
-                    xpos[i, a] = 0.0
-                for a in range(4):
-                    quat[a] = p[b + B_QUAT + a]
-            for j in range(j0, j0 + nj):
-                r = jo + j * JOINT_SIZE
-                kind = int(p[r + J_KIND])
-                axis = p[r + J_AXIS:r + J_AXIS + 3]
-                anchor = p[r + J_ANCHOR:r + J_ANCHOR + 3]
-                at_origin = anchor[0] == 0.0 and anchor[1] == 0.0 and anchor[2] == 0.0  # the common case
-                quat_rotate(quat, axis, xaxis[j])
-                if at_origin:
-                    for a in range(3):
-                        xanchor[j, a] = xpos[i, a]
-                else:
-                    quat_rotate(quat, anchor, xanchor[j])
-                    for a in range(3):
-                        xanchor[j, a] += xpos[i, a]
-                qa = int(p[r + J_QADR])
-                if kind == SLIDE:
-                    d = q[qa] - p[r + J_REF]
-                    for a in range(3):
-                        xpos[i, a] += xaxis[j, a] * d
-                    continue
-                if kind == ROLL:  # first slide by a (q - ref) along l (anchor and body together), then turn
-                    quat_rotate(quat, p[r + J_LINE:r + J_LINE + 3], xline[j])
-                    d = p[r + J_RADIUS] * (q[qa] - p[r + J_REF])
-                    for a in range(3):
-                        xanchor[j, a] += xline[j, a] * d
-                # hinge, roll or ball: turn about the anchor
-                if kind == BALL:
-                    norm = np.sqrt(q[qa] ** 2 + q[qa + 1] ** 2 + q[qa + 2] ** 2 + q[qa + 3] ** 2)
-                    for a in range(4):
-                        qloc[a] = q[qa + a] / norm
-                else:
-                    quat_axis_angle(axis, q[qa] - p[r + J_REF], qloc)
-                for a in range(4):
-                    previous[a] = quat[a]
-                quat_multiply(previous, qloc, quat)
-                if at_origin:  # the body frame's origin is the anchor
-                    for a in range(3):
-                        xpos[i, a] = xanchor[j, a]
-                else:
-                    quat_rotate(quat, anchor, vec)
-                    for a in range(3):
-                        xpos[i, a] = xanchor[j, a] - vec[a]
-        norm = np.sqrt(quat[0] ** 2 + quat[1] ** 2 + quat[2] ** 2 + quat[3] ** 2)
-        for a in range(4):
-            xquat[i, a] = quat[a] / norm
-        quat_to_matrix(xquat[i], xmat[i])
-
-
-@njit(cache=True)
-def motion_subspaces(p, w):
-    """S (nv, 6): each degree of freedom's unit motion (omega; v at the world origin), world axes, as
-    MuJoCo's cdof. Hinge (a; x x a) about its anchor x; slide (0; a); roll (a; x x a) + radius (0; l) (the
-    hinge about the anchor after the slide, plus the slide); ball and free rotations about the body's own
-    axes (columns of xmat) through the anchor; free translations along the world axes."""
-    ws = _views(p, w)
-    xmat, xaxis, xanchor, xline, S, axis = ws.xmat, ws.xaxis, ws.xanchor, ws.xline, ws.S, ws.scratch[0:3]
-    nv = int(p[H_DOFS])
-    jo, do = int(p[H_JOINT]), int(p[H_DOF])
-    for d in range(nv):
-        j = int(p[do + d * DOF_SIZE + D_JOINT])
-        k = int(p[do + d * DOF_SIZE + D_INDEX])
-        r = jo + j * JOINT_SIZE
-        kind = int(p[r + J_KIND])
-        body = int(p[r + J_BODY])
-        for a in range(6):
-            S[d, a] = 0.0
-        if kind == SLIDE:
-            for a in range(3):
-                S[d, 3 + a] = xaxis[j, a]
-            continue
-        if kind == FREE and k < 3:
-            S[d, 3 + k] = 1.0
-            continue
-        if kind == HINGE or kind == ROLL:
-            for a in range(3):
-                axis[a] = xaxis[j, a]
-        else:
-            c = k if kind == BALL else k - 3
-            for a in range(3):
-                axis[a] = xmat[body, a, c]
-        for a in range(3):
-            S[d, a] = axis[a]
-        cross3(xanchor[j], axis, S[d, 3:])
-        if kind == ROLL:
-            radius = p[r + J_RADIUS]
-            for a in range(3):
-                S[d, 3 + a] += radius * xline[j, a]
-
-
-@njit(cache=True)
-def velocities(p, v, w):
-    """vel (nb, 6): each body's spatial velocity (world axes, about the origin); bias (nv, 6): each degree of
-    freedom's velocity-product acceleration S' v_d = (v_before x S) v_d (MuJoCo's cdof_dot qvel), v_before
-    the body's velocity before the joint (ball and free rotations: before the whole group). A roll joint's
-    hinge part moves with its slide part: + radius v_d^2 (0; l x axis) (= (radius v_d (0; l)) x (axis; x x axis))."""
-    ws = _views(p, w)
-    S, xaxis, xline, vel, bias, base = ws.S, ws.xaxis, ws.xline, ws.vel, ws.bias, ws.scratch[0:6]
-    nb = int(p[H_BODIES])
-    bo, jo, do = int(p[H_BODY]), int(p[H_JOINT]), int(p[H_DOF])
-    for i in range(nb):
-        b = bo + i * BODY_SIZE
-        parent = int(p[b + B_PARENT])
-        for a in range(6):
-            vel[i, a] = vel[parent, a] if parent >= 0 else 0.0
-        d0, nd = int(p[b + B_DOF0]), int(p[b + B_NDOF])
-        for d in range(d0, d0 + nd):
-            if p[do + d * DOF_SIZE + D_GROUP] != 0.0:
-                for a in range(6):
-                    base[a] = vel[i, a]
-            for a in range(6):
-                bias[d, a] = 0.0
-            motion_cross(base, S[d], v[d], bias[d])
-            j = int(p[do + d * DOF_SIZE + D_JOINT])
-            if int(p[jo + j * JOINT_SIZE + J_KIND]) == ROLL:
-                scale = p[jo + j * JOINT_SIZE + J_RADIUS] * v[d] * v[d]
-                bias[d, 3] += scale * (xline[j, 1] * xaxis[j, 2] - xline[j, 2] * xaxis[j, 1])
-                bias[d, 4] += scale * (xline[j, 2] * xaxis[j, 0] - xline[j, 0] * xaxis[j, 2])
-                bias[d, 5] += scale * (xline[j, 0] * xaxis[j, 1] - xline[j, 1] * xaxis[j, 0])
-            for a in range(6):
-                vel[i, a] += S[d, a] * v[d]
-
-
-@njit(cache=True)
-def world_inertias(p, w):
-    """Each body's inertia about the world origin, world axes: h (nb, 3) = m c, Ibar (nb, 3, 3)."""
-    ws = _views(p, w)
-    xpos, xmat, h, Ibar = ws.xpos, ws.xmat, ws.h, ws.Ibar
-    Ic = carray(address(ws.scratch, 0), (3, 3))
-    nb = int(p[H_BODIES])
-    bo = int(p[H_BODY])
-    for i in range(nb):
-        b = bo + i * BODY_SIZE
-        for a in range(3):
-            for c in range(3):
-                Ic[a, c] = p[b + B_TENSOR + 3 * a + c]
-        inertia_in_world(p[b + B_MASS], p[b + B_COM:b + B_COM + 3], Ic, xmat[i], xpos[i], h[i], Ibar[i])
-
-
-@njit(cache=True)
-def passive(p, q, v, out):
-    """out (nv,) = MuJoCo's qfrc_passive: -stiffness (q - springref) per hinge and slide, -damping v per dof."""
-    nj, nv = int(p[H_JOINTS]), int(p[H_DOFS])
-    jo, do = int(p[H_JOINT]), int(p[H_DOF])
-    for d in range(nv):
-        out[d] = -p[do + d * DOF_SIZE + D_DAMPING] * v[d]
-    for j in range(nj):
-        r = jo + j * JOINT_SIZE
-        stiffness = p[r + J_STIFF]
-        if stiffness != 0.0:
-            out[int(p[r + J_DADR])] -= stiffness * (q[int(p[r + J_QADR])] - p[r + J_SPRINGREF])
-
-
 # ----- the state of one evaluation ------------------------------------------------------------------------
 
 STACK_FLOATS = 16384  # workspaces up to this size (128 kB, ~570 bodies) live on the stack of an evaluation
 SCRATCH = 32  # floats of small temporaries (quaternions, 3- and 6-vectors) at the end of the workspace
 
 
-# The arrays of one evaluation (_views): per body xpos (nb, 3) relative to its tree's origin xorigin (nb, 3), xquat (nb, 4), xmat (nb, 3, 3), spatial velocity
-# vel, articulated bias force pA, acceleration acc, force (nb, 6), inertia about the origin h (nb, 3),
-# Ibar (nb, 3, 3), articulated inertia IA (nb, 6, 6), mass (nb,); per joint xaxis, xanchor, xline (nj, 3); per
-# dof S, bias, U (nv, 6), u (nv,), tau, pivots, zero (nv,); q (nq,); scratch (SCRATCH,).
+# The arrays of one evaluation (_views): per body xpos (nb, 3) relative to its tree's origin xorigin (nb, 3), xquat
+# (nb, 4), xmat (nb, 3, 3), spatial velocity vel, articulated bias force pA, acceleration acc, force (nb, 6),
+# inertia about the origin h (nb, 3), Ibar (nb, 3, 3), articulated inertia IA (nb, 6, 6; its upper triangle),
+# mass (nb,); per joint xaxis, xanchor, xline (nj, 3), half (2, nj): cos and sin of half the angle q - ref of
+# each hinge and roll joint (0 for the others); per dof S, bias, U (nv, 6), u (nv,), tau, pivots, zero (nv,);
+# q (nq,); scratch (SCRATCH,). After the articulated-body algorithm IA and pA hold Featherstone's I^A and
+# p^A of each body (its subtree's, before its own joints are eliminated).
 Workspace = namedtuple("Workspace", ["xpos", "xquat", "xmat", "xaxis", "xanchor", "xline", "S", "bias", "vel", "h",
                                      "Ibar", "IA", "pA", "U", "u", "acc", "force", "mass", "q", "tau", "pivots",
-                                     "zero", "scratch", "xorigin"])
+                                     "zero", "scratch", "xorigin", "half"])
+# Where each of those arrays starts in the workspace (a float index): _offsets, read by _views and by the
+# algorithms, which index the workspace directly (w[o.xpos + 3 * i + a] is xpos[i, a]).
+Offsets = namedtuple("Offsets", ["S", "bias", "U", "vel", "pA", "acc", "force", "xpos", "h", "xorigin", "xaxis",
+                                 "xanchor", "xline", "xmat", "Ibar", "IA", "xquat", "u", "mass", "q", "tau", "pivots",
+                                 "zero", "scratch", "half"])
 
 
 # Floats of the workspace per body, joint and degree of freedom: _views cuts exactly these (a test checks it).
 BODY_FLOATS = 4 * 6 + 3 * 3 + 2 * 9 + 36 + 4 + 1  # vel pA acc force; xpos h xorigin; xmat Ibar; IA; xquat; mass
-JOINT_FLOATS = 3 * 3                                # xaxis xanchor xline
+JOINT_FLOATS = 3 * 3 + 2                            # xaxis xanchor xline; half
 DOF_FLOATS = 3 * 6 + 4                              # S bias U; u tau pivots zero
 
 
@@ -356,6 +215,30 @@ def workspace_size(p) -> int:
 
 
 @njit(cache=True, inline="always")
+def _offsets(p):
+    """The start of every array of the workspace (Offsets), in the order _views cuts them."""
+    nb, nj, nv, nq = int(p[H_BODIES]), int(p[H_JOINTS]), int(p[H_DOFS]), int(p[H_NQ])
+    at = 18 * nv
+    S, bias, U = 0, 6 * nv, 12 * nv
+    vel, pA, acc, force = at, at + 6 * nb, at + 12 * nb, at + 18 * nb
+    at += 24 * nb
+    xpos, h, xorigin = at, at + 3 * nb, at + 6 * nb
+    at += 9 * nb
+    xaxis, xanchor, xline, half = at, at + 3 * nj, at + 6 * nj, at + 9 * nj
+    at += 11 * nj
+    xmat, Ibar = at, at + 9 * nb
+    at += 18 * nb
+    IA = at
+    at += 36 * nb
+    xquat = at
+    at += 4 * nb
+    u, mass = at, at + nv
+    at += nv + nb
+    return Offsets(S, bias, U, vel, pA, acc, force, xpos, h, xorigin, xaxis, xanchor, xline, xmat, Ibar, IA, xquat, u,
+                   mass, at, at + nq, at + nq + nv, at + nq + 2 * nv, at + nq + 3 * nv, half)
+
+
+@njit(cache=True, inline="always")
 def _rows(w, at, rows, columns):
     """(rows, columns) array over w[at:at + rows * columns]."""
     return carray(address(w, at), (rows, columns))
@@ -364,126 +247,831 @@ def _rows(w, at, rows, columns):
 @njit(cache=True)
 def _views(p, w):
     """The arrays of one evaluation, cut from one workspace w (workspace_size(p),) as arrays over its memory
-    (numba carrays: no reshape, no reference count; the caller keeps w alive). Allocating each (~25 small
-    arrays) would cost more than the algorithms themselves."""
+    (numba carrays: no reshape, no reference count; the caller keeps w alive)."""
     nb, nj, nv, nq = int(p[H_BODIES]), int(p[H_JOINTS]), int(p[H_DOFS]), int(p[H_NQ])
-    at = 0
-    S, bias, U = _rows(w, at, nv, 6), _rows(w, at + 6 * nv, nv, 6), _rows(w, at + 12 * nv, nv, 6)
-    at += 18 * nv
-    vel, pA = _rows(w, at, nb, 6), _rows(w, at + 6 * nb, nb, 6)
-    acc, force = _rows(w, at + 12 * nb, nb, 6), _rows(w, at + 18 * nb, nb, 6)
-    at += 24 * nb
-    xpos, h, xorigin = _rows(w, at, nb, 3), _rows(w, at + 3 * nb, nb, 3), _rows(w, at + 6 * nb, nb, 3)
-    at += 9 * nb
-    xaxis, xanchor, xline = _rows(w, at, nj, 3), _rows(w, at + 3 * nj, nj, 3), _rows(w, at + 6 * nj, nj, 3)
-    at += 9 * nj
-    xmat, Ibar = carray(address(w, at), (nb, 3, 3)), carray(address(w, at + 9 * nb), (nb, 3, 3))
-    at += 18 * nb
-    IA = carray(address(w, at), (nb, 6, 6))
-    at += 36 * nb
-    xquat = _rows(w, at, nb, 4)
-    at += 4 * nb
-    u, mass = carray(address(w, at), nv), carray(address(w, at + nv), nb)
-    at += nv + nb
-    q, tau = carray(address(w, at), nq), carray(address(w, at + nq), nv)
-    pivots, zero = carray(address(w, at + nq + nv), nv), carray(address(w, at + nq + 2 * nv), nv)
-    scratch = carray(address(w, at + nq + 3 * nv), SCRATCH)
-    return Workspace(xpos, xquat, xmat, xaxis, xanchor, xline, S, bias, vel, h, Ibar, IA, pA, U, u, acc, force, mass,
-                     q, tau, pivots, zero, scratch, xorigin)
+    o = _offsets(p)
+    return Workspace(_rows(w, o.xpos, nb, 3), _rows(w, o.xquat, nb, 4), carray(address(w, o.xmat), (nb, 3, 3)),
+                     _rows(w, o.xaxis, nj, 3), _rows(w, o.xanchor, nj, 3), _rows(w, o.xline, nj, 3),
+                     _rows(w, o.S, nv, 6), _rows(w, o.bias, nv, 6), _rows(w, o.vel, nb, 6), _rows(w, o.h, nb, 3),
+                     carray(address(w, o.Ibar), (nb, 3, 3)), carray(address(w, o.IA), (nb, 6, 6)),
+                     _rows(w, o.pA, nb, 6), _rows(w, o.U, nv, 6), carray(address(w, o.u), nv),
+                     _rows(w, o.acc, nb, 6), _rows(w, o.force, nb, 6), carray(address(w, o.mass), nb),
+                     carray(address(w, o.q), nq), carray(address(w, o.tau), nv), carray(address(w, o.pivots), nv),
+                     carray(address(w, o.zero), nv), carray(address(w, o.scratch), SCRATCH),
+                     _rows(w, o.xorigin, nb, 3), _rows(w, o.half, 2, nj))
 
 
-@njit(cache=True)
+# ----- one body at a time: the outward pass's steps -------------------------------------------------------
+# Each step reads and writes the workspace by index (Offsets), its small vectors held in local variables; the
+# algorithms below run them body after body in one loop (one pass over the tree's memory), and kinematics,
+# motion_subspaces, velocities and world_inertias each run one of them over all bodies.
+
+@njit(cache=True, inline="always")
+def _qmul(a0, a1, a2, a3, b0, b1, b2, b3):
+    """a (x) b for quaternions given by their components (w, x, y, z)."""
+    return (a0 * b0 - a1 * b1 - a2 * b2 - a3 * b3, a0 * b1 + a1 * b0 + a2 * b3 - a3 * b2,
+            a0 * b2 - a1 * b3 + a2 * b0 + a3 * b1, a0 * b3 + a1 * b2 - a2 * b1 + a3 * b0)
+
+
+@njit(cache=True, inline="always")
+def _qrot(q0, q1, q2, q3, v0, v1, v2):
+    """R(q) v: v + 2 w (u x v) + 2 u x (u x v), u = (q1, q2, q3)."""
+    t0 = 2.0 * (q2 * v2 - q3 * v1)
+    t1 = 2.0 * (q3 * v0 - q1 * v2)
+    t2 = 2.0 * (q1 * v1 - q2 * v0)
+    return v0 + q0 * t0 + q2 * t2 - q3 * t1, v1 + q0 * t1 + q3 * t0 - q1 * t2, v2 + q0 * t2 + q1 * t1 - q2 * t0
+
+
+@njit(cache=True, inline="always")
+def _half_angles(p, q, qo, w, o):
+    """half (2, nj): cos and sin of (q - ref) / 2 of every hinge and roll joint, 1 and 0 for the others: first the
+    angles, then their cosines and sines in a loop without a call, which LLVM vectorises (rbody.engine.spatial.sin_cos;
+    np.sin and np.cos when an angle is beyond its range)."""
+    nj, jo = int(p[H_JOINTS]), int(p[H_JOINT])
+    c, s = o.half, o.half + nj
+    largest = number(w, 0.0)
+    for j in range(nj):
+        r = jo + j * JOINT_SIZE
+        kind = int(p[r + J_KIND])
+        x = 0.5 * (q[qo + int(p[r + J_QADR])] - p[r + J_REF]) if kind == HINGE or kind == ROLL else number(w, 0.0)
+        w[s + j] = x
+        largest = maximum_of(largest, abs(x))
+    _sines_and_cosines(w, s, c, nj, largest)
+
+
+@njit(cache=True, fastmath=FMA)
+def _free_pose(p, q, qo, w, o, i, j):
+    """Body i moved by its free joint j (_pose): its origin and axes, the joint's axis and anchor; returns the body's
+    quaternion (w, x, y, z) made unit."""
+    r = int(p[H_JOINT]) + j * JOINT_SIZE
+    qa = qo + int(p[r + J_QADR])
+    xp, xo = o.xpos + 3 * i, o.xorigin + 3 * i
+    for a in range(3):  # a free joint's body is a child of the world: the origin of its own tree
+        w[xo + a] = q[qa + a]
+        w[xp + a] = 0.0
+        w[o.xanchor + 3 * j + a] = 0.0
+        w[o.xaxis + 3 * j + a] = p[r + J_AXIS + a]
+    q0, q1, q2, q3 = q[qa + 3], q[qa + 4], q[qa + 5], q[qa + 6]
+    norm = np.sqrt(q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+    return q0 / norm, q1 / norm, q2 / norm, q3 / norm
+
+
+@njit(cache=True, fastmath=FMA)
+def _other_joint(p, q, qo, w, o, j, x0, x1, x2, q0, q1, q2, q3):
+    """A slide, roll or ball joint j of a body whose frame is at x (relative to its tree's origin) with quaternion q
+    so far (_pose): the joint's axis, anchor and rolling line into the workspace; returns the body's (x, q) after
+    the joint. A separate function: the pose of hinges, the common joint, is written out where it is used."""
+    r = int(p[H_JOINT]) + j * JOINT_SIZE
+    kind = int(p[r + J_KIND])
+    n0, n1, n2 = p[r + J_ANCHOR], p[r + J_ANCHOR + 1], p[r + J_ANCHOR + 2]
+    a0, a1, a2 = _qrot(q0, q1, q2, q3, p[r + J_AXIS], p[r + J_AXIS + 1], p[r + J_AXIS + 2])
+    ja, jx = o.xaxis + 3 * j, o.xanchor + 3 * j
+    w[ja], w[ja + 1], w[ja + 2] = a0, a1, a2
+    c0, c1, c2 = _qrot(q0, q1, q2, q3, n0, n1, n2)
+    c0, c1, c2 = c0 + x0, c1 + x1, c2 + x2
+    qa = qo + int(p[r + J_QADR])
+    if kind == SLIDE:
+        w[jx], w[jx + 1], w[jx + 2] = c0, c1, c2
+        d = q[qa] - p[r + J_REF]
+        return x0 + a0 * d, x1 + a1 * d, x2 + a2 * d, q0, q1, q2, q3
+    if kind == ROLL:  # first slide by a (q - ref) along l (anchor and body together), then turn
+        l0, l1, l2 = _qrot(q0, q1, q2, q3, p[r + J_LINE], p[r + J_LINE + 1], p[r + J_LINE + 2])
+        jl = o.xline + 3 * j
+        w[jl], w[jl + 1], w[jl + 2] = l0, l1, l2
+        d = p[r + J_RADIUS] * (q[qa] - p[r + J_REF])
+        c0, c1, c2 = c0 + l0 * d, c1 + l1 * d, c2 + l2 * d
+        sine = w[o.half + int(p[H_JOINTS]) + j]
+        t0, t1, t2, t3 = w[o.half + j], sine * p[r + J_AXIS], sine * p[r + J_AXIS + 1], sine * p[r + J_AXIS + 2]
+    else:  # ball
+        t0, t1, t2, t3 = q[qa], q[qa + 1], q[qa + 2], q[qa + 3]
+        norm = np.sqrt(t0 * t0 + t1 * t1 + t2 * t2 + t3 * t3)
+        t0, t1, t2, t3 = t0 / norm, t1 / norm, t2 / norm, t3 / norm
+    w[jx], w[jx + 1], w[jx + 2] = c0, c1, c2
+    q0, q1, q2, q3 = _qmul(q0, q1, q2, q3, t0, t1, t2, t3)  # turn about the anchor
+    n0, n1, n2 = _qrot(q0, q1, q2, q3, n0, n1, n2)
+    return c0 - n0, c1 - n1, c2 - n2, q0, q1, q2, q3
+
+
+@njit(cache=True, inline="always")
+def _pose(p, q, qo, w, o, i):
+    """Body i's pose, as MuJoCo's mj_kinematics (kinematics() gives the meaning of each array), its parent's
+    already placed: xorigin, xpos, xquat, xmat of the body; xaxis, xanchor, xline of its joints. q[qo + a] is
+    qpos[a]."""
+    b = int(p[H_BODY]) + i * BODY_SIZE
+    jo, nj_all = int(p[H_JOINT]), int(p[H_JOINTS])
+    parent = int(p[b + B_PARENT])
+    j0, nj = int(p[b + B_JNT0]), int(p[b + B_NJNT])
+    xp, xo = o.xpos + 3 * i, o.xorigin + 3 * i
+    if nj == 1 and int(p[jo + j0 * JOINT_SIZE + J_KIND]) == FREE:
+        q0, q1, q2, q3 = _free_pose(p, q, qo, w, o, i, j0)
+    else:
+        if parent >= 0:
+            pp, pq, pm = o.xpos + 3 * parent, o.xquat + 4 * parent, o.xmat + 9 * parent
+            l0, l1, l2 = p[b + B_POS], p[b + B_POS + 1], p[b + B_POS + 2]
+            for a in range(3):
+                w[xo + a] = w[o.xorigin + 3 * parent + a]
+            x0 = w[pp] + (w[pm] * l0 + w[pm + 1] * l1 + w[pm + 2] * l2)
+            x1 = w[pp + 1] + (w[pm + 3] * l0 + w[pm + 4] * l1 + w[pm + 5] * l2)
+            x2 = w[pp + 2] + (w[pm + 6] * l0 + w[pm + 7] * l1 + w[pm + 8] * l2)
+            q0, q1, q2, q3 = w[pq], w[pq + 1], w[pq + 2], w[pq + 3]
+            if not (p[b + B_QUAT] == 1.0 and p[b + B_QUAT + 1] == 0.0 and p[b + B_QUAT + 2] == 0.0
+                    and p[b + B_QUAT + 3] == 0.0):  # else the common case: the body's axes are its parent's
+                q0, q1, q2, q3 = _qmul(q0, q1, q2, q3, p[b + B_QUAT], p[b + B_QUAT + 1], p[b + B_QUAT + 2],
+                                       p[b + B_QUAT + 3])
+        else:  # a child of the world: the origin of its own tree
+            for a in range(3):
+                w[xo + a] = p[b + B_POS + a]
+            x0 = x1 = x2 = number(w, 0.0)
+            q0, q1 = number(w, p[b + B_QUAT]), number(w, p[b + B_QUAT + 1])
+            q2, q3 = number(w, p[b + B_QUAT + 2]), number(w, p[b + B_QUAT + 3])
+        for j in range(j0, j0 + nj):
+            r = jo + j * JOINT_SIZE
+            if int(p[r + J_KIND]) != HINGE:
+                x0, x1, x2, q0, q1, q2, q3 = _other_joint(p, q, qo, w, o, j, x0, x1, x2, q0, q1, q2, q3)
+                continue
+            # a hinge: turn about the anchor, by the cosine and sine of half its angle (_half_angles)
+            e0, e1, e2 = p[r + J_AXIS], p[r + J_AXIS + 1], p[r + J_AXIS + 2]
+            n0, n1, n2 = p[r + J_ANCHOR], p[r + J_ANCHOR + 1], p[r + J_ANCHOR + 2]
+            at_origin = n0 == 0.0 and n1 == 0.0 and n2 == 0.0  # the common case
+            a0, a1, a2 = _qrot(q0, q1, q2, q3, e0, e1, e2)
+            ja, jx = o.xaxis + 3 * j, o.xanchor + 3 * j
+            w[ja], w[ja + 1], w[ja + 2] = a0, a1, a2
+            if at_origin:
+                c0, c1, c2 = x0, x1, x2
+            else:
+                c0, c1, c2 = _qrot(q0, q1, q2, q3, n0, n1, n2)
+                c0, c1, c2 = c0 + x0, c1 + x1, c2 + x2
+            w[jx], w[jx + 1], w[jx + 2] = c0, c1, c2
+            sine = w[o.half + nj_all + j]
+            q0, q1, q2, q3 = _qmul(q0, q1, q2, q3, w[o.half + j], sine * e0, sine * e1, sine * e2)
+            if at_origin:  # the body frame's origin is the anchor
+                x0, x1, x2 = c0, c1, c2
+            else:
+                n0, n1, n2 = _qrot(q0, q1, q2, q3, n0, n1, n2)
+                x0, x1, x2 = c0 - n0, c1 - n1, c2 - n2
+        # a product of unit quaternions is unit to round-off, |q|^2 = 1 + e: one Newton step for 1/|q|,
+        # (3 - |q|^2) / 2 = 1 - e/2, leaves an error of order e^2 (no square root, no division)
+        scale = 1.5 - 0.5 * (q0 * q0 + q1 * q1 + q2 * q2 + q3 * q3)
+        q0, q1, q2, q3 = q0 * scale, q1 * scale, q2 * scale, q3 * scale
+        w[xp], w[xp + 1], w[xp + 2] = x0, x1, x2
+    xq, xm = o.xquat + 4 * i, o.xmat + 9 * i
+    w[xq], w[xq + 1], w[xq + 2], w[xq + 3] = q0, q1, q2, q3
+    w[xm] = 1.0 - 2.0 * (q2 * q2 + q3 * q3)
+    w[xm + 1] = 2.0 * (q1 * q2 - q0 * q3)
+    w[xm + 2] = 2.0 * (q1 * q3 + q0 * q2)
+    w[xm + 3] = 2.0 * (q1 * q2 + q0 * q3)
+    w[xm + 4] = 1.0 - 2.0 * (q1 * q1 + q3 * q3)
+    w[xm + 5] = 2.0 * (q2 * q3 - q0 * q1)
+    w[xm + 6] = 2.0 * (q1 * q3 - q0 * q2)
+    w[xm + 7] = 2.0 * (q2 * q3 + q0 * q1)
+    w[xm + 8] = 1.0 - 2.0 * (q1 * q1 + q2 * q2)
+
+
+@njit(cache=True, fastmath=FMA)
+def _other_subspace(p, w, o, i, d):
+    """S of degree of freedom d of body i when its joint is not a hinge (_subspaces)."""
+    j = int(p[int(p[H_DOF]) + d * DOF_SIZE + D_JOINT])
+    k = int(p[int(p[H_DOF]) + d * DOF_SIZE + D_INDEX])
+    r = int(p[H_JOINT]) + j * JOINT_SIZE
+    kind = int(p[r + J_KIND])
+    s = o.S + 6 * d
+    if kind == SLIDE:
+        w[s], w[s + 1], w[s + 2] = 0.0, 0.0, 0.0
+        w[s + 3], w[s + 4], w[s + 5] = w[o.xaxis + 3 * j], w[o.xaxis + 3 * j + 1], w[o.xaxis + 3 * j + 2]
+        return
+    if kind == FREE and k < 3:
+        for a in range(6):
+            w[s + a] = 0.0
+        w[s + 3 + k] = 1.0
+        return
+    if kind == ROLL:
+        a0, a1, a2 = w[o.xaxis + 3 * j], w[o.xaxis + 3 * j + 1], w[o.xaxis + 3 * j + 2]
+    else:  # a rotation of a ball or free joint: about the body's own axis k
+        c = k if kind == BALL else k - 3
+        xm = o.xmat + 9 * i
+        a0, a1, a2 = w[xm + c], w[xm + 3 + c], w[xm + 6 + c]
+    x0, x1, x2 = w[o.xanchor + 3 * j], w[o.xanchor + 3 * j + 1], w[o.xanchor + 3 * j + 2]
+    w[s], w[s + 1], w[s + 2] = a0, a1, a2
+    w[s + 3] = x1 * a2 - x2 * a1
+    w[s + 4] = x2 * a0 - x0 * a2
+    w[s + 5] = x0 * a1 - x1 * a0
+    if kind == ROLL:
+        radius = p[r + J_RADIUS]
+        for a in range(3):
+            w[s + 3 + a] += radius * w[o.xline + 3 * j + a]
+
+
+@njit(cache=True, inline="always")
+def _subspaces(p, w, o, i):
+    """S of body i's degrees of freedom (motion_subspaces gives the meaning), after its pose."""
+    b = int(p[H_BODY]) + i * BODY_SIZE
+    jo, do = int(p[H_JOINT]), int(p[H_DOF])
+    d0, nd = int(p[b + B_DOF0]), int(p[b + B_NDOF])
+    for d in range(d0, d0 + nd):
+        j = int(p[do + d * DOF_SIZE + D_JOINT])
+        if int(p[jo + j * JOINT_SIZE + J_KIND]) != HINGE:
+            _other_subspace(p, w, o, i, d)
+            continue
+        s, ja, jx = o.S + 6 * d, o.xaxis + 3 * j, o.xanchor + 3 * j  # a hinge: (a; x x a)
+        a0, a1, a2 = w[ja], w[ja + 1], w[ja + 2]
+        x0, x1, x2 = w[jx], w[jx + 1], w[jx + 2]
+        w[s], w[s + 1], w[s + 2] = a0, a1, a2
+        w[s + 3] = x1 * a2 - x2 * a1
+        w[s + 4] = x2 * a0 - x0 * a2
+        w[s + 5] = x0 * a1 - x1 * a0
+
+
+@njit(cache=True, fastmath=FMA)
+def _roll_bias(p, w, o, d, qd):
+    """The velocity product of a roll joint's degree of freedom d gains radius qd^2 (0; l x axis) (velocities)."""
+    j = int(p[int(p[H_DOF]) + d * DOF_SIZE + D_JOINT])
+    scale = p[int(p[H_JOINT]) + j * JOINT_SIZE + J_RADIUS] * qd * qd
+    l0, l1, l2 = w[o.xline + 3 * j], w[o.xline + 3 * j + 1], w[o.xline + 3 * j + 2]
+    a0, a1, a2 = w[o.xaxis + 3 * j], w[o.xaxis + 3 * j + 1], w[o.xaxis + 3 * j + 2]
+    c = o.bias + 6 * d
+    w[c + 3] += scale * (l1 * a2 - l2 * a1)
+    w[c + 4] += scale * (l2 * a0 - l0 * a2)
+    w[c + 5] += scale * (l0 * a1 - l1 * a0)
+
+
+@njit(cache=True, inline="always")
+def _motion(p, v, vo, w, o, i):
+    """vel of body i and the velocity products (bias) of its degrees of freedom (velocities gives the meaning),
+    after its motion subspaces and its parent's velocity; v[vo + d] is qvel[d]."""
+    b = int(p[H_BODY]) + i * BODY_SIZE
+    jo, do = int(p[H_JOINT]), int(p[H_DOF])
+    parent = int(p[b + B_PARENT])
+    if parent >= 0:
+        pv = o.vel + 6 * parent
+        w0, w1, w2, v0, v1, v2 = w[pv], w[pv + 1], w[pv + 2], w[pv + 3], w[pv + 4], w[pv + 5]
+    else:
+        w0 = w1 = w2 = v0 = v1 = v2 = number(w, 0.0)
+    b0, b1, b2, b3, b4, b5 = w0, w1, w2, v0, v1, v2
+    d0, nd = int(p[b + B_DOF0]), int(p[b + B_NDOF])
+    for d in range(d0, d0 + nd):
+        if p[do + d * DOF_SIZE + D_GROUP] != 0.0:  # the velocity before this joint (or group of rotations)
+            b0, b1, b2, b3, b4, b5 = w0, w1, w2, v0, v1, v2
+        s = o.S + 6 * d
+        s0, s1, s2, s3, s4, s5 = w[s], w[s + 1], w[s + 2], w[s + 3], w[s + 4], w[s + 5]
+        qd = v[vo + d]
+        c = o.bias + 6 * d  # (base x S) qd
+        w[c] = (b1 * s2 - b2 * s1) * qd
+        w[c + 1] = (b2 * s0 - b0 * s2) * qd
+        w[c + 2] = (b0 * s1 - b1 * s0) * qd
+        w[c + 3] = (b1 * s5 - b2 * s4 + b4 * s2 - b5 * s1) * qd
+        w[c + 4] = (b2 * s3 - b0 * s5 + b5 * s0 - b3 * s2) * qd
+        w[c + 5] = (b0 * s4 - b1 * s3 + b3 * s1 - b4 * s0) * qd
+        if int(p[jo + int(p[do + d * DOF_SIZE + D_JOINT]) * JOINT_SIZE + J_KIND]) == ROLL:
+            _roll_bias(p, w, o, d, qd)
+        w0, w1, w2 = w0 + s0 * qd, w1 + s1 * qd, w2 + s2 * qd
+        v0, v1, v2 = v0 + s3 * qd, v1 + s4 * qd, v2 + s5 * qd
+    e = o.vel + 6 * i
+    w[e], w[e + 1], w[e + 2], w[e + 3], w[e + 4], w[e + 5] = w0, w1, w2, v0, v1, v2
+
+
+@njit(cache=True, inline="always")
+def _inertia(p, w, o, i):
+    """h and Ibar of body i (world_inertias gives the meaning), after its pose; returns them as numbers too:
+    (mass, h0, h1, h2, I00, I01, I02, I11, I12, I22)."""
+    b = int(p[H_BODY]) + i * BODY_SIZE
+    m = p[b + B_MASS]
+    xm, xp = o.xmat + 9 * i, o.xpos + 3 * i
+    R00, R01, R02, R10, R11, R12, R20, R21, R22 = (w[xm], w[xm + 1], w[xm + 2], w[xm + 3], w[xm + 4], w[xm + 5],
+                                                   w[xm + 6], w[xm + 7], w[xm + 8])
+    k0, k1, k2 = p[b + B_COM], p[b + B_COM + 1], p[b + B_COM + 2]
+    c0 = (R00 * k0 + R01 * k1 + R02 * k2) + w[xp]
+    c1 = (R10 * k0 + R11 * k1 + R12 * k2) + w[xp + 1]
+    c2 = (R20 * k0 + R21 * k1 + R22 * k2) + w[xp + 2]
+    t = b + B_TENSOR
+    C00, C01, C02, C11, C12, C22 = p[t], p[t + 1], p[t + 2], p[t + 4], p[t + 5], p[t + 8]
+    # R Ic R^T: first Ic R^T (columns: Ic times each row of R), then the rows of R against it
+    m00 = C00 * R00 + C01 * R01 + C02 * R02
+    m10 = C01 * R00 + C11 * R01 + C12 * R02
+    m20 = C02 * R00 + C12 * R01 + C22 * R02
+    m01 = C00 * R10 + C01 * R11 + C02 * R12
+    m11 = C01 * R10 + C11 * R11 + C12 * R12
+    m21 = C02 * R10 + C12 * R11 + C22 * R12
+    m02 = C00 * R20 + C01 * R21 + C02 * R22
+    m12 = C01 * R20 + C11 * R21 + C12 * R22
+    m22 = C02 * R20 + C12 * R21 + C22 * R22
+    mc0, mc1, mc2 = m * c0, m * c1, m * c2
+    square = c0 * c0 + c1 * c1 + c2 * c2
+    I00 = (R00 * m00 + R01 * m10 + R02 * m20) + (m * square - mc0 * c0)
+    I01 = (R00 * m01 + R01 * m11 + R02 * m21) - mc0 * c1
+    I02 = (R00 * m02 + R01 * m12 + R02 * m22) - mc0 * c2
+    I11 = (R10 * m01 + R11 * m11 + R12 * m21) + (m * square - mc1 * c1)
+    I12 = (R10 * m02 + R11 * m12 + R12 * m22) - mc1 * c2
+    I22 = (R20 * m02 + R21 * m12 + R22 * m22) + (m * square - mc2 * c2)
+    h, ib = o.h + 3 * i, o.Ibar + 9 * i
+    w[h], w[h + 1], w[h + 2] = mc0, mc1, mc2
+    w[ib], w[ib + 1], w[ib + 2] = I00, I01, I02
+    w[ib + 3], w[ib + 4], w[ib + 5] = I01, I11, I12
+    w[ib + 6], w[ib + 7], w[ib + 8] = I02, I12, I22
+    return m, mc0, mc1, mc2, I00, I01, I02, I11, I12, I22
+
+
+@njit(cache=True, inline="always")
+def _articulated_start(w, o, i, m, h0, h1, h2, I00, I01, I02, I11, I12, I22):
+    """The articulated-body algorithm's start at body i: IA = its rigid inertia (upper triangle, the matrix
+    [[Ibar, [h]x], [[h]x^T, m 1]]) and pA = v x* (I v), after its velocity."""
+    e = o.vel + 6 * i
+    w0, w1, w2, v0, v1, v2 = w[e], w[e + 1], w[e + 2], w[e + 3], w[e + 4], w[e + 5]
+    n0 = (I00 * w0 + I01 * w1 + I02 * w2) + (h1 * v2 - h2 * v1)
+    n1 = (I01 * w0 + I11 * w1 + I12 * w2) + (h2 * v0 - h0 * v2)
+    n2 = (I02 * w0 + I12 * w1 + I22 * w2) + (h0 * v1 - h1 * v0)
+    f0 = m * v0 - (h1 * w2 - h2 * w1)
+    f1 = m * v1 - (h2 * w0 - h0 * w2)
+    f2 = m * v2 - (h0 * w1 - h1 * w0)
+    pa = o.pA + 6 * i
+    w[pa] = (w1 * n2 - w2 * n1) + (v1 * f2 - v2 * f1)
+    w[pa + 1] = (w2 * n0 - w0 * n2) + (v2 * f0 - v0 * f2)
+    w[pa + 2] = (w0 * n1 - w1 * n0) + (v0 * f1 - v1 * f0)
+    w[pa + 3] = w1 * f2 - w2 * f1
+    w[pa + 4] = w2 * f0 - w0 * f2
+    w[pa + 5] = w0 * f1 - w1 * f0
+    a = o.IA + 36 * i
+    w[a], w[a + 1], w[a + 2], w[a + 3], w[a + 4], w[a + 5] = I00, I01, I02, 0.0, -h2, h1
+    w[a + 7], w[a + 8], w[a + 9], w[a + 10], w[a + 11] = I11, I12, h2, 0.0, -h0
+    w[a + 14], w[a + 15], w[a + 16], w[a + 17] = I22, -h1, h0, 0.0
+    w[a + 21], w[a + 22], w[a + 23] = m, 0.0, 0.0
+    w[a + 28], w[a + 29] = m, 0.0
+    w[a + 35] = m
+
+
+# ----- the outward pass as separate algorithms --------------------------------------------------------------
+
+@njit(cache=True, fastmath=FMA)
+def kinematics(p, q, w):
+    """World poses of every body from qpos q (nq,), as MuJoCo's mj_kinematics, into the workspace w (_views):
+    xpos (nb, 3) body-frame origins [m] relative to the origin of their tree, xorigin (nb, 3) that origin (the
+    world placement of the tree's root body, or its free joint's position), xquat (nb, 4), xmat (nb, 3, 3); per
+    joint its world axis and anchor (nj, 3) [m] relative to the tree's origin (a roll joint's anchor after its
+    slide) and a roll joint's world rolling line l (nj, 3).
+
+    Positions relative to each tree's own origin: the spatial algebra of a tree is written about that point
+    (module docstring, "Precision"), so a tree a million metres from the world origin computes as it would at it."""
+    o = _offsets(p)
+    pp, qq, ww = address(p, 0), address(q, 0), address(w, 0)
+    _half_angles(pp, qq, 0, ww, o)
+    for i in range(int(p[H_BODIES])):
+        _pose(pp, qq, 0, ww, o, i)
+
+
+@njit(cache=True, fastmath=FMA)
+def motion_subspaces(p, w):
+    """S (nv, 6): each degree of freedom's unit motion (omega; v at the origin of its tree), world axes, as
+    MuJoCo's cdof. Hinge (a; x x a) about its anchor x; slide (0; a); roll (a; x x a) + radius (0; l) (the
+    hinge about the anchor after the slide, plus the slide); ball and free rotations about the body's own
+    axes (columns of xmat) through the anchor; free translations along the world axes. After kinematics."""
+    o = _offsets(p)
+    pp, ww = address(p, 0), address(w, 0)
+    for i in range(int(p[H_BODIES])):
+        _subspaces(pp, ww, o, i)
+
+
+@njit(cache=True, fastmath=FMA)
+def velocities(p, v, w):
+    """vel (nb, 6): each body's spatial velocity (world axes, about the origin of its tree); bias (nv, 6): each
+    degree of freedom's velocity-product acceleration S' v_d = (v_before x S) v_d (MuJoCo's cdof_dot qvel),
+    v_before the body's velocity before the joint (ball and free rotations: before the whole group). A roll
+    joint's hinge part moves with its slide part: + radius v_d^2 (0; l x axis) (= (radius v_d (0; l)) x
+    (axis; x x axis)). After motion_subspaces."""
+    o = _offsets(p)
+    pp, vv, ww = address(p, 0), address(v, 0), address(w, 0)
+    for i in range(int(p[H_BODIES])):
+        _motion(pp, vv, 0, ww, o, i)
+
+
+@njit(cache=True, fastmath=FMA)
+def world_inertias(p, w):
+    """Each body's inertia about the origin of its tree, world axes: h (nb, 3) = m c, Ibar (nb, 3, 3). After
+    kinematics."""
+    o = _offsets(p)
+    pp, ww = address(p, 0), address(w, 0)
+    for i in range(int(p[H_BODIES])):
+        _inertia(pp, ww, o, i)
+
+
+@njit(cache=True, fastmath=FMA)
+def passive(p, q, v, out):
+    """out (nv,) = MuJoCo's qfrc_passive: -stiffness (q - springref) per hinge and slide, -damping v per dof."""
+    _passive(address(p, 0), address(q, 0), 0, address(v, 0), 0, address(out, 0), 0)
+
+
+@njit(cache=True, inline="always")
+def _passive(p, q, qo, v, vo, out, to):
+    """out[to + d] = qfrc_passive[d] (passive), q[qo + a] = qpos[a], v[vo + d] = qvel[d]."""
+    nj, nv = int(p[H_JOINTS]), int(p[H_DOFS])
+    jo, do = int(p[H_JOINT]), int(p[H_DOF])
+    for d in range(nv):
+        out[to + d] = -p[do + d * DOF_SIZE + D_DAMPING] * v[vo + d]
+    for j in range(nj):
+        r = jo + j * JOINT_SIZE
+        stiffness = p[r + J_STIFF]
+        if stiffness != 0.0:
+            out[to + int(p[r + J_DADR])] -= stiffness * (q[qo + int(p[r + J_QADR])] - p[r + J_SPRINGREF])
+
+
+# An offset of 0 typed as a plain integer: a literal 0 argument would compile _outward and _sweeps a second
+# time, for Literal[int](0).
+AT_START = np.int64(0)
+
+
+@njit(cache=True, fastmath=FMA)
+def _outward(p, q, qo, v, vo, w, o):
+    """The outward pass of one state, body after body: kinematics, motion subspaces, velocities, world inertias
+    and the start of the articulated-body algorithm (IA, pA) into the workspace."""
+    _half_angles(p, q, qo, w, o)
+    for i in range(int(p[H_BODIES])):
+        _pose(p, q, qo, w, o, i)
+        _subspaces(p, w, o, i)
+        _motion(p, v, vo, w, o, i)
+        m, h0, h1, h2, I00, I01, I02, I11, I12, I22 = _inertia(p, w, o, i)
+        _articulated_start(w, o, i, m, h0, h1, h2, I00, I01, I02, I11, I12, I22)
+
+
+@njit(cache=True, fastmath=FMA)
 def _frames(p, q, v, w):
-    """Kinematics, motion subspaces, velocities and world inertias of one state, into the workspace w."""
-    kinematics(p, q, w)
-    motion_subspaces(p, w)
-    velocities(p, v, w)
-    world_inertias(p, w)
+    """Kinematics, motion subspaces, velocities and world inertias of one state, into the workspace w, with the
+    articulated-body algorithm's start (IA, pA)."""
+    _outward(address(p, 0), address(q, 0), AT_START, address(v, 0), AT_START, address(w, 0), _offsets(p))
 
 
 # ----- the articulated-body algorithm ---------------------------------------------------------------------
 
-@njit(cache=True, error_model="numpy")  # 1 / D without a zero check: D is checked, and set to inf when bad
-def articulated_body(p, w, qacc):
-    """ABA: qacc (nv,) from the generalised forces in the workspace's tau (nv,) (applied + passive), after
-    _frames; the workspace's pivots (nv,) get the D of every degree of freedom (armature included). Returns
-    the first dof whose pivot is not positive beyond PIVOT_RTOL of its scale, or -1."""
-    ws = _views(p, w)
-    S, bias, vel, h, Ibar, tau, pivots = ws.S, ws.bias, ws.vel, ws.h, ws.Ibar, ws.tau, ws.pivots
-    IA, pA, U, u, acc, scratch = ws.IA, ws.pA, ws.U, ws.u, ws.acc, ws.scratch
+@njit(cache=True, fastmath=FMA, error_model="numpy")  # 1 / D without a zero check: D is checked, set to inf when bad
+def _sweeps(p, w, o, qacc, ao):
+    """The articulated-body algorithm's inward and outward sweeps (Featherstone, RBDA, table 7.1) from the
+    outward pass's S, bias, IA, pA and the generalised forces tau: qacc[ao + d] for each dof; into the workspace
+    IA and pA of each body (I^A, p^A: its subtree's, before its own joints are eliminated), pivots D, U, u and
+    acc. Returns the first dof whose pivot is not positive beyond PIVOT_RTOL of its scale, or -1 (a float; with
+    lanes, rbody.engine.simd.LanePointer, one per lane); its qacc is NaN.
+
+    The inward sweep is a chain of dependent steps from the leaves to the root: eliminating a degree of freedom
+    needs its pivot D = S . Ia S, hence the articulated inertia Ia left by the previous elimination, Ia - U U^T / D,
+    hence that elimination's division. Two things keep the chain short. Each elimination's rank-one update is
+    left pending: the next one forms Ia S = A S - U (U . S) / D from the inertia A without it, which was ready one
+    step earlier, and applies the update (to all 21 numbers) meanwhile. And a body's articulated inertia and
+    bias force stay in local variables, handed in them to the next body when that is the parent (a body's first
+    child, in the tree's depth-first order; every body of a chain); other parents gather theirs in the workspace.
+    Every sum of six products is added as a balanced tree."""
     nb = int(p[H_BODIES])
-    bo, do = int(p[H_BODY]), int(p[H_DOF])
-    g = p[H_GRAVITY]
-    tmp = scratch[0:6]
-    for i in range(nb):
-        mass = p[bo + i * BODY_SIZE + B_MASS]
-        inertia_matrix(mass, h[i], Ibar[i], IA[i])
-        inertia_apply(mass, h[i], Ibar[i], vel[i], tmp)
-        for a in range(6):
-            pA[i, a] = 0.0
-        force_cross(vel[i], tmp, pA[i])
-    bad = -1
+    bo = int(p[H_BODY])
+    do = int(p[H_DOF])
+    # A (upper triangle a..), the bias force P, and the pending elimination (q = U, qinv = 1 / D) live across
+    # bodies when one hands over to its parent (carry); numbers, or lanes (rbody.engine.simd.number)
+    zero = number(w, 0.0)
+    a00 = a01 = a02 = a03 = a04 = a05 = a11 = a12 = a13 = a14 = a15 = a22 = a23 = a24 = a25 = zero
+    a33 = a34 = a35 = a44 = a45 = a55 = P0 = P1 = P2 = P3 = P4 = P5 = zero
+    q0 = q1 = q2 = q3 = q4 = q5 = qinv = zero
+    bad = number(w, -1.0)  # the first dof whose pivot is not positive, or -1
+    carry = False
+    pending = False
     for i in range(nb - 1, -1, -1):
         b = bo + i * BODY_SIZE
-        d0, nd = int(p[b + B_DOF0]), int(p[b + B_NDOF])
-        Ia, pa = IA[i], pA[i]  # articulated inertia: only its upper triangle is kept (it is symmetric)
-        for d in range(d0 + nd - 1, d0 - 1, -1):
-            s = S[d]
-            symmetric_apply(Ia, s, U[d])  # U = Ia S
-            D = dot6(s, U[d]) + p[do + d * DOF_SIZE + D_ARMATURE]
-            pivots[d] = D
-            scale = abs(dot6(s, U[d])) + abs(p[do + d * DOF_SIZE + D_ARMATURE])
-            for a in range(6):
-                scale = max(scale, abs(Ia[a, a]) * (s[a] * s[a]))
-            if not D > PIVOT_RTOL * scale or not D > 0.0:
-                if bad < 0:
-                    bad = d
-                D = np.inf  # keeps the sweep finite; the caller reports the dof
-            u[d] = tau[d] - dot6(s, pa)
-            inv = 1.0 / D
-            for a in range(6):  # Ia -= U U^T / D
-                for c in range(a, 6):
-                    Ia[a, c] -= U[d, a] * U[d, c] * inv
-            # pa += Ia c + U u / D (Ia after the update)
-            symmetric_apply(Ia, bias[d], tmp)
-            for a in range(6):
-                pa[a] += tmp[a] + U[d, a] * u[d] * inv
+        d0 = int(p[b + B_DOF0])
+        nd = int(p[b + B_NDOF])
         parent = int(p[b + B_PARENT])
-        if parent >= 0:
-            for a in range(6):
-                pA[parent, a] += pa[a]
-                for c in range(a, 6):
-                    IA[parent, a, c] += Ia[a, c]
+        e = o.IA + 36 * i
+        f = o.pA + 6 * i
+        if carry:  # the child handed over: add the body's own (and its other children's) inertia and force
+            a00 = a00 + w[e]
+            a01 = a01 + w[e + 1]
+            a02 = a02 + w[e + 2]
+            a03 = a03 + w[e + 3]
+            a04 = a04 + w[e + 4]
+            a05 = a05 + w[e + 5]
+            a11 = a11 + w[e + 7]
+            a12 = a12 + w[e + 8]
+            a13 = a13 + w[e + 9]
+            a14 = a14 + w[e + 10]
+            a15 = a15 + w[e + 11]
+            a22 = a22 + w[e + 14]
+            a23 = a23 + w[e + 15]
+            a24 = a24 + w[e + 16]
+            a25 = a25 + w[e + 17]
+            a33 = a33 + w[e + 21]
+            a34 = a34 + w[e + 22]
+            a35 = a35 + w[e + 23]
+            a44 = a44 + w[e + 28]
+            a45 = a45 + w[e + 29]
+            a55 = a55 + w[e + 35]
+            P0 = P0 + w[f]
+            P1 = P1 + w[f + 1]
+            P2 = P2 + w[f + 2]
+            P3 = P3 + w[f + 3]
+            P4 = P4 + w[f + 4]
+            P5 = P5 + w[f + 5]
+        else:
+            a00 = w[e]
+            a01 = w[e + 1]
+            a02 = w[e + 2]
+            a03 = w[e + 3]
+            a04 = w[e + 4]
+            a05 = w[e + 5]
+            a11 = w[e + 7]
+            a12 = w[e + 8]
+            a13 = w[e + 9]
+            a14 = w[e + 10]
+            a15 = w[e + 11]
+            a22 = w[e + 14]
+            a23 = w[e + 15]
+            a24 = w[e + 16]
+            a25 = w[e + 17]
+            a33 = w[e + 21]
+            a34 = w[e + 22]
+            a35 = w[e + 23]
+            a44 = w[e + 28]
+            a45 = w[e + 29]
+            a55 = w[e + 35]
+            P0 = w[f]
+            P1 = w[f + 1]
+            P2 = w[f + 2]
+            P3 = w[f + 3]
+            P4 = w[f + 4]
+            P5 = w[f + 5]
+            pending = False
+        w[f] = P0
+        w[f + 1] = P1
+        w[f + 2] = P2
+        w[f + 3] = P3
+        w[f + 4] = P4
+        w[f + 5] = P5
+        stored = False
+        for d in range(d0 + nd - 1, d0 - 2, -1):
+            s = o.S + 6 * d
+            if d >= d0:  # Y = A S with A before the pending elimination
+                s0 = w[s]
+                s1 = w[s + 1]
+                s2 = w[s + 2]
+                s3 = w[s + 3]
+                s4 = w[s + 4]
+                s5 = w[s + 5]
+                Y0 = ((a00 * s0 + a01 * s1) + (a02 * s2 + a03 * s3)) + (a04 * s4 + a05 * s5)
+                Y1 = ((a01 * s0 + a11 * s1) + (a12 * s2 + a13 * s3)) + (a14 * s4 + a15 * s5)
+                Y2 = ((a02 * s0 + a12 * s1) + (a22 * s2 + a23 * s3)) + (a24 * s4 + a25 * s5)
+                Y3 = ((a03 * s0 + a13 * s1) + (a23 * s2 + a33 * s3)) + (a34 * s4 + a35 * s5)
+                Y4 = ((a04 * s0 + a14 * s1) + (a24 * s2 + a34 * s3)) + (a44 * s4 + a45 * s5)
+                Y5 = ((a05 * s0 + a15 * s1) + (a25 * s2 + a35 * s3)) + (a45 * s4 + a55 * s5)
+                sU = ((s0 * Y0 + s1 * Y1) + (s2 * Y2 + s3 * Y3)) + (s4 * Y4 + s5 * Y5)
+            if pending:  # apply it: A -= q q^T / D_q
+                g0 = q0 * qinv
+                g1 = q1 * qinv
+                g2 = q2 * qinv
+                g3 = q3 * qinv
+                g4 = q4 * qinv
+                g5 = q5 * qinv
+                a00 = a00 - g0 * q0
+                a01 = a01 - g0 * q1
+                a02 = a02 - g0 * q2
+                a03 = a03 - g0 * q3
+                a04 = a04 - g0 * q4
+                a05 = a05 - g0 * q5
+                a11 = a11 - g1 * q1
+                a12 = a12 - g1 * q2
+                a13 = a13 - g1 * q3
+                a14 = a14 - g1 * q4
+                a15 = a15 - g1 * q5
+                a22 = a22 - g2 * q2
+                a23 = a23 - g2 * q3
+                a24 = a24 - g2 * q4
+                a25 = a25 - g2 * q5
+                a33 = a33 - g3 * q3
+                a34 = a34 - g3 * q4
+                a35 = a35 - g3 * q5
+                a44 = a44 - g4 * q4
+                a45 = a45 - g4 * q5
+                a55 = a55 - g5 * q5
+            if not stored:  # I^A of the body: its children's eliminations applied, none of its own
+                w[e] = a00
+                w[e + 1] = a01
+                w[e + 2] = a02
+                w[e + 3] = a03
+                w[e + 4] = a04
+                w[e + 5] = a05
+                w[e + 7] = a11
+                w[e + 8] = a12
+                w[e + 9] = a13
+                w[e + 10] = a14
+                w[e + 11] = a15
+                w[e + 14] = a22
+                w[e + 15] = a23
+                w[e + 16] = a24
+                w[e + 17] = a25
+                w[e + 21] = a33
+                w[e + 22] = a34
+                w[e + 23] = a35
+                w[e + 28] = a44
+                w[e + 29] = a45
+                w[e + 35] = a55
+                stored = True
+            if d < d0:
+                pending = False
+                break
+            # U = Ia S: Y less the pending elimination's part, q (q . S) / D_q
+            U0 = Y0
+            U1 = Y1
+            U2 = Y2
+            U3 = Y3
+            U4 = Y4
+            U5 = Y5
+            if pending:
+                k = ((q0 * s0 + q1 * s1) + (q2 * s2 + q3 * s3)) + (q4 * s4 + q5 * s5)
+                t = k * qinv
+                U0 = Y0 - q0 * t
+                U1 = Y1 - q1 * t
+                U2 = Y2 - q2 * t
+                U3 = Y3 - q3 * t
+                U4 = Y4 - q4 * t
+                U5 = Y5 - q5 * t
+                sU = sU - k * t
+            armature = p[do + d * DOF_SIZE + D_ARMATURE]
+            D = sU + armature
+            w[o.pivots + d] = D
+            # the pivot's scale: |S . Ia S| + armature + sum_a Ia[a, a] S_a^2 (the diagonal of Ia is not negative).
+            # Each term in kg m^2 for a rotation, kg for a translation: a body of tiny moments and finite mass
+            # (rotational entries 1e-12 of the translational ones) keeps its rotations' pivots on their own scale
+            # (a scale of trace(Ia) |S|^2 would add its mass to its moments and refuse it; tests/rbody/engine/
+            # test_precision.py)
+            scale = (abs(sU) + armature) + ((a00 * (s0 * s0) + a11 * (s1 * s1)) + (a22 * (s2 * s2) + a33 * (s3 * s3))
+                                            + (a44 * (s4 * s4) + a55 * (s5 * s5)))
+            good = positive_beyond(D, PIVOT_RTOL * scale)
+            bad = choose(good, bad, choose(positive_beyond(-bad, 0.0), float(d), bad))
+            D = choose(good, D, np.inf)  # inf keeps the sweep finite; the caller reports the dof
+            ud = w[o.tau + d] - (((s0 * P0 + s1 * P1) + (s2 * P2 + s3 * P3)) + (s4 * P4 + s5 * P5))
+            w[o.u + d] = ud
+            g = o.U + 6 * d
+            w[g] = U0
+            w[g + 1] = U1
+            w[g + 2] = U2
+            w[g + 3] = U3
+            w[g + 4] = U4
+            w[g + 5] = U5
+            inv = 1.0 / D
+            # pa += Ia' c + U u / D with Ia' = Ia - U U^T / D: Ia c + U (u - U . c) / D
+            c = o.bias + 6 * d
+            k0 = w[c]
+            k1 = w[c + 1]
+            k2 = w[c + 2]
+            k3 = w[c + 3]
+            k4 = w[c + 4]
+            k5 = w[c + 5]
+            r = (ud - (((U0 * k0 + U1 * k1) + (U2 * k2 + U3 * k3)) + (U4 * k4 + U5 * k5))) * inv
+            P0 += ((a00 * k0 + a01 * k1) + (a02 * k2 + a03 * k3)) + (a04 * k4 + a05 * k5) + U0 * r
+            P1 += ((a01 * k0 + a11 * k1) + (a12 * k2 + a13 * k3)) + (a14 * k4 + a15 * k5) + U1 * r
+            P2 += ((a02 * k0 + a12 * k1) + (a22 * k2 + a23 * k3)) + (a24 * k4 + a25 * k5) + U2 * r
+            P3 += ((a03 * k0 + a13 * k1) + (a23 * k2 + a33 * k3)) + (a34 * k4 + a35 * k5) + U3 * r
+            P4 += ((a04 * k0 + a14 * k1) + (a24 * k2 + a34 * k3)) + (a44 * k4 + a45 * k5) + U4 * r
+            P5 += ((a05 * k0 + a15 * k1) + (a25 * k2 + a35 * k3)) + (a45 * k4 + a55 * k5) + U5 * r
+            pending = True
+            q0 = U0
+            q1 = U1
+            q2 = U2
+            q3 = U3
+            q4 = U4
+            q5 = U5
+            qinv = inv
+        carry = parent >= 0 and parent == i - 1  # hand over in local variables, the last elimination pending
+        if parent >= 0 and not carry:  # the parent gathers the body's Ia and pa in the workspace
+            if pending:
+                g0 = q0 * qinv
+                g1 = q1 * qinv
+                g2 = q2 * qinv
+                g3 = q3 * qinv
+                g4 = q4 * qinv
+                g5 = q5 * qinv
+                a00 = a00 - g0 * q0
+                a01 = a01 - g0 * q1
+                a02 = a02 - g0 * q2
+                a03 = a03 - g0 * q3
+                a04 = a04 - g0 * q4
+                a05 = a05 - g0 * q5
+                a11 = a11 - g1 * q1
+                a12 = a12 - g1 * q2
+                a13 = a13 - g1 * q3
+                a14 = a14 - g1 * q4
+                a15 = a15 - g1 * q5
+                a22 = a22 - g2 * q2
+                a23 = a23 - g2 * q3
+                a24 = a24 - g2 * q4
+                a25 = a25 - g2 * q5
+                a33 = a33 - g3 * q3
+                a34 = a34 - g3 * q4
+                a35 = a35 - g3 * q5
+                a44 = a44 - g4 * q4
+                a45 = a45 - g4 * q5
+                a55 = a55 - g5 * q5
+            e = o.IA + 36 * parent
+            w[e] += a00
+            w[e + 1] += a01
+            w[e + 2] += a02
+            w[e + 3] += a03
+            w[e + 4] += a04
+            w[e + 5] += a05
+            w[e + 7] += a11
+            w[e + 8] += a12
+            w[e + 9] += a13
+            w[e + 10] += a14
+            w[e + 11] += a15
+            w[e + 14] += a22
+            w[e + 15] += a23
+            w[e + 16] += a24
+            w[e + 17] += a25
+            w[e + 21] += a33
+            w[e + 22] += a34
+            w[e + 23] += a35
+            w[e + 28] += a44
+            w[e + 29] += a45
+            w[e + 35] += a55
+            f = o.pA + 6 * parent
+            w[f] += P0
+            w[f + 1] += P1
+            w[f + 2] += P2
+            w[f + 3] += P3
+            w[f + 4] += P4
+            w[f + 5] += P5
+    g = p[H_GRAVITY]
     for i in range(nb):
         b = bo + i * BODY_SIZE
         parent = int(p[b + B_PARENT])
-        for a in range(6):
-            acc[i, a] = acc[parent, a] if parent >= 0 else 0.0
-        if parent < 0:
-            acc[i, 5] = g  # gravity: the world accelerates upwards
-        d0, nd = int(p[b + B_DOF0]), int(p[b + B_NDOF])
+        if parent >= 0:
+            e = o.acc + 6 * parent
+            x0 = w[e]
+            x1 = w[e + 1]
+            x2 = w[e + 2]
+            x3 = w[e + 3]
+            x4 = w[e + 4]
+            x5 = w[e + 5]
+        else:  # gravity: the world accelerates upwards
+            x0 = zero
+            x1 = zero
+            x2 = zero
+            x3 = zero
+            x4 = zero
+            x5 = number(w, g)
+        d0 = int(p[b + B_DOF0])
+        nd = int(p[b + B_NDOF])
         for d in range(d0, d0 + nd):
-            for a in range(6):
-                acc[i, a] += bias[d, a]
-            qacc[d] = (u[d] - dot6(U[d], acc[i])) / pivots[d] if d != bad else np.nan
-            for a in range(6):
-                acc[i, a] += S[d, a] * qacc[d]
+            c = o.bias + 6 * d
+            x0 = x0 + w[c]
+            x1 = x1 + w[c + 1]
+            x2 = x2 + w[c + 2]
+            x3 = x3 + w[c + 3]
+            x4 = x4 + w[c + 4]
+            x5 = x5 + w[c + 5]
+            e = o.U + 6 * d
+            inv = 1.0 / w[o.pivots + d]  # ready long before it is needed, unlike a division at the end
+            qdd = (w[o.u + d] - (((w[e] * x0 + w[e + 1] * x1) + (w[e + 2] * x2 + w[e + 3] * x3))
+                                 + (w[e + 4] * x4 + w[e + 5] * x5))) * inv
+            qdd = choose(equals(bad, float(d)), np.nan, qdd)
+            qacc[ao + d] = qdd
+            s = o.S + 6 * d
+            x0 = x0 + w[s] * qdd
+            x1 = x1 + w[s + 1] * qdd
+            x2 = x2 + w[s + 2] * qdd
+            x3 = x3 + w[s + 3] * qdd
+            x4 = x4 + w[s + 4] * qdd
+            x5 = x5 + w[s + 5] * qdd
+        e = o.acc + 6 * i
+        w[e] = x0
+        w[e + 1] = x1
+        w[e + 2] = x2
+        w[e + 3] = x3
+        w[e + 4] = x4
+        w[e + 5] = x5
     return bad
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FMA, error_model="numpy")  # 1 / D without a zero check: D is checked, and set to inf when bad
+def articulated_body(p, w, qacc):
+    """ABA: qacc (nv,) from the generalised forces in the workspace's tau (nv,) (applied + passive), after
+    kinematics, motion_subspaces, velocities and world_inertias; the workspace's pivots (nv,) get the D of every
+    degree of freedom (armature included). Returns the first dof whose pivot is not positive beyond PIVOT_RTOL
+    of its scale, or -1."""
+    o = _offsets(p)
+    pp, ww = address(p, 0), address(w, 0)
+    for i in range(int(p[H_BODIES])):
+        b = int(p[H_BODY]) + i * BODY_SIZE
+        h, ib = o.h + 3 * i, o.Ibar + 9 * i
+        _articulated_start(ww, o, i, p[b + B_MASS], w[h], w[h + 1], w[h + 2], w[ib], w[ib + 1], w[ib + 2],
+                           w[ib + 4], w[ib + 5], w[ib + 8])
+    return int(_sweeps(pp, ww, o, address(qacc, 0), AT_START))
+
+
+@njit(cache=True, fastmath=FMA, error_model="numpy")
 def forward_one(p, q, v, tau, qacc, pivots, w):
     """qacc (nv,) = M^-1 (tau + passive - bias) at one state, w the workspace; returns the first singular dof
     or -1 (pivots (nv,) the ABA's D)."""
-    _frames(p, q, v, w)
-    ws = _views(p, w)
+    o = _offsets(p)
     nv = int(p[H_DOFS])
-    passive(p, q, v, ws.tau)
+    pp, qq, vv, ww = address(p, 0), address(q, 0), address(v, 0), address(w, 0)
+    _outward(pp, qq, AT_START, vv, AT_START, ww, o)
+    _passive(pp, qq, 0, vv, 0, ww, o.tau)
     for d in range(nv):
-        ws.tau[d] += tau[d]
-    bad = articulated_body(p, w, qacc)
+        w[o.tau + d] += tau[d]
+    bad = int(_sweeps(pp, ww, o, address(qacc, 0), AT_START))
     for d in range(nv):
-        pivots[d] = ws.pivots[d]
+        pivots[d] = w[o.pivots + d]
     return bad
 
 
@@ -564,12 +1152,15 @@ def mass_matrix_one(p, q, out, w):
 
 @njit(cache=True)
 def energies_one(p, q, v, w):
-    """(kinetic, potential) [J]: sum 1/2 v_i . I_i v_i; sum m g z_com + 1/2 stiffness (q - springref)^2."""
+    """(kinetic, potential) [J]: sum 1/2 v_i . I_i v_i + sum 1/2 armature_d qvel_d^2 (the rotors armature stands
+    for: 1/2 qvel' M qvel with M MuJoCo's qM, which the dynamics integrate); sum m g z_com + 1/2 stiffness
+    (q - springref)^2."""
     _frames(p, q, v, w)
     ws = _views(p, w)
     vel, h, Ibar, scratch = ws.vel, ws.h, ws.Ibar, ws.scratch
     nb, nj = int(p[H_BODIES]), int(p[H_JOINTS])
     bo, jo = int(p[H_BODY]), int(p[H_JOINT])
+    do, nv = int(p[H_DOF]), int(p[H_DOFS])
     tmp = scratch[0:6]
     kinetic, potential = 0.0, 0.0
     for i in range(nb):
@@ -577,6 +1168,8 @@ def energies_one(p, q, v, w):
         inertia_apply(mass, h[i], Ibar[i], vel[i], tmp)
         kinetic += 0.5 * dot6(vel[i], tmp)
         potential += p[H_GRAVITY] * (h[i, 2] + mass * ws.xorigin[i, 2])  # m g z_com, z in the world
+    for d in range(nv):
+        kinetic += 0.5 * p[do + d * DOF_SIZE + D_ARMATURE] * v[d] * v[d]
     for j in range(nj):
         r = jo + j * JOINT_SIZE
         x = q[int(p[r + J_QADR])] - p[r + J_SPRINGREF]
@@ -609,45 +1202,56 @@ def body_states_one(p, q, v, com, quat, velocity, omega, w):
 
 # ----- the native state of a TreeScene: y = (qpos, qvel, phi) ---------------------------------------------
 
-@njit(cache=True)
-def _effective_qpos(p, y, q, turn):
-    """q (nq,) = qpos with every ball/free quaternion q_n replaced by q_n (x) exp(phi)."""
+@njit(cache=True, inline="always")
+def _effective_qpos(p, y, w, at):
+    """w[at + a] = qpos[a] with every ball/free quaternion q_n replaced by q_n (x) exp(phi), y = (qpos, qvel, phi)."""
     nj, nq, nv = int(p[H_JOINTS]), int(p[H_NQ]), int(p[H_DOFS])
     jo = int(p[H_JOINT])
     for a in range(nq):
-        q[a] = y[a]
+        w[at + a] = y[a]
     for j in range(nj):
         r = jo + j * JOINT_SIZE
         slot = int(p[r + J_ROT])
         if slot < 0:
             continue
         qa = int(p[r + J_QADR]) + (3 if int(p[r + J_KIND]) == FREE else 0)
-        quat_exp(y[nq + nv + 3 * slot:nq + nv + 3 * slot + 3], turn)
-        quat_multiply(y[qa:qa + 4], turn, q[qa:qa + 4])
+        f = nq + nv + 3 * slot
+        f0, f1, f2 = y[f], y[f + 1], y[f + 2]
+        angle = np.sqrt(f0 * f0 + f1 * f1 + f2 * f2)  # exp(phi), as quat_exp
+        scale = 0.5 - angle * angle / 48.0 if angle < 1e-4 else np.sin(0.5 * angle) / angle
+        t0, t1, t2, t3 = _qmul(y[qa], y[qa + 1], y[qa + 2], y[qa + 3], np.cos(0.5 * angle), scale * f0, scale * f1,
+                               scale * f2)
+        w[at + qa], w[at + qa + 1], w[at + qa + 2], w[at + qa + 3] = t0, t1, t2, t3
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FMA, error_model="numpy")  # 1 / D without a zero check (articulated_body)
 def tree_rhs(y, p, out):
     """y' for y = (qpos (nq), qvel (nv), phi (3 per ball/free joint)): hinge, slide and free-position
     coordinates move with qvel, quaternion entries stand still within a step, phi' = dexp^-1_phi(omega_body),
     qvel' = forward dynamics at the turned quaternions. A singular mass matrix gives NaN (the run fails)."""
-    nq, nv = int(p[H_NQ]), int(p[H_DOFS])
+    nq = int(p[H_NQ])
     size = workspace_size(p)
     # the workspace on this function's stack (no allocation per evaluation), on the heap for huge trees
     w = carray(stack_floats(size), size) if size <= STACK_FLOATS else np.empty(size)
-    ws = _views(p, w)
-    q = ws.q
-    _effective_qpos(p, y, q, ws.scratch[SCRATCH - 4:])
-    _frames(p, q, y[nq:nq + nv], w)
-    passive(p, q, y[nq:nq + nv], ws.tau)
-    articulated_body(p, w, out[nq:nq + nv])
-    coordinate_rates(p, y, out)
+    o = _offsets(p)
+    pp, yy, ww = address(p, 0), address(y, 0), address(w, 0)
+    if int(p[H_ROT]) > 0:
+        _effective_qpos(pp, yy, ww, o.q)
+        q, qo = ww, o.q
+    else:
+        q, qo = yy, 0
+    _outward(pp, q, qo, yy, nq, ww, o)
+    _passive(pp, q, qo, yy, nq, ww, o.tau)
+    _sweeps(pp, ww, o, address(out, 0), nq)
+    _coordinate_rates(pp, yy, address(out, 0))
+    keep_alive(w)  # the workspace was read through ww only: on the heap, it must outlive the passes
 
 
-@njit(cache=True)
-def coordinate_rates(p, y, out):
-    """The qpos and phi parts of y' (tree_rhs): hinge, slide, roll and free-position coordinates move with qvel,
-    quaternion entries stand still within a step, phi' = dexp^-1_phi(omega_body)."""
+@njit(cache=True, inline="always")
+def _coordinate_rates(p, y, out):
+    """The qpos and phi parts of y' (tree_rhs), y and out read and written by index (arrays or pointers): hinge,
+    slide, roll and free-position coordinates move with qvel, quaternion entries stand still within a step,
+    phi' = dexp^-1_phi(omega_body). Entries of y and out past phi are not touched."""
     nj, nq, nv = int(p[H_JOINTS]), int(p[H_NQ]), int(p[H_DOFS])
     jo = int(p[H_JOINT])
     for j in range(nj):
@@ -659,14 +1263,53 @@ def coordinate_rates(p, y, out):
             continue
         base = qa
         if kind == FREE:
-            for a in range(3):
-                out[qa + a] = y[nq + da + a]
+            out[qa], out[qa + 1], out[qa + 2] = y[nq + da], y[nq + da + 1], y[nq + da + 2]
             base, da = qa + 3, da + 3
-        for a in range(4):
-            out[base + a] = 0.0
-        slot = int(p[r + J_ROT])
-        at = nq + nv + 3 * slot
-        dexp_inverse(y[at:at + 3], y[nq + da:nq + da + 3], out[at:at + 3])
+        out[base], out[base + 1], out[base + 2], out[base + 3] = 0.0, 0.0, 0.0, 0.0
+        at = nq + nv + 3 * int(p[r + J_ROT])
+        out[at], out[at + 1], out[at + 2] = dexp_inverse3(y[at], y[at + 1], y[at + 2], y[nq + da], y[nq + da + 1],
+                                                          y[nq + da + 2])
+
+
+@njit(cache=True, fastmath=FMA)
+def coordinate_rates(p, y, out):
+    """The qpos and phi parts of y' (y, out (n,) with n >= nq + nv + 3 nrot), as tree_rhs forms them (the same
+    code, so a caller that forms qvel' its own way, e.g. the constraint layer, moves the coordinates as tree_rhs
+    does): hinge, slide, roll and free-position coordinates move with qvel, quaternion entries stand still within a
+    step, phi' = dexp^-1_phi(omega_body). out's qvel part and entries past phi are not touched."""
+    _coordinate_rates(address(p, 0), address(y, 0), address(out, 0))
+
+
+# Trees without ball or free joints in lanes: WIDTH states side by side (rbody.engine.simd), each lane with
+# tree_rhs's bits.
+LANES = WIDTH
+
+
+@njit(cache=True, fastmath=FMA, error_model="numpy")  # 1 / D without a zero check (articulated_body)
+def tree_rhs_lanes(y, p, out):
+    """tree_rhs for LANES states side by side of a tree without ball or free joints (runs_in_lanes): y and out
+    (2 nv LANES,) structures of arrays (entry k of state l at k LANES + l). The same compiled passes as tree_rhs,
+    over rbody.engine.simd.LanePointer: each lane does tree_rhs's operations, and gets its bits."""
+    nj, nq = int(p[H_JOINTS]), int(p[H_NQ])
+    jo = int(p[H_JOINT])
+    size = workspace_size(p) * LANES
+    heap = np.empty(size if size > STACK_FLOATS else 1)  # huge trees: the workspace on the heap
+    w = lane_pointer(stack_floats(size) if size <= STACK_FLOATS else address(heap, 0))
+    o = _offsets(p)
+    pp, yy, oo = address(p, 0), lane_pointer(address(y, 0)), lane_pointer(address(out, 0))
+    _outward(pp, yy, AT_START, yy, nq, w, o)
+    _passive(pp, yy, AT_START, yy, nq, w, o.tau)
+    _sweeps(pp, w, o, oo, nq)
+    for j in range(nj):
+        r = jo + j * JOINT_SIZE
+        oo[int(pp[r + J_QADR])] = yy[nq + int(pp[r + J_DADR])]
+    keep_alive(heap)  # read through w only: on the heap, it must outlive the passes
+
+
+def runs_in_lanes(multibody) -> bool:
+    """Whether tree_rhs_lanes runs the tree: no ball or free joint (their rotation vectors phi and the step's
+    finish, tree_finish, are not written for lanes)."""
+    return multibody.nrot == 0
 
 
 @njit(cache=True)
@@ -691,30 +1334,79 @@ def tree_finish(y, p):
             y[at + a] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, fastmath=FMA, error_model="numpy")  # 1 / D without a zero check (articulated_body)
 def tree_accel(q, p, out):
     """q'' = a(q) for trees whose mass matrix is constant and forces depend on q only (no ball or free joint:
     nq = nv): forward dynamics at zero velocity."""
     nv = int(p[H_DOFS])
     size = workspace_size(p)
     w = carray(stack_floats(size), size) if size <= STACK_FLOATS else np.empty(size)
-    ws = _views(p, w)
-    zero = ws.zero
+    o = _offsets(p)
+    pp, qq, ww = address(p, 0), address(q, 0), address(w, 0)
     for d in range(nv):
-        zero[d] = 0.0
-    _frames(p, q, zero, w)
-    passive(p, q, zero, ws.tau)
-    articulated_body(p, w, out)
+        w[o.zero + d] = 0.0
+    _outward(pp, qq, AT_START, ww, o.zero, ww, o)
+    _passive(pp, qq, 0, ww, o.zero, ww, o.tau)
+    _sweeps(pp, ww, o, address(out, 0), AT_START)
+    keep_alive(w)  # the passes read the workspace through ww only
+
+
+# ----- the kernels as C function pointers, kept in numba's disk cache (rbody.engine.pointers) --------------
+
+def _tree_rhs_pointer():
+    @cfunc(pointers.RHS_SIGNATURE, cache=True)
+    def tree_rhs_c(y, p, out, n, m):
+        tree_rhs(carray(y, n), carray(p, m), carray(out, n))
+    return tree_rhs_c
+
+
+def _tree_accel_pointer():
+    @cfunc(pointers.RHS_SIGNATURE, cache=True)
+    def tree_accel_c(q, p, out, n, m):
+        tree_accel(carray(q, n), carray(p, m), carray(out, n))
+    return tree_accel_c
+
+
+def _tree_finish_pointer():
+    @cfunc(pointers.FINISH_SIGNATURE, cache=True)
+    def tree_finish_c(y, p, n, m):
+        tree_finish(carray(y, n), carray(p, m))
+    return tree_finish_c
+
+
+def _tree_rhs_lanes_pointer():
+    @cfunc(pointers.RHS_SIGNATURE, cache=True)
+    def tree_rhs_lanes_c(y, p, out, n, m):
+        tree_rhs_lanes(carray(y, n * LANES), carray(p, m), carray(out, n * LANES))
+    return tree_rhs_lanes_c
+
+
+pointers.register(tree_rhs, "rhs", _tree_rhs_pointer)
+pointers.register(tree_rhs_lanes, "lanes", _tree_rhs_lanes_pointer)
+pointers.register(tree_accel, "rhs", _tree_accel_pointer)
+pointers.register(tree_finish, "finish", _tree_finish_pointer)
 
 
 # ----- batches: one compiled loop per algorithm -----------------------------------------------------------
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def _forward_batch(p, Q, V, T, out, pivots):
-    bad = np.full(Q.shape[0], -1, dtype=np.int64)
+    """forward_one over rows of Q, V, T (C arrays), written out here: the two compiled passes it calls are the ones
+    tree_rhs calls, so that a new model's first run compiles no other copy of them."""
+    count, nq, nv = Q.shape[0], int(p[H_NQ]), int(p[H_DOFS])
+    bad = np.empty(count, dtype=np.int64)
     w = np.empty(workspace_size(p))
-    for b in range(Q.shape[0]):
-        bad[b] = forward_one(p, Q[b], V[b], T[b], out[b], pivots[b], w)
+    o = _offsets(p)
+    pp, ww, qq, vv, tt, aa, pv = address(p, 0), address(w, 0), data(Q), data(V), data(T), data(out), data(pivots)
+    for b in range(count):
+        _outward(pp, qq, b * nq, vv, b * nv, ww, o)
+        _passive(pp, qq, b * nq, vv, b * nv, ww, o.tau)
+        for d in range(nv):
+            ww[o.tau + d] += tt[b * nv + d]
+        bad[b] = int(_sweeps(pp, ww, o, aa, b * nv))
+        for d in range(nv):
+            pv[b * nv + d] = ww[o.pivots + d]
+    keep_alive(w)  # read through ww only: it must outlive the loop
     return bad
 
 
@@ -901,6 +1593,10 @@ def build_tree(layout, gravity: float) -> tuple[TreeArrays, np.ndarray, np.ndarr
                 dof_body[d], dof_joint[d] = i, j
             j += 1
         last_dof[body.name] = parent_dof
+    TREE_HEADER.check(row, 0, 1)
+    BODY.check(row, body_offset_, nb)
+    JOINT.check(row, joint_offset, nj)
+    DOF.check(row, dof_offset, nv)
     row.setflags(write=False)
     arrays = TreeArrays(names=tuple(b.name for b in order), joint_names=tuple(jt.name for jt in joints),
                         joint_kinds=tuple(jt.kind for jt in joints), row=row, nq=nq, nv=nv, nrot=nrot,

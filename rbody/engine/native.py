@@ -45,6 +45,10 @@ class NativeModel:
     # finish(y, p): compiled, run after every whole step of euler, rk4 and gauss6 and at every sample of
     # reference (a tree folds its rotation vectors into its quaternions: rbody.engine.multibody); None: nothing.
     finish: Any = None
+    # rhs_lanes(y, p, out): rhs over rbody.engine.simd.WIDTH states side by side (y, out structures of arrays: entry k
+    # of state l at k * WIDTH + l), each state's result with the bits rhs gives it; the rk4 loop steps a batch whose
+    # parameter rows are all one this way (rbody.engine.integrators.bind_rk4). None: rhs only.
+    rhs_lanes: Any = None
     # How the stability check (rbody.engine.stability) finds the fastest rate w [1/s] of the linearised motion of each
     # batch element, so that it never asks which scene it has:
     #   rate: fastest(method name) -> (B,) w, the scene's own estimate where it knows its motion (a pendulum's

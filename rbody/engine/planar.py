@@ -59,31 +59,59 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import carray, njit
+from numba import carray, cfunc, njit
 
 from rbody.engine import multibody as mb
-from rbody.engine.memory import stack_floats
+from rbody.engine import pointers
+from rbody.engine.memory import address, stack_floats
+from rbody.engine.schema import FLOAT, INT, Record
+from rbody.engine.simd import (WIDTH, greater, lane, lanes, largest_abs, load, maximum, sin_cos as sin_cos_lanes, splat,
+                               store, where)
+from rbody.engine.spatial import REDUCED_RANGE, sin_cos
 
 PLANAR_HINGE, PLANAR_SLIDE, PLANAR_ROLL = 0, 1, 2
 PLANAR_KINDS = {mb.HINGE: PLANAR_HINGE, mb.SLIDE: PLANAR_SLIDE, mb.ROLL: PLANAR_ROLL}  # the 3-D engine's codes
 PARALLEL_TOL = 1e-12  # |a x n| of a hinge axis, |d . n| of a slide direction: beyond this, not planar
 PIVOT_RTOL = mb.PIVOT_RTOL
 
-# Header of the planar row: nodes (= nq = nv), in-plane gravity as an upward acceleration of the world.
-P_NODES, P_GX, P_GY = range(3)
-HEADER = 3
-# Node record: parent node (-1 world), kind, sign s of the axis along n, point (2) (hinge and roll: anchor;
-# slide: unit direction) at the reference pose, ref, stiffness, springref, damping, armature, mass,
-# com (2) at the reference pose, I_n about the com, roll radius, roll line (2) at the reference pose.
+# The planar row (rbody.engine.schema): a header, then one record per node (degree of freedom).
+PLANAR_HEADER = Record("planar header", [
+    ("nodes", 1, INT, "nodes (= nq = nv)"),
+    ("gravity", 2, FLOAT, "in-plane gravity as an upward acceleration of the world [m/s^2]"),
+])
+P_NODES, P_GX = PLANAR_HEADER.offsets()
+P_GY = P_GX + 1
+HEADER = PLANAR_HEADER.size
+NODE = Record("planar node", [
+    ("parent", 1, INT, "parent node (-1: the world)"),
+    ("kind", 1, INT, "PLANAR_HINGE, PLANAR_SLIDE or PLANAR_ROLL"),
+    ("sign", 1, FLOAT, "sign s of the axis along the plane's normal n"),
+    ("point", 2, FLOAT, "hinge and roll: anchor [m]; slide: unit direction (reference pose)"),
+    ("ref", 1, FLOAT, "reference coordinate [rad | m]"),
+    ("stiffness", 1, FLOAT, "[N m/rad | N/m]"),
+    ("springref", 1, FLOAT, "[rad | m]"),
+    ("damping", 1, FLOAT, "[N m s/rad | N s/m]"),
+    ("armature", 1, FLOAT, "[kg m^2 | kg]"),
+    ("mass", 1, FLOAT, "mass the node carries [kg]"),
+    ("com", 2, FLOAT, "its centre of mass at the reference pose [m]"),
+    ("moment", 1, FLOAT, "I_n about that centre [kg m^2]"),
+    ("radius", 1, FLOAT, "roll radius [m]"),
+    ("line", 2, FLOAT, "roll line at the reference pose"),
+])
 (N_PARENT, N_KIND, N_SIGN, N_POINT, N_REF, N_STIFF, N_SPRINGREF, N_DAMPING, N_ARMATURE, N_MASS, N_COM, N_MOMENT,
- N_RADIUS, N_LINE) = (0, 1, 2, 3, 5, 6, 7, 8, 9, 10, 11, 13, 14, 15)
-NODE_SIZE = 17
-# Workspace of a node (one evaluation): cos, sin, angle of G; t of G (2); S (3); v (3); c (3) the velocity
-# product; articulated inertia (6: 00 01 02 11 12 22); articulated bias force (3); U = I S (3); 1/D; u;
-# acceleration (3); applied generalised force.
-(W_COS, W_SIN, W_ANGLE, W_T, W_S, W_V, W_C, W_I, W_P, W_U, W_DINV, W_SMALL_U, W_A, W_TAU) = (
-    0, 1, 2, 3, 5, 8, 11, 14, 20, 23, 26, 27, 28, 31)
-WORK = 32
+ N_RADIUS, N_LINE) = NODE.offsets()
+NODE_SIZE = NODE.size
+# Workspace of a node (one evaluation).
+NODE_WORK = Record("planar node workspace", [
+    ("cos", 1, FLOAT, "cos of the node's absolute angle"), ("sin", 1, FLOAT, "its sine"),
+    ("angle", 1, FLOAT, "the absolute angle of its frame G [rad]"), ("t", 2, FLOAT, "the origin of G [m]"),
+    ("S", 3, FLOAT, "motion subspace"), ("v", 3, FLOAT, "velocity"), ("c", 3, FLOAT, "velocity product"),
+    ("inertia", 6, FLOAT, "articulated inertia (00 01 02 11 12 22)"), ("bias", 3, FLOAT, "articulated bias force"),
+    ("U", 3, FLOAT, "U = I S"), ("dinv", 1, FLOAT, "1/D"), ("u", 1, FLOAT, "u"), ("acc", 3, FLOAT, "acceleration"),
+    ("tau", 1, FLOAT, "applied generalised force"),
+])
+(W_COS, W_SIN, W_ANGLE, W_T, W_S, W_V, W_C, W_I, W_P, W_U, W_DINV, W_SMALL_U, W_A, W_TAU) = NODE_WORK.offsets()
+WORK = NODE_WORK.size
 
 
 # ----- the algorithms ----------------------------------------------------------------------------------
@@ -141,7 +169,10 @@ def _articulated(p, y, v0, out, a0, w, applied, outward_only=False):
                 ax = cp * px - sp * py + tx
                 ay = sp * px + cp * py + ty
             angle += sign * x
-            c, s_ = np.cos(angle), np.sin(angle)
+            if abs(angle) < REDUCED_RANGE:  # a polynomial, no call (rbody.engine.spatial.sin_cos)
+                s_, c = sin_cos(angle)
+            else:
+                c, s_ = np.cos(angle), np.sin(angle)
             tx = ax - (c * px - s_ * py)
             ty = ay - (s_ * px + c * py)
             sw, sx, sy = sign, sign * ay, -sign * ax
@@ -247,21 +278,249 @@ def _articulated(p, y, v0, out, a0, w, applied, outward_only=False):
     return bad
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def planar_rhs(y, p, out):
     """y' = (qvel, qacc) for y = (qpos (n), qvel (n)) of a planar tree; p its planar row. A singular mass
-    matrix gives NaN (the run fails)."""
+    matrix gives NaN (the run fails). Every array is read through a raw pointer (rbody.engine.memory.address):
+    numba's indexing would check each index for a negative value."""
     n = int(p[P_NODES])
-    w = carray(stack_floats(n * WORK), n * WORK)
-    _articulated(p, y, n, out, n, w, False)
+    _articulated(address(p, 0), address(y, 0), n, address(out, 0), n, stack_floats(n * WORK), False)
 
 
-@njit(cache=True)
+@njit(cache=True, error_model="numpy")
 def planar_accel(q, p, out):
     """q'' = a(q) (the tree at rest at q: the symplectic methods, where TreeScene.symplectic_applies)."""
     n = int(p[P_NODES])
-    w = carray(stack_floats(n * WORK), n * WORK)
-    _articulated(p, q, -1, out, 0, w, False)
+    _articulated(address(p, 0), address(q, 0), -1, address(out, 0), 0, stack_floats(n * WORK), False)
+
+
+# ----- the same algorithm on LANES states side by side -------------------------------------------------------
+# A batch of one tree (one planar row) is stepped LANES elements at a time: their states held as structure of
+# arrays (Y[k * LANES + l] is entry k of element l), every quantity of the algorithm one vector of LANES numbers
+# (rbody.engine.simd), so that one instruction advances all of them. Each lane does exactly the operations of
+# _articulated on one element (plain IEEE arithmetic in both, no fused multiply-add): a batch stepped in lanes
+# has the bits of its elements stepped one by one (tests/rbody/engine/test_planar.py checks it).
+
+LANES = WIDTH
+
+
+@njit(cache=True, inline="always")
+def _lane_sin_cos(angle):
+    """(sin, cos) of every lane as _articulated forms them: the polynomial, or np.sin and np.cos beyond its range."""
+    if largest_abs(angle) < REDUCED_RANGE:
+        return sin_cos_lanes(angle)
+    s = [0.0] * LANES
+    c = [0.0] * LANES
+    for l in range(LANES):
+        x = lane(angle, l)
+        if abs(x) < REDUCED_RANGE:
+            s[l], c[l] = sin_cos(x)
+        else:
+            c[l], s[l] = np.cos(x), np.sin(x)
+    return lanes(s[0], s[1], s[2], s[3], s[4], s[5], s[6], s[7]), lanes(c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7])
+
+
+@njit(cache=True, inline="always")
+def _articulated_lanes(p, y, v0, out, a0, w):
+    """_articulated (no applied forces, not outward_only) for LANES states: y, out structures of arrays (entry k of
+    lane l at k * LANES + l), w the workspace (quantity q of node d at (d * WORK + q) * LANES); qvel from
+    y[v0 * LANES:], v0 < 0 at rest; a0 > 0 copies qvel into out first. A lane whose pivot is not positive gets NaN
+    at its first such node, as _articulated gives it."""
+    n = int(p[P_NODES])
+    L = LANES
+    zero = splat(0.0)
+    for d in range(n):
+        r = HEADER + d * NODE_SIZE
+        k = d * WORK * L
+        parent = int(p[r + N_PARENT])
+        if parent >= 0:
+            o = parent * WORK * L
+            angle, cp, sp = load(w, o + W_ANGLE * L), load(w, o + W_COS * L), load(w, o + W_SIN * L)
+            tx, ty = load(w, o + W_T * L), load(w, o + (W_T + 1) * L)
+            vw, vx, vy = load(w, o + W_V * L), load(w, o + (W_V + 1) * L), load(w, o + (W_V + 2) * L)
+        else:
+            angle, cp, sp, tx, ty, vw, vx, vy = zero, splat(1.0), zero, zero, zero, zero, zero, zero
+        x = load(y, d * L) - p[r + N_REF]
+        qd = load(y, (v0 + d) * L) if v0 >= 0 else zero
+        if a0 > 0:
+            store(out, d * L, qd)
+        kind = int(p[r + N_KIND])
+        px, py = p[r + N_POINT], p[r + N_POINT + 1]
+        extra_x, extra_y = zero, zero
+        radius, lx, ly = 0.0, zero, zero
+        if kind == PLANAR_SLIDE:
+            sw = 0.0
+            sx = cp * px - sp * py
+            sy = sp * px + cp * py
+            tx = tx + sx * x
+            ty = ty + sy * x
+            c, s_ = cp, sp
+        else:
+            sign = p[r + N_SIGN]
+            if kind == PLANAR_ROLL:
+                radius = p[r + N_RADIUS]
+                lx = cp * p[r + N_LINE] - sp * p[r + N_LINE + 1]
+                ly = sp * p[r + N_LINE] + cp * p[r + N_LINE + 1]
+                ax = cp * px - sp * py + tx + radius * x * lx
+                ay = sp * px + cp * py + ty + radius * x * ly
+            else:
+                ax = cp * px - sp * py + tx
+                ay = sp * px + cp * py + ty
+            angle = angle + sign * x
+            s_, c = _lane_sin_cos(angle)
+            tx = ax - (c * px - s_ * py)
+            ty = ay - (s_ * px + c * py)
+            sw, sx, sy = sign, sign * ay, -sign * ax
+            if kind == PLANAR_ROLL:
+                sx = sx + radius * lx
+                sy = sy + radius * ly
+                extra_x, extra_y = sign * radius * ly * qd * qd, -sign * radius * lx * qd * qd
+        store(w, k + W_ANGLE * L, angle)
+        store(w, k + W_COS * L, c)
+        store(w, k + W_SIN * L, s_)
+        store(w, k + W_T * L, tx)
+        store(w, k + (W_T + 1) * L, ty)
+        store(w, k + W_S * L, splat(sw))
+        store(w, k + (W_S + 1) * L, sx)
+        store(w, k + (W_S + 2) * L, sy)
+        store(w, k + W_C * L, zero)
+        store(w, k + (W_C + 1) * L, (sw * vy - vw * sy) * qd + extra_x)
+        store(w, k + (W_C + 2) * L, (vw * sx - sw * vx) * qd + extra_y)
+        vw = vw + sw * qd
+        vx = vx + sx * qd
+        vy = vy + sy * qd
+        store(w, k + W_V * L, vw)
+        store(w, k + (W_V + 1) * L, vx)
+        store(w, k + (W_V + 2) * L, vy)
+        m = p[r + N_MASS]
+        cx0, cy0 = p[r + N_COM], p[r + N_COM + 1]
+        comx = c * cx0 - s_ * cy0 + tx
+        comy = s_ * cx0 + c * cy0 + ty
+        hx, hy = m * comx, m * comy
+        inertia = p[r + N_MOMENT] + hx * comx + hy * comy
+        store(w, k + W_I * L, inertia)
+        store(w, k + (W_I + 1) * L, -hy)
+        store(w, k + (W_I + 2) * L, hx)
+        store(w, k + (W_I + 3) * L, splat(m))
+        store(w, k + (W_I + 4) * L, zero)
+        store(w, k + (W_I + 5) * L, splat(m))
+        fx = m * vx - hy * vw
+        fy = m * vy + hx * vw
+        store(w, k + W_P * L, vx * fy - vy * fx)
+        store(w, k + (W_P + 1) * L, -vw * fy)
+        store(w, k + (W_P + 2) * L, vw * fx)
+    bad = splat(-1.0)  # each lane's first node (in the inward sweep) whose pivot is not positive, or -1
+    for d in range(n - 1, -1, -1):
+        r = HEADER + d * NODE_SIZE
+        k = d * WORK * L
+        sw, sx, sy = load(w, k + W_S * L), load(w, k + (W_S + 1) * L), load(w, k + (W_S + 2) * L)
+        i00, i01, i02 = load(w, k + W_I * L), load(w, k + (W_I + 1) * L), load(w, k + (W_I + 2) * L)
+        i11, i12, i22 = load(w, k + (W_I + 3) * L), load(w, k + (W_I + 4) * L), load(w, k + (W_I + 5) * L)
+        u0 = i00 * sw + i01 * sx + i02 * sy
+        u1 = i01 * sw + i11 * sx + i12 * sy
+        u2 = i02 * sw + i12 * sx + i22 * sy
+        armature = p[r + N_ARMATURE]
+        sIs = sw * u0 + sx * u1 + sy * u2
+        D = sIs + armature
+        scale = maximum(maximum(maximum(abs(sIs) + armature, abs(i00) * sw * sw), abs(i11) * sx * sx),
+                        abs(i22) * sy * sy)
+        good = greater(D, PIVOT_RTOL * scale) * greater(D, 0.0)
+        bad = where(good, bad, where(greater(zero, bad), float(d), bad))
+        D = where(good, D, np.inf)
+        qd = load(y, (v0 + d) * L) if v0 >= 0 else zero
+        force = -p[r + N_DAMPING] * qd - p[r + N_STIFF] * (load(y, d * L) - p[r + N_SPRINGREF])
+        u = force - (sw * load(w, k + W_P * L) + sx * load(w, k + (W_P + 1) * L) + sy * load(w, k + (W_P + 2) * L))
+        inv = 1.0 / D
+        store(w, k + W_U * L, u0)
+        store(w, k + (W_U + 1) * L, u1)
+        store(w, k + (W_U + 2) * L, u2)
+        store(w, k + W_DINV * L, inv)
+        store(w, k + W_SMALL_U * L, u)
+        parent = int(p[r + N_PARENT])
+        if parent < 0:
+            continue
+        i00 = i00 - u0 * u0 * inv
+        i01 = i01 - u0 * u1 * inv
+        i02 = i02 - u0 * u2 * inv
+        i11 = i11 - u1 * u1 * inv
+        i12 = i12 - u1 * u2 * inv
+        i22 = i22 - u2 * u2 * inv
+        c0, c1, c2 = load(w, k + W_C * L), load(w, k + (W_C + 1) * L), load(w, k + (W_C + 2) * L)
+        ui = u * inv
+        o = parent * WORK * L
+        store(w, o + W_P * L, load(w, o + W_P * L) + (load(w, k + W_P * L) + i00 * c0 + i01 * c1 + i02 * c2 + u0 * ui))
+        store(w, o + (W_P + 1) * L, load(w, o + (W_P + 1) * L) + (load(w, k + (W_P + 1) * L) + i01 * c0 + i11 * c1
+                                                                  + i12 * c2 + u1 * ui))
+        store(w, o + (W_P + 2) * L, load(w, o + (W_P + 2) * L) + (load(w, k + (W_P + 2) * L) + i02 * c0 + i12 * c1
+                                                                  + i22 * c2 + u2 * ui))
+        store(w, o + W_I * L, load(w, o + W_I * L) + i00)
+        store(w, o + (W_I + 1) * L, load(w, o + (W_I + 1) * L) + i01)
+        store(w, o + (W_I + 2) * L, load(w, o + (W_I + 2) * L) + i02)
+        store(w, o + (W_I + 3) * L, load(w, o + (W_I + 3) * L) + i11)
+        store(w, o + (W_I + 4) * L, load(w, o + (W_I + 4) * L) + i12)
+        store(w, o + (W_I + 5) * L, load(w, o + (W_I + 5) * L) + i22)
+    for d in range(n):
+        r = HEADER + d * NODE_SIZE
+        k = d * WORK * L
+        parent = int(p[r + N_PARENT])
+        if parent >= 0:
+            o = parent * WORK * L
+            b0, b1, b2 = load(w, o + W_A * L), load(w, o + (W_A + 1) * L), load(w, o + (W_A + 2) * L)
+        else:
+            b0, b1, b2 = zero, splat(p[P_GX]), splat(p[P_GY])
+        b0 = b0 + load(w, k + W_C * L)
+        b1 = b1 + load(w, k + (W_C + 1) * L)
+        b2 = b2 + load(w, k + (W_C + 2) * L)
+        qdd = (load(w, k + W_SMALL_U * L) - (load(w, k + W_U * L) * b0 + load(w, k + (W_U + 1) * L) * b1
+                                              + load(w, k + (W_U + 2) * L) * b2)) * load(w, k + W_DINV * L)
+        qdd = where(greater(bad, float(d) - 0.5) * greater(float(d) + 0.5, bad), np.nan, qdd)
+        store(out, (a0 + d) * L, qdd)
+        store(w, k + W_A * L, b0 + load(w, k + W_S * L) * qdd)
+        store(w, k + (W_A + 1) * L, b1 + load(w, k + (W_S + 1) * L) * qdd)
+        store(w, k + (W_A + 2) * L, b2 + load(w, k + (W_S + 2) * L) * qdd)
+
+
+@njit(cache=True, error_model="numpy")
+def planar_rhs_lanes(y, p, out):
+    """planar_rhs for LANES states side by side: y and out (2 n LANES,) structures of arrays (entry k of lane l at
+    k * LANES + l), p the planar row (one tree for every lane)."""
+    n = int(p[P_NODES])
+    _articulated_lanes(address(p, 0), address(y, 0), n, address(out, 0), n, stack_floats(n * WORK * LANES))
+
+
+@njit(cache=True, error_model="numpy")
+def planar_accel_lanes(q, p, out):
+    """planar_accel for LANES states side by side (q, out (n LANES,) structures of arrays)."""
+    n = int(p[P_NODES])
+    _articulated_lanes(address(p, 0), address(q, 0), -1, address(out, 0), 0, stack_floats(n * WORK * LANES))
+
+
+# ----- the kernels as C function pointers, kept in numba's disk cache (rbody.engine.pointers) --------------
+
+def _rhs_pointer():
+    @cfunc(pointers.RHS_SIGNATURE, cache=True)
+    def planar_rhs_c(y, p, out, n, m):
+        planar_rhs(carray(y, n), carray(p, m), carray(out, n))
+    return planar_rhs_c
+
+
+def _accel_pointer():
+    @cfunc(pointers.RHS_SIGNATURE, cache=True)
+    def planar_accel_c(q, p, out, n, m):
+        planar_accel(carray(q, n), carray(p, m), carray(out, n))
+    return planar_accel_c
+
+
+def _rhs_lanes_pointer():
+    @cfunc(pointers.RHS_SIGNATURE, cache=True)
+    def planar_rhs_lanes_c(y, p, out, n, m):
+        planar_rhs_lanes(carray(y, n * LANES), carray(p, m), carray(out, n * LANES))
+    return planar_rhs_lanes_c
+
+
+pointers.register(planar_rhs, "rhs", _rhs_pointer)
+pointers.register(planar_accel, "rhs", _accel_pointer)
+pointers.register(planar_rhs_lanes, "lanes", _rhs_lanes_pointer)
 
 
 @njit(cache=True)
@@ -524,6 +783,8 @@ def planar_structure(multibody: mb.Multibody) -> tuple[PlanarModel | None, str]:
         planar[n_ + N_MASS] = mass
         planar[n_ + N_COM:n_ + N_COM + 2] = com
         planar[n_ + N_MOMENT] = moment
+    PLANAR_HEADER.check(planar, 0, 1)
+    NODE.check(planar, HEADER, nv)
     planar.setflags(write=False)
     return PlanarModel(row=planar, normal=normal, basis=basis, nv=nv, multibody=multibody), ""
 

@@ -128,7 +128,8 @@ def jacobian_rate(rhs, y: np.ndarray, params: np.ndarray) -> np.ndarray:
     for start in range(0, batch, block):
         stop = min(batch, start + block)
         jacobians = np.empty((stop - start, n, n))
-        _jacobians(pointer, y[start:stop], params[start:stop], JACOBIAN_STEP, jacobians)
+        loop = _jacobians_serial if stop - start <= JACOBIAN_CHUNK else _jacobians  # one chunk: no threads to wake
+        loop(pointer, y[start:stop], params[start:stop], JACOBIAN_STEP, jacobians)
         finite = np.all(np.isfinite(jacobians), axis=(1, 2))
         rates[start:stop] = np.inf  # a Jacobian that is not finite: no step is safe
         if np.any(finite):
@@ -244,6 +245,11 @@ def _jacobians(rhs_address, y, params, relative, out):
                 state[0, j] = y[b, j]
                 for i in range(n):
                     out[b, i, j] = (plus[0, i] - minus[0, i]) / (2.0 * step)
+
+
+# The same loop without threads (prange runs as range), for a batch of one chunk: compiled in a fraction of the
+# parallel loop's time, which a model's first run pays (integrators._serial_twin: its own cache entry).
+_jacobians_serial = integrators._serial_twin(_jacobians)
 
 
 # ----- the limit and the check --------------------------------------------------------------------

@@ -29,7 +29,7 @@ from rbody.engine.actuation import actuator_forces, clip, tendon_kinematics, tra
 from rbody.engine.elements import (A_ACTADR, A_ACTLIM, A_ACTRANGE, A_DISABLED, ACT_SIZE, T_HIGH, T_LOW, TEN_SIZE,
                                    X_ACT, X_ACTGC, X_CTRL, X_JNTLIM, X_NA, X_NSCHED, X_NTEN, X_NU, X_SCHED, X_STEP,
                                    X_TEN, build_elements, extension_start, has_elements)
-from rbody.engine.memory import address, stack_floats
+from rbody.engine.memory import address, keep_alive, stack_floats
 from rbody.engine.fluid import fluid_forces
 from rbody.engine.passive import gravity_compensation, tendon_passive
 
@@ -123,6 +123,7 @@ def add_element_forces(p, q, v, act, tau):
     ws = mb._views(p, w)
     for d in range(tau.shape[0]):
         tau[d] += ws.tau[d]
+    keep_alive(w)  # read through views only: the workspace must outlive them
 
 
 @njit(cache=True)
@@ -137,6 +138,7 @@ def actuator_rates(p, q, v, act, out):
         adr = int(p[r + A_ACTADR])
         if adr >= 0:
             out[adr] = 0.0 if p[r + A_DISABLED] != 0.0 else fw.act_dot[adr]
+    keep_alive(w)
 
 
 @njit(cache=True, inline="always")
@@ -156,7 +158,7 @@ def system_rhs(y, p, out):
     w = carray(stack_floats(size), size) if size <= mb.STACK_FLOATS else np.empty(size)
     ws = mb._views(p, w)
     q = ws.q
-    mb._effective_qpos(p, y, q, ws.scratch[mb.SCRATCH - 4:])
+    mb._effective_qpos(p, y, w, mb._offsets(p).q)  # q: the workspace's qpos, quaternions turned by phi
     v = y[nq:nq + nv]
     a0 = act_offset(p)
     act = y[a0:a0 + na]
@@ -173,6 +175,7 @@ def system_rhs(y, p, out):
             out[a0 + adr] = 0.0 if p[r + A_DISABLED] != 0.0 else fw.act_dot[adr]
     for j in range(a0 + na, out.shape[0]):
         out[j] = 0.0
+    keep_alive(w)  # on the heap for huge trees, read through views only: it must outlive them
 
 
 @njit(cache=True)
@@ -235,6 +238,7 @@ def _actuation_batch(p, Q, V, C, A, qfrc, force, act_dot, length, velocity, ctrl
         qfrc[b] = fw.qfrc
         force[b], act_dot[b], length[b], velocity[b], ctrl[b] = fw.force, fw.act_dot, fw.length, fw.velocity, fw.ctrl
         moment[b] = fw.moment
+    keep_alive(w)
 
 
 @njit(cache=True)
@@ -256,6 +260,7 @@ def _passive_batch(p, Q, V, out):
             if p[actgc + d] == 0.0:
                 ws.tau[d] += fw.gravcomp[d]
         out[b] = ws.tau
+    keep_alive(w)
 
 
 @njit(cache=True)
@@ -267,6 +272,7 @@ def _tendon_batch(p, Q, V, length, velocity, J):
         fw = _force_views(p, w, tree)
         tendon_kinematics(p, Q[b], V[b], w, fw.ten_length, fw.ten_velocity, fw.ten_J)
         length[b], velocity[b], J[b] = fw.ten_length, fw.ten_velocity, fw.ten_J
+    keep_alive(w)
 
 
 @njit(cache=True)
@@ -289,6 +295,7 @@ def _forward_batch(p, Q, V, T, C, A, out, act_dot):
             ws.tau[d] += T[b, d]
         bad[b] = mb.articulated_body(row, w, out[b])
         act_dot[b] = _force_views(row, w, tree).act_dot
+    keep_alive(w)
     return bad
 
 

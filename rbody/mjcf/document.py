@@ -7,11 +7,12 @@ import codecs
 import os
 import re
 import xml.parsers.expat
-from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from rbody.source import SourceElement
 
 from rbody.mjcf.grammar import GrammarError, parse_values
 
@@ -35,21 +36,10 @@ def _cut(match: re.Match) -> str:
 
 # ----- the document as elements with their file and line ------------------------------------------------
 
-@dataclass
-class Element:
-    tag: str
-    attrib: dict
-    file: str
-    line: int
-    children: list = field(default_factory=list)
+class Element(SourceElement):
+    """An element of an MJCF file (rbody.source.SourceElement) whose errors are MJCFErrors."""
 
-    def where(self) -> str:
-        name = self.attrib.get("name")
-        label = f"<{self.tag} name={name!r}>" if name else f"<{self.tag}>"
-        return f"{self.file}, line {self.line}, {label}"
-
-    def error(self, message: str) -> MJCFError:
-        return MJCFError(f"{self.where()}: {message}")
+    ERROR = MJCFError
 
 
 # MuJoCo's XML parser (tinyxml2) stops at TINYXML2_MAX_ELEMENT_DEPTH = 500 levels of parsing: measured on MuJoCo,

@@ -38,7 +38,7 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
-from numba import njit
+from numba import carray, cfunc, njit
 from scipy.special import ellipkm1, elliprf
 
 from rbody.elliptic import jacobi
@@ -46,6 +46,7 @@ from rbody.checks import finite_array, positive, representable, scene_arguments
 from rbody.inertia import Inertia, AxisLike, unit_axis
 from rbody.motion import quat_from_matrix
 from rbody.layout import Body, Joint, Layout, Shape
+from rbody.engine import pointers
 from rbody.engine.native import NativeModel
 from rbody.poses import observed
 from rbody.scene import Scene
@@ -62,6 +63,26 @@ def pendulum_rhs(y, p, out):
 @njit(cache=True)
 def pendulum_accel(q, p, out):
     out[0] = -p[0] * np.sin(q[0])
+
+
+# The two kernels as C function pointers kept in numba's disk cache (rbody.engine.pointers): a warm start compiles
+# no wrapper.
+def _rhs_pointer():
+    @cfunc(pointers.RHS_SIGNATURE, cache=True)
+    def pendulum_rhs_c(y, p, out, n, m):
+        pendulum_rhs(carray(y, n), carray(p, m), carray(out, n))
+    return pendulum_rhs_c
+
+
+def _accel_pointer():
+    @cfunc(pointers.RHS_SIGNATURE, cache=True)
+    def pendulum_accel_c(q, p, out, n, m):
+        pendulum_accel(carray(q, n), carray(p, m), carray(out, n))
+    return pendulum_accel_c
+
+
+pointers.register(pendulum_rhs, "rhs", _rhs_pointer)
+pointers.register(pendulum_accel, "rhs", _accel_pointer)
 
 
 # Which kernel native() runs: True, the hand-written pendulum_rhs / pendulum_accel; False, the general engine on

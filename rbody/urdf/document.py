@@ -6,10 +6,11 @@ from __future__ import annotations
 import math
 import os
 import xml.parsers.expat
-from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+
+from rbody.source import SourceElement
 
 
 class URDFError(ValueError):
@@ -17,21 +18,10 @@ class URDFError(ValueError):
     file, the line and the element)."""
 
 
-@dataclass
-class Element:
-    tag: str
-    attrib: dict
-    file: str
-    line: int
-    children: list = field(default_factory=list)
+class Element(SourceElement):
+    """An element of a URDF file (rbody.source.SourceElement) whose errors are URDFErrors."""
 
-    def where(self) -> str:
-        name = self.attrib.get("name")
-        label = f"<{self.tag} name={name!r}>" if name else f"<{self.tag}>"
-        return f"{self.file}, line {self.line}, {label}"
-
-    def error(self, message: str) -> URDFError:
-        return URDFError(f"{self.where()}: {message}")
+    ERROR = URDFError
 
     def all(self, tag: str) -> list["Element"]:
         return [child for child in self.children if child.tag == tag]

@@ -26,11 +26,12 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from rbody.engine.multibody import (D_DAMPING, DOF_SIZE, FREE, H_BODIES, H_DOF, H_DOFS, H_JOINT, H_JOINTS, H_NQ, H_ROT, HINGE, J_DADR, J_KIND, J_QADR,
-                                    J_ROT, JOINT_SIZE, ROLL, SLIDE, _effective_qpos, inverse_one, mass_matrix_one,
-                                    passive, tree_finish, workspace_size)
+from rbody.engine.multibody import (D_DAMPING, DOF_SIZE, FREE, H_BODIES, H_DOF, H_DOFS, H_JOINT, H_JOINTS, H_NQ,
+                                    H_ROT, HINGE, J_DADR, J_KIND, J_QADR, JOINT_SIZE, ROLL, SLIDE, _effective_qpos,
+                                    coordinate_rates, inverse_one, mass_matrix_one, passive, tree_finish,
+                                    workspace_size)
+from rbody.engine.spatial import quat_exp, quat_multiply
 from rbody.engine.elements import X_ACTIVE, X_NA, extension_start
-from rbody.engine.spatial import dexp_inverse, quat_exp, quat_multiply
 from rbody.engine.system import actuator_rates, add_element_forces, clamp_activations
 from rbody.engine.constraints.jacobians import (all_rows, bias_accelerations, some_rows, mode_at, row_count, unit_at,
                                                 unit_count)
@@ -305,12 +306,10 @@ def constrained_rhs(y, p, out):
     (mode_accel), act' the actuators' activation dynamics (rbody.engine.system.actuator_rates), and dissipated' the
     power the sliding friction and the dampers take (not the actuators' or the fluid's work: with those, energy +
     dissipated is not constant)."""
-    nj, nq, nv = int(p[H_JOINTS]), int(p[H_NQ]), int(p[H_DOFS])
-    jo = int(p[H_JOINT])
+    nq, nv = int(p[H_NQ]), int(p[H_DOFS])
     n = y.shape[0]
     q = np.empty(nq)
-    turn = np.empty(4)
-    _effective_qpos(p, y, q, turn)
+    _effective_qpos(p, y, q, 0)
     rows = row_count(p)
     lam = np.empty(rows)
     g = np.zeros(rows)
@@ -318,22 +317,7 @@ def constrained_rhs(y, p, out):
     mode_accel(p, q, y[nq:nq + nv], y[a0:a0 + na], out[nq:nq + nv], lam, g, False)
     if na:  # the actuators' activations (rbody.engine.system)
         actuator_rates(p, q, y[nq:nq + nv], y[a0:a0 + na], out[a0:a0 + na])
-    for j in range(nj):
-        r = jo + j * JOINT_SIZE
-        kind = int(p[r + J_KIND])
-        qa, da = int(p[r + J_QADR]), int(p[r + J_DADR])
-        if kind == HINGE or kind == SLIDE or kind == ROLL:
-            out[qa] = y[nq + da]
-            continue
-        base = qa
-        if kind == FREE:
-            for a in range(3):
-                out[qa + a] = y[nq + da + a]
-            base, da = qa + 3, da + 3
-        for a in range(4):
-            out[base + a] = 0.0
-        at = nq + nv + 3 * int(p[r + J_ROT])
-        dexp_inverse(y[at:at + 3], y[nq + da:nq + da + 3], out[at:at + 3])
+    coordinate_rates(p, y, out)  # qpos' and phi' as the tree's right-hand side forms them
     out[n - 1] = friction_power(p, y[nq:nq + nv]) + damping_power(p, y[nq:nq + nv])
 
 
@@ -440,8 +424,7 @@ def guards(p, y, out):
     nq, nv, _n = sizes(p)
     rows = row_count(p)
     q = np.empty(nq)
-    turn = np.empty(4)
-    _effective_qpos(p, y, q, turn)
+    _effective_qpos(p, y, q, 0)
     lam = np.empty(rows)
     g = np.empty(rows)
     qacc = np.empty(nv)
@@ -470,8 +453,7 @@ def state_rows(p, y, M, f, J, jdot, g):
     """snapshot at the state y (phi folded in): M, f (passive - bias, sliding friction of the mode included), rows."""
     nq, nv, _n = sizes(p)
     q = np.empty(nq)
-    turn = np.empty(4)
-    _effective_qpos(p, y, q, turn)
+    _effective_qpos(p, y, q, 0)
     w = np.empty(workspace_size(p))
     acc = np.empty((int(p[H_BODIES]), 6))
     a0, na = act_range(p)

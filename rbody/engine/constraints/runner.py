@@ -33,13 +33,13 @@ def sample_rows(table: ConstraintTable, params: np.ndarray, samples: np.ndarray,
     forces = np.empty((samples.shape[0], table.rows))
     errors = np.empty((samples.shape[0], table.rows))
     qacc = np.empty(nv)
-    turn, q = np.empty(4), np.empty(nq)
+    q = np.empty(nq)
     codes = np.array([unit.code for unit in table.units for _ in range(unit.rows)])
     from rbody.engine.multibody import _effective_qpos
 
     for s in range(samples.shape[0]):
         p[table.mode_slice()] = modes[s]
-        _effective_qpos(p, samples[s], q, turn)
+        _effective_qpos(p, samples[s], q, 0)
         dyn.mode_accel(p, q, samples[s, nq:nq + nv], samples[s, a0:a0 + na], qacc, forces[s], errors[s])
     limits = np.isin(codes, UNILATERAL)
     errors[:, limits] = np.minimum(errors[:, limits], 0.0)

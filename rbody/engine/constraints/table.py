@@ -33,6 +33,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rbody.engine.schema import FLOAT, INT, Record
 from rbody.layout import JOINTS, WORLD, Layout
 
 LOWER, UPPER, CONE, FRICTION, CONNECT, WELD, COUPLING = range(7)
@@ -42,15 +43,38 @@ KIND_NAMES = {LOWER: "limit", UPPER: "limit", CONE: "limit", FRICTION: "friction
 UNILATERAL = (LOWER, UPPER, CONE)
 EQUALITY_KINDS = (CONNECT, WELD, COUPLING)
 
-# Header of the block: units, rows, the offset of the unit records, of the mode (absolute, in the params row).
-C_UNITS, C_ROWS, C_UNIT, C_MODE = range(4)
-C_HEADER = 4
-# Unit record: kind, rows, first row, dof, qpos address, bound (lo, hi, theta_max or frictionloss), restitution,
-# body1, body2 (-1: world), anchor1 (3), anchor2 (3), relquat (4), dof2, qpos address 2 (-1: none), ref1, ref2,
-# polycoef (5).
+# The constraint block appended to the tree's row (rbody.engine.schema): a header of absolute offsets, one
+# record per unit, then the mode of every unit.
+CONSTRAINT_HEADER = Record("constraint header", [
+    ("units", 1, INT, "constraint units"),
+    ("rows", 1, INT, "constraint rows"),
+    ("unit", 1, INT, "where the unit records start (absolute)"),
+    ("mode", 1, INT, "where the modes start (absolute)"),
+])
+C_UNITS, C_ROWS, C_UNIT, C_MODE = CONSTRAINT_HEADER.offsets()
+C_HEADER = CONSTRAINT_HEADER.size
+UNIT = Record("constraint unit", [
+    ("kind", 1, INT, "LOWER, UPPER, CONE, FRICTION, CONNECT, WELD or COUPLING"),
+    ("rows", 1, INT, "its rows"),
+    ("row0", 1, INT, "its first row among all rows"),
+    ("dof", 1, INT, "its degree of freedom (limits, friction, joint coupling)"),
+    ("qadr", 1, INT, "its qpos address"),
+    ("bound", 1, FLOAT, "lower or upper limit, a cone's largest angle [rad | m], or frictionloss [N m | N]"),
+    ("restitution", 1, FLOAT, "Newton's coefficient at an impact"),
+    ("body1", 1, INT, "first body (-1: the world)"),
+    ("body2", 1, INT, "second body (-1: the world)"),
+    ("anchor1", 3, FLOAT, "anchor in body1's frame [m]"),
+    ("anchor2", 3, FLOAT, "anchor in body2's frame [m]"),
+    ("relquat", 4, FLOAT, "a weld's relative orientation"),
+    ("dof2", 1, INT, "a coupling's second dof (-1: none)"),
+    ("qadr2", 1, INT, "its qpos address (-1: none)"),
+    ("ref1", 1, FLOAT, "reference coordinate of the first joint"),
+    ("ref2", 1, FLOAT, "of the second"),
+    ("polycoef", 5, FLOAT, "a joint coupling's polynomial"),
+])
 (U_KIND, U_ROWS, U_ROW0, U_DOF, U_QADR, U_BOUND, U_RESTITUTION, U_BODY1, U_BODY2, U_A1, U_A2, U_QUAT, U_DOF2,
- U_QADR2, U_REF1, U_REF2, U_POLY) = (0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 12, 15, 19, 20, 21, 22, 23)
-UNIT_SIZE = 28
+ U_QADR2, U_REF1, U_REF2, U_POLY) = UNIT.offsets()
+UNIT_SIZE = UNIT.size
 
 
 @dataclass(frozen=True)
@@ -278,6 +302,8 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
     block[C_HEADER:C_HEADER + UNIT_SIZE * count] = np.concatenate(records)
     mode0 = np.array([1.0 if unit.code in EQUALITY_KINDS else 0.0 for unit in units])
     block[C_HEADER + UNIT_SIZE * count:] = mode0
+    CONSTRAINT_HEADER.check(block, 0, 1)
+    UNIT.check(block, C_HEADER, count)
     block.setflags(write=False)
     mode0.setflags(write=False)
     return ConstraintTable(units=tuple(units), block=block, offset=offset, mode0=mode0, equalities=tuple(resolved),

@@ -74,3 +74,40 @@ def test_a_thousand_body_tree_costs_a_few_dozen_evaluations_and_little_memory(mo
 def test_a_big_tree_runs_a_few_steps():
     run = simulate(ball_tree(300), dt=1e-3, t_end=5e-3, method="rk4")
     assert run["qpos"].shape == (6, 1200) and np.all(np.isfinite(run["qpos"]))
+
+
+def test_kernels_whose_workspace_is_on_the_heap_keep_it_while_they_work():
+    """1,000 hinges: a workspace of about 1 MB, beyond the stack's (multibody.STACK_FLOATS) and malloc's mmap threshold,
+    allocated by the kernel itself and read through raw pointers. Before, numba freed it after the pointer was
+    taken (memory.keep_alive): building the tree's Multibody (its pivot check) and tree_rhs crashed the process.
+    Each kernel is checked against another that shares its passes: tree_rhs's accelerations against
+    forward_dynamics, bit for bit (the same compiled passes); tree_accel against tree_rhs at rest; each lane of
+    tree_rhs_lanes against tree_rhs."""
+    from rbody.engine import multibody as mb
+
+    scene = ball_tree(1000, kind="hinge")
+    model = scene.multibody
+    p = np.array(model.params)
+    assert mb.workspace_size(p) > mb.STACK_FLOATS and mb.workspace_size(p) * 8 > 128 * 1024  # glibc's first threshold
+    assert mb.runs_in_lanes(model)
+    rng = np.random.default_rng(3)
+    lanes = mb.LANES
+    y = np.zeros((lanes, model.nq + model.nv))
+    y[:, :model.nq] = rng.uniform(-0.3, 0.3, (lanes, model.nq))
+    y[:, model.nq:] = rng.uniform(-1.0, 1.0, (lanes, model.nv))
+    rates = np.empty_like(y)
+    for lane in range(lanes):
+        mb.tree_rhs(np.array(y[lane]), p, rates[lane])
+    assert np.all(np.isfinite(rates))
+    np.testing.assert_array_equal(rates[:, model.nq:], model.forward_dynamics(y[:, :model.nq], y[:, model.nq:]))
+    np.testing.assert_array_equal(rates[:, :model.nq], y[:, model.nq:])
+    at_rest = np.empty(model.nv)
+    mb.tree_accel(np.array(y[0, :model.nq]), p, at_rest)
+    still = np.array(y[0])
+    still[model.nq:] = 0.0
+    expected = np.empty_like(still)
+    mb.tree_rhs(still, p, expected)
+    np.testing.assert_array_equal(at_rest, expected[model.nq:])
+    out = np.full(y.size, np.nan)
+    mb.tree_rhs_lanes(np.ascontiguousarray(y.T).reshape(-1), p, out)
+    np.testing.assert_array_equal(out.reshape(-1, lanes).T, rates)

@@ -307,3 +307,17 @@ def test_a_tree_too_big_for_the_stack_workspace_gives_the_same_right_hand_side()
         np.testing.assert_array_equal(out[:model.nv], v)
         np.testing.assert_allclose(out[model.nv:], model.forward_dynamics(q, v), rtol=0,
                                    atol=1e-12 * np.max(np.abs(out[model.nv:])))
+
+
+def test_energy_counts_the_rotor_armature_stands_for():
+    """A rod (m, length 2l, about its end I = 4/3 m l^2) on a hinge with armature A: (I + A) theta'' = -m g l sin
+    theta, whose energy 1/2 (I + A) theta'^2 - m g l cos theta is the run's `energy` and stays constant."""
+    m, l, armature, g = 1.5, 0.4, 0.3, 9.81
+    rod = Body("rod", Inertia(m, (0.0, 0.0, -l), np.diag([m * l * l / 3, m * l * l / 3, 1e-6])))
+    layout = Layout(bodies=(rod,), joints=(Joint("hinge", "hinge", "rod", axis=(0, 1, 0), armature=armature),))
+    scene = Scene.from_layout(layout, t_end=2.0, qpos0=[1.2], qvel0=[0.5])
+    run = rbody.simulate(scene, dt=1e-3, method="rk4")
+    theta, omega = run["qpos"][:, 0], run["qvel"][:, 0]
+    closed = 0.5 * (4 / 3 * m * l * l + armature) * omega ** 2 - m * g * l * np.cos(theta)
+    assert np.max(np.abs(run["energy"] - closed)) < 1e-12 * m * g * l * 10
+    assert np.ptp(run["energy"]) < 1e-9

@@ -1,0 +1,25 @@
+"""Every record of the engine's params rows (rbody.engine.schema), in the order docs/design.md prints them.
+
+    python -m rbody.engine.records > tables.md     # the tables of docs/design.md, "The model schema"
+"""
+
+from __future__ import annotations
+
+from rbody.engine import multibody, planar
+from rbody.engine.constraints import table
+from rbody.engine.schema import Record
+
+
+def records() -> list[Record]:
+    """The tree's header, body, joint and dof records, the planar row's, the constraint block's."""
+    return [multibody.TREE_HEADER, multibody.BODY, multibody.JOINT, multibody.DOF, planar.PLANAR_HEADER,
+            planar.NODE, planar.NODE_WORK, table.CONSTRAINT_HEADER, table.UNIT]
+
+
+def markdown() -> str:
+    """The tables of every record (docs/design.md, "The model schema")."""
+    return "\n\n".join(record.table() for record in records())
+
+
+if __name__ == "__main__":
+    print(markdown())
