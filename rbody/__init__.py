@@ -7,13 +7,13 @@ centre of mass with products of inertia carrying the minus sign (I_ab = sum m (|
 from rbody.inertia import Inertia
 from rbody.motion import RigidMotion, point_velocity
 from rbody.particles import Particles, reduced_mass, two_body
-from rbody.layout import Body, Contact, Equality, Joint, Layout, Shape
+from rbody.layout import Actuator, Body, Contact, Equality, Joint, Layout, Shape, Tendon
 from rbody.scene import Scene
 from rbody.trajectory import Trajectory
 from rbody.errors import AccuracyWarning, MethodNotApplicable, SimulationError
 from rbody.engine import METHODS, METHOD_ORDER, stability
 from rbody.simulation import PreparedRun, prepare, simulate
-from rbody.engine.multibody import Multibody
+from rbody.engine.system import Multibody
 from rbody.mjcf import from_mjcf, to_mjcf
 from rbody.urdf import from_urdf
 from rbody import scenes
@@ -21,7 +21,7 @@ from rbody.animation import Animation, animate
 
 __all__ = [
     "Inertia", "RigidMotion", "point_velocity", "Particles", "reduced_mass", "two_body",
-    "Body", "Contact", "Equality", "Joint", "Layout", "Scene", "Shape", "Trajectory",
+    "Actuator", "Body", "Contact", "Equality", "Joint", "Layout", "Scene", "Shape", "Tendon", "Trajectory",
     "SimulationError", "MethodNotApplicable", "AccuracyWarning", "METHODS", "METHOD_ORDER", "simulate", "prepare", "PreparedRun", "scenes",
     "to_mjcf", "from_mjcf", "from_urdf", "Multibody", "stability", "animate", "Animation",
 ]

@@ -65,6 +65,8 @@ class Body:
     pos (3,) [m] and quat (4,) place the body frame in the parent's frame in the reference pose,
     where every hinge and slide coordinate is zero (as MJCF's body pos/quat); the joints' qpos0 then
     set the initial state. A free body starts at pos/quat.
+    gravcomp: the fraction of the body's weight that an upward force at its centre of mass cancels (MuJoCo's
+    body gravcomp: 1 floats it; a passive force, or an actuator force on joints with actuatorgravcomp).
     """
 
     name: str
@@ -73,6 +75,7 @@ class Body:
     parent: str = WORLD
     pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
     quat: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+    gravcomp: float = 0.0
 
     def __post_init__(self) -> None:
         """Every field checked at construction (ValueError naming the body and the field), so that a wrong type
@@ -197,6 +200,10 @@ class Joint:
     restitution: Newton's coefficient e in [0, 1] of an impact on the joint's limit: the joint leaves its stop
             at e times the speed it hit it with (0: it stays at the stop, the rigid limit of MuJoCo's critically
             damped limit; 1: elastic).
+    actuatorgravcomp: the gravity compensation of the bodies it moves reaches this joint as an actuator force
+            (MuJoCo's qfrc_actuator, subject to actuatorfrcrange) instead of a passive one.
+    actuatorfrcrange: (low, high) [N or N m] the clamp of the actuators' total generalised force on the joint's
+            (first) degree of freedom (MuJoCo's actuatorfrcrange), or None.
     """
 
     name: str
@@ -216,10 +223,15 @@ class Joint:
     range: tuple[float, float] | None = None
     frictionloss: float = 0.0
     restitution: float = 0.0
+    actuatorgravcomp: bool = False
+    actuatorfrcrange: tuple[float, float] | None = None
 
     def __post_init__(self) -> None:
         _name(self.name, "joint", "name")
         _name(self.body, f"joint {self.name!r}", "body")
+        object.__setattr__(self, "actuatorgravcomp", bool(self.actuatorgravcomp))
+        object.__setattr__(self, "actuatorfrcrange", _range(self.actuatorfrcrange,
+                                                            f"joint {self.name!r}: actuatorfrcrange"))
         if self.kind not in JOINT_KINDS:
             raise ValueError(f"joint {self.name!r}: kind={self.kind!r}, expected one of {JOINT_KINDS}")
         self._check_constraints()
@@ -315,8 +327,8 @@ class Equality:
     kind "joint": qpos[joint1] - ref1 = c0 + c1 d + c2 d^2 + c3 d^3 + c4 d^4, d = qpos[joint2] - ref2, with
             polycoef (c0, ..., c4) [m or rad, then per unit]; joint2 None: qpos[joint1] - ref1 = c0. Hinge,
             slide and roll joints (ref: the joint's ref, MuJoCo's qpos0).
-    kind "tendon": two tendons' lengths by the same polynomial (tendon1, tendon2): rbody models no tendons
-            yet, so compiling one raises NotImplementedError.
+    kind "tendon": two tendons' lengths by the same polynomial (tendon1, tendon2): the constraint layer holds no
+            tendon rows yet, so compiling an active one raises NotImplementedError.
     body2 defaults to the world. active False: the constraint is declared but does nothing (MJCF's active).
     Constraint forces are reported per equality (rbody.engine.constraints): connect 3 rows (force on body1,
     world frame [N]), weld 6 (force [N], then moment [N m], world frame), joint 1 (generalised force on joint1).
@@ -365,18 +377,223 @@ class Equality:
             raise ValueError(f"{what}: joint1 and joint2 are both {self.joint1!r}")
 
 
+TENDON_KINDS = ("fixed", "spatial")
+
+
+@dataclass(frozen=True)
+class Tendon:
+    """A tendon: a length L(q) that springs, dampers and actuators act along (MuJoCo's <tendon>).
+
+    kind:    "fixed": L = sum coef_i q_i over `joints`, ((joint name, coef), ...), hinge and slide joints only
+             (MuJoCo's <fixed>: q itself, not q - ref);
+             "spatial": the length of the straight path through `sites`, ((body name or "world", point (3,) in
+             that body's frame [m]), ...), at least two (MuJoCo's <spatial> with sites only, no wrapping)
+    stiffness [N/m], damping [N s/m]: passive force along the tendon -stiffness x - damping L', x the distance
+             of L outside [springlength[0], springlength[1]] (a dead band; equal ends: a plain spring);
+             springlength None: both ends at the length in the reference pose at the joints' springref
+             (MuJoCo's springlength="-1 -1")
+    Units: L in m for a spatial tendon, in the units of coef * q for a fixed one.
+    """
+
+    name: str
+    kind: str = "fixed"
+    joints: tuple[tuple[str, float], ...] = ()
+    sites: tuple[tuple[str, tuple[float, float, float]], ...] = ()
+    stiffness: float = 0.0
+    damping: float = 0.0
+    springlength: tuple[float, float] | None = None
+
+    def __post_init__(self) -> None:
+        what = f"tendon {self.name!r}"
+        if self.kind not in TENDON_KINDS:
+            raise ValueError(f"{what}: kind={self.kind!r}, expected one of {TENDON_KINDS}")
+        joints = tuple((str(name), float(finite_array(coef, f"{what}: coef of joint {name!r}", shape=())))
+                       for name, coef in self.joints)
+        sites = tuple((str(body), tuple(finite_array(point, f"{what}: site point on {body!r}", shape=(3,)).tolist()))
+                      for body, point in self.sites)
+        object.__setattr__(self, "joints", joints)
+        object.__setattr__(self, "sites", sites)
+        if self.kind == "fixed" and (not joints or sites):
+            raise ValueError(f"{what}: a fixed tendon needs joints=((joint, coef), ...) and no sites")
+        if self.kind == "spatial" and (len(sites) < 2 or joints):
+            raise ValueError(f"{what}: a spatial tendon needs at least two sites=((body, point), ...) and no joints")
+        for name in ("stiffness", "damping"):
+            value = finite_array(getattr(self, name), f"{what}: {name}", shape=())
+            object.__setattr__(self, name, float(nonnegative(value, f"{what}: {name}")))
+        if self.springlength is not None:
+            low, high = finite_array(self.springlength, f"{what}: springlength", shape=(2,)).tolist()
+            if low > high:
+                raise ValueError(f"{what}: springlength={self.springlength!r}: expected (low, high) with low <= high")
+            object.__setattr__(self, "springlength", (low, high))
+
+
+ACTUATOR_DYNAMICS = ("none", "integrator", "filter", "filterexact")
+ACTUATOR_GAINS = ("fixed", "affine")
+ACTUATOR_BIASES = ("none", "affine")
+TRANSMISSIONS = ("joint", "tendon", "site")
+
+
+def _range(value, what: str) -> tuple[float, float] | None:
+    if value is None:
+        return None
+    low, high = finite_array(value, what, shape=(2,)).tolist()
+    if not low <= high:
+        raise ValueError(f"{what}={value!r}: expected (low, high) with low <= high")
+    return (low, high)
+
+
+@dataclass(frozen=True)
+class Actuator:
+    """MuJoCo's general actuator (its XML reference, <general>; engine_forward.c mj_fwdActuation).
+
+    One control u [-] per actuator. The force along the transmission (N or N m) is
+        force = gain * (u, or the activation act where dynamics != "none") + bias,
+        gain  = gainprm[0]                                   ("fixed")
+              = gainprm[0] + gainprm[1] L + gainprm[2] L'    ("affine")
+        bias  = 0 ("none") or biasprm[0] + biasprm[1] L + biasprm[2] L' ("affine"),
+    clamped to forcerange, with u first clamped to ctrlrange. L is the actuator length: gear[0] q for a hinge
+    or slide (q itself, not q - ref), gear . (the rotation vector of the ball's quaternion) for a ball, 0 for a
+    free joint, gear[0] times the tendon length for a tendon, 0 for a site; L' = moment . qvel. The generalised
+    force is moment^T force, the moment being gear[0] (hinge, slide, tendon: times the tendon's coefficients),
+    gear[:3] (ball: body-frame torque), gear (free: world force, then body-frame torque), and for a site
+    (transmission "site": target the body, `site` = (pos (3), quat (4)) the site's frame in it) the wrench of force
+    gear[:3] and torque gear[3:] in the site's axes, applied at the site (MuJoCo's site transmission without refsite).
+    Activation dynamics, act' = u ("integrator"), (u - act) / dynprm ("filter", "filterexact": the same
+    equation; MuJoCo's own integrators advance "filterexact" by its exact solution over a step), clamped to
+    actrange after every step. actearly: the force uses the activation at the end of the step, act + h act'
+    (clamped; MuJoCo's rule), h the run's time step.
+    ctrlrange, forcerange, actrange: (low, high), or None for no limit (MuJoCo's ctrllimited="false").
+    disabled: the actuator applies no force and its activation stays (MuJoCo's <flag actuation="disable"/>
+    and actuatorgroupdisable).
+    """
+
+    name: str
+    target: str
+    transmission: str = "joint"
+    gear: tuple[float, ...] = (1.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+    dynamics: str = "none"
+    dynprm: float = 1.0
+    gain: str = "fixed"
+    gainprm: tuple[float, float, float] = (1.0, 0.0, 0.0)
+    bias: str = "none"
+    biasprm: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    ctrlrange: tuple[float, float] | None = None
+    forcerange: tuple[float, float] | None = None
+    actrange: tuple[float, float] | None = None
+    actearly: bool = False
+    disabled: bool = False
+    site: tuple | None = None
+
+    def __post_init__(self) -> None:
+        what = f"actuator {self.name!r}"
+        if (self.transmission == "site") != (self.site is not None):
+            raise ValueError(f"{what}: a site transmission needs site=(pos (3), quat (4)) in the target body's frame, "
+                             "and only it")
+        if self.site is not None:
+            pos = finite_array(self.site[0], f"{what}: site pos", shape=(3,))
+            quat = finite_array(self.site[1], f"{what}: site quat", shape=(4,))
+            if np.linalg.norm(quat) == 0:
+                raise ValueError(f"{what}: site quat {quat.tolist()} must be non-zero")
+            object.__setattr__(self, "site", (tuple(pos.tolist()), tuple((quat / np.linalg.norm(quat)).tolist())))
+        for field_name, choices in (("transmission", TRANSMISSIONS), ("dynamics", ACTUATOR_DYNAMICS),
+                                    ("gain", ACTUATOR_GAINS), ("bias", ACTUATOR_BIASES)):
+            if getattr(self, field_name) not in choices:
+                raise ValueError(f"{what}: {field_name}={getattr(self, field_name)!r}, expected one of {choices}")
+        gear = finite_array(self.gear, f"{what}: gear", ndim=1)
+        if gear.size > 6 or gear.size == 0:
+            raise ValueError(f"{what}: gear={self.gear!r}: expected 1 to 6 numbers")
+        object.__setattr__(self, "gear", tuple(np.concatenate([gear, np.zeros(6 - gear.size)]).tolist()))
+        for field_name in ("gainprm", "biasprm"):
+            values = finite_array(getattr(self, field_name), f"{what}: {field_name}", ndim=1)
+            if values.size > 3:
+                if np.any(values[3:] != 0):
+                    raise ValueError(f"{what}: {field_name}={getattr(self, field_name)!r}: only the first three "
+                                     "(const, kp, kv) are read by fixed and affine gains and biases")
+                values = values[:3]
+            object.__setattr__(self, field_name, tuple(np.concatenate([values, np.zeros(3 - values.size)]).tolist()))
+        dynprm = float(finite_array(self.dynprm, f"{what}: dynprm (time constant)", shape=()))
+        if self.dynamics in ("filter", "filterexact") and not dynprm >= 0:
+            raise ValueError(f"{what}: dynprm={self.dynprm!r}: a filter's time constant must be >= 0 [s]")
+        object.__setattr__(self, "dynprm", dynprm)
+        for field_name in ("ctrlrange", "forcerange", "actrange"):
+            object.__setattr__(self, field_name, _range(getattr(self, field_name), f"{what}: {field_name}"))
+        object.__setattr__(self, "actearly", bool(self.actearly))
+        object.__setattr__(self, "disabled", bool(self.disabled))
+
+    @property
+    def stateful(self) -> bool:
+        """True when the actuator has an activation state (dynamics other than "none")."""
+        return self.dynamics != "none"
+
+
+FLUID_COEFFICIENTS = (0.5, 0.25, 1.5, 1.0, 1.0)  # MuJoCo's fluidcoef: blunt, slender, angular drag, Kutta, Magnus
+
+
+@dataclass(frozen=True)
+class FluidBox:
+    """A body under MuJoCo's inertia-box fluid model: the box of its mass with its principal moments, axes `axes`
+    (4,) (the quaternion of its principal axes in the body frame, MuJoCo's body_iquat; which axes matter where two
+    moments are equal)."""
+
+    body: str
+    axes: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
+
+
+@dataclass(frozen=True)
+class FluidEllipsoid:
+    """A geom under MuJoCo's ellipsoid fluid model (fluidshape="ellipsoid"): frame pos (3,) [m], quat (4,) in its
+    body's frame; semiaxes (3,) [m]; coefficients (blunt drag, slender drag, angular drag, Kutta lift, Magnus
+    lift) (MJCF's fluidcoef); virtual_mass (3,) [m^3] and virtual_inertia (3,) [m^5] the added-mass factors (times
+    the density), as MuJoCo's compiler forms them from the semiaxes (rbody.mjcf.fluid)."""
+
+    body: str
+    pos: tuple[float, float, float]
+    quat: tuple[float, float, float, float]
+    semiaxes: tuple[float, float, float]
+    virtual_mass: tuple[float, float, float]
+    virtual_inertia: tuple[float, float, float]
+    coefficients: tuple[float, float, float, float, float] = FLUID_COEFFICIENTS
+
+
+@dataclass(frozen=True)
+class Fluid:
+    """MuJoCo's fluid forces (<option density viscosity wind>, engine_passive.c mj_fluid): a passive force on every
+    body of `boxes` (the inertia-box model: linear viscous and quadratic drag forces and torques of the box of its
+    inertia) and every geom of `ellipsoids` (added mass, viscous and quadratic drag, Kutta and Magnus lift).
+    density [kg/m^3], viscosity [Pa s], wind (3,) [m/s] the fluid's velocity (world frame)."""
+
+    density: float = 0.0
+    viscosity: float = 0.0
+    wind: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    boxes: tuple[FluidBox, ...] = ()
+    ellipsoids: tuple[FluidEllipsoid, ...] = ()
+
+    def __post_init__(self) -> None:
+        for name in ("density", "viscosity"):
+            value = finite_array(getattr(self, name), f"fluid {name}", shape=())
+            object.__setattr__(self, name, float(nonnegative(value, f"fluid {name}")))
+        object.__setattr__(self, "wind", tuple(finite_array(self.wind, "fluid wind", shape=(3,)).tolist()))
+
+
 @dataclass(frozen=True)
 class Layout:
     """The physical model of an unbatched scene: what MuJoCo, pymunk and the MJCF exporter build.
 
     equalities: equality constraints (Equality) closing loops and coupling joints; joints carry their own
-    limits and dry friction (Joint.range, Joint.frictionloss). Both default to none, the tree alone."""
+    limits and dry friction (Joint.range, Joint.frictionloss). Both default to none, the tree alone.
+    tendons and actuators: MuJoCo's tendons and general actuators, in MuJoCo's order (the controls u of a run
+    follow the order of `actuators`; the activations that of the actuators with dynamics).
+    fluid: MuJoCo's fluid forces (Fluid), or None.
+    """
 
     bodies: tuple[Body, ...]
     joints: tuple[Joint, ...]
     fixed: tuple[Shape, ...] = ()
     contacts: tuple[Contact, ...] = ()
     equalities: tuple[Equality, ...] = ()
+    tendons: tuple[Tendon, ...] = ()
+    actuators: tuple[Actuator, ...] = ()
+    fluid: Fluid | None = None
 
     @property
     def joint_constraints(self) -> bool:
@@ -393,8 +610,12 @@ class Layout:
 
     def __post_init__(self) -> None:
         """Each field checked to be a tuple (or list) of its kind (ValueError naming the field and the item)."""
-        for field, kind in (("bodies", Body), ("joints", Joint), ("fixed", Shape), ("contacts", Contact)):
+        for field, kind in (("bodies", Body), ("joints", Joint), ("fixed", Shape), ("contacts", Contact),
+                            ("equalities", Equality), ("tendons", Tendon), ("actuators", Actuator)):
             object.__setattr__(self, field, _items(getattr(self, field), kind, f"Layout {field}"))
+        if self.fluid is not None and not isinstance(self.fluid, Fluid):
+            raise ValueError(f"Layout fluid={_short(self.fluid)} is a {type(self.fluid).__name__}: expected an "
+                             "rbody.layout.Fluid or None")
 
 
 # ----- the one tree order ------------------------------------------------------------------------------

@@ -216,20 +216,23 @@ class Scene:
 
     @classmethod
     def from_layout(cls, layout: Layout, *, t_end: float, name: str = "model", qpos0=None, qvel0=None,
-                    gravity: float = 9.81) -> "TreeScene":
+                    gravity: float = 9.81, act0=None, ctrl0=None, timestep: float | None = None) -> "TreeScene":
         """Any Layout (a tree of Body and Joint) as a Scene that simulate runs natively: a TreeScene.
 
         qpos0 (..., nq), qvel0 (..., nv): initial coordinates in MuJoCo's layout (rbody.Multibody), default
-        the joints' qpos0/qvel0; leading axes make a batch. Observables: qpos, qvel, energy, and for every
-        body "<body>.com", "<body>.quat", "<body>.velocity", "<body>.omega" (world frame).
+        the joints' qpos0/qvel0; leading axes make a batch. act0 (..., na), ctrl0 (..., nu): the actuators'
+        initial activations and the control a run holds when given none (default 0); timestep [s]: the model's
+        step (actearly's h outside a run). Observables: qpos, qvel, energy, and for every body "<body>.com",
+        "<body>.quat", "<body>.velocity", "<body>.omega" (world frame); with actuators ctrl, act, actuator_force.
         Raises ValueError (before any work) for a layout that is not a tree rbody can run.
         """
-        return TreeScene(name=name, t_end=t_end, gravity=gravity, tree=layout, qpos0=qpos0, qvel0=qvel0)
+        return TreeScene(name=name, t_end=t_end, gravity=gravity, tree=layout, qpos0=qpos0, qvel0=qvel0, act0=act0,
+                         ctrl0=ctrl0, timestep=timestep)
 
 
 # ----- any tree of bodies and joints, as a scene -------------------------------------------------------
 
-TREE_GENERAL_METHODS = ("rk4", "gauss6", "euler", "reference")
+TREE_GENERAL_METHODS = ("rk4", "gauss6", "euler", "mujoco_euler", "implicitfast", "implicit", "reference")
 TREE_SYMPLECTIC_METHODS = ("verlet", "symplectic_euler", "yoshida6")
 
 
@@ -241,19 +244,28 @@ class TreeScene(Scene):
     qpos0:  (..., nq) initial qpos, MuJoCo's layout, or None (the joints' own qpos0); leading axes: a batch
     qvel0:  (..., nv) initial qvel (free joints: world linear velocity of the body-frame origin, then the
             body-frame angular velocity; ball: body-frame angular velocity), or None (the joints' qvel0)
-    import_notes, timestep, integrator: what an MJCF importer records (no effect on the dynamics)
+    act0:   (..., na) initial activations of the actuators with dynamics (MuJoCo's act), default 0
+    ctrl0:  (..., nu) the control a run holds when simulate is given none (a keyframe's ctrl), default 0
+    import_notes, integrator: what an MJCF importer records (no effect on the dynamics)
+    timestep: the model's time step [s] (MJCF's option timestep), or None; the h that actearly's next activation
+            uses outside a run (rbody.Multibody.actuation); a run uses its own dt
 
     Observables: qpos (T, *batch, nq), qvel (T, *batch, nv), energy (T, *batch) [J] (kinetic + gravity +
     springs), and per body "<body>.com" (T, *batch, 3) [m], "<body>.quat" (T, *batch, 4),
     "<body>.velocity" (T, *batch, 3) [m/s] of the centre of mass, "<body>.omega" (T, *batch, 3) [rad/s],
-    world frame. The native state is (qpos, qvel, phi): each ball or free joint's rotation within a step is
-    q_n (x) exp(phi) (Runge-Kutta-Munthe-Kaas), folded into q_n after every step, so quaternions stay unit
-    by construction and every method keeps its order.
+    world frame; with actuators also ctrl (T, *batch, nu) (the control held through the step that starts at each
+    saved time; at the last, the last step's), actuator_force (T, *batch, nu) [N or N m] (MuJoCo's
+    actuator_force at that state and control) and act (T, *batch, na). The native state is (qpos, qvel, phi[,
+    act]): each ball or free joint's rotation within a step is q_n (x) exp(phi) (Runge-Kutta-Munthe-Kaas),
+    folded into q_n after every step, so quaternions stay unit by construction and every method keeps its
+    order. A tree with tendons or actuators runs on the 3-D path (rbody.engine.system), never the planar one.
     """
 
     tree: Layout
     qpos0: Any = None
     qvel0: Any = None
+    act0: Any = None
+    ctrl0: Any = None
     import_notes: tuple[str, ...] = ()
     timestep: float | None = None
     integrator: str | None = None
@@ -269,6 +281,21 @@ class TreeScene(Scene):
         qpos0, qvel0 = self._checked_state(self.qpos0, self.qvel0, model.qpos0, model.qvel0)
         object.__setattr__(self, "qpos0", qpos0)
         object.__setattr__(self, "qvel0", qvel0)
+        for field_name, size in (("act0", model.na), ("ctrl0", model.nu)):
+            value = getattr(self, field_name)
+            array = np.zeros(size) if value is None else np.array(value, dtype=np.float64)
+            if array.ndim == 0 or array.shape[-1] != size:
+                raise ValueError(f"{field_name} has shape {array.shape}: expected (..., {size}) for this tree "
+                                 f"(na={model.na}, nu={model.nu})")
+            if not np.all(np.isfinite(array)):
+                raise ValueError(f"{field_name} holds NaN or inf: expected finite numbers")
+            array.setflags(write=False)
+            object.__setattr__(self, field_name, array)
+        try:
+            np.broadcast_shapes(*(getattr(self, name).shape[:-1] for name in ("qpos0", "qvel0", "act0", "ctrl0")))
+        except ValueError:
+            raise ValueError(f"qpos0 {self.qpos0.shape}, qvel0 {self.qvel0.shape}, act0 {self.act0.shape} and ctrl0 "
+                             f"{self.ctrl0.shape} do not broadcast to one batch") from None
         _ = self.constraint_table  # validates the limits, friction and equalities (ValueError before any work)
 
     def _checked_state(self, qpos0: Any, qvel0: Any, qpos_default: np.ndarray,
@@ -301,7 +328,8 @@ class TreeScene(Scene):
                                  f"{np.unique(np.round(norms, 12)).tolist()}: expected unit quaternions")
         from rbody.engine.precision import angle_spacing_problem
 
-        problem = angle_spacing_problem(model, qpos0.reshape(-1, model.nq))
+        count = int(np.prod(qpos0.shape[:-1])) if qpos0.ndim > 1 else 1  # explicit: nq may be 0
+        problem = angle_spacing_problem(model, qpos0.reshape(count, model.nq))
         if problem:
             raise ValueError(f"tree {self.name!r} cannot be carried in float64 by this engine: {problem}")
         model.check_pivots(qpos0)
@@ -319,10 +347,10 @@ class TreeScene(Scene):
 
     @cached_property
     def multibody(self):
-        """rbody.Multibody of the tree (validated on first use)."""
-        from rbody.engine.multibody import Multibody
+        """rbody.Multibody of the tree with its tendons and actuators (validated on first use)."""
+        from rbody.engine.system import DEFAULT_TIMESTEP, Multibody
 
-        return Multibody(self.tree, gravity=self.gravity)
+        return Multibody(self.tree, gravity=self.gravity, timestep=self.timestep or DEFAULT_TIMESTEP)
 
     def _quaternion_columns(self) -> list[int]:
         model = self.multibody
@@ -338,52 +366,84 @@ class TreeScene(Scene):
 
     @cached_property
     def batch_shape(self) -> tuple[int, ...]:
-        return tuple(np.broadcast_shapes(self.qpos0.shape[:-1], self.qvel0.shape[:-1]))
+        return tuple(np.broadcast_shapes(*(getattr(self, name).shape[:-1]
+                                           for name in ("qpos0", "qvel0", "act0", "ctrl0"))))
+
+    def _rows(self, value: np.ndarray, size: int) -> np.ndarray:
+        """value (..., size) broadcast to the batch, as (B, size) (B explicit: size may be 0)."""
+        count = int(np.prod(self.batch_shape)) if self.batch_shape else 1
+        return np.broadcast_to(value, self.batch_shape + (size,)).reshape(count, size)
 
     def _state0(self) -> tuple[np.ndarray, np.ndarray]:
         """qpos0 (B, nq), qvel0 (B, nv)."""
         model = self.multibody
-        return (np.broadcast_to(self.qpos0, self.batch_shape + (model.nq,)).reshape(-1, model.nq),
-                np.broadcast_to(self.qvel0, self.batch_shape + (model.nv,)).reshape(-1, model.nv))
+        return self._rows(self.qpos0, model.nq), self._rows(self.qvel0, model.nv)
 
-    def native_start(self, qpos0: Any = None, qvel0: Any = None) -> np.ndarray:
-        """y0 (B, n) of the native model from qpos0 (..., nq) and qvel0 (..., nv) (None: the scene's own), checked
-        as the scene's own are; its batch is their broadcast shape flattened (rbody.simulation.PreparedRun.run)."""
+    def _controls0(self) -> tuple[np.ndarray, np.ndarray]:
+        """act0 (B, na), ctrl0 (B, nu)."""
+        model = self.multibody
+        return self._rows(self.act0, model.na), self._rows(self.ctrl0, model.nu)
+
+    def native_start(self, qpos0: Any = None, qvel0: Any = None, method: str | None = None) -> np.ndarray:
+        """y0 (B, n) of the native model a run by `method` integrates (native_model_for) from qpos0 (..., nq) and
+        qvel0 (..., nv) (None: the scene's own), checked as the scene's own are; its batch is their broadcast shape
+        flattened (rbody.simulation.PreparedRun.run); the activations are the scene's act0."""
+        from rbody.engine.mujoco_steps import MUJOCO_METHODS
+
         qpos0, qvel0 = self._checked_state(qpos0, qvel0, self.qpos0, self.qvel0)
         shape = np.broadcast_shapes(qpos0.shape[:-1], qvel0.shape[:-1])
         qpos = np.broadcast_to(qpos0, shape + qpos0.shape[-1:]).reshape(-1, qpos0.shape[-1])
         qvel = np.broadcast_to(qvel0, shape + qvel0.shape[-1:]).reshape(-1, qvel0.shape[-1])
-        return self._native_state(qpos, qvel)
+        planar = self._planar is not None and method not in MUJOCO_METHODS
+        return self._native_state(qpos, qvel, planar=planar)
 
-    def _native_state(self, qpos: np.ndarray, qvel: np.ndarray) -> np.ndarray:
+    def _native_state(self, qpos: np.ndarray, qvel: np.ndarray, planar: bool = False) -> np.ndarray:
         """y (B, n) from qpos (B, nq), qvel (B, nv): (qpos, qvel) on the planar path, (qpos, qvel, phi = 0) on the
-        3-D engine's (a rotation vector per ball or free joint)."""
-        if self._planar is not None:
+        3-D engine's (a rotation vector per ball or free joint), then the activations act0 where the actuators have
+        some (rbody.engine.system), then the energy dissipated so far (0) on a constrained tree's."""
+        if planar:
             return np.concatenate([qpos, qvel], axis=1)
-        return np.concatenate([qpos, qvel, np.zeros((qpos.shape[0], 3 * self.multibody.nrot))], axis=1)
+        model = self.multibody
+        count = qpos.shape[0]
+        parts = [qpos, qvel, np.zeros((count, 3 * model.nrot))]
+        if model.na:
+            act0 = np.asarray(self.act0)
+            if act0.ndim > 1 and count != int(np.prod(act0.shape[:-1])):
+                raise ValueError(f"act0 of shape {act0.shape} has another batch than the {count} states given")
+            parts.append(np.broadcast_to(act0.reshape(-1, model.na), (count, model.na)))
+        if self.tree.constrained:
+            parts.append(np.zeros((count, 1)))
+        return np.concatenate(parts, axis=1)
 
     @cached_property
     def _planar(self):
-        """The planar kernels' model of the tree (rbody.engine.planar.planar_model), or None when it is 3-D."""
+        """The planar kernels' model of the tree (rbody.engine.planar.planar_model), or None when it is 3-D (or has
+        force elements: rbody.engine.system runs those on the 3-D path)."""
         from rbody.engine.planar import planar_model
 
+        if self.multibody.has_elements or self.tree.constrained:
+            return None
         return planar_model(self.multibody)
 
     def item(self, index: int | tuple = ()) -> "TreeScene":
         if not self.batch_shape:
             return self
         qpos0, qvel0 = self._state0()
+        act0, ctrl0 = self._controls0()
         flat = np.arange(qpos0.shape[0]).reshape(self.batch_shape)[index]
         if np.ndim(flat) != 0:
             raise ValueError(f"index={index!r} picks {np.shape(flat)} trees from batch {self.batch_shape}: expected one")
-        return dataclasses.replace(self, qpos0=qpos0[int(flat)].copy(), qvel0=qvel0[int(flat)].copy())
+        k = int(flat)
+        return dataclasses.replace(self, qpos0=qpos0[k].copy(), qvel0=qvel0[k].copy(), act0=act0[k].copy(),
+                                   ctrl0=ctrl0[k].copy())
 
     def __eq__(self, other: object) -> bool:
         if type(other) is not type(self):
             return NotImplemented
         return (self.name, self.t_end, self.gravity, self.tree, self.import_notes, self.timestep, self.integrator) == (
             other.name, other.t_end, other.gravity, other.tree, other.import_notes, other.timestep,
-            other.integrator) and np.array_equal(self.qpos0, other.qpos0) and np.array_equal(self.qvel0, other.qvel0)
+            other.integrator) and all(np.array_equal(getattr(self, name), getattr(other, name))
+                                      for name in ("qpos0", "qvel0", "act0", "ctrl0"))
 
     __hash__ = None  # type: ignore[assignment]
 
@@ -391,18 +451,23 @@ class TreeScene(Scene):
 
     @property
     def observables(self) -> tuple[str, ...]:  # type: ignore[override]
+        model = self.multibody
         names = ["qpos", "qvel", "energy"]
         if self.tree.constrained:
             names += ["constraint_force", "constraint_error", "active_limits", "sticking", "dissipated"]
         if self.tree.contacts:
             names += ["contacts", "contact_distance", "contact_point", "contact_normal", "contact_normal_force",
                       "contact_friction_force"]
-        for body in self.multibody.body_names:
+        if model.nu:
+            names += ["ctrl", "actuator_force"] + (["act"] if model.na else [])
+        for body in model.body_names:
             names += [f"{body}.com", f"{body}.quat", f"{body}.velocity", f"{body}.omega"]
         return tuple(names)
 
-    def _observables(self, qpos: np.ndarray, qvel: np.ndarray) -> dict[str, Any]:
-        """From qpos (T, B, nq) and qvel (T, B, nv): qpos and qvel as given, the rest lazily (callables)."""
+    def _observables(self, qpos: np.ndarray, qvel: np.ndarray, act: np.ndarray | None = None,
+                     ctrl: np.ndarray | None = None, step: float | None = None) -> dict[str, Any]:
+        """From qpos (T, B, nq) and qvel (T, B, nv) (with actuators, act (T, B, na), ctrl (T, B, nu) and the run's
+        step [s]): qpos, qvel, act and ctrl as given, the rest lazily (callables)."""
         model = self.multibody
         states: dict[str, np.ndarray] = {}
 
@@ -415,6 +480,15 @@ class TreeScene(Scene):
             return model.kinetic_energy(qpos, qvel) + model.potential_energy(qpos)
 
         data: dict[str, Any] = {"qpos": qpos, "qvel": qvel, "energy": energy}
+        if model.nu and ctrl is not None:
+            act = np.zeros(qpos.shape[:-1] + (0,)) if act is None else act
+
+            def actuator_force():
+                return model.actuation(qpos, qvel, ctrl, act, timestep=step)["force"]
+
+            data.update(ctrl=ctrl, actuator_force=actuator_force)
+            if model.na:
+                data["act"] = act
         for i, body in enumerate(model.body_names):
             for what in ("com", "quat", "velocity", "omega"):
                 data[f"{body}.{what}"] = (lambda i=i, what=what: body_states()[what][..., i, :])
@@ -438,6 +512,8 @@ class TreeScene(Scene):
         from rbody.engine.multibody import BALL, D_PARENT, DOF_SIZE, FREE, H_DOF, HINGE, KIND_CODE, ROLL
 
         model = self.multibody
+        if model.has_elements:
+            return "the tree has tendons or actuators (forces that depend on velocities and controls)"
         kinds = [KIND_CODE[k] for k in model.arrays.joint_kinds]
         if any(k in (BALL, FREE) for k in kinds):
             return "the tree has a ball or free joint (its mass matrix and gyroscopic forces depend on the state)"
@@ -475,7 +551,16 @@ class TreeScene(Scene):
 
     preferred_methods: ClassVar[tuple[str, ...]] = TREE_SYMPLECTIC_METHODS + TREE_GENERAL_METHODS
 
+    @property
+    def _ellipsoid_fluid(self) -> bool:
+        """Whether a geom feels MuJoCo's ellipsoid fluid model (whose velocity derivative rbody does not form)."""
+        return bool(self.tree.fluid is not None and self.tree.fluid.ellipsoids)
+
     def why_not(self, method: str) -> str:
+        if method in ("implicit", "implicitfast") and self._ellipsoid_fluid:
+            return (f"{method!r} differentiates MuJoCo's ellipsoid fluid model analytically (engine_derivative.c "
+                    "mjd_ellipsoidFluid), which rbody does not (the inertia-box model's it does): use mujoco_euler or "
+                    "rk4")
         if method in TREE_SYMPLECTIC_METHODS:
             return f"{method!r} needs q'' = a(q) with a constant mass matrix, and {self.symplectic_applies}"
         return f"{method!r} is not a method of a general tree (no splitting into exact flows)"
@@ -483,16 +568,85 @@ class TreeScene(Scene):
     def native(self) -> NativeModel:
         """The compiled model of the tree: the planar kernels (rbody.engine.planar: 3-component spatial
         algebra) when the tree is planar, decided from its structure, else the 3-D engine's. Observables and
-        energies use the 3-D Multibody either way (once per saved sample, not per evaluation)."""
+        energies use the 3-D Multibody either way (once per saved sample, not per evaluation). MuJoCo's
+        integrators (mujoco_euler, implicitfast, implicit: rbody.engine.mujoco_steps) run the 3-D rows
+        (native_model_for); their stability rate is the stiffness's (rates_for)."""
+        model = self.multibody
+        if self.tree.constrained:  # the constraint layer's own schemes and stability check (rbody.engine.constraints)
+            return self._constrained_native()
+        native = self._native_with_elements() if model.has_elements else self._native_tree()
+        return dataclasses.replace(native, rate=self.rates_for(native))
+
+    def native_model_for(self, method: str | None) -> NativeModel:
+        """The native model a run by `method` integrates: native_model, except that a planar tree runs MuJoCo's
+        integrators on the 3-D engine's rows (rbody.engine.mujoco_steps reads those)."""
+        from rbody.engine.mujoco_steps import MUJOCO_METHODS
+        from rbody.engine.planar import planar_rhs
+
+        model = self.native_model
+        if method in MUJOCO_METHODS and model.rhs is planar_rhs:
+            return dataclasses.replace(self._native_tree(planar=False), rate=model.rate)
+        return model
+
+    def rates_for(self, native: NativeModel):
+        """rate(method) -> (B,) [1/s] for the stability check of `native` (this tree's native model, or one whose y0 a
+        prepared run replaced): the spectral radius of df/dy at its y0 (every method but
+        MuJoCo's); for MuJoCo's integrators, whose damping is implicit where they solve for it, 2 / h* with h* the
+        largest step their linearised one-step map stays stable at (rbody.engine.mujoco_stability), from the blocks
+        d qacc / d q and d qacc / d qvel of the same Jacobian (q the coordinates tangent to the configuration:
+        hinge, slide and free translations, each ball and free rotation's phi)."""
+        from rbody.engine.mujoco_stability import step_rate, unclamped
+        from rbody.engine.mujoco_steps import MUJOCO_METHODS
+        from rbody.engine.planar import planar_rhs
+        from rbody.engine.stability import jacobian_matrices, jacobian_rate
+
+        model = self.multibody
+        if native.rhs is planar_rhs:
+            rows, columns = np.arange(model.nv, 2 * model.nv), np.arange(model.nv)
+            velocities = np.arange(model.nv, 2 * model.nv)
+        else:
+            rows, columns = np.arange(model.nq, model.nq + model.nv), self._tangent_columns()
+            velocities = np.arange(model.nq, model.nq + model.nv)
+
+        def rate(method):
+            if model.nv == 0:  # nothing moves (a model of fixed bodies): no rate, any step
+                return np.zeros(native.y0.shape[0])
+            if method not in MUJOCO_METHODS:
+                return jacobian_rate(native.rhs, native.y0, native.params)
+            stepped = self._native_tree(planar=False) if native.rhs is planar_rhs else native
+            rates = []
+            for params in (native.params, unclamped(native.params)) if model.has_elements else (native.params,):
+                jacobians = jacobian_matrices(native.rhs, native.y0, params)[:, rows]
+                rates.append(step_rate(method, jacobians[:, :, columns], jacobians[:, :, velocities], stepped.y0,
+                                       params if model.has_elements else stepped.params, model.has_elements))
+            return np.max(rates, axis=0)
+        return rate
+
+    def _tangent_columns(self) -> np.ndarray:
+        """(nv,) the columns of the 3-D state y that move each degree of freedom's coordinate (module docstring of
+        rbody.engine.multibody: hinge, slide, roll and free translations in qpos, rotations as phi)."""
+        model = self.multibody
+        columns, slot = [], 0
+        for kind, address in zip(model.arrays.joint_kinds, model.arrays.qposadr):
+            if kind == "free":
+                columns += [int(address) + k for k in range(3)]
+            if kind in ("free", "ball"):
+                columns += [model.nq + model.nv + 3 * slot + k for k in range(3)]
+                slot += 1
+            elif kind != "free":
+                columns.append(int(address))
+        return np.array(columns, dtype=np.int64)
+
+    def _native_tree(self, planar: bool = True) -> NativeModel:
+        """The compiled model of a tree without force elements: planar where it can be (and `planar`), else 3-D."""
         from rbody.engine import multibody as mb
+        from rbody.engine.mujoco_steps import mujoco_steps
         from rbody.engine.planar import planar_accel, planar_rhs, planar_rhs_lanes
 
         model = self.multibody
-        if self.tree.constrained:
-            return self._constrained_native()
         qpos0, qvel0 = self._state0()
-        y0 = self._native_state(qpos0, qvel0)
-        planar = self._planar
+        planar = self._planar if planar else None
+        y0 = self._native_state(qpos0, qvel0, planar=planar is not None)
         if planar is not None:
             nv = model.nv
 
@@ -502,7 +656,7 @@ class TreeScene(Scene):
 
             return NativeModel(y0=y0, params=np.tile(planar.row, (qpos0.shape[0], 1)), rhs=planar_rhs,
                                observe=observe_planar, accel=None if self.symplectic_applies else planar_accel,
-                               rate_from_jacobian=True, rhs_lanes=planar_rhs_lanes)
+                               rate_from_jacobian=True, rhs_lanes=planar_rhs_lanes, split=mujoco_steps(False))
         params = np.tile(np.asarray(model.params), (qpos0.shape[0], 1))
         nq, nv = model.nq, model.nv
 
@@ -513,7 +667,34 @@ class TreeScene(Scene):
         return NativeModel(y0=y0, params=params, rhs=mb.tree_rhs, observe=observe,
                            accel=None if self.symplectic_applies else mb.tree_accel,
                            finish=mb.tree_finish if model.nrot else None, rate_from_jacobian=True,
-                           rhs_lanes=mb.tree_rhs_lanes if mb.runs_in_lanes(model) else None)
+                           rhs_lanes=mb.tree_rhs_lanes if mb.runs_in_lanes(model) else None,
+                           split=mujoco_steps(False))
+
+    def _native_with_elements(self) -> NativeModel:
+        """The compiled model of a tree with tendons or actuators (rbody.engine.system): y = (qpos, qvel, phi,
+        act), the controls ctrl0 written into every params row; the observables take the controls a run held
+        (rbody.control passes them, with the run's step), else read them from the rows."""
+        from rbody.engine import system
+        from rbody.engine.mujoco_steps import mujoco_steps
+
+        model = self.multibody
+        qpos0, qvel0 = self._state0()
+        act0, ctrl0 = self._controls0()
+        slots = model.control_slots()
+        y0 = np.concatenate([qpos0, qvel0, np.zeros((qpos0.shape[0], 3 * model.nrot)), act0], axis=1)
+        params = np.tile(np.asarray(model.params), (qpos0.shape[0], 1))
+        params[:, slots.ctrl:slots.ctrl + model.nu] = ctrl0
+        nq, nv, a0, na = model.nq, model.nv, slots.act, model.na
+
+        def observe(t, y, ctrl=None, step=None):
+            if ctrl is None:
+                ctrl = np.broadcast_to(params[None, :, slots.ctrl:slots.ctrl + model.nu], y.shape[:-1] + (model.nu,))
+            return self._observables(y[..., :nq], y[..., nq:nq + nv], y[..., a0:a0 + na], ctrl, step)
+
+        return NativeModel(y0=y0, params=params, rhs=system.system_rhs, observe=observe, accel=None,
+                           finish=system.system_finish, rate_from_jacobian=True, controls=slots,
+                           split={name: step for name, step in mujoco_steps(True).items()
+                                  if name == "mujoco_euler" or not self._ellipsoid_fluid})
 
     @cached_property
     def constraint_table(self):
@@ -523,22 +704,32 @@ class TreeScene(Scene):
         return build_table(self.tree, self.multibody) if self.tree.constrained else None
 
     def _constrained_native(self) -> NativeModel:
-        """The tree with its limits, dry friction and equalities: state (qpos, qvel, phi, dissipated), params the
-        tree's row and the constraint table, run by the constraint layer (rbody.engine.constraints)."""
+        """The tree with its limits, dry friction and equalities: state (qpos, qvel, phi, act, dissipated), params the
+        tree's row, its force elements (actuators with the controls ctrl0 written in, tendons, gravity
+        compensation, fluid: part of the smooth forces) and the constraint table, run by the constraint layer
+        (rbody.engine.constraints)."""
         from rbody.engine.constraints.dynamics import constrained_rhs
 
         model, table = self.multibody, self.constraint_table
         qpos0, qvel0 = self._state0()
+        act0, _ctrl0 = self._controls0()
         count = qpos0.shape[0]
-        y0 = np.concatenate([qpos0, qvel0, np.zeros((count, 3 * model.nrot + 1))], axis=1)
+        y0 = np.concatenate([qpos0, qvel0, np.zeros((count, 3 * model.nrot)), act0, np.zeros((count, 1))], axis=1)
         params = np.tile(table.row(model.params), (count, 1))
-        nq, nv = model.nq, model.nv
+        nq, nv, na = model.nq, model.nv, model.na
+        a0 = nq + nv + 3 * model.nrot
+        slots = model.control_slots() if model.nu else None
+        if slots is not None:
+            _act0, ctrl0 = self._controls0()
+            params[:, slots.ctrl:slots.ctrl + model.nu] = ctrl0
 
-        def observe(t, y):
-            return self._observables(y[..., :nq], y[..., nq:nq + nv])
+        def observe(t, y, ctrl=None, step=None):
+            if slots is not None and ctrl is None:
+                ctrl = np.broadcast_to(params[None, :, slots.ctrl:slots.ctrl + model.nu], y.shape[:-1] + (model.nu,))
+            return self._observables(y[..., :nq], y[..., nq:nq + nv], y[..., a0:a0 + na], ctrl, step)
 
         return NativeModel(y0=y0, params=params, rhs=constrained_rhs, observe=observe, rate_from_jacobian=True,
-                           constraints=table)
+                           constraints=table, controls=slots)
 
     # ----- what other simulators build -----------------------------------------------------------------
 

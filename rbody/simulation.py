@@ -20,6 +20,7 @@ from typing import Any
 
 import numpy as np
 
+from rbody import control
 from rbody import progress as progress_lines
 from rbody.checks import run_times, whole_number
 from rbody.engine.accuracy import accuracy_problem
@@ -39,7 +40,8 @@ EVENT_METHOD = "events"
 
 def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float | None = None,
              save_every: int = 1, allow_large: bool = False, client: Any = None,
-             chunk: int | None = None, progress: bool | None = None, error_estimate: bool = False) -> Trajectory:
+             chunk: int | None = None, progress: bool | None = None, error_estimate: bool = False,
+             ctrl: Any = None) -> Trajectory:
     """Run `scene` natively.
 
     dt:         time step [s] (event-driven scenes: the sampling interval of the trajectory only)
@@ -68,6 +70,12 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
                 p (Richardson), with meta["error_estimate_how"] saying so; costs a second run of twice the steps.
     Warns (rbody.errors.AccuracyWarning), before any step, when dt times the scene's fastest rate w is beyond the
     method's accuracy threshold (rbody.engine.accuracy: one period of that mode carried with more than 1 % error).
+    ctrl:       the controls of a scene with actuators (rbody.control): None (the scene's ctrl0), a constant
+                (nu,) or (*batch, nu), a schedule (n_steps, [*batch,] nu) whose row k is held during step k, or
+                a callable ctrl(t, qpos, qvel) -> (nu,) called at the start of every step (one Python call per
+                step). A control is held through a whole step, as in MuJoCo. A constrained tree (limits, dry
+                friction, equalities) takes it too (rbody.engine.constraints). Not with client= (a given control
+                runs in this process).
     Returns a Trajectory whose observables have shape (T, *scene.batch_shape, ...).
     Raises ValueError for bad arguments, a run too large to start (above), a closed client or a chunk
     without a client; MethodNotApplicable when the method cannot run the scene; SimulationError, before
@@ -89,20 +97,24 @@ def simulate(scene: Scene, *, dt: float, method: str | None = None, t_end: float
     if error_estimate and prepared.record is not None:  # the second run at dt/2, held beside the first
         refuse_large(combined_work(prepared.work, estimate_work(scene, prepared.dt / 2, prepared.t_end,
                                                                 2 * prepared.save_every)), allow_large)
+    if client is not None and ctrl is not None:
+        raise ValueError("ctrl with client=: a run with a given control goes in this process (the cluster's tasks "
+                         "rebuild the scene's own model); leave client out")
     prepared.warn(stacklevel=3)
-    trajectory = prepared.run(progress=show) if client is None else prepared.run_on_cluster(client, chunk)
+    trajectory = (prepared.run(progress=show, ctrl=ctrl) if client is None
+                  else prepared.run_on_cluster(client, chunk))
     if error_estimate:
         if prepared.record is None:
             trajectory.meta["error_estimate_how"] = ("none: an event-driven scene's impacts are found exactly; dt only "
                                                      "samples the trajectory")
         else:
             _estimate_error(scene, prepared.record, trajectory, prepared.dt, prepared.t_end, prepared.save_every,
-                            client, chunk, progress)
+                            client, chunk, progress, ctrl)
     return trajectory
 
 
 def prepare(scene: Scene, *, dt: float, method: str | None = None, t_end: float | None = None,
-            save_every: int = 1, allow_large: bool = False) -> "PreparedRun":
+            save_every: int = 1, allow_large: bool = False, ctrl: Any = None) -> "PreparedRun":
     """Everything of a run that depends only on (scene, dt, method, t_end, save_every), done once: the arguments
     checked, the method chosen, the work estimated and refused if too large, the precision, stability and
     resolution checks, the native model built and the method's compiled loop bound to it. Arguments, warnings and
@@ -110,10 +122,12 @@ def prepare(scene: Scene, *, dt: float, method: str | None = None, t_end: float 
 
     The result is kept with the scene (a frozen scene never changes), so prepare, and simulate, called again
     with the same arguments return it at once. PreparedRun.run() then costs what the integration costs.
+    ctrl: the controls its runs hold by default (simulate's ctrl=; checked here), which PreparedRun.run(ctrl=...)
+    may replace run by run; the kept run is shared, so a ctrl given here goes with the returned object only.
     """
     prepared = _prepare(scene, dt, method, t_end, save_every, allow_large)
     prepared.warn(stacklevel=3)
-    return prepared
+    return prepared if ctrl is None else prepared.with_controls(ctrl)
 
 
 def _prepare(scene: Scene, dt, method, t_end, save_every, allow_large) -> "PreparedRun":
@@ -137,11 +151,15 @@ def _prepare(scene: Scene, dt, method, t_end, save_every, allow_large) -> "Prepa
 class PreparedRun:
     """A run of one scene with (dt, method, t_end, save_every) fixed and checked (rbody.prepare).
 
-    run(qpos0=None, qvel0=None) -> Trajectory: the scene from its own initial state, or (trees) from qpos0
-    (*batch, nq) and qvel0 (*batch, nv) of the scene's batch shape, which are checked as the scene checks its
-    own (shapes, finite numbers, unit quaternions) and for the stability of the step at that state.
-    Attributes: scene, method (its name), dt [s], t_end [s], save_every, nsteps, t (T,) [s] the saved times.
+    run(qpos0=None, qvel0=None, ctrl=None) -> Trajectory: the scene from its own initial state, or (trees) from
+    qpos0 (*batch, nq) and qvel0 (*batch, nv) of the scene's batch shape, which are checked as the scene checks its
+    own (shapes, finite numbers, unit quaternions) and for the stability of the step at that state; ctrl: the
+    controls of a tree with actuators (simulate's ctrl=, rbody.control), default the prepared run's own (`ctrl`,
+    given to prepare) or else the scene's ctrl0.
+    Attributes: scene, method (its name), dt [s], t_end [s], save_every, nsteps, t (T,) [s] the saved times, ctrl.
     """
+
+    ctrl: Any = None
 
     def __init__(self, scene: Scene, *, dt: float, method: str | None, t_end: float | None, save_every: int,
                  allow_large: bool) -> None:
@@ -160,7 +178,8 @@ class PreparedRun:
         _check_precision(scene, self.dt, self.t_end)  # before the stability check: a model float64 cannot carry
         check_step(scene, self.method, self.dt, self.t_end)  # beyond the method's stability limit: refuse now
         self.accuracy = accuracy_problem(self.method, self.dt, float(np.max(fastest_rate(scene, self.method))))
-        self.model = model = scene.native_model  # built once per scene
+        # built once per scene (a planar tree run by MuJoCo's integrators: the 3-D engine's rows)
+        self.model = model = getattr(scene, "native_model_for", lambda _method: scene.native_model)(self.method)
         self.nsteps = step_count(self.t_end, self.dt, self.save_every)
         if model.break_time is not None and 0 < model.break_time < self.dt:
             raise SimulationError(
@@ -169,7 +188,9 @@ class PreparedRun:
                 f"of {model.break_time:.3g} s, integrated with no step inside it; use dt <= "
                 f"{model.break_time / 10:.3g} s (ten steps or more before the jump)")
         self.y0 = np.array(model.y0, dtype=np.float64, order="C")         # the loops' own writable copies
-        self.params = np.array(model.params, dtype=np.float64, order="C")
+        # a tree with actuators: the run's step and the scene's ctrl0 written into every row (rbody.control)
+        self._plan = control.plan(scene, model, None, self.dt, self.nsteps, self.method)
+        self.params = np.array(self._plan.model.params, dtype=np.float64, order="C")
         self.t = np.arange(self.nsteps // self.save_every + 1) * (self.dt * self.save_every)
         self.t.setflags(write=False)
         self.leading = (self.t.size,) + scene.batch_shape
@@ -185,12 +206,28 @@ class PreparedRun:
             warnings.warn(AccuracyWarning(f"scene {self.scene.describe()}: method {self.method!r}: {self.accuracy}"),
                           stacklevel=stacklevel)
 
-    def run(self, *, qpos0: Any = None, qvel0: Any = None, progress: bool | None = False) -> Trajectory:
-        """The run, from the scene's initial state or (trees) from qpos0/qvel0; a Trajectory as simulate's.
+    def with_controls(self, ctrl: Any) -> "PreparedRun":
+        """A copy of this prepared run whose runs hold `ctrl` by default (prepare's ctrl=), checked now."""
+        if ctrl is not None:
+            if self.scene.event_driven:
+                raise ValueError(f"ctrl given, but scene {self.scene.describe()} is event-driven (no actuators)")
+            control.plan(self.scene, self.model, ctrl, self.dt, self.nsteps, self.method)  # ValueError: bad ctrl
+        copy = object.__new__(PreparedRun)
+        copy.__dict__.update(self.__dict__)
+        copy.ctrl = ctrl
+        return copy
+
+    def run(self, *, qpos0: Any = None, qvel0: Any = None, progress: bool | None = False,
+            ctrl: Any = None) -> Trajectory:
+        """The run, from the scene's initial state or (trees) from qpos0/qvel0, under the controls ctrl (default:
+        the prepared run's own, else the scene's ctrl0); a Trajectory as simulate's.
         progress: as simulate's (rbody.progress); False (default) steps in one loop."""
         show = progress_lines.wanted(progress)
         scene = self.scene
+        ctrl = self.ctrl if ctrl is None else ctrl
         if scene.event_driven:
+            if ctrl is not None:
+                raise ValueError(f"ctrl given, but scene {scene.describe()} is event-driven (no actuators)")
             if qpos0 is not None or qvel0 is not None:
                 raise ValueError(f"scene {scene.name!r} is event-driven: it starts from its own state (qpos0 and "
                                  "qvel0 are for trees of bodies and joints)")
@@ -200,28 +237,39 @@ class PreparedRun:
         y0 = self.y0 if qpos0 is None and qvel0 is None else self._start(qpos0, qvel0)
         if self.work["bytes"] > MEMORY_CHECKED_ABOVE:  # the memory available may have changed since prepare
             refuse_large(self.work, self.allow_large)
-        if self.constrained:
-            return self._constrained_run(y0)
-        out = np.empty((self.t.size,) + y0.shape)
         model = self.model if y0 is self.y0 else dataclasses.replace(self.model, y0=y0)
-        if show is not False and segmentable(model, self.record, self.nsteps, self.dt):
+        if ctrl is None:  # the scene's own controls (ctrl0), written in once (self.params)
+            plan = self._plan if y0 is self.y0 else dataclasses.replace(
+                self._plan, model=dataclasses.replace(self._plan.model, y0=y0))
+        else:
+            plan = control.plan(scene, model, ctrl, self.dt, self.nsteps, self.method)
+        if self.constrained:
+            return self._constrained_run(plan)
+        model = plan.model
+        out = np.empty((self.t.size,) + model.y0.shape)
+        if plan.stepwise is not None:  # a callable control: one compiled step per call
+            failed = control.run_stepwise(plan, self.record, self.dt, self.nsteps, self.save_every, out)
+        elif show is not False and segmentable(model, self.record, self.nsteps, self.dt):
             failed = _integrate_showing_progress(scene, model, self.record, self.dt, self.nsteps, self.save_every,
                                                  out, show)
-        elif self._runner is None:  # the run crosses a break in the rhs: cut there (integrate_model)
+        elif self._runner is None or plan.history is not None:  # a break in the rhs, or a schedule's wider rows
             failed = integrate_model(model, self.record, self.dt, self.nsteps, self.save_every, out)
         else:
-            failed = self._runner(y0, self.params, out)
-        return self._trajectory(y0, out, failed)
+            failed = self._runner(model.y0, model.params if ctrl is not None else self.params, out)
+        return self._trajectory(plan, out, failed)
 
     def run_on_cluster(self, client: Any, chunk: int | None = None) -> Trajectory:
         """The batch's rows as tasks on the Dask cluster of `client` (simulate's client=, chunk=); event-driven and
         constrained scenes run here."""
         if self.scene.event_driven or self.constrained:
             return self.run()
+        if self.ctrl is not None:
+            raise ValueError("ctrl with client=: a run with a given control goes in this process (the cluster's tasks "
+                             "rebuild the scene's own model); leave client out")
         out = np.empty((self.t.size,) + self.y0.shape)
-        failed = integrate_on_cluster(client, self.scene, self.model, self.method, self.dt, self.nsteps,
+        failed = integrate_on_cluster(client, self.scene, self._plan.model, self.method, self.dt, self.nsteps,
                                       self.save_every, out, chunk)
-        return self._trajectory(self.y0, out, failed)
+        return self._trajectory(self._plan, out, failed)
 
     def _start(self, qpos0: Any, qvel0: Any) -> np.ndarray:
         """y0 (B, n) of a tree from qpos0 and qvel0 (the scene's own where one is None), checked; SimulationError
@@ -230,30 +278,38 @@ class PreparedRun:
         if start is None:
             raise ValueError(f"scene {self.scene.describe()}: qpos0 and qvel0 are for trees of bodies and joints "
                              "(Scene.from_layout, from_mjcf); a family scene takes its initial state as parameters")
-        y0 = np.array(start(qpos0, qvel0), dtype=np.float64, order="C")
+        y0 = np.array(start(qpos0, qvel0, method=self.method), dtype=np.float64, order="C")
         if y0.shape != self.y0.shape:
             raise ValueError(f"qpos0/qvel0 give a batch of {y0.shape[0]} states: this run was prepared for "
                              f"{self.y0.shape[0]} (the scene's batch shape {self.scene.batch_shape}); prepare the "
                              "scene with that batch")
-        check_state(dataclasses.replace(self.model, y0=y0), self.scene.describe(), self.method, self.dt,
-                    self.t_end)
+        model = dataclasses.replace(self.model, y0=y0)
+        rates_for = getattr(self.scene, "rates_for", None)
+        if rates_for is not None and self.model.rate is not None:  # the rates at the state given, not the scene's
+            model = dataclasses.replace(model, rate=rates_for(model))
+        check_state(model, self.scene.describe(), self.method, self.dt, self.t_end)
         return y0
 
-    def _constrained_run(self, y0: np.ndarray) -> Trajectory:
+    def _constrained_run(self, plan: "control.ControlPlan") -> Trajectory:
         """A constrained tree's run: events located exactly between smooth steps (rk4), or Moreau-Jean
-        time-stepping (moreau), by rbody.engine.constraints.runner."""
+        time-stepping (moreau), by rbody.engine.constraints.runner, under the plan's controls (a schedule or a
+        callable: written into the row before each step)."""
         from rbody.engine.constraints.runner import run_constrained
 
-        model = self.model if y0 is self.y0 else dataclasses.replace(self.model, y0=y0)
+        def observe(t, y):  # the controls held, known once the run is over
+            return control.observing(plan, self.save_every, t.size, self.dt).observe(t, y)
+
+        model = dataclasses.replace(plan.model, observe=observe)
         t, data, events, meta = run_constrained(self.scene.describe(), model, self.method, self.dt, self.nsteps,
-                                                self.save_every)
+                                                self.save_every, controls=control.step_controls(plan))
         data = {name: _shaped(value, (t.size,) + self.scene.batch_shape) for name, value in data.items()}
         return Trajectory(t, data, events=events, meta={**self.meta, **meta})
 
-    def _trajectory(self, y0: np.ndarray, out: np.ndarray, failed: np.ndarray) -> Trajectory:
-        model = self.model if y0 is self.y0 else dataclasses.replace(self.model, y0=y0)
+    def _trajectory(self, plan: "control.ControlPlan", out: np.ndarray, failed: np.ndarray) -> Trajectory:
+        model = plan.model
         if (failed[0] >= 0) if failed.size == 1 else (failed.size and failed.max() >= 0):  # one element: no reduction
             raise failure(self.scene.describe(), model, self.record, self.dt, self.save_every, out, failed)
+        model = control.observing(plan, self.save_every, out.shape[0], self.dt)  # the controls held, observed
         try:  # every state is finite here; one the observables cannot take (a zero quaternion) is a failure
             if getattr(model.observe, "any_batch", False):
                 data = model.observe(self.t, out.reshape(self.leading + out.shape[2:]))
@@ -264,8 +320,9 @@ class PreparedRun:
                                   f"states whose observables cannot be formed ({error}); try a smaller dt") from None
         return Trajectory(self.t, data, meta=dict(self.meta))
 
-    def __call__(self, *, qpos0: Any = None, qvel0: Any = None, progress: bool | None = False) -> Trajectory:
-        return self.run(qpos0=qpos0, qvel0=qvel0, progress=progress)
+    def __call__(self, *, qpos0: Any = None, qvel0: Any = None, progress: bool | None = False,
+                 ctrl: Any = None) -> Trajectory:
+        return self.run(qpos0=qpos0, qvel0=qvel0, progress=progress, ctrl=ctrl)
 
     def __repr__(self) -> str:
         return (f"PreparedRun({self.scene.describe()}, method={self.method!r}, dt={self.dt:g}, t_end={self.t_end:g}, "
@@ -317,7 +374,7 @@ def _integrate_showing_progress(scene: Scene, model, record: Method, dt: float, 
 
 
 def _estimate_error(scene: Scene, record: Method, trajectory: Trajectory, dt: float, t_end: float, save_every: int,
-                    client, chunk, progress) -> None:
+                    client, chunk, progress, ctrl=None) -> None:
     """meta["error_estimate"] of `trajectory` by step doubling (simulate's error_estimate), in place."""
     meta = trajectory.meta
     if record.order is None:
@@ -326,7 +383,8 @@ def _estimate_error(scene: Scene, record: Method, trajectory: Trajectory, dt: fl
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", AccuracyWarning)  # said once, for the run itself
         finer = simulate(scene, dt=dt / 2, method=record.name, t_end=t_end, save_every=2 * save_every,
-                         allow_large=True, client=client, chunk=chunk, progress=progress)
+                         allow_large=True, client=client, chunk=chunk, progress=progress,
+                         ctrl=_finer_controls(scene, ctrl))
     factor = 2.0**record.order / (2.0**record.order - 1.0)
     estimates = {}
     for name in trajectory.observables:
@@ -342,6 +400,17 @@ def _estimate_error(scene: Scene, record: Method, trajectory: Trajectory, dt: fl
                                   f"largest |y(dt) - y(dt/2)| over the samples and the batch, times 2^p/(2^p - 1) = "
                                   f"{factor:.4g} for {record.name}'s order p = {record.order} (Richardson): an estimate "
                                   "of the run's own error, in the observable's unit")
+
+
+def _finer_controls(scene: Scene, ctrl):
+    """The controls of the step-doubled run: a schedule's rows each held for two steps of dt/2 (a constant, one per
+    batch element or not, and a callable as they are; rbody.control tells them apart the same way)."""
+    if ctrl is None or callable(ctrl):
+        return ctrl
+    array = np.asarray(ctrl, dtype=np.float64)
+    if array.ndim < 2 or array.shape[:-1] == tuple(scene.batch_shape):
+        return array
+    return np.repeat(array, 2, axis=0)
 
 
 def _check_precision(scene: Scene, dt: float, t_end: float) -> None:

@@ -61,7 +61,8 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument("--no-constraints", action="store_true",
                          help="a URDF's limits, friction and mimics recorded, not applied (as Pinocchio's aba runs it)")
     compare.add_argument("--dt", type=float, metavar="S", help="time step [s] (default: the model's timestep, else 1e-3)")
-    compare.add_argument("--method", metavar="M", help="rbody's method (default: rk4 where it applies, MuJoCo's scheme)")
+    compare.add_argument("--method", metavar="M", help="rbody's method (default: an MJCF file's own integrator, "
+                         "else rk4 where it applies)")
     compare.add_argument("--engines", default=None,
                          help="comma-separated engines of rbody,mujoco,pymunk,pinocchio,bullet, or 'all' (default: "
                               "rbody,mujoco,pymunk; every engine for a URDF file)")
@@ -71,6 +72,14 @@ def _parser() -> argparse.ArgumentParser:
     compare.add_argument("--animate", action="store_true",
                          help="also write the animation of every engine's run, side by side, into the report "
                               "(DIR/<model>_motion.gif, rbody.animate)")
+    compare.add_argument("--keyframe", metavar="K", help="MJCF file: start from this keyframe (index or name)")
+    compare.add_argument("--qpos0", metavar='"Q ..."', help="MJCF file: initial qpos, numbers separated by spaces")
+    compare.add_argument("--qvel0", metavar='"V ..."', help="MJCF file: initial qvel, numbers separated by spaces")
+    compare.add_argument("--ctrl", metavar="FILE.npy|module:function",
+                         help="MJCF file: the controls of every engine, an array (nu,) or (n_steps, nu), or a "
+                              "function ctrl(t, qpos, qvel) -> (nu,)")
+    compare.add_argument("--overlapping-geoms", action="store_true",
+                         help="MJCF file: let rbody sum overlapping geoms' masses as MuJoCo does")
     for p in (parser, run, bench, hard, compare):
         _cluster_options(p)
     return parser

@@ -7,8 +7,13 @@
     found = check_baseline(comparison, "tests/baselines")       # [] or one message per regression
 
 The model is an rbody Scene (one of rbody.scenes, a Scene.from_layout, or a user's subclass), a path to an
-MJCF file (read by rbody.from_mjcf), or "module:name" / "file.py:name" naming a Scene or a function
-returning one. Every engine that can express the model runs it at the same dt over the same duration;
+MJCF file, or "module:name" / "file.py:name" naming a Scene or a function returning one. A file is run as the
+user runs it (validation.mujoco_file): MuJoCo compiles the file itself (not rbody's re-export), at its own step
+with its own integrator, and rbody reads it (rbody.from_mjcf) and runs it with the file's integrator
+(scene.file_method: mujoco_euler, implicitfast, implicit or rk4), both from the same state (reference pose,
+keyframe=, qpos0=, qvel0=) under the same controls (ctrl=: a constant, an (n_steps, nu) array or a callable
+ctrl(t, qpos, qvel)); when rbody refuses the file, the reason is rbody's row and MuJoCo still
+runs. Every engine that can express the model runs it at the same dt over the same duration;
 an engine that cannot is listed as refused with its reason (validation.backends.supports), an engine
 whose run fails (a blow-up) as failed with its error: nothing is dropped.
 
@@ -19,8 +24,9 @@ see a quaternion's sign. Where the scene has a closed form (rbody's own scenes, 
 is also compared with it, as the pair (engine, "exact").
 
 Defaults, chosen to compare like with like: dt is the scene's own timestep when it has one (an MJCF
-<option timestep>), else 1 ms; rbody's method is "rk4" wherever it applies, the scheme MuJoCo's RK4 uses on
-contact-free models, so that rbody and MuJoCo differ by their models, not by their integrators. MuJoCo and
+<option timestep>), else 1 ms; for a file, both engines run the file's integrator; otherwise rbody's method is
+"rk4" wherever it applies, the scheme MuJoCo's RK4 uses on contact-free models, so that rbody and MuJoCo differ
+by their models, not by their integrators. MuJoCo and
 pymunk run at their backends' documented defaults (validation/backends).
 """
 
@@ -261,7 +267,8 @@ class Comparison:
 
 def compare(model: Scene | str | Path, engines: Iterable[str] | None = None, *, dt: float | None = None,
             t_end: float | None = None, method: str | None = None,
-            progress: Callable[[str], None] | None = None, client: Any = None) -> Comparison:
+            progress: Callable[[str], None] | None = None, client: Any = None, keyframe: int | str | None = None,
+            qpos0=None, qvel0=None, ctrl: Any = None, overlapping_geoms: str | None = None) -> Comparison:
     """Run `model` in each engine and measure where they disagree.
 
     model:    an rbody Scene (unbatched), a path to an MJCF file, or "module:name" / "file.py:name"
@@ -269,14 +276,28 @@ def compare(model: Scene | str | Path, engines: Iterable[str] | None = None, *, 
               listed as refused, with the reason
     dt:       time step [s] of every engine (default: the scene's timestep, else 1e-3)
     t_end:    duration [s] (default: the scene's)
-    method:   rbody's method (default "rk4" where it applies, else rbody's default)
+    method:   rbody's method (default "rk4" where it applies, else rbody's default; for an MJCF file, the
+              file's own integrator: rbody's mujoco_euler, implicitfast, implicit or rk4)
     progress: called with one line per engine as it finishes (the command prints it to stderr)
     client:   a dask.distributed.Client: each engine's run is one task on its cluster (validation.cluster),
-              the comparison the same as here
+              the comparison the same as here (Scene models)
+    An MJCF file runs as the user runs it (_compare_file): MuJoCo compiles the file itself (never rbody's
+    re-export), so that an import error shows as a divergence; rbody reads it with from_mjcf, and a file rbody
+    refuses is a row saying why. Only for a file: keyframe (index or name), qpos0 (nq,), qvel0 (nv,) (MuJoCo's
+    layout) the initial state; ctrl the controls of both engines (as rbody.simulate takes them: None, (nu,),
+    (n_steps, nu) or a callable ctrl(t, qpos, qvel)); overlapping_geoms="sum" for rbody's reader.
     Raises ValueError for bad input (a missing file, an unknown engine, dt <= 0, a batched scene, a method
     that does not apply), and for a run of any engine beyond the limits of rbody's own runs (engine_work: too many
     steps, or more memory than the process can still allocate), before any run.
     """
+    if not isinstance(model, Scene) and Path(str(model)).suffix.lower() in MJCF_SUFFIXES:
+        return _compare_file(Path(str(model)), _engine_names(engines), dt=dt, t_end=t_end, method=method,
+                             progress=progress, keyframe=keyframe, qpos0=qpos0, qvel0=qvel0, ctrl=ctrl,
+                             overlapping_geoms=overlapping_geoms)
+    given = [k for k, v in (("keyframe", keyframe), ("qpos0", qpos0), ("qvel0", qvel0), ("ctrl", ctrl),
+                            ("overlapping_geoms", overlapping_geoms)) if v is not None]
+    if given:
+        raise ValueError(f"{', '.join(given)}: for an MJCF file only; give a Scene its own state and controls")
     scene = load_model(model, t_end=t_end) if not isinstance(model, Scene) else model
     engines = _engine_names(engines, scene)
     if scene.batch_shape:
@@ -351,6 +372,100 @@ def refuse_large_runs(scene: Scene, engines: Sequence[str], dt: float, t_end: fl
                          "the limits of rbody's own): " + " | ".join(problems))
 
 
+@dataclass(frozen=True)
+class FileModel:
+    """The model of an MJCF file that rbody could not read: what a Comparison needs of a scene (a name for the
+    report and baselines, no observables or closed form of its own)."""
+
+    name: str
+    source: str
+    refusal: str
+    observables: tuple = ()
+    import_notes: tuple = ()
+    batch_shape: tuple = ()
+
+    def describe(self) -> str:
+        return f"{self.name} ({self.source}; rbody refused it: {self.refusal})"
+
+    def exact(self, t):
+        raise NotImplementedError("a model read from a file has no closed form")
+
+
+def _compare_file(path: Path, engines: Sequence[str], *, dt, t_end, method, progress, keyframe, qpos0, qvel0, ctrl,
+                  overlapping_geoms) -> Comparison:
+    """compare() of a user's MJCF file (module docstring of validation.mujoco_file): every engine on the same dt
+    (the file's timestep by default), t_end (rbody's from_mjcf default, 1 s), initial state and controls."""
+    from rbody.mjcf import MJCFError
+    from rbody.mjcf.parse import DEFAULT_T_END
+    from validation import mujoco_file
+
+    if not path.is_file():
+        raise ValueError(f"model {str(path)!r}: no such file")
+    from rbody.mjcf.document import read_source
+
+    read_source(path)  # a file that is not XML at all is bad input (MJCFError, a ValueError), before any run
+    if isinstance(keyframe, str) and keyframe.strip().lstrip("-").isdigit():
+        keyframe = int(keyframe)
+    duration = DEFAULT_T_END if t_end is None else t_end
+    options = {"t_end": duration, "keyframe": keyframe, "qpos0": qpos0, "qvel0": qvel0}
+    if overlapping_geoms is not None:
+        options["overlapping_geoms"] = overlapping_geoms
+    try:
+        compiled, mujoco_refusal = mujoco_file.load(path), ""
+    except ValueError as error:
+        compiled, mujoco_refusal = None, str(error)
+    if compiled is not None:  # a state or keyframe the model cannot take is bad input, before any run
+        import mujoco
+
+        mujoco_file.initial_state(compiled, mujoco.MjData(compiled), keyframe, qpos0, qvel0)
+    try:
+        scene, refusal = rbody.from_mjcf(path, **options), ""
+    except MJCFError as error:  # rbody cannot model the file: a row that says why, MuJoCo still runs it
+        scene, refusal = None, str(error)
+    timestep = scene.timestep if scene is not None else (compiled.opt.timestep if compiled is not None else DEFAULT_DT)
+    dt = float(timestep) if dt is None else dt
+    dt, duration = run_times(duration, dt, duration)
+    if scene is not None:
+        method = _file_method(scene, method)
+    runs: dict[str, EngineRun] = {}
+    for k, engine in enumerate(engines, 1):
+        if engine == "mujoco":
+            if compiled is None:
+                runs[engine] = EngineRun(engine, "refused", note=mujoco_refusal)
+            else:
+                start = time.perf_counter()
+                try:
+                    trajectory = mujoco_file.run_file(path, t_end=duration, dt=dt, keyframe=keyframe, qpos0=qpos0,
+                                                      qvel0=qvel0, ctrl=ctrl, scene=scene)
+                    runs[engine] = EngineRun(engine, "ran", trajectory, trajectory.meta["step_seconds"])
+                except (ValueError, RuntimeError) as error:
+                    runs[engine] = EngineRun(engine, "failed", seconds=time.perf_counter() - start,
+                                             note=f"{type(error).__name__}: {error}")
+        elif scene is None:
+            runs[engine] = EngineRun(engine, "refused", note=f"rbody cannot read the file: {refusal}")
+        else:
+            ok, reason = supports(scene, engine)
+            runs[engine] = (_run(scene, engine, dt, duration, method, ctrl) if ok else
+                            EngineRun(engine, "refused", note=reason))
+        if progress is not None:
+            r = runs[engine]
+            what = f"{r.seconds:.3g} s" if r.status == "ran" else f"{r.status}: {r.note}"
+            progress(f"[{k}/{len(engines)}] {engine}: {what}")
+    model = scene if scene is not None else FileModel(path.stem, str(path), refusal)
+    t, rows, curves = _divergences(model, {e: r.trajectory for e, r in runs.items() if r.status == "ran"})
+    return Comparison(model, dt, duration, method, runs, tuple(rows), t, curves, str(path))
+
+
+def _file_method(scene, method: str | None) -> str | None:
+    """rbody's method on a file: the file's own integrator (MJCFScene.file_method) by default, where it applies."""
+    if method is not None:
+        return _method(scene, method)
+    own = getattr(scene, "file_method", None)
+    if own is not None and own in scene.methods:
+        return own
+    return _method(scene, None)
+
+
 def _settings_of(scene: Scene, engine: str, method: str | None) -> dict:
     """rbody: the method; MuJoCo: the model's own integrator where it records one (an MJCF <option>), as the
     user runs it, else the backend's default (RK4 without impacts); pymunk: its defaults."""
@@ -365,10 +480,13 @@ def _settings_of(scene: Scene, engine: str, method: str | None) -> dict:
     return {}
 
 
-def _run(scene: Scene, engine: str, dt: float, t_end: float, method: str | None) -> EngineRun:
+def _run(scene: Scene, engine: str, dt: float, t_end: float, method: str | None, ctrl: Any = None) -> EngineRun:
     start = time.perf_counter()
     try:
-        trajectory = get(engine).run(scene, dt, t_end, **_settings_of(scene, engine, method))
+        settings = _settings_of(scene, engine, method)
+        if ctrl is not None and engine == "rbody":
+            settings["ctrl"] = ctrl
+        trajectory = get(engine).run(scene, dt, t_end, **settings)
         _within_limits(scene, trajectory, engine)
     except Exception as error:  # a blow-up or a simulator's error is a result to report, not to hide
         return EngineRun(engine, "failed", seconds=time.perf_counter() - start, note=f"{type(error).__name__}: {error}")
@@ -780,10 +898,54 @@ def write_report(comparison: Comparison, out: str | Path, regressions: Sequence[
 
 # ----- the command ----------------------------------------------------------------------------------------
 
+def load_ctrl(text: str | None):
+    """--ctrl: FILE.npy (an array: a constant (nu,) or a schedule (n_steps, nu)) or module:function /
+    file.py:function (a callable ctrl(t, qpos, qvel) -> (nu,)); None for None."""
+    if text is None:
+        return None
+    if text.endswith(".npy"):
+        if not Path(text).is_file():
+            raise ValueError(f"--ctrl {text!r}: no such file")
+        return np.load(text)
+    if ":" not in text:
+        raise ValueError(f"--ctrl {text!r}: expected FILE.npy or module:function / file.py:function")
+    where, attribute = text.rsplit(":", 1)
+    module = _import(where, f"--ctrl {text!r}")
+    function = getattr(module, attribute, None)
+    if not callable(function):
+        raise ValueError(f"--ctrl {text!r}: {where!r} has no function {attribute!r}")
+    return function
+
+
+def _import(where: str, what: str):
+    if where.endswith(".py"):
+        if not Path(where).is_file():
+            raise ValueError(f"{what}: no such file {where!r}")
+        spec = importlib.util.spec_from_file_location(Path(where).stem, where)
+        module = importlib.util.module_from_spec(spec)
+        spec.loader.exec_module(module)
+        return module
+    try:
+        return importlib.import_module(where)
+    except ImportError as error:
+        raise ValueError(f"{what}: cannot import module {where!r} ({error})") from None
+
+
+def _vector(text: str | None, what: str):
+    """A vector given as MJCF writes one: numbers separated by spaces."""
+    if text is None:
+        return None
+    try:
+        return np.array([float(x) for x in text.split()], dtype=np.float64)
+    except ValueError:
+        raise ValueError(f"{what} {text!r}: expected numbers separated by spaces") from None
+
+
 def main(args) -> int:
     """python -m validation compare MODEL ...: 0 agreed with the baseline (or none given), 1 a regression
     against the baseline, 2 bad input (a message on stderr, no traceback) or a divergence without a baseline
-    (as the main command: a missing baseline is not a pass)."""
+    (as the main command: a missing baseline is not a pass), 3 nothing compared (fewer than two engines ran the
+    model: each refusal or failure is listed with its reason)."""
     import sys
 
     def say(line: str) -> None:
@@ -798,22 +960,45 @@ def main(args) -> int:
             remove_stale_temporaries(args.baseline)  # what an interrupted update left behind
         if args.baseline is not None and not args.update_baseline and not Path(args.baseline).is_dir():
             raise ValueError(f"--baseline {str(args.baseline)!r}: no such folder (record one with --update-baseline)")
-        scene = load_model(args.model, t_end=args.t_end, constraints=not getattr(args, "no_constraints", False))
-        engines = _engine_names(args.engines, scene)
-        if getattr(args, "animate", False):
-            from rbody.animation import check_animatable
+        file_options = {"keyframe": getattr(args, "keyframe", None),
+                        "qpos0": _vector(getattr(args, "qpos0", None), "--qpos0"),
+                        "qvel0": _vector(getattr(args, "qvel0", None), "--qvel0"),
+                        "ctrl": load_ctrl(getattr(args, "ctrl", None)),
+                        "overlapping_geoms": "sum" if getattr(args, "overlapping_geoms", False) else None}
+        is_file = Path(str(args.model)).suffix.lower() in MJCF_SUFFIXES
+        if is_file:
+            if not Path(args.model).is_file():
+                raise ValueError(f"model {str(args.model)!r}: no such file")
+            from rbody.mjcf.document import read_source
 
-            check_animatable(scene)  # before any run
-        if args.baseline is not None and not args.update_baseline and not _recorded(Path(args.baseline), scene.name):
+            read_source(Path(args.model))  # not XML at all: bad input, before any run
+            scene = None
+            name = Path(args.model).stem
+            engines = _engine_names(args.engines)
+        else:
+            if any(v is not None for v in file_options.values()):
+                raise ValueError("--keyframe, --qpos0, --qvel0, --ctrl and --overlapping-geoms are for an MJCF file")
+            scene = load_model(args.model, t_end=args.t_end, constraints=not getattr(args, "no_constraints", False))
+            name = scene.name
+            engines = _engine_names(args.engines, scene)
+            if getattr(args, "animate", False):
+                from rbody.animation import check_animatable
+
+                check_animatable(scene)  # before any run
+        if args.baseline is not None and not args.update_baseline and not _recorded(Path(args.baseline), name):
             # every file read and checked before the run (BaselineError names a broken one)
-            raise ValueError(f"baseline {str(args.baseline)!r} holds no divergences of model {scene.name!r} "
+            raise ValueError(f"baseline {str(args.baseline)!r} holds no divergences of model {name!r} "
                              "(record them with --update-baseline)")
-        say(f"comparing {scene.describe()} in {', '.join(engines)}")
+        say(f"comparing {scene.describe() if scene is not None else args.model} in {', '.join(engines)}")
         from validation.cluster import connect
 
-        with connect(getattr(args, "scheduler", None), getattr(args, "workers", None)) as client:
-            comparison = compare(scene, engines, dt=args.dt, t_end=args.t_end, method=args.method, progress=say,
-                                 client=client)
+        if is_file:  # the user's own file, in MuJoCo as it is
+            comparison = compare(args.model, engines, dt=args.dt, t_end=args.t_end, method=args.method,
+                                 progress=say, **file_options)
+        else:
+            with connect(getattr(args, "scheduler", None), getattr(args, "workers", None)) as client:
+                comparison = compare(scene, engines, dt=args.dt, t_end=args.t_end, method=args.method,
+                                     progress=say, client=client)
         found, missing = None, []
         if args.baseline is not None and not args.update_baseline:
             found, missing = baseline_findings(comparison, args.baseline)
@@ -835,4 +1020,8 @@ def main(args) -> int:
         say(f"REGRESSION {message}")
     for message in missing:
         say(f"MISSING {message}")
+    if not comparison.rows:
+        say("NOTHING COMPARED: fewer than two engines ran the model: "
+            + "; ".join(f"{e} {r.status}" + (f" ({r.note})" if r.note else "") for e, r in comparison.runs.items()))
+        return 3
     return 1 if found else 2 if missing else 0

@@ -14,6 +14,7 @@ The threshold of a method is the h w at which e = ACCURACY_TOLERANCE (1 %), foun
 its stability interval) on its own step matrix:
     euler 0.00317, symplectic_euler 0.186, verlet 0.195, rk4 0.662, yoshida6 0.865, gauss6: none (e stays
     below 1 % up to its stability interval 2.32), splitting: verlet's (a second-order symmetric splitting),
+    moreau, mujoco_euler, implicitfast and implicit: symplectic_euler's (their motion on an undamped oscillation),
     reference: none (adaptive, to rtol 1e-13).
 Runge-Kutta methods (euler, rk4, gauss6) from their tableaux: R(z) = 1 + z b^T (I - z A)^-1 1 at z = i h w;
 the symplectic ones (symplectic_euler, verlet and yoshida6, a composition of verlet steps) from their kicks and
@@ -36,7 +37,10 @@ ACCURACY_TOLERANCE = 0.01  # error over one period of the fastest mode, relative
 # Methods whose accuracy is another method's: a scene's splitting is second order and symmetric (verlet's).
 # Moreau-Jean time-stepping (rbody.engine.constraints.stepping) moves a tree between impulses as symplectic Euler:
 # v += h a(q, v), then q += h v.
-SAME_AS = {"splitting": "verlet", "moreau": "symplectic_euler"}
+# MuJoCo's integrators (rbody.engine.mujoco_steps) are semi-implicit Euler on an undamped oscillation (their implicit
+# velocity terms only damp), and the rate they are checked against is the stiffness's.
+SAME_AS = {"splitting": "verlet", "moreau": "symplectic_euler", "mujoco_euler": "symplectic_euler",
+           "implicitfast": "symplectic_euler", "implicit": "symplectic_euler"}
 
 
 def step_matrix(method: str, x: float) -> np.ndarray:

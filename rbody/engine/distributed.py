@@ -143,7 +143,7 @@ def integrate_rows(scene: Experiment, start: int, stop: int, method: str, dt: fl
     numba's threads are limited to the worker's threads, so that a worker per core does not oversubscribe."""
     import numba
 
-    model = scene.native_model  # built once per worker: the scattered scene is one object there
+    model = getattr(scene, "native_model_for", lambda _method: scene.native_model)(method)  # once per worker
     rows = dataclasses.replace(model, y0=np.ascontiguousarray(model.y0[start:stop]),
                                params=np.ascontiguousarray(model.params[start:stop]))
     out = np.empty((nsteps // save_every + 1,) + rows.y0.shape)

@@ -26,6 +26,9 @@ scenes read (no parallel tables):
                   splitting         2, a second-order symmetric splitting's (the yoshida6 composition of a
                                     scene's flow takes yoshida6's)
                   moreau            2, as symplectic Euler (its free motion between impulses)
+                  mujoco_euler, implicitfast, implicit   2: semi-implicit Euler's on an undamped oscillation (their
+                                    implicit velocity terms only damp; rbody.engine.mujoco_steps); the rate they are
+                                    checked against is the stiffness's, sqrt of the spectral radius of d qacc/d q
                   reference         inf (scipy's DOP853 at rtol 1e-13, adaptive)
     bind        bind(model, flow, batch, dt, nsteps, save_every) -> runner(y0, params, out) -> failed (B,): the
                 compiled loop with all but the states fixed (rbody.engine.integrators.Bound); flow is the
@@ -48,7 +51,8 @@ from rbody.engine import integrators
 NEEDS = {"rhs": "y' = f(y) (the model's rhs)",
          "accel": "q'' = a(q) with y = (q, q'), a separable Hamiltonian (the model's accel)",
          "split": "the scene's own symmetric one-step map (the model's split flows)",
-         "constraints": "a constrained tree (the model's constraint table: rbody.engine.constraints)"}
+         "constraints": "a constrained tree (the model's constraint table: rbody.engine.constraints)",
+         "mujoco": "a tree's MuJoCo step (rbody.engine.mujoco_steps: its mass matrix, forces and velocity derivatives)"}
 
 
 @dataclass(frozen=True, eq=False)
@@ -220,6 +224,15 @@ RECORDS: tuple[Method, ...] = (
     Method("moreau", 1, "constraints", symplectic=False, symmetric=False, explicit=True, beta=lambda: 2.0,
            bind=_bind_constrained, summary="Moreau-Jean time-stepping of a constrained tree: impulses at the velocity level, "
            "a complementarity problem per step (rbody.engine.constraints.stepping)"),
+    Method("mujoco_euler", 1, "mujoco", symplectic=False, symmetric=False, explicit=False, beta=lambda: 2.0,
+           bind=_bind_splitting, summary="MuJoCo's Euler (MJCF's default): (M + h B) qacc = f with the joints' damping B "
+                                         "implicit, qvel += h qacc, then qpos with the new qvel (semi-implicit)"),
+    Method("implicitfast", 1, "mujoco", symplectic=False, symmetric=False, explicit=False, beta=lambda: 2.0,
+           bind=_bind_splitting, summary="MuJoCo's implicitfast: (M - h D) qacc = f, D = d(passive + actuator)/d qvel "
+                                         "symmetrised (Coriolis left out), then as mujoco_euler"),
+    Method("implicit", 1, "mujoco", symplectic=False, symmetric=False, explicit=False, beta=lambda: 2.0,
+           bind=_bind_splitting, summary="MuJoCo's implicit: D with the Coriolis and centrifugal derivative, solved by "
+                                         "LU, then as mujoco_euler"),
     Method("reference", None, "rhs", symplectic=False, symmetric=False, explicit=True, beta=lambda: math.inf,
            bind=_bind_reference, summary="scipy DOP853 at rtol 1e-13: for checks only, never for speed",
            failure="a failed solve (scipy's DOP853 could not reach its tolerance)"),

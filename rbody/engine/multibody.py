@@ -1630,10 +1630,7 @@ class Multibody:
         qpos0.setflags(write=False)
         qvel0.setflags(write=False)
         self.qpos0, self.qvel0 = qpos0, qvel0
-        if self.nv == 0:
-            raise ValueError(f"the tree has no degree of freedom ({len(self.body_names)} bodies, no joint): nothing in it "
-                             "moves; give a body a joint (a free joint for a body that flies)")
-        self.check_pivots(qpos0)
+        self.check_pivots(qpos0)  # a tree with no degree of freedom (nq = nv = 0, as MuJoCo compiles it) is a model too
 
     # ----- arguments ---------------------------------------------------------------------------------
 
@@ -1649,8 +1646,10 @@ class Multibody:
         arrays = [self._state(value, size, what) for value, size, what in pairs]
         shape = np.broadcast_shapes(*(a.shape[:-1] for a in arrays))
         # writable C arrays, as the integrators pass: a read-only state (a broadcast view) is another numba type,
-        # which would compile every algorithm a second time (seconds on a first run)
-        flat = [np.require(np.broadcast_to(a, shape + a.shape[-1:]).reshape(-1, a.shape[-1]), np.float64, ["C", "W"])
+        # which would compile every algorithm a second time (seconds on a first run); the count explicit: a tree
+        # with nothing that moves has nq = 0
+        count = int(np.prod(shape)) if shape else 1
+        flat = [np.require(np.broadcast_to(a, shape + a.shape[-1:]).reshape(count, a.shape[-1]), np.float64, ["C", "W"])
                 for a in arrays]
         return shape, flat
 

@@ -68,6 +68,9 @@ class NativeModel:
     # The constraint table (rbody.engine.constraints.table.ConstraintTable) of a tree with limits, dry friction or
     # equalities, whose run simulate hands to the constraint layer (rbody.engine.constraints.runner); None: none.
     constraints: Any = None
+    # Where a run writes its controls, time step and control schedule into params, and where act sits in y
+    # (rbody.engine.system.ControlSlots), for a model driven by controls (a tree with actuators); None otherwise.
+    controls: Any = None
 
 
 @runtime_checkable

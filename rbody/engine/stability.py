@@ -137,6 +137,14 @@ def jacobian_rate(rhs, y: np.ndarray, params: np.ndarray) -> np.ndarray:
     return rates
 
 
+def jacobian_matrices(rhs, y: np.ndarray, params: np.ndarray) -> np.ndarray:
+    """(B, n, n) df/dy at each row of y (B, n), by the central differences of jacobian_rate."""
+    y, params = np.ascontiguousarray(y, dtype=np.float64), np.ascontiguousarray(params, dtype=np.float64)
+    out = np.empty((y.shape[0], y.shape[1], y.shape[1]))
+    _jacobians(integrators.pointer_function(rhs), y, params, JACOBIAN_STEP, out)
+    return out
+
+
 JACOBIAN_BLOCK = 2**21  # numbers (16 MB) of Jacobians held at once
 JACOBIAN_CHUNK = 256    # elements per thread's task in the compiled loop
 # States longer than this are not linearised densely (krylov_rate): at n = 64 the dense Jacobian costs 128
@@ -357,5 +365,5 @@ def check_step(scene: Experiment, method: str, dt: float, t_end: float | None = 
         raise SimulationError(f"scene {scene.describe()}: method {method!r}: {why}; use dt <= {limit:.6g} s")
 
 
-__all__ = ["stability_interval", "yoshida6_interval", "fastest_rate", "model_rate", "jacobian_rate", "stability_limit", "resolution_problem",
-           "check_step", "check_state", "EULER_GROWTH", "RESOLUTION_FACTOR"]
+__all__ = ["stability_interval", "yoshida6_interval", "fastest_rate", "model_rate", "jacobian_rate", "jacobian_matrices",
+           "stability_limit", "resolution_problem", "check_step", "check_state", "EULER_GROWTH", "RESOLUTION_FACTOR"]

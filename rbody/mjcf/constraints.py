@@ -19,7 +19,7 @@ the reader notes them where a model sets them. What is read, as MuJoCo's compile
   completes an equality from the model's reference configuration qpos0 (a connect's point on body2; a weld's
   relative pose when relpose is not given), the reader does the same from the bodies' frames, so that the
   Equality it returns is explicit. ``<flag equality="disable"/>`` drops every equality (noted).
-  ``tendon`` equalities are refused (rbody models no tendons yet).
+  ``tendon`` equalities are refused (tendons are force elements, not yet rows of the constraint layer).
 """
 
 from __future__ import annotations
@@ -118,8 +118,9 @@ class Frames:
 def equality_kind_error(element: Element) -> MJCFError | None:
     """The error for an equality element rbody cannot hold, or None."""
     if element.tag == "tendon":
-        return element.error("tendon equality constraints are not supported: rbody models no tendons yet (a tendon "
-                             "equality needs the tendon's length and Jacobian); remove it or set active=\"false\"")
+        return element.error("tendon equality constraints are not supported: rbody's tendons are force elements "
+                             "(springs, dampers, actuator transmissions), not yet rows of the constraint layer; remove "
+                             "it or set active=\"false\"")
     if element.tag == "flex":
         return element.error("flex equality constraints are not supported (rbody models no deformable bodies)")
     if element.tag not in EQUALITY_ATTRS:

@@ -88,6 +88,7 @@ from rbody.inertia import Inertia
 from rbody.motion import quat_from_matrix, quat_normalize, quat_to_matrix
 from rbody.layout import WORLD, depth_first, joint_order, Body, Contact, Joint, Layout, Shape, already_unit
 from rbody.scene import Scene
+from rbody.mjcf import actuators as mjcf_actuators
 
 DEFAULT_TIMESTEP = 0.002            # MuJoCo's own default step [s], used when dt is not given
 MUJOCO_MIN_MOMENT = 1e-14           # MuJoCo refuses a fullinertia whose smallest eigenvalue is below (mjEPS)
@@ -367,6 +368,8 @@ def _check_layout(layout: Layout) -> None:
             + [j.name + ROLL_SLIDE_SUFFIX for j in layout.joints if j.kind == "roll"])
     shapes = list(layout.fixed) + [s for b in layout.bodies for s in b.shapes]
     _unique("shape", [s.name for s in shapes])
+    _unique("tendon", [t.name for t in layout.tendons])
+    _unique("actuator", [a.name for a in layout.actuators])
     if any(b.name == WORLD for b in layout.bodies):
         raise ValueError(f"a body is called {WORLD!r}: MuJoCo reserves that name for the world body")
     names = {b.name for b in layout.bodies}
@@ -484,8 +487,26 @@ def _inertial(exported: ExportedInertia, indent: str) -> str:
     return f"{indent}<inertial {attrs}/>"
 
 
+def _fluid_box_inertial(exported: ExportedInertia, axes, indent: str) -> str:
+    """A fluid box body's inertial in the principal form on its own axes (MuJoCo's inertia box takes its sides along
+    them; from a full tensor its solver could pick others where two moments are equal), when the tensor is diagonal
+    on them; otherwise the usual form."""
+    rotation = quat_to_matrix(np.asarray(axes, dtype=np.float64))
+    local = rotation.T @ exported.inertia.tensor @ rotation
+    off = np.abs(local - np.diag(np.diag(local)))
+    if exported.note or np.max(off) > 1e-12 * np.max(np.abs(local)):
+        return _inertial(exported, indent)
+    attrs = _attrs(pos=_vec(exported.inertia.com), quat=_vec(axes), mass=_num(exported.inertia.mass),
+                   diaginertia=_vec(np.diag(local)))
+    return f"{indent}<inertial {attrs}/>"
+
+
 def _joint(joint: Joint, indent: str, limit: tuple[float, float] | None = None) -> str:
     extra = {name: _num(getattr(joint, name)) for name in _JOINT_ATTRIBUTES if getattr(joint, name, 0.0) != 0.0}
+    if joint.actuatorgravcomp:
+        extra["actuatorgravcomp"] = "true"
+    if joint.actuatorfrcrange is not None:
+        extra.update(actuatorfrclimited="true", actuatorfrcrange=_vec(joint.actuatorfrcrange))
     limit = joint.range if joint.range is not None else limit  # the joint's own, else a scene's declared one
     if limit is not None and joint.kind != "free":  # [rad | m]; a ball's (0, largest angle)
         extra.update(limited="true", range=_vec(limit))
@@ -541,6 +562,39 @@ def _equality(e) -> str:
         joint2 = {"joint2": e.joint2} if e.joint2 else {}
         return f"<joint {_attrs(name=e.name, joint1=e.joint1, **joint2, polycoef=_vec(e.polycoef), **active)}/>"
     return f"<{e.kind} {_attrs(name=e.name, site1=f'{e.name}_site1', site2=f'{e.name}_site2', **active)}/>"
+
+
+def mesh_inertia_mode(path: str) -> str:
+    """The inertia mode to_mjcf writes for a mesh asset: "exact" (MuJoCo's exact volume integrals: right for any
+    closed mesh, should a user switch inertiafromgeom on) where MuJoCo's compiler accepts it, a mesh whose faces
+    are consistently oriented and enclose a positive volume; else "legacy", which it always accepts (MuJoCo refuses
+    "exact" for an open or inside-out mesh: "inconsistent orientation", "mesh volume is negative"). The body's mass
+    properties are the explicit <inertial> either way."""
+    try:
+        import trimesh
+
+        mesh = trimesh.load(path, force="mesh", process=False)
+        if mesh.is_winding_consistent and mesh.is_watertight and float(mesh.volume) > 1e-15:
+            return "exact"
+    except Exception:  # a file trimesh cannot read: MuJoCo reads it by its own rules
+        pass
+    return "legacy"
+
+
+def _spring_lengths(scene) -> dict[str, tuple[float, float]]:
+    """Each tendon's spring dead band as the engine resolved it (rbody.engine.system.Multibody), so that MuJoCo reads
+    the same lengths whatever pose it would compute them at."""
+    from rbody.engine.elements import T_HIGH, T_LOW, TEN_SIZE, X_TEN
+
+    model = getattr(scene, "multibody", None)
+    if model is None or not getattr(model, "ntendon", 0):
+        return {}
+    row, start = model.params, model.arrays.row.size
+    out = {}
+    for t, name in enumerate(model.tendon_names):
+        r = int(row[start + X_TEN]) + t * TEN_SIZE
+        out[name] = (float(row[r + T_LOW]), float(row[r + T_HIGH]))
+    return out
 
 
 def _comment(text: str) -> str:
@@ -657,7 +711,14 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
            '  <compiler angle="radian" inertiafromgeom="false" alignfree="false" autolimits="true"/>']
     option = {"timestep": _num(dt), "gravity": _vec((0.0, 0.0, -gravity)), "integrator": integrator,
               "cone": cone, "impratio": None if impratio is None else _num(impratio),
-              "noslip_iterations": None if noslip_iterations is None else str(int(noslip_iterations))}
+              "noslip_iterations": None if noslip_iterations is None else str(int(noslip_iterations)),
+              "actuatorgroupdisable": (str(mjcf_actuators.DISABLED_GROUP)
+                                       if any(a.disabled for a in layout.actuators) else None)}
+    if layout.fluid is not None:  # MuJoCo's fluid forces: the option, each box body's axes, each ellipsoid
+        option.update(density=_num(layout.fluid.density), viscosity=_num(layout.fluid.viscosity),
+                      wind=_vec(layout.fluid.wind))
+    box_axes = {box.body: box.axes for box in layout.fluid.boxes} if layout.fluid is not None else {}
+    ellipsoids = list(layout.fluid.ellipsoids) if layout.fluid is not None else []
     out.append(f"  <option {_attrs(**option)}/>")
     if restitutions:
         out.append("  <custom>")
@@ -668,26 +729,38 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
         out.append("  <asset>")
         for shape in meshes:
             # an absolute path: the model compiles from any folder (the mesh file stays where it is)
-            out.append(f"    <mesh {_attrs(name=shape.name, file=os.path.abspath(shape.mesh), inertia='exact')}/>")
+            mode = mesh_inertia_mode(shape.mesh)
+            out.append(f"    <mesh {_attrs(name=shape.name, file=os.path.abspath(shape.mesh), inertia=mode)}/>")
         out.append("  </asset>")
     out.append("  <worldbody>")
     for shape in layout.fixed:
         out.append(_geom(shape, "    "))
     out.extend("    " + site for site in sites.get(WORLD, ()))
+    for name, point, quat in mjcf_actuators.tendon_sites(layout.tendons, WORLD, layout.actuators):
+        out.append(f"    <site {_attrs(name=name, pos=_vec(point), quat=_vec(quat))}/>")
     children: dict[str, list[Body]] = {}
     for body in layout.bodies:
         children.setdefault(body.parent, []).append(body)
 
     def write(body: Body, indent: str) -> None:
         quat = _unit_quat(body.quat)
-        out.append(f"{indent}<body {_attrs(name=body.name, pos=_vec(body.pos), quat=_vec(quat))}>")
+        gravcomp = _num(body.gravcomp) if body.gravcomp else None
+        out.append(f"{indent}<body {_attrs(name=body.name, pos=_vec(body.pos), quat=_vec(quat), gravcomp=gravcomp)}>")
         for joint in layout.joints:
             if joint.body == body.name:
                 out.append(_joint(joint, indent + "  ", limits.get(joint.name)))
-        out.append(_inertial(exported[body.name], indent + "  "))
+        out.append(_fluid_box_inertial(exported[body.name], box_axes[body.name], indent + "  ")
+                   if body.name in box_axes else _inertial(exported[body.name], indent + "  "))
         for shape in body.shapes:
             out.append(_geom(shape, indent + "  "))
         out.extend(indent + "  " + site for site in sites.get(body.name, ()))
+        for k, shape in enumerate(e for e in ellipsoids if e.body == body.name):
+            attrs = _attrs(name=f"{body.name}_fluid{k}", type="ellipsoid", size=_vec(shape.semiaxes),
+                           pos=_vec(shape.pos), quat=_vec(shape.quat), contype="0", conaffinity="0",
+                           fluidshape="ellipsoid", fluidcoef=_vec(shape.coefficients))
+            out.append(f"{indent}  <geom {attrs}/>")
+        for name, point, quat in mjcf_actuators.tendon_sites(layout.tendons, body.name, layout.actuators):
+            out.append(f"{indent}  <site {_attrs(name=name, pos=_vec(point), quat=_vec(quat))}/>")
         for child in children.get(body.name, ()):
             write(child, indent + "  ")
         out.append(f"{indent}</body>")
@@ -702,14 +775,28 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
                                              friction=_vec(p["friction"]), solref=_vec(p["solref"]),
                                              solimp=_vec(p["solimp"])) + "/>")
         out.append("  </contact>")
+    if layout.tendons:
+        springs = _spring_lengths(scene)
+        out.append("  <tendon>")
+        for tendon in layout.tendons:
+            out.extend(mjcf_actuators.tendon_xml(tendon, springs.get(tendon.name), _attrs, _vec, _num, "    "))
+        out.append("  </tendon>")
+    if layout.actuators:
+        out.append("  <actuator>")
+        out.extend(mjcf_actuators.actuator_xml(a, _attrs, _vec, _num, "    ") for a in layout.actuators)
+        out.append("  </actuator>")
     if rolls or equalities:
         out.append("  <equality>")
         out.extend(_roll_equality(joint, dt, "    ") for joint in joint_order(layout) if joint.kind == "roll")
         out.extend("    " + _equality(e) for e in equalities)
         out.append("  </equality>")
-    if qpos.size:
+    if qpos.size or layout.actuators:
+        controls = {}
+        if layout.actuators and hasattr(scene, "_controls0"):  # a TreeScene's first batch element's act0, ctrl0
+            act0, ctrl0 = scene._controls0()
+            controls = {"ctrl": _vec(ctrl0[0])} | ({"act": _vec(act0[0])} if act0.shape[1] else {})
         out.append("  <keyframe>")
-        out.append(f"    <key {_attrs(name=INITIAL_KEY, qpos=_vec(qpos), qvel=_vec(qvel))}/>")
+        out.append(f"    <key {_attrs(name=INITIAL_KEY, qpos=_vec(qpos), qvel=_vec(qvel), **controls)}/>")
         out.append("  </keyframe>")
     out.append("</mujoco>")
     return "\n".join(out) + "\n"

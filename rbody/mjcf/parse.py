@@ -31,36 +31,53 @@ equal MuJoCo's body_mass, body_ipos and body_inertia/body_iquat to round-off):
 - joints hinge, slide, ball, free and ``<freejoint>``, with pos, axis, ref, damping, stiffness,
   springref, armature, range, limited, margin and frictionloss, and ``<equality>`` connect, weld and joint,
   held rigidly (rbody.mjcf.constraints: MuJoCo's defaults, active flags, what replaces solref and solimp, and
-  the ``<custom>`` numeric that gives a limit its restitution);
-- ``<option>``: timestep, gravity (along -z: rbody's scenes have gravity -g z), integrator; flags
-  contact, constraint, equality, limit, frictionloss, gravity (disable: g = 0), spring and damper
-  (disable: the joints' stiffness or damping become 0);
-- ``<keyframe>``: qpos and qvel of a key chosen by name or index (``keyframe=``);
+  the ``<custom>`` numeric that gives a limit its restitution); springdamper (MuJoCo's stiffness and damping from
+  a time constant and damping ratio at the reference pose, hinge and slide); actuatorgravcomp,
+  actuatorfrcrange/actuatorfrclimited;
+- body gravcomp (a force against gravity on a fraction of the body's weight, passive or through the joints'
+  actuators); compiler settotalmass (every mass and inertia scaled as MuJoCo's mj_setTotalmass);
+- ``<frame>``: nested, with pos/orientation and childclass, around bodies, geoms, sites, joints' bodies;
+- actuators (rbody.mjcf.actuators): <general>, <motor>, <position> (kp, kv, dampratio, timeconst, inheritrange),
+  <velocity>, <intvelocity>, <damper>, with their one-default-per-class rule, ctrl/force/act ranges, actearly,
+  gear, through a joint, a tendon or a site (no refsite); <fixed> and <spatial> tendons (through sites, no
+  wrapping) with stiffness, damping and springlength;
+- ``<option>``: timestep, gravity (along -z: rbody's scenes have gravity -g z), integrator (the scene's
+  file_method: Euler -> "mujoco_euler", implicitfast, implicit, RK4 -> "rk4"), density, viscosity and wind
+  (fluid forces: MuJoCo's inertia-box model, or its ellipsoid model on geoms with fluidshape="ellipsoid",
+  rbody.mjcf.fluid), actuatorgroupdisable; flags contact, constraint, equality, limit, frictionloss, gravity
+  (disable: g = 0), spring and damper (disable: the joints' and tendons' stiffness or damping become 0),
+  actuation (disable: actuators apply no force), clampctrl (disable: controls are not clamped), each noted;
+- ``<keyframe>``: qpos, qvel, act and ctrl of a key chosen by name or index (``keyframe=``);
+- a world-fixed height field, read as static terrain (noted);
 - one rbody Body per MJCF body, with its name (an unnamed body is called ``body<id>``, id as MuJoCo's;
   unnamed joints ``<body>_joint<i>``, geoms ``<body>_geom<i>``), except that a body with neither mass
   nor joints (a pure frame) is folded into its parent, its children and shapes moved there (noted).
 
-Ignored, and named in ``MJCFModel.notes`` (``scene.import_notes``): light, camera, site, material,
-texture, skin, skybox, visual, statistic, size, custom, geoms' appearance (rgba, material, group),
-sensors, contact parameters of geoms that cannot collide, solver settings (only constraints use them),
-motor actuators and general actuators without bias (their controls are zero, so they apply no force),
-tendons without stiffness, damping, friction or limits.
+Cheap loading: a mesh's mass properties are computed only where they count (a body with an explicit <inertial>
+under inertiafromgeom="auto" keeps only the mesh's path).
+
+Ignored, and named in ``MJCFModel.notes`` (``scene.import_notes``): light, camera, site (but a tendon's or
+actuator's site is read), material, texture, skin, skybox, visual, statistic, size, custom, geoms' appearance
+(rgba, material, group), sensors, contact parameters of geoms that cannot collide, solver settings (only
+constraints use them); overlapping geoms of a body welded to the world (it never moves: their mass is unused).
 
 Contacts: the geom pairs MuJoCo's broad phase keeps (different bodies, not welded together nor parent
 and child, no <exclude>, contype/conaffinity matching, the contact flag on) become rbody Contacts with
 MuJoCo's friction and condim combination and rbody's restitution numerics (rbody.mjcf.contacts), held
-rigidly by the constraint layer.
+rigidly by the constraint layer. Explicit <pair>s too, with their own friction and condim, in place of the
+dynamic pair of their geoms.
 
-Explicit <pair>s too, with their own friction and condim, in place of the dynamic pair of their geoms.
-
-Refused (MJCFError, naming the element, its file and line): contacts rbody does not compute (a pair
-with a cylinder, ellipsoid, mesh or height field, condim 4 or 6), while the contact flag is on: set contype="0" conaffinity="0" on the geoms, or <flag contact="disable"/>; tendon and flex equalities; tendons with stiffness, damping, friction or limits;
-actuators that push with a zero control (position, velocity, damper, ... or damping/armature on the
-actuator); fluid forces (option density or viscosity, geom fluidshape); joint springdamper; body gravcomp; heightfields, flexes, composites, plugins, <frame>, <replicate>,
-<attach>; gravity not along -z; stiffness on a ball joint; boundmass, boundinertia, settotalmass,
-fusestatic, alignfree; a body
-with a joint but no mass; an orientation given twice; unknown elements or attributes; geoms of one body
-that overlap, which MuJoCo would count twice (``overlapping_geoms="sum"`` sums them as MuJoCo does).
+Refused (MJCFError, naming the element, its file and line): contacts rbody does not compute (a pair with a
+cylinder, ellipsoid, mesh or height field, condim 4 or 6) while the contact flag is on (set contype="0"
+conaffinity="0" on the geoms, or <flag contact="disable"/>); tendon and flex equalities; tendon limits,
+frictionloss and armature (the constraint layer holds joints' limits and friction, not yet tendons'), wrapping
+tendons (geoms, pulleys); actuators that rbody does not model (muscle, cylinder, adhesion, pid, dcmotor,
+orientation; user dynamics, gains or biases; actuator damping or armature; body, slider-crank or refsite
+transmissions; see rbody.mjcf.actuators); springdamper on a ball or free joint; fluidshape="ellipsoid" on a mesh
+or plane geom; a height field on a moving body, flexes, composites, plugins, <replicate>, <attach>; gravity not
+along -z; stiffness on a ball joint; boundmass, boundinertia, fusestatic, alignfree; a body with a joint but no
+mass; an orientation given twice; unknown elements or attributes; geoms of one moving body that overlap, which
+MuJoCo would count twice (``overlapping_geoms="sum"`` sums them as MuJoCo does).
 
 Read as strictly as MuJoCo reads it (so that rbody accepts no file MuJoCo refuses: tests/rbody/test_mjcf_fuzz.py):
 numbers by C's strtod and strtol, as MuJoCo's StringToVector (rbody.mjcf.grammar: no '1_0', no non-ASCII digits,
@@ -108,13 +125,16 @@ from rbody.mjcf.frames import MJ_EPS, frame_to_quat, normalize, quat_matrix, qua
 from rbody.mjcf.geoms import (MESH_INERTIA_MODES, GeomMass, MeshMass, mesh_mass, mujoco_principal, primitive_moments,
                               primitive_volume, principal_tensor, sum_geoms)
 from rbody.layout import WORLD, Body, Joint, Layout, Shape
+from rbody.mjcf import actuators as mjcf_actuators
 from rbody.scene import TreeScene
 
 DEFAULT_T_END = 1.0        # [s] duration of a scene read from MJCF when t_end is not given
 OVERLAP_CHOICES = ("refuse", "sum")
 INTEGRATORS = {"Euler": "Euler", "RK4": "RK4", "implicit": "implicit", "implicitfast": "implicitfast"}
+FILE_METHODS = {"Euler": "mujoco_euler", "RK4": "rk4", "implicit": "implicit", "implicitfast": "implicitfast"}
 ORIENTATIONS = ("quat", "axisangle", "xyaxes", "zaxis", "euler")
 PRINCIPAL_NOTE_RTOL = 1e-12  # a tensor MuJoCo's eigen-solver moves by more than this (relative) is noted
+MJ_MINVAL = 1e-15            # MuJoCo's mjMINVAL: the floor of its divisions (mj_setTotalmass, AutoSpringDamper)
 
 
 # ----- the reader --------------------------------------------------------------------------------------
@@ -124,7 +144,6 @@ _VISUAL_ATTRS = {"site": set(ATTRIBUTES["site"]) | {"name", "class", "material"}
                  "camera": set(ATTRIBUTES["camera"]) | {"name", "class", "target"},
                  "light": set(ATTRIBUTES["light"]) | {"name", "class", "target", "texture"}}
 _REFUSED_IN_BODY = {
-    "frame": "<frame> is not supported: write its transform into the bodies and geoms it holds",
     "replicate": "<replicate> is not supported: write the copies out",
     "attach": "<attach> (model composition) is not supported",
     "composite": "composites are not supported (they make many bodies, joints and constraints)",
@@ -181,6 +200,8 @@ class _Geom:
     group: int
     mesh: str | None = None
     mass: GeomMass | None = None
+    ellipsoid: bool = False     # fluidshape="ellipsoid"
+    axes: np.ndarray | None = None  # its principal axes (quat, body frame), as MuJoCo's compiler holds them
 
 
 @dataclass
@@ -198,6 +219,8 @@ class _Body:
     com: np.ndarray = field(default_factory=lambda: np.zeros(3))
     tensor: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
     weld: int = 0
+    gravcomp: float = 0.0
+    axes: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0, 0.0]))  # principal axes (body_iquat)
 
     @property
     def dofs(self) -> int:
@@ -221,6 +244,7 @@ class MJCFModel:
     limits:     joint name -> (lo, hi) declared range [rad | m] (ball: (0, largest angle) [rad])
     notes:      what was ignored, one line each
     source:     the file read, or "<string>"
+    act0, ctrl0: (na,), (nu,) the chosen keyframe's activations and controls (zeros without one)
     """
 
     layout: Layout
@@ -234,6 +258,8 @@ class MJCFModel:
     limits: dict
     notes: tuple
     source: str
+    act0: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    ctrl0: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
 class _Reader:
@@ -254,12 +280,15 @@ class _Reader:
         self.mesh_paths: dict[str, str] = {}                 # mesh name -> absolute file path
         self.plane_bodies: list[tuple[Element, _Body]] = []  # planes on bodies (only static ones may hold them)
         self.key_elements: list[Element] = []
-        self.sites: dict[str, tuple[int, np.ndarray, np.ndarray]] = {}  # name -> (MJCF body index, pos, quat)
+        self.sites: dict[str, tuple[_Body, np.ndarray, np.ndarray]] = {}  # name -> (body, pos, quat in its frame)
         self.equality_elements: list[tuple[Element, dict]] = []
         self.numerics: dict[str, np.ndarray] = {}
         self.carriers: dict = {}
         self._nested_defaults: list[tuple[Element, str]] = []  # <default> classes still to read, with their parent
         self.visual_names: dict[str, set[str]] = {}               # names of sites, cameras, lights (each unique)
+        self.actuator_defaults: dict[str, mjcf_actuators.ActuatorSpec] = {}   # class -> its one actuator default
+        self.actuator_specs: list[tuple[str, mjcf_actuators.ActuatorSpec]] = []
+        self.tendon_specs: list[tuple[str, mjcf_actuators.TendonSpec]] = []
 
     # ----- helpers -----
 
@@ -436,8 +465,7 @@ class _Reader:
         for key, default in (("boundmass", 0.0), ("boundinertia", 0.0)):
             if number(where, key, attrib, default) != default:
                 raise where.error(f"{key} is not supported: it changes bodies' masses; give the masses explicitly")
-        if number(where, "settotalmass", attrib, -1.0) > 0:
-            raise where.error("settotalmass is not supported: it rescales every mass; give the masses explicitly")
+        self.settotalmass = number(where, "settotalmass", attrib, -1.0)
         if boolean(where, "fusestatic", attrib, False):
             raise where.error("fusestatic is not supported: rbody keeps one body per MJCF body")
         if boolean(where, "alignfree", attrib, False):
@@ -466,10 +494,16 @@ class _Reader:
             raise where.error(f"timestep={self.timestep!r}: must be > 0 [s]")
         self.integrator = choice(where, "integrator", attrib, tuple(INTEGRATORS), "Euler")
         gravity = numbers(where, "gravity", attrib, 3) if "gravity" in attrib else np.array([0.0, 0.0, -9.81])
+        self.density, self.viscosity = number(where, "density", attrib, 0.0), number(where, "viscosity", attrib, 0.0)
         for key in ("density", "viscosity"):
-            if number(where, key, attrib, 0.0) != 0:
-                raise where.error(f"{key}={attrib[key]!r}: fluid forces are not supported (set {key}=\"0\")")
-        ignored = sorted(set(attrib) - {"timestep", "integrator", "gravity", "density", "viscosity"})
+            if getattr(self, key) < 0:
+                raise where.error(f"{key}={attrib[key]!r}: must be >= 0")
+        self.wind = numbers(where, "wind", attrib, 3) if "wind" in attrib else np.zeros(3)
+        self.disabled_groups = set()
+        if "actuatorgroupdisable" in attrib:
+            self.disabled_groups = {int(g) for g in numbers(where, "actuatorgroupdisable", attrib)}
+        ignored = sorted(set(attrib) - {"timestep", "integrator", "gravity", "density", "viscosity", "wind",
+                                        "actuatorgroupdisable"})
         if ignored:
             self.note("option", f"<option> {', '.join(ignored)} ignored (constraint-solver and sensor settings; "
                                 "the model has no active constraint)")
@@ -484,9 +518,15 @@ class _Reader:
         self.limits_on = self.constraints_on and on("limit")
         self.frictionloss_on = self.constraints_on and on("frictionloss")
         self.spring_on, self.damper_on = on("spring"), on("damper")
+        self.actuation_on, self.clampctrl_on = on("actuation"), on("clampctrl")
+        if not on("eulerdamp") and self.integrator == "Euler":
+            self.note("eulerdamp", "<flag eulerdamp=\"disable\"/>: MuJoCo's Euler then takes the joints' damping "
+                                   "explicitly; rbody's mujoco_euler keeps it implicit (a difference at O(h) where "
+                                   "joints are damped)")
         self.filterparent = on("filterparent")
         if not on("gravity"):
             gravity = np.zeros(3)
+            self.note("gravity", "gravity off (<flag gravity=\"disable\"/>): g = 0")
         if gravity[0] != 0 or gravity[1] != 0 or gravity[2] > 0:
             raise where.error(f"gravity={' '.join(map(repr, gravity.tolist()))}: rbody's scenes have gravity along "
                               "-z (0 0 -g); rotate the model so that gravity points down z")
@@ -503,11 +543,16 @@ class _Reader:
         if top and name == "main":
             values = self.classes.get("main", {})
         seen: set[str] = set()
+        inherited = self.actuator_defaults.get(parent if parent else "main")
+        actuator = inherited.copy() if inherited is not None else mjcf_actuators.ActuatorSpec()
         for child in element.children:
             if child.tag == "default":
                 continue
             if child.tag not in _DEFAULT_CHILDREN:
                 raise child.error(f"unknown element <{child.tag}> in <default>")
+            if child.tag in _ACTUATORS:  # MuJoCo: every actuator element of a class writes its one default
+                mjcf_actuators.apply_actuator(actuator, child, child.attrib)
+                continue
             if child.tag in seen:  # MuJoCo: "Schema violation: unique element found 2 times" (not a merge)
                 raise child.error(f"a second <{child.tag}> in <default class={name!r}>: a class holds at most one "
                                   f"<{child.tag}> (merge their attributes into one)")
@@ -517,6 +562,7 @@ class _Reader:
                 self.check_attrs(child, known - {"name", "class"})
             values.setdefault(child.tag, {}).update(child.attrib)
         self.classes[name] = values
+        self.actuator_defaults[name] = actuator
         for child in reversed([c for c in element.children if c.tag == "default"]):
             self._nested_defaults.append((child, name))
         if top:  # the nested classes, depth first through an explicit stack (no recursion)
@@ -541,7 +587,7 @@ class _Reader:
             elif child.tag in ("texture", "material", "skin"):
                 self.note(child.tag, f"<{child.tag}> assets ignored (appearance only)")
             elif child.tag == "hfield":
-                self.note("hfield", "<hfield> assets ignored (a geom that uses one is refused)")
+                self.note("hfield", "<hfield> assets: a geom using one is read only as world-fixed terrain")
             elif child.tag == "model":
                 raise child.error("<model> assets (model composition) are not supported")
             else:
@@ -552,24 +598,32 @@ class _Reader:
     def read_body_contents(self, body: _Body, childclass: str | None) -> None:
         """The contents of `body` and of every body below it, depth first (MuJoCo's body order), through an explicit
         stack: no recursion, however deep the tree (MuJoCo reads 496 nested bodies)."""
-        pending: list[tuple[Element, _Body, str | None]] = []
+        pending: list[tuple[Element, _Body, str | None, tuple | None]] = []
         self.read_children(body, childclass, pending)
         while pending:
-            element, parent, inherited = pending.pop()
-            child, classname = self.read_body(element, parent, inherited)
+            element, parent, inherited, frame = pending.pop()
+            child, classname = self.read_body(element, parent, inherited, frame)
             self.read_children(child, classname, pending)
             self.check_mocap(child)
 
-    def read_children(self, body: _Body, childclass: str | None, pending: list) -> None:
-        """The joints, geoms, inertial and ignored elements of `body`; its child bodies pushed on `pending` (in
-        reverse, so that they are read in document order)."""
-        bodies = []
-        for child in body.element.children:
+    def read_children(self, body: _Body, childclass: str | None, pending: list, children: list | None = None,
+                      frame: tuple | None = None, bodies: list | None = None) -> None:
+        """The joints, geoms, inertial and ignored elements of `body` (or of a <frame> in it: `children`, placed by
+        `frame` = (pos, quat) in the body's frame); its child bodies pushed on `pending` (in reverse, so that they
+        are read in document order; a frame's bodies join its body's list `bodies` where they stand)."""
+        own = bodies is None
+        bodies = [] if own else bodies
+        for child in body.element.children if children is None else children:
             tag = child.tag
-            if tag == "body":
-                bodies.append((child, body, childclass))
+            if tag == "frame":
+                self.read_frame(child, body, childclass, frame, pending, bodies)
+            elif tag == "body":
+                bodies.append((child, body, childclass, frame))
             elif tag == "geom":
-                self.read_geom(child, body, childclass)
+                self.read_geom(child, body, childclass, frame)
+            elif tag in ("joint", "freejoint", "inertial") and frame is not None:
+                raise child.error(f"a <{tag}> inside a <frame>: MuJoCo's frames hold bodies, geoms, sites, cameras, "
+                                  "lights and frames")
             elif tag in ("joint", "freejoint"):
                 if body.index == 0:
                     raise child.error("the world body cannot have joints")
@@ -584,31 +638,59 @@ class _Reader:
             elif tag in _VISUAL_ELEMENTS:
                 self.check_attrs(child, _VISUAL_ATTRS[tag])
                 self.check_visual(child)
-                if tag == "site" and child.attrib.get("name"):  # equalities may join sites
+                if tag == "site" and "name" in child.attrib:  # a tendon or an actuator may use it
                     attrib = self.attrs(child, "site", childclass)
-                    pos = numbers(child, "pos", attrib, 3) if "pos" in attrib else np.zeros(3)
-                    self.sites[attrib["name"]] = (body.index, pos, self.orientation(child, attrib))
+                    if "fromto" in attrib:
+                        fromto = numbers(child, "fromto", attrib, 6)
+                        position = (fromto[:3] + fromto[3:]) / 2
+                        orientation = z_to_quat(normalize(fromto[:3] - fromto[3:])[0])
+                    else:
+                        position = numbers(child, "pos", attrib, 3) if "pos" in attrib else np.zeros(3)
+                        orientation = self.orientation(child, attrib)
+                    if frame is not None:
+                        position = frame[0] + quat_matrix(frame[1]) @ position
+                        orientation = quat_product(frame[1], orientation)
+                    self.sites[child.attrib["name"]] = (body, position, orientation)
                 self.note(tag, f"<{tag}> elements ignored (they do not change the dynamics)")
             elif tag in _REFUSED_IN_BODY:
                 raise child.error(_REFUSED_IN_BODY[tag])
             else:
                 raise child.error(f"unknown element <{tag}> in a body")
-        pending.extend(reversed(bodies))
+        if own:
+            pending.extend(reversed(bodies))
 
-    def read_body(self, element: Element, parent: _Body, childclass: str | None) -> tuple[_Body, str | None]:
+    def read_frame(self, element: Element, body: _Body, childclass: str | None, outer: tuple | None, pending: list,
+                   bodies: list) -> None:
+        """A <frame>: its children placed by its pos and orientation (composed with any frame around it), read
+        with its childclass, as MuJoCo reads them."""
+        self.check_attrs(element, {"name", "childclass", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler"})
+        if "childclass" in element.attrib:
+            childclass = element.attrib["childclass"]
+            if childclass not in self.classes:
+                raise element.error(f"childclass={childclass!r} is not a <default> class of the model")
+        pos = numbers(element, "pos", element.attrib, 3) if "pos" in element.attrib else np.zeros(3)
+        quat = self.orientation(element, element.attrib)
+        if outer is not None:
+            pos, quat = outer[0] + quat_matrix(outer[1]) @ pos, quat_product(outer[1], quat)
+        self.note("frame", "<frame> elements read: their poses composed into the bodies, geoms and sites they hold")
+        self.read_children(body, childclass, pending, element.children, (pos, quat), bodies)
+
+    def read_body(self, element: Element, parent: _Body, childclass: str | None,
+                  frame: tuple | None = None) -> tuple[_Body, str | None]:
         self.check_attrs(element, _BODY_ATTRS)
         attrib = element.attrib
         if "childclass" in attrib:
             childclass = attrib["childclass"]
             if childclass not in self.classes:
                 raise element.error(f"childclass={childclass!r} is not a <default> class of the model")
-        if number(element, "gravcomp", attrib, 0.0) != 0:
-            raise element.error("gravcomp is not supported: it cancels gravity on the body")
         if boolean(element, "mocap", attrib, False):
             self.note("mocap", "mocap bodies are held fixed (nothing moves them in a run)")
         pos = numbers(element, "pos", attrib, 3) if "pos" in attrib else np.zeros(3)
-        body = _Body(element, attrib.get("name", ""), len(self.bodies) + 1, parent, pos,
-                     self.orientation(element, attrib))
+        quat = self.orientation(element, attrib)
+        if frame is not None:
+            pos, quat = frame[0] + quat_matrix(frame[1]) @ pos, quat_product(frame[1], quat)
+        body = _Body(element, attrib.get("name", ""), len(self.bodies) + 1, parent, pos, quat,
+                     gravcomp=number(element, "gravcomp", attrib, 0.0))
         self.bodies.append(body)
         return body, childclass
 
@@ -660,18 +742,32 @@ class _Reader:
         attrib = self.attrs(element, "joint", childclass)
         kind = choice(element, "type", attrib, ("hinge", "slide", "ball", "free"), "hinge")
         attrib["type"] = kind
-        if "springdamper" in attrib and np.any(numbers(element, "springdamper", attrib, 2) != 0):
-            raise element.error("springdamper is not supported: give stiffness and damping")
+        if "springdamper" in attrib:
+            timeconst, dampratio = numbers(element, "springdamper", attrib, 2)
+            if timeconst > 0 and dampratio > 0 and kind in ("ball", "free"):
+                raise element.error("springdamper on a ball or free joint (MuJoCo's averaged inverse weights and "
+                                    "quaternion spring) is not modelled: use it on hinge and slide joints")
         body.joints.append((element, attrib))
 
-    def read_geom(self, element: Element, body: _Body, childclass: str | None) -> None:
+    def read_geom(self, element: Element, body: _Body, childclass: str | None, frame: tuple | None = None) -> None:
         self.check_attrs(element, _GEOM_ATTRS)
         attrib = self.attrs(element, "geom", childclass)
         kind = choice(element, "type", attrib, _GEOM_KINDS, "sphere")
-        if kind in ("hfield", "sdf"):
-            raise element.error(f"{kind} geoms are not supported")
-        if attrib.get("fluidshape", "none") != "none":
-            raise element.error("fluidshape: fluid forces are not supported (remove it or set it to \"none\")")
+        if kind == "sdf" or (kind == "hfield" and body.index != 0):
+            raise element.error(f"{kind} geoms are not supported" + (" on a body (only a world-fixed height field, "
+                                                                    "which moves nothing, is read)" if kind == "hfield"
+                                                                    else ""))
+        if kind == "hfield":  # on the world: static terrain, massless; the contact check still sees it
+            self.note("hfield geom", "a world-fixed height field read as static terrain (no rbody Shape draws it)")
+            body.geoms.append(_Geom(element, attrib, attrib.get("name", ""), kind, np.zeros(3), np.zeros(3),
+                                    np.array([1.0, 0.0, 0.0, 0.0]), int(number(element, "contype", attrib, 1)),
+                                    int(number(element, "conaffinity", attrib, 1)),
+                                    int(number(element, "group", attrib, 0))))
+            return
+        fluidshape = choice(element, "fluidshape", attrib, ("none", "ellipsoid"), "none")
+        if fluidshape == "ellipsoid" and kind in ("mesh", "plane"):
+            raise element.error(f'fluidshape="ellipsoid" on a {kind} geom (MuJoCo sizes its ellipsoid from the '
+                                "geom's size, which rbody does not form for meshes and planes) is not modelled")
         if "mesh" in attrib and kind != "mesh":
             raise element.error(f"a {kind} fitted to a mesh is not supported: use type=\"mesh\" or give its size")
         if any(key in attrib for key in ("rgba", "material")):
@@ -711,6 +807,8 @@ class _Reader:
             quat = z_to_quat(vector)
         else:
             quat = self.orientation(element, attrib)
+        if frame is not None:
+            pos, quat = frame[0] + quat_matrix(frame[1]) @ pos, quat_product(frame[1], quat)
         if kind != "plane" and kind != "mesh" and np.any(size[:_SIZES[kind]] <= 0):
             raise element.error(f"size={attrib.get('size', '')!r}: a {kind} needs sizes > 0")
         if kind == "plane" and body.index != 0:
@@ -719,7 +817,7 @@ class _Reader:
             raise element.error(f"condim={attrib['condim']!r}: MuJoCo allows 1, 3, 4 or 6 (invalid condim)")
         geom = _Geom(element, attrib, name, kind, size, pos, quat, integer(element, "contype", attrib, 1),
                      integer(element, "conaffinity", attrib, 1), integer(element, "group", attrib, 0),
-                     mesh=attrib.get("mesh"))
+                     mesh=attrib.get("mesh"), ellipsoid=fluidshape == "ellipsoid")
         if kind == "mesh" and geom.mesh is None:
             raise element.error("a mesh geom needs mesh=\"name of a <mesh> asset\"")
         if kind == "mesh" and geom.mesh not in self.meshes:
@@ -750,7 +848,7 @@ class _Reader:
                 continue
             if error is not None:
                 if child.tag == "tendon" and attrib.get("active", "true") == "false":
-                    self.note("equality tendon", "inactive tendon equalities ignored (rbody models no tendons)")
+                    self.note("equality tendon", "inactive tendon equalities ignored (the constraint layer holds no tendon rows yet)")
                     continue
                 raise error
             self.check_attrs(child, EQUALITY_ATTRS[child.tag])
@@ -760,44 +858,36 @@ class _Reader:
             self.equality_elements.append((child, attrib))
 
     def read_tendons(self, element: Element) -> None:
+        """<fixed> and <spatial> tendons (rbody.mjcf.actuators: what is read, what is refused)."""
         self.check_attrs(element, set())
         for child in element.children:
             if child.tag not in ("spatial", "fixed"):
                 raise child.error(f"unknown element <{child.tag}> in <tendon>")
             attrib = self.attrs(child, "tendon", None)
-            active = []
-            for key in ("stiffness", "damping", "frictionloss"):
-                if number(child, key, attrib, 0.0) != 0 and (key != "frictionloss" or self.frictionloss_on):
-                    active.append(key)
-            limited = attrib.get("limited", "auto")
-            if self.limits_on and (limited == "true" or (limited == "auto" and self.autolimits and "range" in attrib)):
-                active.append("range (a limit)")
-            if active:
-                raise child.error(f"tendons with {', '.join(active)} are not supported (they apply forces)")
-            self.note("tendon", "tendons ignored (none has stiffness, damping, friction or limits)")
+            name = attrib.get("name") or f"tendon{len(self.tendon_specs)}"
+            self.tendon_specs.append((name, mjcf_actuators.read_tendon(child, attrib)))
 
     def read_actuators(self, element: Element) -> None:
+        """Each actuator over its class's one actuator default (rbody.mjcf.actuators)."""
         self.check_attrs(element, set())
         for child in element.children:
             if child.tag not in _ACTUATORS and child.tag != "plugin":
                 raise child.error(f"unknown element <{child.tag}> in <actuator>")
-            attrib = self.attrs(child, child.tag, None)
-            passive = [key for key in ("damping", "armature") if key in attrib and
-                       np.any(numbers(child, key, attrib) != 0)]
-            pushes = child.tag not in ("motor", "general") or (
-                child.tag == "general" and attrib.get("biastype", "none") != "none")
-            if pushes or passive:
-                what = f"its {' and '.join(passive)}" if passive else "its bias (a force with zero control)"
-                raise child.error(f"a <{child.tag}> actuator applies a force through {what}, even with zero "
-                                  "control: not supported (only motor and unbiased general actuators are ignored)")
-            self.note("actuator", "actuators ignored: their controls are zero, so they apply no force")
+            name = child.attrib.get("class", "main")
+            if name not in self.classes:
+                raise child.error(f"class={name!r} is not a <default> class of the model")
+            spec = self.actuator_defaults.get(name, mjcf_actuators.ActuatorSpec()).copy()
+            mjcf_actuators.apply_actuator(spec, child, {k: v for k, v in child.attrib.items() if k != "class"})
+            label = child.attrib.get("name") or f"actuator{len(self.actuator_specs)}"
+            self.actuator_specs.append((label, spec))
 
     # ----- mass properties -----
 
-    def mesh_of(self, geom: _Geom) -> MeshMass:
-        name = geom.mesh
-        if name in self.mesh_cache:
-            return self.mesh_cache[name]
+    def mesh_path(self, name: str) -> str:
+        """The absolute path of mesh asset `name`'s file (checked to exist); no file is read here, so that a mesh
+        whose mass an explicit <inertial> makes unused costs nothing to load."""
+        if name in self.mesh_paths:
+            return self.mesh_paths[name]
         element, attrib = self.meshes[name]
         if "file" not in attrib:
             raise element.error("meshes given by vertices in the XML are not supported: save them in a file")
@@ -809,6 +899,15 @@ class _Reader:
         path = (self.meshdir / file).resolve()
         if not path.is_file():
             raise element.error(f"mesh file {str(path)!r} does not exist")
+        self.mesh_paths[name] = str(path)
+        return str(path)
+
+    def mesh_of(self, geom: _Geom) -> MeshMass:
+        name = geom.mesh
+        if name in self.mesh_cache:
+            return self.mesh_cache[name]
+        path = Path(self.mesh_path(name))
+        element, attrib = self.meshes[name]
         mode = choice(element, "inertia", attrib, MESH_INERTIA_MODES, "legacy")
         import trimesh
 
@@ -828,7 +927,6 @@ class _Reader:
         except ValueError as error:
             raise element.error(f"mesh {name!r} ({str(path)!r}): {error}") from None
         self.mesh_cache[name] = result
-        self.mesh_paths[name] = str(path)
         return result
 
     def geom_mass(self, geom: _Geom) -> GeomMass | None:
@@ -860,11 +958,13 @@ class _Reader:
         if geom.kind == "mesh":
             # MuJoCo moves the mesh to its centre of mass and principal axes, and the geom frame with it
             pos = geom.pos + rotation @ mesh.com
-            tensor = principal_tensor(mesh.moments(mass), quat_product(geom.quat, mesh.principal()[1]))
+            geom.axes = quat_product(geom.quat, mesh.principal()[1])
+            tensor = principal_tensor(mesh.moments(mass), geom.axes)
             exact = rotation @ (mesh.tensor * (mass / volume)) @ rotation.T
             self.compare_exact(geom.element, f"mesh geom {geom.name!r}", tensor, exact)
         else:
             pos = geom.pos
+            geom.axes = geom.quat
             tensor = principal_tensor(primitive_moments(geom.kind, geom.size, mass, shell), geom.quat)
         return GeomMass(geom.name, mass, pos, tensor)
 
@@ -893,16 +993,18 @@ class _Reader:
                 raise element.error("fullinertia with an orientation: the full tensor is already in the body axes")
             xx, yy, zz, xy, xz, yz = numbers(element, "fullinertia", attrib, 6)
             exact = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
-            tensor = principal_tensor(*mujoco_principal(exact))
+            moments, axes = mujoco_principal(exact)
+            tensor = principal_tensor(moments, axes)
             self.compare_exact(element, f"body {body.name!r} fullinertia", tensor, exact)
         elif "diaginertia" in attrib:
-            rotation = quat_matrix(self.orientation(element, attrib))
+            axes = self.orientation(element, attrib)
+            rotation = quat_matrix(axes)
             tensor = rotation @ np.diag(numbers(element, "diaginertia", attrib, 3)) @ rotation.T
         else:
             raise element.error("<inertial> needs diaginertia or fullinertia")
         if mass < 0:
             raise element.error(f"mass={mass!r}: must be >= 0 [kg]")
-        return mass, pos, 0.5 * (tensor + tensor.T)
+        return mass, pos, 0.5 * (tensor + tensor.T), axes
 
     def body_mass(self, body: _Body) -> None:
         from_geoms = self.inertiafromgeom == "true" or (self.inertiafromgeom == "auto" and body.inertial is None)
@@ -915,13 +1017,15 @@ class _Reader:
                     parts.append(geom)
             if parts:
                 body.mass, body.com, body.tensor = sum_geoms([g.mass for g in parts])
+                body.axes = parts[0].axes
                 if len(parts) > 1:
                     exact = body.tensor
-                    body.tensor = principal_tensor(*mujoco_principal(exact))
+                    moments, body.axes = mujoco_principal(exact)
+                    body.tensor = principal_tensor(moments, body.axes)
                     self.compare_exact(body.element, f"body {body.name!r}", body.tensor, exact)
                     self.check_overlaps(body, parts)
         elif body.inertial is not None:
-            body.mass, body.com, body.tensor = self.inertial_mass(body)
+            body.mass, body.com, body.tensor, body.axes = self.inertial_mass(body)
 
     def check_overlaps(self, body: _Body, parts: list[_Geom]) -> None:
         from rbody.mjcf.overlap import overlapping
@@ -933,6 +1037,11 @@ class _Reader:
                 verdict = overlapping(self.solid(first), self.solid(second))
                 if verdict:
                     label = lambda g: g.name or f"geom at line {g.element.line}"  # noqa: E731
+                    if body.weld == 0:  # welded to the world: its mass moves nothing
+                        self.note(f"overlap {body.name}", f"body {body.name!r} is welded to the world and its geoms "
+                                  f"{label(first)!r} and {label(second)!r} {verdict}: their masses are summed as "
+                                  "MuJoCo sums them (the body does not move, so nothing depends on it)")
+                        return
                     raise body.element.error(
                         f"geoms {label(first)!r} and {label(second)!r} {verdict}: their masses would be counted twice "
                         "where they overlap (MuJoCo sums geom masses). Make the parts meet without overlapping, give "
@@ -1041,6 +1150,31 @@ class _Reader:
                     "<option><flag contact=\"disable\"/></option>")
         self.contact_pairs = candidates
 
+    def gravcomp_of(self, body: _Body) -> float:
+        """The body's gravcomp as MuJoCo applies it: none where gravity is off, or where <flag spring> and <flag
+        damper> are both disabled (MuJoCo then skips every passive force, gravity compensation included)."""
+        if body.gravcomp == 0.0:
+            return 0.0
+        if not self.spring_on and not self.damper_on:
+            self.note("gravcomp", "gravcomp ignored: <flag spring> and <flag damper> are both disabled, and MuJoCo "
+                                  "then applies no passive force at all")
+            return 0.0
+        self.note("gravcomp bodies", "body gravcomp applied as MuJoCo applies it (an upward force gravcomp m g at "
+                                     "the centre of mass)")
+        return float(body.gravcomp)
+
+    def actuator_joint(self, element: Element, attrib: dict) -> dict:
+        """actuatorgravcomp and actuatorfrcrange (limited by actuatorfrclimited, "auto": where a range is given)."""
+        values = {"actuatorgravcomp": boolean(element, "actuatorgravcomp", attrib, False)}
+        limited = choice(element, "actuatorfrclimited", attrib, ("true", "false", "auto"), "auto")
+        has_range = "actuatorfrcrange" in attrib and np.any(numbers(element, "actuatorfrcrange", attrib, 2) != 0)
+        if limited == "true" or (limited == "auto" and self.autolimits and has_range):
+            low, high = numbers(element, "actuatorfrcrange", attrib, 2)
+            if not low < high:
+                raise element.error(f"actuatorfrcrange={attrib.get('actuatorfrcrange')!r}: needs low < high")
+            values["actuatorfrcrange"] = (float(low), float(high))
+        return values
+
     def passive(self, element: Element, attrib: dict) -> dict:
         """damping, stiffness, armature of a joint, >= 0; stiffness and damping 0 where the flags disable them."""
         values = {key: number(element, key, attrib, 0.0) for key in ("damping", "stiffness", "armature")}
@@ -1070,7 +1204,7 @@ class _Reader:
             if kind == "free":
                 values = self.passive(element, attrib)
                 values.pop("stiffness")  # MuJoCo gives a free joint no spring
-                joint = Joint(name, "free", body.name, **values)
+                joint = Joint(name, "free", body.name, **values, **self.actuator_joint(element, attrib))
                 qpos = np.concatenate([body.pos, body.quat])
                 nv = 6
             else:
@@ -1087,12 +1221,13 @@ class _Reader:
                         raise element.error("stiffness on a ball joint (MuJoCo's quaternion spring) is not supported")
                     qpos = np.array([1.0, 0.0, 0.0, 0.0])
                     joint = Joint(name, "ball", body.name, anchor=tuple(pos.tolist()), qpos0=(1.0, 0.0, 0.0, 0.0),
-                                  qvel0=(0.0, 0.0, 0.0), **values)
+                                  qvel0=(0.0, 0.0, 0.0), **values, **self.actuator_joint(element, attrib))
                     nv = 3
                 else:
                     qpos = np.array([ref])
                     joint = Joint(name, kind, body.name, axis=tuple(axis.tolist()), anchor=tuple(pos.tolist()),
-                                  qpos0=ref, ref=ref, springref=springref, **values)
+                                  qpos0=ref, ref=ref, springref=springref, **values,
+                                  **self.actuator_joint(element, attrib))
                     nv = 1
             limit = None
             if kind != "free" and self.limits_on:
@@ -1140,6 +1275,7 @@ class _Reader:
         """The model's equality constraints (rbody.mjcf.constraints), in document order; unnamed ones are called
         equality<i> (i its index in <equality>, MuJoCo's id)."""
         frames = Frames(self.bodies, self.carriers)
+        sites = {name: (body.index, pos, quat) for name, (body, pos, quat) in self.sites.items()}
         joints = {joint.name: joint for joint in layout.joints}
         taken = {attrib.get("name") for _e, attrib in self.equality_elements}
         out = []
@@ -1149,7 +1285,7 @@ class _Reader:
                 name += "_"
             taken.add(name)
             try:
-                out.append(equality_from(element, attrib, name, frames, self.sites, joints))
+                out.append(equality_from(element, attrib, name, frames, sites, joints))
             except MJCFError:
                 raise
             except ValueError as error:  # the Equality's own checks
@@ -1165,6 +1301,14 @@ class _Reader:
         self.welds()
         for body in self.bodies:
             self.body_mass(body)
+        if self.settotalmass > 0:  # MuJoCo's mj_setTotalmass, after compiling, before its constants
+            total = sum(body.mass for body in self.bodies)
+            scale = max(MJ_MINVAL, self.settotalmass / max(MJ_MINVAL, total))
+            for body in self.bodies:
+                body.mass *= scale
+                body.tensor = body.tensor * scale
+            self.note("settotalmass", f"settotalmass={self.settotalmass!r}: every body's mass and inertia scaled by "
+                                      f"{scale:.17g}, as MuJoCo scales them")
         for body in self.bodies:
             kinds = body.joint_kinds
             if "free" in kinds and (len(kinds) > 1 or body.parent.index != 0):
@@ -1207,16 +1351,110 @@ class _Reader:
         stray = unknown_restitutions(self.numerics, {joint.name for joint in joints})
         if stray:
             raise MJCFError(f"{self.root.file}: <custom><numeric name={stray[0]!r}> names no joint of the model")
-        layout = self.layout(joints)
+        layout = self.force_elements(self.spring_dampers(self.layout(joints), model_qpos0), model_qpos0)
         layout = dataclasses.replace(layout, equalities=self.equalities(layout))
         if self.contact_pairs:
             from rbody.mjcf.contacts import contacts_of
 
             layout = dataclasses.replace(layout, contacts=contacts_of(self.contact_pairs, self.numerics,
                                                                       self.root.file))
+        na = sum(a.stateful for a in layout.actuators)
+        state_act, state_ctrl = np.zeros(na), np.zeros(len(layout.actuators))
+        if keyframe is not None:
+            state_act, state_ctrl = self.key_controls(keyframe, keyframes, na, len(layout.actuators))
         return MJCFModel(layout=layout, name=self.name, gravity=self.gravity, timestep=self.timestep,
                          integrator=self.integrator, qpos0=state_qpos.copy(), qvel0=state_qvel.copy(),
-                         keyframes=keyframes, limits=limits, notes=tuple(self.notes), source=self.root.file)
+                         keyframes=keyframes, limits=limits, notes=tuple(self.notes), source=self.root.file,
+                         act0=state_act, ctrl0=state_ctrl)
+
+    def spring_dampers(self, layout: Layout, reference_qpos: np.ndarray) -> Layout:
+        """The joints with springdamper="timeconst dampratio" given their stiffness and damping as MuJoCo's
+        compiler forms them (AutoSpringDamper): with I = 1 / (M^-1)_dd at the reference pose (MuJoCo's
+        dof_invweight0 of a hinge or slide), stiffness = I / (timeconst dampratio)^2, damping = 2 I / timeconst."""
+        wanted = {}
+        for body in self.bodies:
+            for element, attrib in body.joints:
+                if element.tag == "joint" and "springdamper" in attrib:
+                    timeconst, dampratio = numbers(element, "springdamper", attrib, 2)
+                    if timeconst > 0 and dampratio > 0:
+                        wanted[attrib["name"]] = (float(timeconst), float(dampratio))
+        if not wanted:
+            return layout
+        from rbody.engine.multibody import Multibody
+
+        model = Multibody(layout, gravity=self.gravity)
+        inverse = np.linalg.inv(model.mass_matrix(reference_qpos))
+        dofs = dict(zip(model.joint_names, model.arrays.dofadr))
+        joints = []
+        for joint in layout.joints:
+            if joint.name in wanted:
+                timeconst, dampratio = wanted[joint.name]
+                inertia = 1.0 / max(MJ_MINVAL, inverse[dofs[joint.name], dofs[joint.name]])
+                stiffness = inertia / max(MJ_MINVAL, timeconst * timeconst * dampratio * dampratio)
+                damping = 2 * inertia / max(MJ_MINVAL, timeconst)
+                joint = dataclasses.replace(joint, stiffness=stiffness if self.spring_on else 0.0,
+                                            damping=damping if self.damper_on else 0.0)
+            joints.append(joint)
+        self.note("springdamper", "joint springdamper turned into stiffness and damping as MuJoCo's compiler does "
+                                  "(from the mass matrix at the reference pose)")
+        return dataclasses.replace(layout, joints=tuple(joints))
+
+    def force_elements(self, layout: Layout, reference_qpos: np.ndarray) -> Layout:
+        """The layout with the model's tendons and actuators (rbody.mjcf.actuators), every damping ratio of a
+        position servo resolved against the mass matrix at the reference pose, as MuJoCo's compiler does."""
+        if not self.tendon_specs and not self.actuator_specs:
+            return layout
+        sites, frames = {}, {}
+        for name, (body, position, orientation) in self.sites.items():
+            carrier, pos, quat = self.frames[body.index]
+            sites[name] = (carrier, tuple((pos + quat_matrix(quat) @ position).tolist()))
+            frames[name] = (carrier, sites[name][1], tuple(quat_product(quat, orientation).tolist()))
+        tendons, ranges = [], {}
+        for name, spec in self.tendon_specs:
+            if any(t.name == name for t in tendons):
+                raise spec.element.error(f"two tendons are called {name!r}")
+            tendons.append(mjcf_actuators.tendon_of(spec, name, sites, self.spring_on, self.damper_on, self.limits_on,
+                                                    self.frictionloss_on, self.autolimits, self.note))
+            if "range" in spec.attrib:
+                ranges[name] = tuple(numbers(spec.element, "range", spec.attrib, 2).tolist())
+        for body in self.bodies:
+            for element, attrib in body.joints:
+                if element.tag == "joint" and "range" in attrib:
+                    low, high = numbers(element, "range", attrib, 2)
+                    if self.degree and attrib.get("type", "hinge") == "hinge":
+                        low, high = low / 180.0 * math.pi, high / 180.0 * math.pi
+                    ranges[attrib["name"]] = (float(low), float(high))
+        kinds = {joint.name: joint.kind for joint in layout.joints}
+        actuators = []
+        for name, spec in self.actuator_specs:
+            if any(a.name == name for a in actuators):
+                raise spec.element.error(f"two actuators are called {name!r}")
+            actuators.append(mjcf_actuators.actuator_of(spec, name, kinds, ranges, {t.name for t in tendons},
+                                                        self.autolimits, self.disabled_groups, self.actuation_on,
+                                                        self.clampctrl_on, frames))
+        if actuators and not self.actuation_on:
+            self.note("actuation", "actuators apply no force (<flag actuation=\"disable\"/>): kept, disabled")
+        elif any(a.disabled for a in actuators):
+            self.note("actuatorgroupdisable", "actuators of the groups in actuatorgroupdisable apply no force")
+        if actuators and not self.clampctrl_on:
+            self.note("clampctrl", "controls are not clamped to ctrlrange (<flag clampctrl=\"disable\"/>)")
+        layout = dataclasses.replace(layout, tendons=tuple(tendons), actuators=tuple(actuators))
+        if any(mjcf_actuators.dampratio_pending(a) for a in actuators):
+            from rbody.engine.system import Multibody
+
+            model = Multibody(layout, gravity=self.gravity)
+            layout = dataclasses.replace(layout, actuators=mjcf_actuators.resolve_dampratio(
+                layout.actuators, model, reference_qpos))
+        return layout
+
+    def key_controls(self, keyframe, keyframes: dict, na: int, nu: int) -> tuple[np.ndarray, np.ndarray]:
+        """(act (na,), ctrl (nu,)) of the chosen keyframe (zeros where it gives none)."""
+        names = list(keyframes)
+        index = int(keyframe) if isinstance(keyframe, (int, np.integer)) else names.index(keyframe)
+        key = self.key_elements[index]
+        act = numbers(key, "act", key.attrib, na) if "act" in key.attrib else np.zeros(na)
+        ctrl = numbers(key, "ctrl", key.attrib, nu) if "ctrl" in key.attrib else np.zeros(nu)
+        return act, ctrl
 
     def read_keyframes(self, qpos0: np.ndarray, nv: int) -> dict:
         keys = {}
@@ -1224,8 +1462,6 @@ class _Reader:
             attrib = key.attrib
             qpos = numbers(key, "qpos", attrib, len(qpos0)) if "qpos" in attrib else qpos0.copy()
             qvel = numbers(key, "qvel", attrib, nv) if "qvel" in attrib else np.zeros(nv)
-            if "ctrl" in attrib and np.any(numbers(key, "ctrl", attrib) != 0):
-                self.note("ctrl", "keyframe controls ignored (actuators are ignored)")
             name = attrib.get("name") or f"key{i}"
             if name in keys:
                 raise key.error(f"two keyframes are called {name!r}")
@@ -1303,10 +1539,42 @@ class _Reader:
             for geom in body.geoms:
                 shapes[body.name].extend(self.shapes_of(geom, np.zeros(3), np.array([1.0, 0, 0, 0])))
             bodies.append(Body(body.name, inertia, parent=carrier, pos=tuple(pos.tolist()),
-                               quat=tuple(quat.tolist())))
+                               quat=tuple(quat.tolist()), gravcomp=self.gravcomp_of(body)))
+        self.frames = kept
         bodies = [dataclasses.replace(b, shapes=tuple(shapes[b.name])) for b in bodies]
         self.carriers = kept
-        return Layout(bodies=tuple(bodies), joints=tuple(joints), fixed=tuple(shapes[WORLD]))
+        return Layout(bodies=tuple(bodies), joints=tuple(joints), fixed=tuple(shapes[WORLD]), fluid=self.fluid())
+
+    def fluid(self):
+        """rbody.layout.Fluid of the model (rbody.mjcf.fluid), or None without density or viscosity."""
+        from rbody.layout import Fluid, FluidBox, FluidEllipsoid
+        from rbody.mjcf import fluid as mjcf_fluid
+
+        if self.density <= 0 and self.viscosity <= 0:
+            return None
+        if not self.spring_on and not self.damper_on:
+            self.note("fluid", "fluid forces ignored: <flag spring> and <flag damper> are both disabled, and MuJoCo "
+                               "then applies no passive force at all")
+            return None
+        boxes, ellipsoids = [], []
+        for body in self.bodies:
+            if body.mass < MJ_MINVAL or self.frames[body.index][0] != body.name:
+                continue  # massless (MuJoCo skips it; a folded body is massless)
+            own = [g for g in body.geoms if g.ellipsoid]
+            if not own:
+                boxes.append(FluidBox(body.name, tuple(np.asarray(body.axes, dtype=np.float64).tolist())))
+                continue
+            for geom in own:
+                axes = mjcf_fluid.semiaxes(geom.kind, geom.size)
+                mass, inertia = mjcf_fluid.added_mass(axes)
+                ellipsoids.append(FluidEllipsoid(body.name, tuple(geom.pos.tolist()), tuple(geom.quat.tolist()), axes,
+                                                 mass, inertia,
+                                                 mjcf_fluid.coefficients(geom.element, geom.attrib, numbers)))
+        self.note("fluid forces", f"fluid forces as MuJoCo's (density {self.density:g}, viscosity {self.viscosity:g}): "
+                                  f"{len(boxes)} bodies by the inertia box, "
+                                  f"{len(ellipsoids)} geoms by the ellipsoid model")
+        return Fluid(density=self.density, viscosity=self.viscosity, wind=tuple(self.wind.tolist()), boxes=tuple(boxes),
+                     ellipsoids=tuple(ellipsoids))
 
     def shapes_of(self, geom: _Geom, pos: np.ndarray, quat: np.ndarray) -> list[Shape]:
         """The rbody Shape of a geom, in the frame (pos, quat) of the body that carries it."""
@@ -1316,9 +1584,10 @@ class _Reader:
         if geom.kind == "ellipsoid":
             self.note("ellipsoid", "ellipsoid geoms are not drawn (rbody Shapes have no ellipsoid); their mass counts")
             return []
+        if geom.kind == "hfield":
+            return []
         if geom.kind == "mesh":
-            self.mesh_of(geom)
-            return [Shape(geom.name, "mesh", (), mesh=self.mesh_paths[geom.mesh], **common)]
+            return [Shape(geom.name, "mesh", (), mesh=self.mesh_path(geom.mesh), **common)]
         count = {"sphere": 1, "capsule": 2, "cylinder": 2, "box": 3, "plane": 3}[geom.kind]
         size = tuple(float(s) for s in geom.size[:count])
         if geom.kind == "plane":
@@ -1367,7 +1636,8 @@ def from_mjcf(source, *, t_end: float | None = None, qpos0=None, qvel0=None, key
                              overlapping_geoms=overlapping_geoms)
     return MJCFScene(name=model.name, t_end=DEFAULT_T_END if t_end is None else t_end, gravity=model.gravity,
                      tree=model.layout, qpos0=model.qpos0, qvel0=model.qvel0, import_notes=model.notes,
-                     timestep=model.timestep, integrator=model.integrator, limits=dict(model.limits))
+                     timestep=model.timestep, integrator=model.integrator, limits=dict(model.limits),
+                     act0=model.act0, ctrl0=model.ctrl0)
 
 
 @dataclass(frozen=True, kw_only=True, eq=False)
@@ -1380,6 +1650,13 @@ class MJCFScene(TreeScene):
     """
 
     limits: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+
+    @property
+    def file_method(self) -> str:
+        """The rbody method that is the model's own <option integrator> (MuJoCo's Euler: "mujoco_euler"; RK4:
+        "rk4"; implicit, implicitfast: the same names): simulate(scene, dt=scene.timestep, method=scene.file_method)
+        runs the file as MuJoCo runs it."""
+        return FILE_METHODS[self.integrator or "Euler"]
 
     def limit_violation(self, t: np.ndarray, qpos: np.ndarray) -> str:
         """The first place a run leaves a declared range: qpos (T, ..., nq) at times t (T,) [s] from any engine;

@@ -103,8 +103,10 @@ def test_features_compile_to_mujocos_bodies_joints_and_options():
     np.testing.assert_allclose([lo, hi], model.jnt_range[0], rtol=1e-15)
     assert set(read.limits) == {"h"}
     notes = " ".join(read.notes)
-    for word in ("light", "camera", "site", "sensor", "actuator", "rgba", "ellipsoid"):
+    for word in ("light", "camera", "site", "sensor", "rgba", "ellipsoid"):
         assert word in notes, word
+    (motor,) = read.layout.actuators  # actuators are modelled (tests/rbody/engine/test_actuation.py)
+    assert (motor.target, motor.gain, motor.bias, motor.gainprm[0]) == ("h", "fixed", "none", 1.0)
 
 
 def test_keyframe_by_name_and_index_and_explicit_state():
@@ -343,16 +345,16 @@ BODY = '<body name="b"><joint/><geom size="0.1"/></body>'
      "</mujoco>", r"rbody.restitution.nope.*names no joint"),
     (f"<mujoco>{OFF}<custom>\n<numeric name='rbody.restitution' data='2'/></custom><worldbody>{BODY}</worldbody>"
      "</mujoco>", r"line 2, <numeric.*restitution is one number in \[0, 1\]"),
-    (f"<mujoco>{OFF}<worldbody>{BODY}</worldbody><tendon>\n<fixed stiffness='2'><joint joint='b_joint0' coef='1'/>"
-     "</fixed></tendon></mujoco>", r"line 2, <fixed>: tendons with stiffness"),
-    (f"<mujoco><option density='1.2'><flag contact='disable'/></option><worldbody>{BODY}</worldbody></mujoco>",
-     "fluid forces"),
-    (f"<mujoco>{OFF}<worldbody><body><joint/><geom size='0.1' fluidshape='ellipsoid'/></body></worldbody></mujoco>",
-     "fluid"),
+    (f"<mujoco>{OFF}<worldbody>{BODY}</worldbody><tendon>\n<fixed range='0 1'><joint joint='b_joint0' coef='1'/>"
+     "</fixed></tendon></mujoco>", r"line 2, <fixed>: tendon limits"),
+    (f"<mujoco><option density='-1.2'><flag contact='disable'/></option><worldbody>{BODY}</worldbody></mujoco>",
+     "density='-1.2': must be >= 0"),
+    (f"<mujoco>{OFF}<worldbody><body><joint/><geom size='0.1' fluidshape='cube'/></body></worldbody></mujoco>",
+     "fluidshape='cube'"),
     (f"<mujoco><option gravity='0 -9.81 0'><flag contact='disable'/></option><worldbody>{BODY}</worldbody></mujoco>",
      r"gravity=0.0 -9.81 0.0.*-z"),
-    (f"<mujoco>{OFF}<worldbody>{BODY}</worldbody><actuator>\n<position joint='b_joint0' kp='10'/></actuator></mujoco>",
-     r"line 2, <position>.*zero control"),
+    (f"<mujoco>{OFF}<worldbody>{BODY}</worldbody><actuator>\n<muscle joint='b_joint0'/></actuator></mujoco>",
+     r"line 2, <muscle>: muscle actuators"),
     (f"<mujoco><worldbody>{BODY}</worldbody><contact><pair geom1='a' geom2='b'/></contact></mujoco>",
      "geom1='a' is not a geom of the model"),
     (f"<mujoco>{OFF}<worldbody><body><joint frictionloss='-1'/><geom size='0.1'/></body></worldbody></mujoco>",
@@ -360,9 +362,11 @@ BODY = '<body name="b"><joint/><geom size="0.1"/></body>'
     (f"<mujoco>{OFF}<worldbody><body>\n<joint type='ball' stiffness='2'/><geom size='0.1'/></body>"
      "</worldbody></mujoco>",
      r"line 2, <joint>: stiffness on a ball joint"),
-    (f"<mujoco><compiler settotalmass='3'/>{OFF}<worldbody>{BODY}</worldbody></mujoco>", "settotalmass"),
+    (f"<mujoco>{OFF}<worldbody><body>\n<joint type='ball' springdamper='0.1 1'/><geom size='0.1'/></body>"
+     "</worldbody></mujoco>", r"line 2, <joint>: springdamper on a ball"),
     (f"<mujoco>{OFF}<worldbody><body><geom class='nope' size='0.1'/></body></worldbody></mujoco>", "class='nope'|nope"),
-    (f"<mujoco>{OFF}<worldbody><frame><body/></frame></worldbody></mujoco>", "<frame>"),
+    (f"<mujoco>{OFF}<worldbody><body><geom size='0.1'/><frame>\n<joint/></frame></body></worldbody></mujoco>",
+     r"line 2, <joint>: a <joint> inside a <frame>"),
 ])
 def test_bad_input_names_file_line_and_element(xml, match):
     with pytest.raises(MJCFError, match=match) as error:

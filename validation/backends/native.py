@@ -18,14 +18,14 @@ def check(scene: rbody.Scene) -> None:
 
 
 def run(scene: rbody.Scene, dt: float, t_end: float | None = None, *, method: str | None = None,
-        save_every: int = 1) -> Trajectory:
-    """rbody.simulate(scene, dt=dt, method=method, ...); meta["step_seconds"] and meta["run_seconds"] are
-    both the wall time of the whole call (model, stability check, stepping, every observable) after a
+        save_every: int = 1, ctrl=None) -> Trajectory:
+    """rbody.simulate(scene, dt=dt, method=method, ctrl=ctrl, ...); meta["step_seconds"] and meta["run_seconds"]
+    are both the wall time of the whole call (model, stability check, stepping, every observable) after a
     two-step warm-up has compiled the kernels (the cost a user pays on every later call)."""
     t_end = scene.t_end if t_end is None else t_end
     rbody.simulate(scene, dt=min(dt, t_end), method=method, t_end=min(2 * dt, t_end))  # compile once
     start = time.perf_counter()
-    trajectory = rbody.simulate(scene, dt=dt, method=method, t_end=t_end, save_every=save_every)
+    trajectory = rbody.simulate(scene, dt=dt, method=method, t_end=t_end, save_every=save_every, ctrl=ctrl)
     seconds = time.perf_counter() - start
     return Trajectory(trajectory.t, trajectory.data, trajectory.events,
                       dict(trajectory.meta, step_seconds=seconds, run_seconds=seconds))

@@ -413,6 +413,13 @@ def _plan(scene: Scene) -> _Plan:
     from the side."""
     _check_scene(scene)
     layout = scene.layout
+    elements = [what for what, present in (("actuators", layout.actuators), ("tendons", layout.tendons),
+                                           ("fluid forces", layout.fluid is not None),
+                                           ("gravity compensation", any(b.gravcomp for b in layout.bodies)))
+                if present]
+    if elements:
+        raise NotImplementedError(f"pymunk has no {', '.join(elements)} (its bodies feel only gravity, joints and "
+                                  "contacts)")
     joints_of: dict[str, list[Joint]] = {b.name: [] for b in layout.bodies}
     for joint in layout.joints:
         if joint.body not in joints_of:

@@ -15,7 +15,8 @@ gives the one qacc every solution gives; rows that contradict each other leave a
 caller reports (SimulationError). Cost: O(nv^3 + m^3) per evaluation, dense: fit for trees of tens of degrees of
 freedom, which is what the event-driven scheme is for.
 
-The native state of a constrained tree is the tree's (qpos, qvel, phi) and one more entry, the energy dissipated
+The native state of a constrained tree is the tree's (qpos, qvel, phi), the actuators' activations act (na, none
+without activation dynamics) and one more entry, the energy dissipated
 so far by dry friction, impacts and the joints' dampers [J] (its rate here: the power of the sliding friction,
 frictionloss s v, and of the dampers, damping v^2).
 """
@@ -30,6 +31,8 @@ from rbody.engine.multibody import (D_DAMPING, DOF_SIZE, FREE, H_BODIES, H_DOF, 
                                     coordinate_rates, inverse_one, mass_matrix_one, passive, tree_finish,
                                     workspace_size)
 from rbody.engine.spatial import quat_exp, quat_multiply
+from rbody.engine.elements import X_ACTIVE, X_NA, extension_start
+from rbody.engine.system import actuator_rates, add_element_forces, clamp_activations
 from rbody.engine.constraints.jacobians import (all_rows, bias_accelerations, some_rows, mode_at, row_count, unit_at,
                                                 unit_count)
 from rbody.engine.constraints.solver import symmetric_solve
@@ -42,14 +45,22 @@ PROJECTION_ITERATIONS = 8      # Newton iterations of a projection at most
 
 @njit(cache=True, inline="always")
 def sizes(p):
-    """(nq, nv, n): the tree's sizes and the length of the native state (qpos, qvel, phi, dissipated)."""
+    """(nq, nv, n): the tree's sizes and the length of the native state (qpos, qvel, phi, act, dissipated)."""
     nq, nv = int(p[H_NQ]), int(p[H_DOFS])
-    return nq, nv, nq + nv + 3 * int(p[H_ROT]) + 1
+    return nq, nv, nq + nv + 3 * int(p[H_ROT]) + int(p[extension_start(p) + X_NA]) + 1
+
+
+@njit(cache=True, inline="always")
+def act_range(p):
+    """(a0, na): where the actuators' activations sit in the native state, and how many (after qpos, qvel, phi)."""
+    return int(p[H_NQ]) + int(p[H_DOFS]) + 3 * int(p[H_ROT]), int(p[extension_start(p) + X_NA])
 
 
 @njit(cache=True)
-def snapshot(p, q, v, M, f, J, jdot, g, w, acc, rows_wanted=None):
-    """At qpos q (nq,) and qvel v (nv,): M (nv, nv); f (nv,) = passive - bias (gravity included); every unit's rows
+def snapshot(p, q, v, act, M, f, J, jdot, g, w, acc, rows_wanted=None):
+    """At qpos q (nq,) and qvel v (nv,): M (nv, nv); f (nv,) = passive - bias (gravity included; with force elements
+    also the actuators' forces at the controls written in p, the tendons', fluid and gravity compensation:
+    rbody.engine.system.add_element_forces); every unit's rows
     J (rows, nv), jdot (rows,) and g (rows,) (rbody.engine.constraints.jacobians), or only the units with a row
     flagged in rows_wanted (rows,). w: the tree's workspace; acc (nb, 6) scratch."""
     nv = int(p[H_DOFS])
@@ -63,6 +74,8 @@ def snapshot(p, q, v, M, f, J, jdot, g, w, acc, rows_wanted=None):
         some_rows(p, q, v, w, acc, J, jdot, g, rows_wanted)
     held = np.empty(nv)
     passive(p, q, v, held)
+    if p[extension_start(p) + X_ACTIVE] != 0.0:  # actuators, tendons, gravity compensation, fluid
+        add_element_forces(p, q, v, act, held)
     for d in range(nv):
         f[d] = held[d] - f[d]
 
@@ -219,7 +232,7 @@ def held_solve(L, J, held, r, correction, lam_rows):
 
 
 @njit(cache=True)
-def mode_accel(p, q, v, qacc, lam_rows, g, every_row=True):
+def mode_accel(p, q, v, act, qacc, lam_rows, g, every_row=True):
     """qacc (nv,) and the force of every row lam_rows (rows,) (held rows: their lambda; sliding friction: -F s;
     others 0) in the mode written in p, at the effective qpos q and qvel v; g (rows,) gets every row's residual
     (every_row False: only the held rows' are formed, the others left as they were: the right-hand side needs no
@@ -235,9 +248,9 @@ def mode_accel(p, q, v, qacc, lam_rows, g, every_row=True):
     held = np.empty(rows)
     held_rows(p, held)
     if every_row:
-        snapshot(p, q, v, M, f, J, jdot, g, w, acc)
+        snapshot(p, q, v, act, M, f, J, jdot, g, w, acc)
     else:
-        snapshot(p, q, v, M, f, J, jdot, g, w, acc, held)
+        snapshot(p, q, v, act, M, f, J, jdot, g, w, acc, held)
     add_sliding_friction(p, f)
     L = np.linalg.cholesky(M)
     a0 = upper_solve(L, lower_solve(L, f))
@@ -288,9 +301,11 @@ def damping_power(p, v):
 
 @njit(cache=True)
 def constrained_rhs(y, p, out):
-    """y' for y = (qpos (nq), qvel (nv), phi (3 per ball/free joint), dissipated (1)) in the mode written in p: as
-    the tree's right-hand side (rbody.engine.multibody.tree_rhs) with qvel' the constrained accelerations
-    (mode_accel), and dissipated' the power the sliding friction and the dampers take."""
+    """y' for y = (qpos (nq), qvel (nv), phi (3 per ball/free joint), act (na), dissipated (1)) in the mode written
+    in p: as the tree's right-hand side (rbody.engine.multibody.tree_rhs) with qvel' the constrained accelerations
+    (mode_accel), act' the actuators' activation dynamics (rbody.engine.system.actuator_rates), and dissipated' the
+    power the sliding friction and the dampers take (not the actuators' or the fluid's work: with those, energy +
+    dissipated is not constant)."""
     nq, nv = int(p[H_NQ]), int(p[H_DOFS])
     n = y.shape[0]
     q = np.empty(nq)
@@ -298,7 +313,10 @@ def constrained_rhs(y, p, out):
     rows = row_count(p)
     lam = np.empty(rows)
     g = np.zeros(rows)
-    mode_accel(p, q, y[nq:nq + nv], out[nq:nq + nv], lam, g, False)
+    a0, na = act_range(p)
+    mode_accel(p, q, y[nq:nq + nv], y[a0:a0 + na], out[nq:nq + nv], lam, g, False)
+    if na:  # the actuators' activations (rbody.engine.system)
+        actuator_rates(p, q, y[nq:nq + nv], y[a0:a0 + na], out[a0:a0 + na])
     coordinate_rates(p, y, out)  # qpos' and phi' as the tree's right-hand side forms them
     out[n - 1] = friction_power(p, y[nq:nq + nv]) + damping_power(p, y[nq:nq + nv])
 
@@ -321,6 +339,9 @@ def rk4_step(y, p, h, out):
     for i in range(n):
         out[i] = y[i] + h / 6.0 * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
     tree_finish(out, p)
+    a0, na = act_range(p)
+    if na:
+        clamp_activations(p, out[a0:a0 + na])
 
 
 @njit(cache=True)
@@ -357,6 +378,7 @@ def project(p, y, position_rows, velocity_rows):
     kinetic energy): positions by Newton's method delta = -M^-1 J^T W^+ g until |g| <= PROJECTION_TOLERANCE,
     velocities in one step. Returns (|g|_inf, |J v|_inf) on the flagged rows after it."""
     nq, nv, _n = sizes(p)
+    a0, na = act_range(p)
     rows = row_count(p)
     w = np.empty(workspace_size(p))
     M = np.empty((nv, nv))
@@ -370,7 +392,7 @@ def project(p, y, position_rows, velocity_rows):
     v = y[nq:nq + nv]
     worst = 0.0
     for iteration in range(PROJECTION_ITERATIONS + 1):
-        snapshot(p, y[:nq], v, M, f, J, jdot, g, w, acc)
+        snapshot(p, y[:nq], v, y[a0:a0 + na], M, f, J, jdot, g, w, acc)
         worst = 0.0
         for a in range(rows):
             if position_rows[a] != 0.0:
@@ -406,7 +428,8 @@ def guards(p, y, out):
     lam = np.empty(rows)
     g = np.empty(rows)
     qacc = np.empty(nv)
-    residual, scale = mode_accel(p, q, y[nq:nq + nv], qacc, lam, g)
+    a0, na = act_range(p)
+    residual, scale = mode_accel(p, q, y[nq:nq + nv], y[a0:a0 + na], qacc, lam, g)
     modes = mode_at(p)
     _stop_held, sticking = dof_states(p)
     for k in range(unit_count(p)):
@@ -433,7 +456,8 @@ def state_rows(p, y, M, f, J, jdot, g):
     _effective_qpos(p, y, q, 0)
     w = np.empty(workspace_size(p))
     acc = np.empty((int(p[H_BODIES]), 6))
-    snapshot(p, q, y[nq:nq + nv], M, f, J, jdot, g, w, acc)
+    a0, na = act_range(p)
+    snapshot(p, q, y[nq:nq + nv], y[a0:a0 + na], M, f, J, jdot, g, w, acc)
     add_sliding_friction(p, f)
 
 

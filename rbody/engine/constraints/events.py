@@ -145,7 +145,10 @@ class EventRun:
 
     # ----- the run ------------------------------------------------------------------------------------
 
-    def run(self, y0: np.ndarray, dt: float, nsteps: int, save_every: int) -> tuple[np.ndarray, np.ndarray]:
+    def run(self, y0: np.ndarray, dt: float, nsteps: int, save_every: int,
+            before_step=None) -> tuple[np.ndarray, np.ndarray]:
+        """before_step(k, t, y, p): called before step k (0-based) from time t and state y, to write the step's
+        controls into the params row p (held through the step and its events), or None."""
         count = nsteps // save_every + 1
         samples = np.empty((count, self.n))
         modes = np.empty((count, len(self.units)))
@@ -157,6 +160,13 @@ class EventRun:
         t = 0.0
         for k in range(1, nsteps + 1):
             target = k * dt
+            if before_step is not None:  # a new control: where it breaks the mode (a held stop pulled, a sticking
+                before_step(k - 1, t, y, self.p)  # dof pushed past its friction), an event at this instant
+                g0 = self.guards(y, t)
+                broken = np.flatnonzero(g0 < -self.guard_tolerance(g0, g0))
+                if broken.size:
+                    y = self.settle(y, t, triggered=list(broken))
+                    g0 = self.guards(y, t)
             events = 0
             while True:
                 h = target - t

@@ -21,8 +21,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from rbody.engine.multibody import (B_DOF0, B_NDOF, B_PARENT, BODY_SIZE, DOF_SIZE, H_BODIES, H_BODY, H_DOF,
-                                    H_DOFS, _views)
+from rbody.engine.elements import X_BLOCK, extension_start
+from rbody.engine.multibody import (B_DOF0, B_NDOF, B_PARENT, BODY_SIZE, H_BODIES, H_BODY, _views)
 from rbody.engine.contacts.geometry import tangents
 from rbody.engine.contacts.rows import contact_geometry
 from rbody.engine.constraints.table import (C_MODE, C_ROWS, C_UNIT, C_UNITS, CONE, CONTACT, CONTACT1, COUPLING,
@@ -34,8 +34,9 @@ from rbody.engine.constraints.table import (C_MODE, C_ROWS, C_UNIT, C_UNITS, CON
 
 @njit(cache=True, inline="always")
 def block_offset(p):
-    """Where the constraint block starts in a params row: right after the tree's row."""
-    return int(p[H_DOF]) + int(p[H_DOFS]) * DOF_SIZE
+    """Where the constraint block starts in a params row: after the tree's row and its force-element section
+    (rbody.engine.elements; present, empty or not, in every constrained row), which records the offset."""
+    return int(p[extension_start(p) + X_BLOCK])
 
 
 @njit(cache=True, inline="always")

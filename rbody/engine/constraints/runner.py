@@ -30,6 +30,7 @@ def sample_rows(table: ConstraintTable, params: np.ndarray, samples: np.ndarray,
     0 for friction rows."""
     p = np.array(params, dtype=np.float64)
     nq, nv, _n = dyn.sizes(p)
+    a0, na = dyn.act_range(p)
     forces = np.empty((samples.shape[0], table.rows))
     errors = np.empty((samples.shape[0], table.rows))
     qacc = np.empty(nv)
@@ -40,7 +41,7 @@ def sample_rows(table: ConstraintTable, params: np.ndarray, samples: np.ndarray,
     for s in range(samples.shape[0]):
         p[table.mode_slice()] = modes[s]
         _effective_qpos(p, samples[s], q, 0)
-        dyn.mode_accel(p, q, samples[s, nq:nq + nv], qacc, forces[s], errors[s])
+        dyn.mode_accel(p, q, samples[s, nq:nq + nv], samples[s, a0:a0 + na], qacc, forces[s], errors[s])
     limits = np.isin(codes, UNILATERAL)
     errors[:, limits] = np.minimum(errors[:, limits], 0.0)
     errors[:, codes == FRICTION] = 0.0
@@ -54,9 +55,12 @@ def sample_rows(table: ConstraintTable, params: np.ndarray, samples: np.ndarray,
     return forces, errors
 
 
-def run_constrained(description: str, model, method: str, dt: float, nsteps: int, save_every: int):
+def run_constrained(description: str, model, method: str, dt: float, nsteps: int, save_every: int,
+                    controls=None):
     """Run every batch element of `model` (a NativeModel with constraints) by `method`; returns (t (S,), data
-    (name -> (S, B, ...)), events (name -> (E,)), meta)."""
+    (name -> (S, B, ...)), events (name -> (E,)), meta). controls: None (the controls are in the params rows, if
+    any), or (at, control) with control(k, b, t, y) -> (nu,) the controls of element b written at params[at:] before
+    step k (held through the step, its events included; rbody.control.step_controls)."""
     table: ConstraintTable = model.constraints
     y0, params = np.asarray(model.y0), np.asarray(model.params)
     batch = y0.shape[0]
@@ -73,7 +77,14 @@ def run_constrained(description: str, model, method: str, dt: float, nsteps: int
             run = MoreauRun(table, params[b], description)
         else:
             run = EventRun(table, params[b], description)
-        out[:, b], modes[:, b] = run.run(y0[b], dt, nsteps, save_every)
+        hook = None
+        if controls is not None:
+            at, control = controls
+
+            def hook(k, t, y, p, b=b, at=at, control=control):
+                value = control(k, b, t, y)
+                p[at:at + value.shape[0]] = value
+        out[:, b], modes[:, b] = run.run(y0[b], dt, nsteps, save_every, hook)
         forces[:, b], errors[:, b] = sample_rows(table, params[b], out[:, b], modes[:, b])
         if getattr(run, "forces", None) is not None:  # time-stepping: the mean force of the step (impulse / dt)
             forces[:, b] = run.forces

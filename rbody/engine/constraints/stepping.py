@@ -64,6 +64,10 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included):
     jdot = np.empty(rows)
     g = np.empty(rows)
     dyn.state_rows(p, y, M, f, J, jdot, g)
+    at, na = dyn.act_range(p)
+    rates = np.empty(na)
+    if na:  # the activations' rates at the step's start (advanced by explicit Euler below, as MuJoCo's Euler does)
+        dyn.actuator_rates(p, y[:nq], y[nq:nq + nv], y[at:at + na], rates)
     L = np.linalg.cholesky(M)
     v = y[nq:nq + nv]
     a0 = dyn.upper_solve(L, dyn.lower_solve(L, f))
@@ -182,6 +186,10 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included):
     for d in range(nv):
         delta[d] = h * v[d]
     dyn.displace(p, y, delta)
+    if na:
+        for i in range(na):
+            y[at + i] += h * rates[i]
+        dyn.clamp_activations(p, y[at:at + na])
     # positions onto the equalities and onto every stop passed or touched (a projection in the metric of M moves
     # every dof: a stop it pushes past joins the set, and the projection is repeated), velocities onto the equalities
     position_rows = np.zeros(rows)
@@ -249,13 +257,19 @@ class MoreauRun:
         self.log = EventLog()
         self.forces = None
 
-    def run(self, y0, dt: float, nsteps: int, save_every: int):
+    def run(self, y0, dt: float, nsteps: int, save_every: int, before_step=None):
+        """before_step(k, t, y, p): called before step k (0-based) to write its controls into the params row p, or
+        None (one compiled loop); with it the steps are taken one by one, each as moreau_loop takes it."""
         count = nsteps // save_every + 1
         out = np.empty((count, len(y0)))
         impulses = np.empty((count, self.table.rows))
         included = np.zeros(self.table.rows)
-        failed, status, residual, m = moreau_loop(self.p, np.array(y0, dtype=np.float64), dt, nsteps, save_every,
-                                                  out, impulses, EXACT_ROWS, PGS_SWEEPS, STEP_TOLERANCE, included)
+        if before_step is None:
+            failed, status, residual, m = moreau_loop(self.p, np.array(y0, dtype=np.float64), dt, nsteps, save_every,
+                                                      out, impulses, EXACT_ROWS, PGS_SWEEPS, STEP_TOLERANCE, included)
+        else:
+            failed, status, residual, m = self._stepwise(np.array(y0, dtype=np.float64), dt, nsteps, save_every, out,
+                                                         impulses, included, before_step)
         if failed >= 0:
             what = {1: f"the step's complementarity problem ({m} rows) was left with a residual above "
                        f"{STEP_TOLERANCE:g} of its scale (solver budget: exact up to {EXACT_ROWS} rows, else "
@@ -280,6 +294,25 @@ class MoreauRun:
             else:
                 modes[:, k] = 1.0
         return out, modes
+
+
+    def _stepwise(self, y, dt, nsteps, save_every, out, impulses, included, before_step):
+        """moreau_loop's steps one by one, before_step called before each (the same steps, the impulses carried as
+        the loop carries them)."""
+        P = np.zeros(self.table.rows)
+        out[0] = y
+        impulses[0] = 0.0
+        for k in range(1, nsteps + 1):
+            before_step(k - 1, (k - 1) * dt, y, self.p)
+            status, residual, m = moreau_step(self.p, y, dt, P, EXACT_ROWS, PGS_SWEEPS, STEP_TOLERANCE, included)
+            if status != 0:
+                return k, status, residual, m
+            if not np.all(np.isfinite(y)):
+                return k, 3, 0.0, m
+            if k % save_every == 0:
+                out[k // save_every] = y
+                impulses[k // save_every] = P
+        return -1, 0, 0.0, 0
 
 
 def unit_bound(p: np.ndarray, table: ConstraintTable, k: int) -> float:

@@ -5,7 +5,12 @@ dry friction, a connect (3 rows), a weld (6) or a joint coupling (1). The units 
 appended to the tree's params row (rbody.engine.multibody), so that every compiled kernel, and the NativeModel's
 rhs that the integrators and the stability check call, reads (tree, constraints, mode) from one row:
 
-    [ tree row | C_HEADER | unit records (UNIT_SIZE each) | mode (one per unit) ]
+    [ tree row | force elements (rbody.engine.elements; empty where the tree has none) | C_HEADER |
+      unit records (UNIT_SIZE each) | mode (one per unit) ]
+
+The force-element section's X_BLOCK records where the block starts, so that the constraint kernels and the force
+elements' (actuators, tendons, gravity compensation, fluid: in the smooth forces of every constrained step) read
+one row.
 
 Unit kinds and their rows (g >= 0 feasible for unilateral rows; the force on the tree is J^T lambda):
 
@@ -111,8 +116,10 @@ class ConstraintTable:
     """The compiled constraints of a tree (module docstring).
 
     units: the Unit of every record, in order; block (C_HEADER + UNIT_SIZE units + units,) the floats appended to
-    the tree's row (offsets absolute: valid after a tree row of length `offset`); mode0 (units,) the mode every
-    run starts from before its first consistent mode is found; methods: the methods a constrained run takes."""
+    the tree's row and its force-element section (offsets absolute: valid after a row of length `offset`); mode0
+    (units,) the mode every run starts from before its first consistent mode is found; methods: the methods a
+    constrained run takes; tree_size the tree's row length, section the force-element section a tree row without
+    one is given (row())."""
 
     units: tuple[Unit, ...]
     block: np.ndarray
@@ -120,6 +127,8 @@ class ConstraintTable:
     mode0: np.ndarray
     methods: tuple[str, ...] = ("rk4", "moreau")
     equalities: tuple = ()  # every equality but tendons, each made explicit (a connect's anchor2, a weld's relpose)
+    tree_size: int = 0
+    section: np.ndarray | None = None
 
     @property
     def rows(self) -> int:
@@ -130,8 +139,19 @@ class ConstraintTable:
         return [(unit.kind, unit.name, k) for unit in self.units for k in range(unit.rows)]
 
     def row(self, params: np.ndarray) -> np.ndarray:
-        """The tree's params row (p,) with the block appended: the row every constraint kernel reads."""
-        return np.concatenate([np.asarray(params, dtype=np.float64), self.block])
+        """The tree's params row (p,), with its force-element section or without one (the empty section is then
+        added), with the block appended and its offset recorded: the row every constraint kernel reads."""
+        from rbody.engine.elements import X_BLOCK
+
+        params = np.asarray(params, dtype=np.float64)
+        if params.size == self.tree_size and self.section is not None:
+            params = np.concatenate([params, self.section])
+        if params.size != self.offset:
+            raise ValueError(f"params of {params.size} numbers: expected the tree's row ({self.tree_size}) or the tree's "
+                             f"row with its force elements ({self.offset})")
+        out = np.concatenate([params, self.block])
+        out[self.tree_size + X_BLOCK] = self.offset
+        return out
 
     def mode_slice(self) -> slice:
         start = self.offset + C_HEADER + UNIT_SIZE * len(self.units)
@@ -234,7 +254,8 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
         if equality.kind == "tendon" and not equality.active:
             continue
         if equality.kind == "tendon":
-            raise NotImplementedError(f"{what}: tendon equalities need tendons, which rbody does not model yet; "
+            raise NotImplementedError(f"{what}: tendon equalities are not rows of the constraint layer yet (tendons are force "
+                                      "elements: rbody.engine.system); "
                                       "remove it or set active=False")
         if equality.kind == "joint":
             indices = []
@@ -291,7 +312,14 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
             add(CONTACT if contact.condim == 3 and contact.friction > 0 else CONTACT1, name, **record_fields)
     if not units:
         return None
-    offset = int(np.asarray(multibody.params).size)
+    from rbody.engine.elements import build_elements
+
+    tree_size = int(multibody.arrays.row.size)
+    params = np.asarray(multibody.params, dtype=np.float64)
+    section = (params[tree_size:].copy() if params.size > tree_size
+               else build_elements(layout, multibody.arrays, tree_size).row)
+    section.setflags(write=False)
+    offset = tree_size + int(section.size)
     count = len(units)
     block = np.zeros(C_HEADER + UNIT_SIZE * count + count)
     block[[C_UNITS, C_ROWS, C_UNIT, C_MODE]] = count, rows, offset + C_HEADER, offset + C_HEADER + UNIT_SIZE * count
@@ -304,7 +332,7 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
     mode0.setflags(write=False)
     methods = ("moreau",) if any(unit.code in CONTACT_KINDS for unit in units) else ("rk4", "moreau")
     return ConstraintTable(units=tuple(units), block=block, offset=offset, mode0=mode0, equalities=tuple(resolved),
-                           methods=methods)
+                           methods=methods, tree_size=tree_size, section=section)
 
 
 def _contact_units(layout: Layout, contact, body_index: dict[str, int]) -> list[tuple[dict, str]]:

@@ -34,7 +34,7 @@ def test_an_equality_naming_what_the_tree_lacks_is_refused_before_any_work(equal
 
 
 def test_a_tendon_equality_is_not_implemented_yet():
-    with pytest.raises(NotImplementedError, match="tendon equalities need tendons"):
+    with pytest.raises(NotImplementedError, match="tendon equalities are not rows of the constraint layer"):
         two_rods(Equality("t", "tendon", tendon1="cable"))
 
 
