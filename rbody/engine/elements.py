@@ -42,25 +42,84 @@ import numpy as np
 from numba import njit
 
 from rbody.engine.multibody import DOF_SIZE, H_DOF, H_DOFS, KIND_CODE, TreeArrays
+from rbody.engine.schema import FLOAT, INT, Record
 from rbody.layout import ACTUATOR_BIASES, ACTUATOR_DYNAMICS, ACTUATOR_GAINS, JOINTS, WORLD, Layout
 
+# The section's header and records, declared once (rbody.engine.schema; docs/design.md prints them).
+ELEMENTS_HEADER = Record("force-element header", [
+    ("nu", 1, INT, "actuators (and controls; MuJoCo's nu)"),
+    ("na", 1, INT, "activations (MuJoCo's na)"),
+    ("ntendon", 1, INT, "tendons"),
+    ("actuators", 1, INT, "where the actuator records start"),
+    ("tendons", 1, INT, "where the tendon records start"),
+    ("ctrl", 1, INT, "where the controls u (nu) held through the current step start"),
+    ("step", 1, FLOAT, "the run's time step h [s] (actearly, the exact filter)"),
+    ("schedule", 1, INT, "where a control schedule starts (rows of nu, one per step), -1 without one"),
+    ("nschedule", 1, INT, "rows of the schedule"),
+    ("gravcomp", 1, INT, "where the bodies' gravity compensation (nb) starts, -1 without any"),
+    ("fluid", 1, INT, "where the fluid section starts, -1 without fluid forces"),
+    ("actgravcomp", 1, INT, "where a flag per dof (nv) starts: 1 where gravity compensation is an actuator force"),
+    ("jointlimits", 1, INT, "where the joints' actuator force clamps (nj records: limited, low, high) start"),
+    ("block", 1, INT, "where a constraint block after the section starts, -1 without one"),
+    ("active", 1, INT, "1 where the section holds any force element, else 0"),
+    ("reserved", 1, FLOAT, "unused (0)"),
+])
 (X_NU, X_NA, X_NTEN, X_ACT, X_TEN, X_CTRL, X_STEP, X_SCHED, X_NSCHED, X_GRAVCOMP, X_FLUID, X_ACTGC, X_JNTLIM, X_BLOCK,
- X_ACTIVE) = range(15)
-X_HEADER = 16
+ X_ACTIVE) = ELEMENTS_HEADER.offsets()[:15]
+X_HEADER = ELEMENTS_HEADER.size
 
-A_TRN, A_ID, A_JKIND, A_QADR, A_DADR, A_DYN, A_GAIN, A_BIAS, A_DYNPRM = range(9)
-A_GAINPRM, A_BIASPRM, A_GEAR = 9, 12, 15
-A_CTRLLIM, A_CTRLRANGE, A_FORCELIM, A_FORCERANGE, A_ACTLIM, A_ACTRANGE = 21, 22, 24, 25, 27, 28
-A_ACTEARLY, A_ACTADR, A_DISABLED, A_SITEPOS, A_SITEQUAT = 30, 31, 32, 33, 36
-ACT_SIZE = 40
+ACTUATOR = Record("actuator", [
+    ("transmission", 1, INT, "0 joint, 1 tendon, 2 site"),
+    ("target", 1, INT, "joint or tendon index (a site's body)"),
+    ("joint_kind", 1, INT, "the target joint's kind code (-1 for a tendon)"),
+    ("qadr", 1, INT, "its qpos address"),
+    ("dadr", 1, INT, "its qvel address"),
+    ("dynamics", 1, INT, "none, integrator, filter, filterexact"),
+    ("gain", 1, INT, "fixed, affine"),
+    ("bias", 1, INT, "none, affine"),
+    ("dynprm", 1, FLOAT, "the filter's time constant [s]"),
+    ("gainprm", 3, FLOAT, "gain parameters"),
+    ("biasprm", 3, FLOAT, "bias parameters"),
+    ("gear", 6, FLOAT, "gear (a site's wrench: 6)"),
+    ("ctrllimited", 1, INT, "controls clamped"),
+    ("ctrlrange", 2, FLOAT, "their range"),
+    ("forcelimited", 1, INT, "force clamped"),
+    ("forcerange", 2, FLOAT, "its range [N | N m]"),
+    ("actlimited", 1, INT, "activation clamped"),
+    ("actrange", 2, FLOAT, "its range"),
+    ("actearly", 1, INT, "force from the next activation"),
+    ("actadr", 1, INT, "its activation's index in act (-1: none)"),
+    ("disabled", 1, INT, "1: in a disabled actuator group"),
+    ("sitepos", 3, FLOAT, "a site transmission's position in its body [m]"),
+    ("sitequat", 4, FLOAT, "its orientation"),
+])
+(A_TRN, A_ID, A_JKIND, A_QADR, A_DADR, A_DYN, A_GAIN, A_BIAS, A_DYNPRM, A_GAINPRM, A_BIASPRM, A_GEAR, A_CTRLLIM,
+ A_CTRLRANGE, A_FORCELIM, A_FORCERANGE, A_ACTLIM, A_ACTRANGE, A_ACTEARLY, A_ACTADR, A_DISABLED, A_SITEPOS,
+ A_SITEQUAT) = ACTUATOR.offsets()
+ACT_SIZE = ACTUATOR.size
 
 FLUID_HEADER = 9   # nbox, nell, density, viscosity, wind (3), box and ellipsoid offsets (rbody.engine.fluid)
 BOX_SIZE = 8       # body, axes (4), sides (3)
 ELL_SIZE = 22      # body, pos (3), quat (4), semiaxes (3), virtual mass (3), virtual inertia (3), coefficients (5)
 
-T_KIND, T_N, T_PATH, T_STIFF, T_DAMP, T_LOW, T_HIGH = range(7)
-TEN_SIZE = 7
-PATH_SIZE = 4
+TENDON = Record("tendon", [
+    ("kind", 1, INT, "0 fixed, 1 spatial"),
+    ("entries", 1, INT, "path entries"),
+    ("path", 1, INT, "where its entries start"),
+    ("stiffness", 1, FLOAT, "[N/m]"),
+    ("damping", 1, FLOAT, "[N s/m]"),
+    ("springlow", 1, FLOAT, "spring length, low end [m]"),
+    ("springhigh", 1, FLOAT, "high end [m]"),
+])
+T_KIND, T_N, T_PATH, T_STIFF, T_DAMP, T_LOW, T_HIGH = TENDON.offsets()
+TEN_SIZE = TENDON.size
+PATH_ENTRY = Record("tendon path entry", [
+    ("first", 1, FLOAT, "fixed: qpos address; spatial: body index (-1: the world)"),
+    ("second", 1, FLOAT, "fixed: qvel address; spatial: point x [m]"),
+    ("third", 1, FLOAT, "fixed: coefficient; spatial: point y [m]"),
+    ("fourth", 1, FLOAT, "fixed: 0; spatial: point z [m]"),
+])
+PATH_SIZE = PATH_ENTRY.size
 
 TRN_JOINT, TRN_TENDON, TRN_SITE = 0, 1, 2
 TEN_FIXED, TEN_SPATIAL = 0, 1
@@ -246,6 +305,9 @@ def build_elements(layout: Layout, arrays: TreeArrays, start: int) -> ElementArr
         else:
             row[r + A_ACTADR] = -1
     row[X_NA] = na
+    ELEMENTS_HEADER.check(row, 0, 1)
+    ACTUATOR.check(row, act_at - start, nu)
+    TENDON.check(row, ten_at - start, ntendon)
     return ElementArrays(row=row, start=start, nu=nu, na=na,
                          actuator_names=tuple(a.name for a in layout.actuators),
                          tendon_names=tuple(t.name for t in layout.tendons), act_actuators=tuple(act_actuators),

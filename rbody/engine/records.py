@@ -5,15 +5,17 @@
 
 from __future__ import annotations
 
-from rbody.engine import multibody, planar
+from rbody.engine import elements, multibody, planar
 from rbody.engine.constraints import table
 from rbody.engine.schema import Record
 
 
 def records() -> list[Record]:
-    """The tree's header, body, joint and dof records, the planar row's, the constraint block's."""
+    """The tree's header, body, joint and dof records, the planar row's, the force elements', the constraint
+    block's."""
     return [multibody.TREE_HEADER, multibody.BODY, multibody.JOINT, multibody.DOF, planar.PLANAR_HEADER,
-            planar.NODE, planar.NODE_WORK, table.CONSTRAINT_HEADER, table.UNIT]
+            planar.NODE, planar.NODE_WORK, elements.ELEMENTS_HEADER, elements.ACTUATOR, elements.TENDON,
+            elements.PATH_ENTRY, table.CONSTRAINT_HEADER, table.UNIT]
 
 
 def markdown() -> str:

@@ -39,7 +39,8 @@ def contact_frames(p, y, units, dist, point, normal):
     jdot, g = np.zeros(from_rows), np.zeros(from_rows)
     acc = np.empty((int(p[H_BODIES]), 6))
     wanted = np.zeros(from_rows)
-    dyn.snapshot(p, q, y[nq:nq + nv], M, f, J, jdot, g, w, acc, wanted)  # the frames, no rows
+    a0, na = dyn.act_range(p)
+    dyn.snapshot(p, q, y[nq:nq + nv], y[a0:a0 + na], M, f, J, jdot, g, w, acc, wanted)  # the frames, no rows
     for i in range(units.shape[0]):
         dist[i] = contact_geometry(p, w, unit_at(p, units[i]), normal[i], point[i])
 
