@@ -24,10 +24,10 @@ from rbody.engine.constraints.table import CONTACT_KINDS, FRICTION, UNILATERAL, 
 
 
 def sample_rows(table: ConstraintTable, params: np.ndarray, samples: np.ndarray,
-                modes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                modes: np.ndarray, slips: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(forces (S, rows), errors (S, rows)) at each saved state (S, n) in its mode (S, units): every row's force
     (runner docstring) and its error: an equality's residual [m or rad], a limit's overshoot past its stop min(g, 0),
-    0 for friction rows."""
+    0 for friction rows. slips (S, units, 3): the sliding contacts' directions at each state (event-driven runs)."""
     p = np.array(params, dtype=np.float64)
     nq, nv, _n = dyn.sizes(p)
     forces = np.empty((samples.shape[0], table.rows))
@@ -37,8 +37,14 @@ def sample_rows(table: ConstraintTable, params: np.ndarray, samples: np.ndarray,
     codes = np.array([unit.code for unit in table.units for _ in range(unit.rows)])
     from rbody.engine.multibody import _effective_qpos
 
+    from rbody.engine.constraints.table import C_HEADER, U_SLIP, UNIT_SIZE
+
     for s in range(samples.shape[0]):
         p[table.mode_slice()] = modes[s]
+        if slips is not None:
+            for k in range(len(table.units)):
+                start = table.offset + C_HEADER + UNIT_SIZE * k + U_SLIP
+                p[start:start + 3] = slips[s, k]
         _effective_qpos(p, samples[s], q, 0)
         dyn.mode_accel(p, q, samples[s, nq:nq + nv], qacc, forces[s], errors[s])
     limits = np.isin(codes, UNILATERAL)
@@ -74,7 +80,7 @@ def run_constrained(description: str, model, method: str, dt: float, nsteps: int
         else:
             run = EventRun(table, params[b], description)
         out[:, b], modes[:, b] = run.run(y0[b], dt, nsteps, save_every)
-        forces[:, b], errors[:, b] = sample_rows(table, params[b], out[:, b], modes[:, b])
+        forces[:, b], errors[:, b] = sample_rows(table, params[b], out[:, b], modes[:, b], getattr(run, "slips", None))
         if getattr(run, "forces", None) is not None:  # time-stepping: the mean force of the step (impulse / dt)
             forces[:, b] = run.forces
         impacts += run.log.impacts
