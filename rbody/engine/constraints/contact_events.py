@@ -209,3 +209,32 @@ def tangent_frames(p, y, out):
 
 
 __all__ = ["event_problem", "contact_guards", "slip_velocities", "tangent_frames", "SLIDING"]
+
+
+@njit(cache=True)
+def closing_time(p, y):
+    """The earliest time [s] at which an open contact closes at its present rate (its gap over its approach speed;
+    +inf when none approaches): the event-driven run steps no further than just past it, so that a fast body
+    cannot pass through another within one step (its gap closing and opening again unseen)."""
+    nq, nv, _n = dyn.sizes(p)
+    rows = row_count(p)
+    M, f = np.empty((nv, nv)), np.empty(nv)
+    J, F = np.empty((rows, nv)), np.empty((rows, nv))
+    jdot, g, share = np.empty(rows), np.empty(rows), np.empty(rows)
+    w = np.empty(workspace_size(p))
+    _rows_at(p, y, M, f, J, jdot, g, F, share, w)
+    v = y[nq:nq + nv]
+    modes = mode_at(p)
+    earliest = np.inf
+    for k in range(unit_count(p)):
+        u = unit_at(p, k)
+        kind = int(p[u + U_KIND])
+        if (kind != CONTACT and kind != CONTACT1) or p[modes + k] != 0.0:
+            continue
+        r0 = int(p[u + U_ROW0])
+        rate = 0.0
+        for d in range(nv):
+            rate += J[r0, d] * v[d]
+        if rate < 0.0 and g[r0] > 0.0:
+            earliest = min(earliest, g[r0] / -rate)
+    return earliest

@@ -33,7 +33,8 @@ from scipy.optimize import brentq
 from rbody.errors import SimulationError
 from rbody.engine.constraints import dynamics as dyn
 from rbody.engine.constraints.cone import NORMAL, ROW, TANGENT, TANGENT2, cone_pgs, cone_polish, stick_polish
-from rbody.engine.constraints.contact_events import contact_guards, event_problem, slip_velocities, tangent_frames
+from rbody.engine.constraints.contact_events import (closing_time, contact_guards, event_problem, slip_velocities,
+                                                     tangent_frames)
 from rbody.engine.constraints.sliding import SLIDING, SLIDING_HELD
 from rbody.engine.constraints.solver import mlcp_exact, natural_residual, UNBOUNDED
 from rbody.engine.constraints.table import (C_HEADER, CONTACT, CONTACT_KINDS, EQUALITY_KINDS, FRICTION, LOWER,
@@ -52,6 +53,7 @@ GUARD_RTOL = 1e-9         # after an event every guard is >= -this (relative to 
 GUARD_DISTANCE = 1e-14    # [m or rad] a free stop passed by more than this is an event (the root is then located)
 GUARD_SPEED = 1e-13       # [m/s or rad/s] a sliding dof's velocity past 0 by more than this is an event
 GUARD_FORCE_RTOL = 1e-10  # a held force past its bound by more than this fraction of the forces in play is an event
+CLOSING_MARGIN = 1e-3     # a step with open contacts ends this fraction past the earliest closing at present rates
 CONE_ROUND = 50           # an event's problem with contacts' cones: Gauss-Seidel sweeps between exact finishes,
 CONE_SWEEPS = 2000        # and at most this many sweeps
 
@@ -188,13 +190,23 @@ class EventRun:
             events = 0
             while True:
                 h = target - t
+                whole = True
+                if self.contact_units.size:  # no further than just past the earliest closing of an open contact
+                    closing = closing_time(self.p, y)
+                    limit = closing * (1 + CLOSING_MARGIN) + CLOSING_MARGIN * 1e-3 * dt
+                    if limit < h:
+                        h, whole = limit, False
                 y1 = self.step(y, h)
                 if not np.all(np.isfinite(y1)):
                     raise self.fail(t, f"a step of {h:.3g} s gave a non-finite state; try a smaller dt")
                 g1 = self.guards(y1, target)
                 crossing = np.flatnonzero(g1 < -self.guard_tolerance(g0, g1))
                 if crossing.size == 0:
-                    y, t, g0 = y1, target, g1
+                    y, g0 = y1, g1
+                    if not whole:
+                        t = t + h
+                        continue
+                    t = target
                     break
                 events += 1
                 if events > MAX_EVENTS_PER_STEP:
@@ -306,7 +318,9 @@ class EventRun:
             v = y[nq:nq + nv]
             jv = J @ v
         # 3. the mode: complementarity at the acceleration level
-        resting = [k for k in touching if jv[self.units[k].row0] <= REST_SPEED]
+        resting = [k for k in touching if jv[self.units[k].row0] <= REST_SPEED
+                   and (jv[self.units[k].row0] >= -REST_SPEED or not self.is_contact[k])]  # (contacts made to
+        # approach by a sequential impact are not at rest: each is the next impact)
         slips = np.zeros((len(self.units), 3))
         if self.contact_units.size:
             slip_velocities(self.p, y, slips)
@@ -364,7 +378,10 @@ class EventRun:
         """Impulses at an impact (Newton's law with each limit's and contact's restitution, equalities held, joint
         dry friction giving no impulse, a contact's friction impulse within its Coulomb cone: sticking, or sliding
         against the tangential velocity after the impact); returns (y with v+, kinetic energy lost [J], impulses on
-        the approaching limits and contacts' normals)."""
+        the approaching limits and contacts' normals). Touching limits all take part (simultaneous); contacts are
+        sequential: only the approaching ones take part, and a touching contact that the impulse makes approach is
+        the next event, at the same instant (the chapter's Newton's cradle and stacked balls: a simultaneous
+        Newton law would share the momentum among the balls instead)."""
         nq, nv = self.nq, self.nv
         rows, lo, hi, b, role, mu = [], [], [], [], [], []
         impulses_of = []
@@ -373,7 +390,9 @@ class EventRun:
                 for a in range(unit.row0, unit.row0 + unit.rows):
                     rows.append(a), lo.append(-np.inf), hi.append(np.inf), b.append(jv[a]), role.append(ROW)
                     mu.append(0.0)
-            elif k in touching:
+            elif k in touching and (not self.is_contact[k] or start or jv[unit.row0] < -REST_SPEED):
+                # contacts: sequential impacts, the approaching ones only (a touching contact that the impulse
+                # makes approach is the next impact, at the same instant: Newton's cradle, the stacked balls)
                 a = unit.row0
                 speed = -jv[a]
                 e = 0.0 if start else self.restitution[k]
