@@ -54,6 +54,7 @@ GUARD_DISTANCE = 1e-14    # [m or rad] a free stop passed by more than this is a
 GUARD_SPEED = 1e-13       # [m/s or rad/s] a sliding dof's velocity past 0 by more than this is an event
 GUARD_FORCE_RTOL = 1e-10  # a held force past its bound by more than this fraction of the forces in play is an event
 CLOSING_MARGIN = 1e-3     # a step with open contacts ends this fraction past the earliest closing at present rates
+FACE_ALIGNED = 1e-12       # slip directions of a face's contacts within 1 - cos of this are one direction (~1.4e-6 rad)
 CONE_ROUND = 50           # an event's problem with contacts' cones: Gauss-Seidel sweeps between exact finishes,
 CONE_SWEEPS = 2000        # and at most this many sweeps
 
@@ -368,7 +369,7 @@ class EventRun:
         finite = g_after[np.isfinite(g_after)]
         floor = -GUARD_RTOL * (1.0 + np.abs(finite).max(initial=0.0))
         if np.any(g_after < floor):
-            bad = list(np.flatnonzero(g_after < floor))
+            bad = sorted({int(self.guard_unit[i]) for i in np.flatnonzero(g_after < floor)})
             raise self.fail(t, "no consistent mode: after the event these constraints still violate their "
                                "conditions (a force beyond its bound, or a limit pulled):", bad,
                             float(-g_after.min()))
@@ -415,8 +416,10 @@ class EventRun:
         A = np.linalg.solve(L, J[rows].T)
         W = A.T @ A
         lo, hi, b = np.array(lo), np.array(hi), np.array(b)
-        lam, status, residual = self.solve(W, b, lo, hi, np.array(role), np.array(mu))
-        if status != 0 or residual > MLCP_RTOL * (np.abs(b).max() + 1e-300) + 1e-14:
+        role = np.array(role)
+        lam, status, residual = self.solve(W, b, lo, hi, role, np.array(mu))
+        cones = bool(np.any(role != ROW))  # cones: solve's own tolerance, MLCP_RTOL of max(|b|, 1)
+        if status != 0 or (not cones and residual > MLCP_RTOL * (np.abs(b).max() + 1e-300) + 1e-14):
             units = sorted({int(self.row_unit[a]) for a in rows})
             raise self.fail(t, "the impact has no consistent impulse "
                             f"(complementarity status {status}):", units, residual)
@@ -537,10 +540,10 @@ class EventRun:
                 else:
                     ft = lam[i + 1:i + 3]
                     wt = w[i + 1:i + 3]
-                    edge = np.hypot(*ft) >= (1 - 1e-10) * self.mu[k] * lam[i]
+                    edge = np.hypot(*ft) >= (1 - 1e-9) * self.mu[k] * lam[i]
                     moving = np.hypot(*wt) > tolerance
-                    if moving or (edge and k in breaking):  # starts to slide: along its acceleration (or
-                        # against its force where the acceleration is still 0: the event's direction)
+                    if moving or edge:  # on its cone's edge it starts to slide: along its acceleration (or against
+                        # its force where the acceleration is still 0: the direction of the event that brought it)
                         if frames is None:
                             frames = np.zeros((len(self.units), 3, 3))
                             tangent_frames(self.p, y, frames)
@@ -565,8 +568,10 @@ class EventRun:
         return mode
 
     def hold_faces(self, mode: np.ndarray) -> None:
-        """Several contacts of one pair of bodies sliding at once (a face): one direction for all of them, the mean
-        of their slips' directions now, held until the next event (rbody.engine.constraints.sliding)."""
+        """Several contacts of one pair of bodies sliding at once in one direction (a face that translates, their
+        directions within FACE_ALIGNED): one direction for all of them, the mean of their slips' directions now,
+        held until the next event (rbody.engine.constraints.sliding). A face that turns as it slides keeps each
+        contact's own s/|s|."""
         faces = {}
         for k in self.contact_units:
             if mode[k] >= SLIDING:
@@ -577,6 +582,8 @@ class EventRun:
             spans = [slice(self._record(k) + U_SLIP, self._record(k) + U_SLIP + 3) for k in members]
             mean = np.sum([self.p[span] for span in spans], axis=0)
             mean /= np.linalg.norm(mean)
+            if min(float(self.p[span] @ mean) for span in spans) < 1 - FACE_ALIGNED:
+                continue  # a face that turns as it slides: each contact along its own slip
             for k, span in zip(members, spans):
                 self.p[span] = mean
                 mode[k] = SLIDING_HELD

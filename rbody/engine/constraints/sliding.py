@@ -11,13 +11,13 @@ began with (kept in the unit's record, U_SLIP); beyond that (only after the slip
 the event that ends the mode) it is that initial direction, so that the flow is continued smoothly through the
 event for the root search (a slip reversing within one RK stage would otherwise make the guard jump).
 
-A face sliding on a face (several candidates of one pair of bodies sliding at once: a box's corners on a plane)
-takes one direction for all its candidates, the one its slip had when the mode began, held until the next event
-(mode SLIDING_HELD). Why: with each corner's own s / |s| the rigid Coulomb model is stiff as the slip tends to 0
+A face sliding on a face in one direction (several candidates of one pair of bodies sliding at once, their slips
+parallel: a box's corners on a plane, translating) takes one direction for all its candidates, the one its slip
+had when the mode began, held until the next event (mode SLIDING_HELD). Why: with each corner's own s / |s| the rigid Coulomb model is stiff as the slip tends to 0
 (a yaw rate w turns each corner's friction by w r / |s|, a torque response of mu N r^2 / |s|), and an explicit step
 is unstable long before the slip is measurable (a block released at mu = tan(alpha) (1 - 1e-6) spun up at
-0.6 rad/s^2 from round-off). Exact for a face that translates (the incline); a face that slides and spins at once
-is not followed exactly (its friction's direction lags): method="moreau" follows it to first order."""
+0.6 rad/s^2 from round-off). Exact for a face that translates (the incline); a face that slides and turns keeps
+each candidate's own s / |s| (exact, and stiff again where a candidate's slip nears 0: method="moreau" there)."""
 
 from __future__ import annotations
 

@@ -206,3 +206,25 @@ def test_block_on_incline_slides_exactly(factor):
     assert run["contacts"][-1] == 4
     np.testing.assert_allclose(np.linalg.norm(run["contact_friction_force"][-1].sum(axis=0)),
                                mu * G * np.cos(alpha), rtol=1e-12)
+
+
+@pytest.mark.parametrize("restitution", [0.5, pytest.param(0.0, marks=pytest.mark.slow)])
+def test_a_tumbling_box_comes_to_rest_on_its_face(restitution):
+    """A box dropped turned and spinning: impacts on single corners, corners sliding in different directions (a
+    face that turns as it slides), releases and sticks, until it rests on its face. No corner below the floor
+    beyond the projection's round-off, energy + dissipated kept to the RK4 error (measured 1.9e-9 J for e = 0.5,
+    6e-7 J for e = 0, of 10.8 J)."""
+    half = (0.2, 0.1, 0.05)
+    box = Body("box", Inertia.box(2.0, 2 * np.array(half)), shapes=(Shape("b", "box", half),), pos=(0, 0, 0.55),
+               quat=(np.cos(0.05), np.sin(0.05), 0, 0))
+    layout = Layout(bodies=(box,), joints=(Joint("free", "free", "box"),), fixed=(Shape("floor", "plane", (0, 0)),),
+                    contacts=(Contact("floor", "b", friction=0.5, restitution=restitution),))
+    run = rbody.simulate(Scene.from_layout(layout, t_end=2.0, qvel0=[0.5, 0, 0, 0, 0, 1.0]), dt=1e-3, method="rk4")
+    what = set(run.events["what"])
+    assert {"impact", "slip", "stick", "release"} <= what
+    assert run["contact_distance"].min() >= -1e-13
+    assert abs(run["box.com"][-1, 2] - half[2]) <= 1e-13                      # on its face
+    assert np.abs(run["qvel"][-1]).max() <= 1e-12                             # at rest
+    assert run["contacts"][-1] == 4
+    total = run["energy"] + run["dissipated"]
+    assert np.abs(total - total[0]).max() <= 1e-6 * total[0]
