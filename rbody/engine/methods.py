@@ -256,6 +256,9 @@ def method(name: str) -> Method:
 def applicable(model, preferred: tuple[str, ...] = ()) -> tuple[str, ...]:
     """Names of the methods whose needs `model` (a NativeModel) meets: those of `preferred` first, in its
     order, then the rest in METHODS order."""
+    table = getattr(model, "constraints", None)  # a constrained tree: its layer's default scheme first
+    if table is not None:
+        preferred = tuple(table.methods[:1]) + tuple(name for name in preferred if name not in table.methods[:1])
     names = tuple(name for name in preferred if name in BY_NAME) + tuple(n for n in METHODS if n not in preferred)
     return tuple(name for name in names if BY_NAME[name].applies(model))
 

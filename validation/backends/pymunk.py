@@ -537,7 +537,10 @@ def check(scene: Scene) -> None:
     shapes without a planar counterpart), ValueError when `scene` is not a Scene or its layout is
     inconsistent."""
     layout = getattr(scene, "tree", None)
-    if layout is not None and layout.constrained:
+    # contacts are pymunk's own (its shapes collide: the layout's contacts are built below); joint limits, dry
+    # friction and equalities are not built
+    if layout is not None and (any(j.range is not None or j.frictionloss > 0 for j in layout.joints)
+                               or any(e.active for e in layout.equalities)):
         raise NotImplementedError(f"pymunk backend: scene {scene.name!r} has joint limits, dry friction or equality "
                                   "constraints, which this backend does not build")
     _plan(scene)

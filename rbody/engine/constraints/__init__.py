@@ -41,10 +41,16 @@ The scheme, in this order and for this reason:
    stepping.EXACT_ROWS rows, else projected Gauss-Seidel to stepping.STEP_TOLERANCE), order 1, no event located;
    the projection after each step keeps equalities and stops at round-off. Why: a chattering joint, a ball coming
    to rest by infinitely many bounces (Zeno), the many contacts of feet and grasps would stop an event-driven run;
-   a time-stepped one passes through them at a cost per step independent of the number of events. Contacts
-   between geoms (table.CONTACT, CONTACT1: gap functions from rbody.engine.contacts, Coulomb's circular cone solved
-   by cone.py) run by this scheme only, for now: their acceleration-level rows (the gap's curvature terms) are
-   still to come, so a model with contacts offers method "moreau" alone (docs/contacts.md).
+   a time-stepped one passes through them at a cost per step independent of the number of events.
+
+Contacts between geoms (table.CONTACT, CONTACT1: gap functions from rbody.engine.contacts, Coulomb's circular cone
+solved by cone.py) run by either scheme, time-stepping by default (method="moreau": persistent contacts, stacks,
+feet and grasps, many candidates touching at once) and event-driven on request (method="rk4": few isolated
+contacts, exact impact times and stick/slip/roll transitions). Event-driven, a contact's normal row is held like a
+limit's with J' v the gap's second derivative (rbody.engine.contacts.kinematics: the curvature terms); sticking, its
+tangent rows are held too and its guard is mu lambda_n - |lambda_t|; sliding, its friction -mu lambda_n s/|s| is a
+force column of the held problem (sliding.py) and its guard the slip along its initial direction; the event's
+problem is solved with the cones (contact_events.py, cone.py); impacts of contacts are sequential (docs/contacts.md).
 
 A run reports its events (runner.py: trajectory.events and meta["events"]), its constraint forces, errors, held
 limits, sticking dofs and the energy dry friction and impacts dissipated (energy + dissipated is conserved where

@@ -36,8 +36,9 @@ from rbody.engine.system import actuator_rates, add_element_forces, clamp_activa
 from rbody.engine.constraints.jacobians import (all_rows, bias_accelerations, some_rows, mode_at, row_count, unit_at,
                                                 unit_count)
 from rbody.engine.constraints.solver import symmetric_solve
-from rbody.engine.constraints.table import (CONE, CONNECT, COUPLING, FRICTION, LOWER, U_BOUND, U_DOF, U_KIND,
-                                            U_ROW0, U_ROWS, UPPER, WELD)
+from rbody.engine.constraints.sliding import general_held_solve, sliding_columns
+from rbody.engine.constraints.table import (CONE, CONNECT, CONTACT, CONTACT1, COUPLING, FRICTION, LOWER, U_BOUND,
+                                            U_DOF, U_KIND, U_ROW0, U_ROWS, UPPER, WELD)
 
 PROJECTION_TOLERANCE = 1e-13   # |g| [m or rad] a projection aims for on the held rows (round-off of metre-scale trees)
 PROJECTION_ITERATIONS = 8      # Newton iterations of a projection at most
@@ -135,6 +136,11 @@ def held_rows(p, rows_held):
                                                      and sticking[d + 2] > 0.0)) or
               (kind == FRICTION and mode == 0.0 and stop_held[d] == 0.0))
         r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])
+        if (kind == CONTACT or kind == CONTACT1) and mode != 0.0:  # sticking: every row; sliding: the normal
+            for a in range(r0, r0 + r):
+                rows_held[a] = 1.0 if (mode == 1.0 or a == r0) else 0.0
+            count += r if mode == 1.0 else 1
+            continue
         for a in range(r0, r0 + r):
             rows_held[a] = 1.0 if on else 0.0
         if on:
@@ -232,11 +238,13 @@ def held_solve(L, J, held, r, correction, lam_rows):
 
 
 @njit(cache=True)
-def mode_accel(p, q, v, act, qacc, lam_rows, g, every_row=True):
+def mode_accel(p, q, v, act, qacc, lam_rows, g, every_row=True, power=None):
     """qacc (nv,) and the force of every row lam_rows (rows,) (held rows: their lambda; sliding friction: -F s;
     others 0) in the mode written in p, at the effective qpos q and qvel v; g (rows,) gets every row's residual
     (every_row False: only the held rows' are formed, the others left as they were: the right-hand side needs no
-    more). Returns (residual, scale): |W lambda - r|_inf of the held rows and |r|_inf (the caller judges it)."""
+    more). Sliding contacts (rbody.engine.constraints.sliding) push along their force columns, their tangent rows
+    reporting their friction; power (1,), when given, gets the power their friction takes [W]. Returns (residual,
+    scale): |W lambda - r|_inf of the held rows and |r|_inf (the caller judges it)."""
     nv = int(p[H_DOFS])
     rows = row_count(p)
     w = np.empty(workspace_size(p))
@@ -266,7 +274,27 @@ def mode_accel(p, q, v, act, qacc, lam_rows, g, every_row=True):
         if held[a] != 0.0:
             scale = max(scale, abs(r[a]))
     correction = np.empty(nv)
-    residual = held_solve(L, J, held, r, correction, lam_rows)
+    F = np.empty((rows, nv))
+    share = np.empty(rows)
+    if sliding_columns(p, w, J, v, F, share) > 0:
+        residual = general_held_solve(L, J, F, held, r, correction, lam_rows)
+        slip_power = 0.0
+        for k in range(unit_count(p)):
+            u = unit_at(p, k)
+            if share[int(p[u + U_ROW0]) + 1] != 0.0 or share[int(p[u + U_ROW0]) + 2] != 0.0:
+                r0 = int(p[u + U_ROW0])
+                for a in (r0 + 1, r0 + 2):
+                    lam_rows[a] = share[a] * lam_rows[r0]
+                    speed = 0.0
+                    for d in range(nv):
+                        speed += J[a, d] * v[d]
+                    slip_power -= lam_rows[a] * speed
+        if power is not None:
+            power[0] = slip_power
+    else:
+        residual = held_solve(L, J, held, r, correction, lam_rows)
+        if power is not None:
+            power[0] = 0.0
     for d in range(nv):
         qacc[d] = a0[d] + correction[d]
     modes = mode_at(p)
@@ -314,11 +342,12 @@ def constrained_rhs(y, p, out):
     lam = np.empty(rows)
     g = np.zeros(rows)
     a0, na = act_range(p)
-    mode_accel(p, q, y[nq:nq + nv], y[a0:a0 + na], out[nq:nq + nv], lam, g, False)
+    slip_power = np.zeros(1)
+    mode_accel(p, q, y[nq:nq + nv], y[a0:a0 + na], out[nq:nq + nv], lam, g, False, slip_power)
     if na:  # the actuators' activations (rbody.engine.system)
         actuator_rates(p, q, y[nq:nq + nv], y[a0:a0 + na], out[a0:a0 + na])
     coordinate_rates(p, y, out)  # qpos' and phi' as the tree's right-hand side forms them
-    out[n - 1] = friction_power(p, y[nq:nq + nv]) + damping_power(p, y[nq:nq + nv])
+    out[n - 1] = friction_power(p, y[nq:nq + nv]) + damping_power(p, y[nq:nq + nv]) + slip_power[0]
 
 
 @njit(cache=True)

@@ -32,9 +32,14 @@ from scipy.optimize import brentq
 
 from rbody.errors import SimulationError
 from rbody.engine.constraints import dynamics as dyn
+from rbody.engine.constraints.cone import NORMAL, ROW, TANGENT, TANGENT2, cone_pgs, cone_polish, stick_polish
+from rbody.engine.constraints.contact_events import (closing_time, contact_guards, event_problem, slip_velocities,
+                                                     tangent_frames)
+from rbody.engine.constraints.sliding import SLIDING, SLIDING_HELD
 from rbody.engine.constraints.solver import mlcp_exact, natural_residual, UNBOUNDED
-from rbody.engine.constraints.table import (C_HEADER, EQUALITY_KINDS, FRICTION, LOWER, U_BOUND, UPPER, U_DOF, U_RESTITUTION,
-                                            UNILATERAL, UNIT_SIZE, ConstraintTable)
+from rbody.engine.constraints.table import (C_HEADER, CONTACT, CONTACT_KINDS, EQUALITY_KINDS, FRICTION, LOWER,
+                                            U_BODY1, U_BODY2, U_BOUND, UPPER, U_DOF, U_RESTITUTION, U_SLIP, UNILATERAL, UNIT_SIZE,
+                                            ConstraintTable)
 
 TOUCH_TOLERANCE = 1e-10   # [m or rad] a limit this close to its stop at an event touches it (projected onto it)
 REST_SPEED = 1e-9         # [m/s or rad/s] a dof with friction this slow at an event is at rest (it may stick)
@@ -48,6 +53,10 @@ GUARD_RTOL = 1e-9         # after an event every guard is >= -this (relative to 
 GUARD_DISTANCE = 1e-14    # [m or rad] a free stop passed by more than this is an event (the root is then located)
 GUARD_SPEED = 1e-13       # [m/s or rad/s] a sliding dof's velocity past 0 by more than this is an event
 GUARD_FORCE_RTOL = 1e-10  # a held force past its bound by more than this fraction of the forces in play is an event
+CLOSING_MARGIN = 1e-3     # a step with open contacts ends this fraction past the earliest closing at present rates
+FACE_ALIGNED = 1e-12       # slip directions of a face's contacts within 1 - cos of this are one direction (~1.4e-6 rad)
+CONE_ROUND = 50           # an event's problem with contacts' cones: Gauss-Seidel sweeps between exact finishes,
+CONE_SWEEPS = 2000        # and at most this many sweeps
 
 
 @dataclass
@@ -91,7 +100,19 @@ class EventRun:
         self.is_friction = self.codes == FRICTION
         self.largest_bound = max([0.0] + [float(self.p[self._record(k) + U_BOUND])
                                           for k in np.flatnonzero(self.is_friction)])
-        self.has_position = (self.codes[self.row_unit] != FRICTION).astype(float)
+        self.is_contact = np.isin(self.codes, CONTACT_KINDS)
+        self.contact_units = np.flatnonzero(self.is_contact)
+        # guards: one per unit, then a contact's A and B (rbody.engine.constraints.contact_events)
+        self.guard_unit = np.concatenate([np.arange(len(self.units)), self.contact_units,
+                                          self.contact_units]).astype(int)
+        tangent_row = np.zeros(self.rows, dtype=bool)
+        for k in self.contact_units:
+            tangent_row[self.units[k].row0 + 1:self.units[k].row0 + self.units[k].rows] = True
+        self.has_position = ((self.codes[self.row_unit] != FRICTION) & ~tangent_row).astype(float)
+        self.pair = {int(k): (int(self.p[self._record(k) + U_BODY1]), int(self.p[self._record(k) + U_BODY2]))
+                     for k in self.contact_units}
+        self.mu = np.array([self.p[self._record(k) + U_BOUND] if self.codes[k] == CONTACT else 0.0
+                            for k in range(len(self.units))])
         self.log = EventLog()
 
     # ----- small helpers ------------------------------------------------------------------------------
@@ -135,8 +156,14 @@ class EventRun:
         return out
 
     def guards(self, y: np.ndarray, t: float) -> np.ndarray:
+        """Every guard at state y: one per unit (dynamics.guards; +inf for contacts), then each contact's A and B
+        (contact_events.contact_guards)."""
         out = np.empty(len(self.units))
         residual, scale = dyn.guards(self.p, y, out)
+        if self.contact_units.size:
+            a, b = np.empty(self.contact_units.size), np.empty(self.contact_units.size)
+            contact_guards(self.p, y, a, b)
+            out = np.concatenate([out, a, b])
         if residual > FORCE_RTOL * scale + FORCE_ATOL:
             held = [k for k in range(len(self.units)) if self.held()[self.units[k].row0]]
             raise self.fail(t, "the held constraints admit no consistent force (they contradict each other):",
@@ -152,10 +179,14 @@ class EventRun:
         count = nsteps // save_every + 1
         samples = np.empty((count, self.n))
         modes = np.empty((count, len(self.units)))
+        slips = [(k, slice(self._record(k) + U_SLIP, self._record(k) + U_SLIP + 3)) for k in self.contact_units]
+        self.slips = np.zeros((count, len(self.units), 3))  # each sliding contact's direction at each sample
         y = np.array(y0, dtype=np.float64)
         samples[0] = y
         y = self.settle(y, 0.0, start=True)
         modes[0] = self.mode
+        for k, span in slips:
+            self.slips[0, k] = self.p[span]
         g0 = self.guards(y, 0.0)
         t = 0.0
         for k in range(1, nsteps + 1):
@@ -170,20 +201,30 @@ class EventRun:
             events = 0
             while True:
                 h = target - t
+                whole = True
+                if self.contact_units.size:  # no further than just past the earliest closing of an open contact
+                    closing = closing_time(self.p, y)
+                    limit = closing * (1 + CLOSING_MARGIN) + CLOSING_MARGIN * 1e-3 * dt
+                    if limit < h:
+                        h, whole = limit, False
                 y1 = self.step(y, h)
                 if not np.all(np.isfinite(y1)):
                     raise self.fail(t, f"a step of {h:.3g} s gave a non-finite state; try a smaller dt")
                 g1 = self.guards(y1, target)
                 crossing = np.flatnonzero(g1 < -self.guard_tolerance(g0, g1))
                 if crossing.size == 0:
-                    y, t, g0 = y1, target, g1
+                    y, g0 = y1, g1
+                    if not whole:
+                        t = t + h
+                        continue
+                    t = target
                     break
                 events += 1
                 if events > MAX_EVENTS_PER_STEP:
                     raise self.fail(t, f"more than {MAX_EVENTS_PER_STEP} events within one step of dt={dt:g} s (a "
                                        "cluster of impacts or stick-slip transitions this event-driven scheme does "
                                        "not resolve): use method='moreau', which time-steps through them;",
-                                    crossing)
+                                    sorted(set(self.guard_unit[crossing])))
                 h_event, first = self.locate(y, h, crossing, g0)
                 y = self.step(y, h_event) if h_event > 0 else y
                 t = t + h_event
@@ -192,6 +233,8 @@ class EventRun:
             if k % save_every == 0:
                 samples[k // save_every] = y
                 modes[k // save_every] = self.mode
+                for unit, span in slips:
+                    self.slips[k // save_every, unit] = self.p[span]
         return samples, modes
 
     def guard_tolerance(self, g0: np.ndarray, g1: np.ndarray) -> np.ndarray:
@@ -202,11 +245,13 @@ class EventRun:
         mode = self.mode
         held_stop = self.is_limit & (mode == 1.0)
         sticking = self.is_friction & (mode == 0.0)
-        force = held_stop | sticking
+        force = np.concatenate([held_stop | sticking, self.is_contact[self.contact_units]
+                                & (mode[self.contact_units] != 0.0), np.zeros(self.contact_units.size, bool)])
         scale = max(1.0, self.largest_bound, float(np.abs(g0[force]).max(initial=0.0)),
                     float(np.abs(g1[force]).max(initial=0.0)))
         out = np.where(force, GUARD_FORCE_RTOL * scale, GUARD_DISTANCE)
-        out[self.is_friction & (mode != 0.0)] = GUARD_SPEED
+        out[:len(self.units)][self.is_friction & (mode != 0.0)] = GUARD_SPEED
+        out[len(self.units) + self.contact_units.size:] = GUARD_SPEED
         return out
 
     def locate(self, y: np.ndarray, h: float, crossing: np.ndarray, g0: np.ndarray) -> tuple[float, list[int]]:
@@ -242,13 +287,14 @@ class EventRun:
         nq, nv = self.nq, self.nv
         M, f, J, jdot, g = self.state_rows(y)
         unit_g = np.array([g[u.row0] for u in self.units])
-        touching = [k for k in range(len(self.units)) if self.codes[k] in UNILATERAL
-                    and (unit_g[k] <= TOUCH_TOLERANCE or mode[k] == 1.0)]
-        # 1. positions onto the equalities and the touching stops
+        touching = [k for k in range(len(self.units)) if (self.codes[k] in UNILATERAL or self.is_contact[k])
+                    and (unit_g[k] <= TOUCH_TOLERANCE or mode[k] != 0.0)]
+        # 1. positions onto the equalities and the touching stops and contacts (a contact's normal row)
         position_rows = np.zeros(self.rows)
         for k, unit in enumerate(self.units):
             if self.codes[k] in EQUALITY_KINDS or k in touching:
                 position_rows[unit.row0:unit.row0 + unit.rows] = 1.0
+        position_rows *= self.has_position
         moved = y[:nq].copy()
         worst = 0.0
         for _round in range(PROJECTION_ROUNDS):  # a stop that the projection pushes past joins the set
@@ -256,7 +302,8 @@ class EventRun:
             _M, _f, _J, _jdot, g = self.state_rows(y)
             grown = False
             for k, unit in enumerate(self.units):
-                if self.codes[k] in UNILATERAL and g[unit.row0] < -TOUCH_TOLERANCE and not position_rows[unit.row0]:
+                if (self.codes[k] in UNILATERAL or self.is_contact[k]) and g[unit.row0] < -TOUCH_TOLERANCE \
+                        and not position_rows[unit.row0]:
                     position_rows[unit.row0] = 1.0
                     touching.append(k)
                     grown = True
@@ -282,9 +329,15 @@ class EventRun:
             v = y[nq:nq + nv]
             jv = J @ v
         # 3. the mode: complementarity at the acceleration level
-        resting = [k for k in touching if jv[self.units[k].row0] <= REST_SPEED]
+        resting = [k for k in touching if jv[self.units[k].row0] <= REST_SPEED
+                   and (jv[self.units[k].row0] >= -REST_SPEED or not self.is_contact[k])]  # (contacts made to
+        # approach by a sequential impact are not at rest: each is the next impact)
+        slips = np.zeros((len(self.units), 3))
+        if self.contact_units.size:
+            slip_velocities(self.p, y, slips)
+        slip_speed = np.linalg.norm(slips, axis=1)
         for k in range(len(self.units)):
-            if self.codes[k] in UNILATERAL:
+            if self.codes[k] in UNILATERAL or self.is_contact[k]:
                 mode[k] = 0.0
             elif self.codes[k] == FRICTION:
                 speed = v[int(self.p[self._record(k) + U_DOF])]
@@ -294,12 +347,21 @@ class EventRun:
         # or a stop that is left moves away from rest in the direction its acceleration says
         at_rest = np.zeros(self.rows)
         for k, unit in enumerate(self.units):
-            if self.codes[k] in EQUALITY_KINDS or k in resting or (self.codes[k] == FRICTION and mode[k] == 0.0):
+            if self.is_contact[k]:
+                if k in resting:  # its normal, and its tangents where it does not slip
+                    at_rest[unit.row0:unit.row0 + (unit.rows if slip_speed[k] <= REST_SPEED else 1)] = 1.0
+            elif self.codes[k] in EQUALITY_KINDS or k in resting or (self.codes[k] == FRICTION and mode[k] == 0.0):
                 at_rest[unit.row0:unit.row0 + unit.rows] = 1.0
         dyn.project(self.p, y, np.zeros(self.rows), at_rest)
         v = y[nq:nq + nv]
-        breaking = [k for k in triggered if self.codes[k] == FRICTION and before[k] == 0.0]
-        releasing = [k for k in triggered if self.codes[k] in UNILATERAL and before[k] == 1.0]
+        breaking = [k for k in triggered if k < len(self.units) and self.codes[k] == FRICTION and before[k] == 0.0]
+        releasing = [k for k in triggered if k < len(self.units) and self.codes[k] in UNILATERAL
+                     and before[k] == 1.0]
+        first_b = len(self.units) + self.contact_units.size  # a contact's guard A: its force reached a bound
+        breaking += [int(self.guard_unit[i]) for i in triggered if len(self.units) <= i < first_b
+                     and before[self.guard_unit[i]] == 1.0]
+        releasing += [int(self.guard_unit[i]) for i in triggered if len(self.units) <= i < first_b
+                      and before[self.guard_unit[i]] != 0.0]
         mode = self.select_mode(y, t, resting, breaking, releasing)
         self.set_mode(mode)
         held = self.held()
@@ -307,7 +369,9 @@ class EventRun:
         changed = np.flatnonzero(mode != before)
         if changed.size and not start:
             self.log.mode_changes += 1
-            kinds = {("limit", 1.0): "limit", ("limit", 0.0): "release", ("friction", 0.0): "stick"}
+            kinds = {("limit", 1.0): "limit", ("limit", 0.0): "release", ("friction", 0.0): "stick",
+                     ("contact", 0.0): "release", ("contact", 1.0): "stick", ("contact", SLIDING): "slip",
+                     ("contact", SLIDING_HELD): "slip"}
             for k in changed:
                 what = kinds.get((self.units[k].kind, float(mode[k])), "slip")
                 self.log.events.append(Event(t, what, (self.units[k].name,)))
@@ -315,26 +379,31 @@ class EventRun:
         finite = g_after[np.isfinite(g_after)]
         floor = -GUARD_RTOL * (1.0 + np.abs(finite).max(initial=0.0))
         if np.any(g_after < floor):
-            bad = list(np.flatnonzero(g_after < floor))
+            bad = sorted({int(self.guard_unit[i]) for i in np.flatnonzero(g_after < floor)})
             raise self.fail(t, "no consistent mode: after the event these constraints still violate their "
                                "conditions (a force beyond its bound, or a limit pulled):", bad,
                             float(-g_after.min()))
         return y
 
     def impact(self, y, M, J, touching, jv, start: bool, t: float):
-        """Impulses at an impact (Newton's law with each limit's restitution, equalities held, no friction impulse);
-        returns (y with v+, kinetic energy lost [J], impulses on the approaching limits)."""
+        """Impulses at an impact (Newton's law with each limit's and contact's restitution, equalities held, joint
+        dry friction giving no impulse, a contact's friction impulse within its Coulomb cone: sticking, or sliding
+        against the tangential velocity after the impact); returns (y with v+, kinetic energy lost [J], impulses on
+        the approaching limits and contacts' normals). Touching limits all take part (simultaneous); contacts are
+        sequential: only the approaching ones take part, and a touching contact that the impulse makes approach is
+        the next event, at the same instant (the chapter's Newton's cradle and stacked balls: a simultaneous
+        Newton law would share the momentum among the balls instead)."""
         nq, nv = self.nq, self.nv
-        rows, lo, hi, b = [], [], [], []
+        rows, lo, hi, b, role, mu = [], [], [], [], [], []
         impulses_of = []
         for k, unit in enumerate(self.units):
             if self.codes[k] in EQUALITY_KINDS:
                 for a in range(unit.row0, unit.row0 + unit.rows):
-                    rows.append(a)
-                    lo.append(-np.inf)
-                    hi.append(np.inf)
-                    b.append(jv[a])
-            elif k in touching:
+                    rows.append(a), lo.append(-np.inf), hi.append(np.inf), b.append(jv[a]), role.append(ROW)
+                    mu.append(0.0)
+            elif k in touching and (not self.is_contact[k] or start or jv[unit.row0] < -REST_SPEED):
+                # contacts: sequential impacts, the approaching ones only (a touching contact that the impulse
+                # makes approach is the next impact, at the same instant: Newton's cradle, the stacked balls)
                 a = unit.row0
                 speed = -jv[a]
                 e = 0.0 if start else self.restitution[k]
@@ -343,10 +412,12 @@ class EventRun:
                         e = 0.0
                     self.fastest[k] = max(self.fastest[k], speed)
                     impulses_of.append(len(rows))
-                rows.append(a)
-                lo.append(0.0)
-                hi.append(np.inf)
-                b.append(jv[a] + e * min(jv[a], 0.0))
+                rows.append(a), lo.append(0.0), hi.append(np.inf), b.append(jv[a] + e * min(jv[a], 0.0))
+                role.append(NORMAL if self.is_contact[k] else ROW), mu.append(0.0)
+                if self.codes[k] == CONTACT:
+                    for c, r in ((a + 1, TANGENT), (a + 2, TANGENT2)):
+                        rows.append(c), lo.append(-np.inf), hi.append(np.inf), b.append(jv[c]), role.append(r)
+                        mu.append(self.mu[k] if r == TANGENT else 0.0)
         v = y[nq:nq + nv].copy()
         if not rows:
             return y, 0.0, ()
@@ -355,10 +426,10 @@ class EventRun:
         A = np.linalg.solve(L, J[rows].T)
         W = A.T @ A
         lo, hi, b = np.array(lo), np.array(hi), np.array(b)
-        lam = np.empty(len(rows))
-        status, _steps = mlcp_exact(W, b, lo, hi, lam)
-        residual = natural_residual(W, b, lo, hi, lam)
-        if status != 0 or residual > MLCP_RTOL * (np.abs(b).max() + 1e-300) + 1e-14:
+        role = np.array(role)
+        lam, status, residual = self.solve(W, b, lo, hi, role, np.array(mu))
+        cones = bool(np.any(role != ROW))  # cones: solve's own tolerance, MLCP_RTOL of max(|b|, 1)
+        if status != 0 or (not cones and residual > MLCP_RTOL * (np.abs(b).max() + 1e-300) + 1e-14):
             units = sorted({int(self.row_unit[a]) for a in rows})
             raise self.fail(t, "the impact has no consistent impulse "
                             f"(complementarity status {status}):", units, residual)
@@ -369,21 +440,60 @@ class EventRun:
         lost = kinetic - 0.5 * v @ M @ v
         return y, float(lost), tuple(float(lam[i]) for i in impulses_of)
 
+    @staticmethod
+    def solve(W, b, lo, hi, role, mu):
+        """The complementarity problem of an event (solver.py; with contacts' cones, cone.py): (lam, status,
+        residual). Without cones: the exact active-set method. With cones: Gauss-Seidel by blocks, each round
+        finished exactly (the solution where every pushing contact sticks, else each contact's state read from
+        Gauss-Seidel's answer), as the time-stepping scheme solves its steps."""
+        lam = np.empty(len(b))
+        if not np.any(role != ROW):
+            status, _steps = mlcp_exact(W, b, lo, hi, lam)
+            return lam, status, natural_residual(W, b, lo, hi, lam)
+        lam[:] = np.clip(0.0, lo, hi)
+        role = role.astype(np.int64)
+        scale = max(1.0, float(np.abs(b).max(initial=0.0)))
+        tolerance = 1e-3 * MLCP_RTOL * scale
+        done, residual = 0, np.inf
+        while done < CONE_SWEEPS:
+            spent, residual = cone_pgs(W, b, lo, hi, role, mu, lam, tolerance, CONE_ROUND)
+            done += max(spent, 1)
+            residual = min(stick_polish(W, b, lo, hi, role, mu, lam, 8), residual)
+            if residual > tolerance:
+                residual = cone_polish(W, b, lo, hi, role, mu, lam, 4)
+            if residual <= tolerance:
+                break
+        return lam, 0 if residual <= MLCP_RTOL * scale else 1, residual
+
     def select_mode(self, y: np.ndarray, t: float, resting, breaking=(), releasing=()) -> np.ndarray:
         """The mode at state y (module docstring, step 2): the complementarity problem at the acceleration level.
 
         A stop at rest on a dof with dry friction is one row with the force on the dof from both: the stop pushes
         any amount, friction pulls up to frictionloss F (bounds [-F, inf) on the stop's row, which holds the dof
-        inside them and lets it slide away from the stop at -F). breaking: sticking dofs whose friction force has
-        just grown to frictionloss (the event that located them); releasing: held stops whose force has just fallen
-        to its bound. At the boundary itself the problem is degenerate (the force exactly at its bound, the
-        acceleration 0), and the event's direction decides: they slide, or leave the stop."""
+        inside them and lets it slide away from the stop at -F). breaking: sticking dofs and contacts whose friction
+        force has just grown to its bound (the event that located them); releasing: held stops and contacts whose
+        force has just fallen to its bound. At the boundary itself the problem is degenerate (the force exactly at
+        its bound, the acceleration 0), and the event's direction decides: they slide, or leave the stop.
+
+        A resting contact (its normal velocity 0) enters with its normal row (lambda_n >= 0, complementary to its
+        normal acceleration); if it does not slip, with its tangents in its Coulomb cone (it sticks inside the
+        cone, and on its edge starts to slide along its tangential acceleration); if it slips, its friction is
+        -mu lambda_n along the slip (its force column, rbody.engine.constraints.sliding)."""
         mode = self.mode.copy()
-        M, f, J, jdot, g = self.state_rows(y)  # f includes the sliding friction of the mode set by the caller
         friction_of = {int(self.p[self._record(k) + U_DOF]): k for k in range(len(self.units))
                        if self.codes[k] == FRICTION}
+        slips = np.zeros((len(self.units), 3))
+        if self.contact_units.size:
+            slip_velocities(self.p, y, slips)
+        slip_speed = np.linalg.norm(slips, axis=1)
+        slipping = {k for k in resting if self.codes[k] == CONTACT and slip_speed[k] > REST_SPEED}
+        for k in slipping:  # their friction along the slip, in the problem's force columns
+            mode[k] = SLIDING
+            self.p[self._record(k) + U_SLIP:self._record(k) + U_SLIP + 3] = slips[k] / slip_speed[k]
+        self.hold_faces(mode)
+        self.set_mode(mode)
         merged = {}  # stop unit -> the friction unit of its dof, both at rest
-        rows, lo, hi, units = [], [], [], []
+        rows, lo, hi, units, role, mu = [], [], [], [], [], []
         for k in resting:
             if self.codes[k] in (LOWER, UPPER):
                 j = friction_of.get(int(self.p[self._record(k) + U_DOF]))
@@ -392,25 +502,32 @@ class EventRun:
         for k, unit in enumerate(self.units):
             if self.codes[k] in EQUALITY_KINDS:
                 for a in range(unit.row0, unit.row0 + unit.rows):
-                    rows.append(a), lo.append(-np.inf), hi.append(np.inf), units.append(k)
+                    rows.append(a), lo.append(-np.inf), hi.append(np.inf), units.append(k), role.append(ROW)
+                    mu.append(0.0)
+            elif k in resting and self.is_contact[k]:
+                rows.append(unit.row0), lo.append(0.0), hi.append(np.inf), units.append(k), role.append(NORMAL)
+                mu.append(0.0)
+                if self.codes[k] == CONTACT and k not in slipping:
+                    for a, r in ((unit.row0 + 1, TANGENT), (unit.row0 + 2, TANGENT2)):
+                        rows.append(a), lo.append(-np.inf), hi.append(np.inf), units.append(k), role.append(r)
+                        mu.append(self.mu[k] if r == TANGENT else 0.0)
             elif k in resting:
                 bound = self.p[self._record(merged[k]) + U_BOUND] if k in merged else 0.0
-                rows.append(unit.row0), lo.append(-bound), hi.append(np.inf), units.append(k)
+                rows.append(unit.row0), lo.append(-bound), hi.append(np.inf), units.append(k), role.append(ROW)
+                mu.append(0.0)
             elif self.codes[k] == FRICTION and mode[k] == 0.0 and k not in merged.values():
                 bound = self.p[self._record(k) + U_BOUND]
-                rows.append(unit.row0), lo.append(-bound), hi.append(bound), units.append(k)
+                rows.append(unit.row0), lo.append(-bound), hi.append(bound), units.append(k), role.append(ROW)
+                mu.append(0.0)
         if not rows:
             return mode
         rows = np.array(rows)
-        L = np.linalg.cholesky(M)
-        a0 = np.linalg.solve(L.T, np.linalg.solve(L, f))
-        A = np.linalg.solve(L, J[rows].T)
-        W = A.T @ A
-        b = J[rows] @ a0 + jdot[rows]
+        m = len(rows)
+        W, b = np.empty((m, m)), np.empty(m)
+        event_problem(self.p, y, rows.astype(np.int64), W, b)
         lo, hi = np.array(lo), np.array(hi)
-        lam = np.empty(len(rows))
-        status, _steps = mlcp_exact(W, b, lo, hi, lam)
-        residual = natural_residual(W, b, lo, hi, lam)
+        role, mu = np.array(role), np.array(mu)
+        lam, status, residual = self.solve(W, b, lo, hi, role, mu)
         scale = np.abs(b).max() + np.abs(W).max() * np.abs(lam).max(initial=0.0)
         if status != 0 or residual > MLCP_RTOL * scale + 1e-14:
             bad = sorted(set(units))
@@ -419,9 +536,35 @@ class EventRun:
             raise self.fail(t, what, bad, residual)
         w = W @ lam + b
         tolerance = 1e-12 * scale + 1e-14
+        frames = None
         for i, k in enumerate(units):
             code = self.codes[k]
-            if code in UNILATERAL:
+            if self.is_contact[k]:
+                if role[i] != NORMAL:
+                    continue
+                at_bound = lam[i] <= tolerance
+                if w[i] > tolerance or (at_bound and k in releasing):
+                    mode[k] = 0.0
+                elif k in slipping or code != CONTACT:
+                    mode[k] = SLIDING if k in slipping else 1.0
+                else:
+                    ft = lam[i + 1:i + 3]
+                    wt = w[i + 1:i + 3]
+                    edge = np.hypot(*ft) >= (1 - 1e-9) * self.mu[k] * lam[i]
+                    moving = np.hypot(*wt) > tolerance
+                    if moving or edge:  # on its cone's edge it starts to slide: along its acceleration (or against
+                        # its force where the acceleration is still 0: the direction of the event that brought it)
+                        if frames is None:
+                            frames = np.zeros((len(self.units), 3, 3))
+                            tangent_frames(self.p, y, frames)
+                        along = wt if moving else -ft
+                        direction = along[0] * frames[k, 1] + along[1] * frames[k, 2]
+                        self.p[self._record(k) + U_SLIP:self._record(k) + U_SLIP + 3] = \
+                            direction / np.linalg.norm(direction)
+                        mode[k] = SLIDING
+                    else:
+                        mode[k] = 1.0
+            elif code in UNILATERAL:
                 at_bound = lam[i] <= lo[i] + tolerance + 1e-9 * abs(lo[i])
                 leaves = w[i] > tolerance or (at_bound and k in releasing)
                 mode[k] = 0.0 if leaves else 1.0
@@ -431,6 +574,7 @@ class EventRun:
                 mode[k] = 0.0 if abs(w[i]) <= tolerance else math.copysign(1.0, w[i])
                 if k in breaking and abs(lam[i]) >= (1 - 1e-9) * hi[i]:
                     mode[k] = -math.copysign(1.0, lam[i])
+        self.hold_faces(mode)
         return self.drop_redundant_stops(mode, W, lam, lo, units, merged, tolerance)
 
     def drop_redundant_stops(self, mode, W, lam, lo, units, merged, tolerance) -> np.ndarray:
@@ -454,6 +598,27 @@ class EventRun:
             if W[i, i] - coupling @ solution <= 1e-9 * W[i, i]:
                 mode[k] = 0.0
         return mode
+
+    def hold_faces(self, mode: np.ndarray) -> None:
+        """Several contacts of one pair of bodies sliding at once in one direction (a face that translates, their
+        directions within FACE_ALIGNED): one direction for all of them, the mean of their slips' directions now,
+        held until the next event (rbody.engine.constraints.sliding). A face that turns as it slides keeps each
+        contact's own s/|s|."""
+        faces = {}
+        for k in self.contact_units:
+            if mode[k] >= SLIDING:
+                faces.setdefault(self.pair[k], []).append(k)
+        for members in faces.values():
+            if len(members) < 2:
+                continue
+            spans = [slice(self._record(k) + U_SLIP, self._record(k) + U_SLIP + 3) for k in members]
+            mean = np.sum([self.p[span] for span in spans], axis=0)
+            mean /= np.linalg.norm(mean)
+            if min(float(self.p[span] @ mean) for span in spans) < 1 - FACE_ALIGNED:
+                continue  # a face that turns as it slides: each contact along its own slip
+            for k, span in zip(members, spans):
+                self.p[span] = mean
+                mode[k] = SLIDING_HELD
 
 
 __all__ = ["EventRun", "Event", "EventLog", "TOUCH_TOLERANCE", "REST_SPEED", "ZENO_RATIO", "MAX_EVENTS_PER_STEP"]

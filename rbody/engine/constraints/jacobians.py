@@ -25,6 +25,7 @@ from rbody.engine.elements import X_BLOCK, extension_start
 from rbody.engine.multibody import (B_DOF0, B_NDOF, B_PARENT, BODY_SIZE, H_BODIES, H_BODY, _views)
 from rbody.engine.contacts.geometry import tangents
 from rbody.engine.contacts.rows import contact_geometry
+from rbody.engine.contacts.kinematics import contact_bias
 from rbody.engine.constraints.table import (C_MODE, C_ROWS, C_UNIT, C_UNITS, CONE, CONTACT, CONTACT1, COUPLING,
                                             FRICTION,
                                             LOWER, U_A1, U_A2, U_BOUND, U_BODY1, U_BODY2, U_DOF, U_DOF2, U_KIND,
@@ -169,8 +170,8 @@ def rotation_vector(quat, out):
 def _contact_rows(p, w, acc, u, r, J, jdot, g, row):
     """A contact unit's r rows (1: the normal; 3: the normal and the tangents t1, t2 of the contact frame): g the
     signed distance of its candidate, J = (n; t1; t2) . (J_b - J_a) the relative velocity of geom b's material
-    point at the contact point with respect to geom a's, J' v the same rows of the points' accelerations at qacc
-    = 0 (the material points': only the time-stepping scheme, which reads no J' v, runs contacts)."""
+    point at the contact point with respect to geom a's, J' v the gap's second derivative without qacc (normal)
+    and the sticking contact point's (tangents), rbody.engine.contacts.kinematics."""
     normal, point = np.empty(3), np.empty(3)
     g[row] = contact_geometry(p, w, u, normal, point)
     frame = np.empty((3, 3))
@@ -191,6 +192,7 @@ def _contact_rows(p, w, acc, u, r, J, jdot, g, row):
         for c in range(nv):
             J[row + e, c] = frame[e, 0] * Jp[0, c] + frame[e, 1] * Jp[1, c] + frame[e, 2] * Jp[2, c]
         jdot[row + e] = frame[e, 0] * bias[0] + frame[e, 1] * bias[1] + frame[e, 2] * bias[2]
+    contact_bias(p, w, acc, u, g[row], frame, r, jdot, row)  # the gap's and the rolling point's own terms
 
 
 @njit(cache=True)

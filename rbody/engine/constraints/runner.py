@@ -24,10 +24,10 @@ from rbody.engine.constraints.table import CONTACT_KINDS, FRICTION, UNILATERAL, 
 
 
 def sample_rows(table: ConstraintTable, params: np.ndarray, samples: np.ndarray,
-                modes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+                modes: np.ndarray, slips: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(forces (S, rows), errors (S, rows)) at each saved state (S, n) in its mode (S, units): every row's force
     (runner docstring) and its error: an equality's residual [m or rad], a limit's overshoot past its stop min(g, 0),
-    0 for friction rows."""
+    0 for friction rows. slips (S, units, 3): the sliding contacts' directions at each state (event-driven runs)."""
     p = np.array(params, dtype=np.float64)
     nq, nv, _n = dyn.sizes(p)
     a0, na = dyn.act_range(p)
@@ -38,8 +38,14 @@ def sample_rows(table: ConstraintTable, params: np.ndarray, samples: np.ndarray,
     codes = np.array([unit.code for unit in table.units for _ in range(unit.rows)])
     from rbody.engine.multibody import _effective_qpos
 
+    from rbody.engine.constraints.table import C_HEADER, U_SLIP, UNIT_SIZE
+
     for s in range(samples.shape[0]):
         p[table.mode_slice()] = modes[s]
+        if slips is not None:
+            for k in range(len(table.units)):
+                start = table.offset + C_HEADER + UNIT_SIZE * k + U_SLIP
+                p[start:start + 3] = slips[s, k]
         _effective_qpos(p, samples[s], q, 0)
         dyn.mode_accel(p, q, samples[s, nq:nq + nv], samples[s, a0:a0 + na], qacc, forces[s], errors[s])
     limits = np.isin(codes, UNILATERAL)
@@ -85,7 +91,7 @@ def run_constrained(description: str, model, method: str, dt: float, nsteps: int
                 value = control(k, b, t, y)
                 p[at:at + value.shape[0]] = value
         out[:, b], modes[:, b] = run.run(y0[b], dt, nsteps, save_every, hook)
-        forces[:, b], errors[:, b] = sample_rows(table, params[b], out[:, b], modes[:, b])
+        forces[:, b], errors[:, b] = sample_rows(table, params[b], out[:, b], modes[:, b], getattr(run, "slips", None))
         if getattr(run, "forces", None) is not None:  # time-stepping: the mean force of the step (impulse / dt)
             forces[:, b] = run.forces
         impacts += run.log.impacts

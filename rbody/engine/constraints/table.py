@@ -27,7 +27,9 @@ Unit kinds and their rows (g >= 0 feasible for unilateral rows; the force on the
              within the circular cone |lambda_t| <= mu lambda_n (Coulomb); CONTACT1 the normal row alone (condim 1)
 
 mode, per unit: limits, cones and contacts 1 active (held as an equality, lambda >= 0), 0 inactive; friction 0 sticking,
-+1 / -1 sliding with the dof's velocity of that sign (force -frictionloss sign); equalities 1 (always active).
++1 / -1 sliding with the dof's velocity of that sign (force -frictionloss sign); equalities 1 (always active); a
+contact with friction in the event-driven scheme 1 held and sticking (its three rows held), 2 held and sliding (its
+normal row held, its friction -mu lambda_n along the slip: rbody.engine.constraints.sliding).
 """
 
 from __future__ import annotations
@@ -85,6 +87,8 @@ UNIT = Record("constraint unit", [
     ("gpos_b", 3, FLOAT, "its position [m]"),
     ("gmat_b", 9, FLOAT, "its axes"),
     ("gsize_b", 3, FLOAT, "its size [m]"),
+    ("slip", 3, FLOAT, "a contact sliding in the event-driven scheme: its slip direction when its mode began "
+                       "(world, unit)"),
 ])
 (U_KIND, U_ROWS, U_ROW0, U_DOF, U_QADR, U_BOUND, U_RESTITUTION, U_BODY1, U_BODY2, U_A1, U_A2, U_QUAT, U_DOF2,
  U_QADR2, U_REF1, U_REF2, U_POLY) = UNIT.offsets(
@@ -95,6 +99,7 @@ UNIT = Record("constraint unit", [
 # its pose in its body's frame and its size:
 U_GTYPE_A, U_GPOS_A, U_GMAT_A, U_GSIZE_A = UNIT.offsets("gtype_a", "gpos_a", "gmat_a", "gsize_a")
 U_GTYPE_B, U_GPOS_B, U_GMAT_B, U_GSIZE_B = UNIT.offsets("gtype_b", "gpos_b", "gmat_b", "gsize_b")
+(U_SLIP,) = UNIT.offsets("slip")
 UNIT_SIZE = UNIT.size
 
 
@@ -330,7 +335,8 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
     UNIT.check(block, C_HEADER, count)
     block.setflags(write=False)
     mode0.setflags(write=False)
-    methods = ("moreau",) if any(unit.code in CONTACT_KINDS for unit in units) else ("rk4", "moreau")
+    # contacts: time-stepping by default (persistent contacts: stacks, feet, grasps), event-driven on request
+    methods = ("moreau", "rk4") if any(unit.code in CONTACT_KINDS for unit in units) else ("rk4", "moreau")
     return ConstraintTable(units=tuple(units), block=block, offset=offset, mode0=mode0, equalities=tuple(resolved),
                            methods=methods, tree_size=tree_size, section=section)
 

@@ -38,11 +38,12 @@ def test_contact_fields_checked():
         Contact("a", "b", friction=-0.1)
 
 
-def test_contacts_run_by_time_stepping_only():
+def test_contacts_run_by_the_constraint_layers_schemes_only():
+    """Time-stepping (moreau) by default, event-driven (rk4) on request; any other integrator is refused."""
     scene = Scene.from_layout(layout_with(Contact("floor", "s", friction=0.5)), t_end=0.01)
-    assert scene.methods == ("moreau",)
+    assert scene.methods == ("moreau", "rk4")
     with pytest.raises(MethodNotApplicable, match="moreau"):
-        rbody.simulate(scene, dt=1e-3, method="rk4")
+        rbody.simulate(scene, dt=1e-3, method="verlet")
 
 
 def test_geometry_refuses_unknown_kinds_and_pairs():

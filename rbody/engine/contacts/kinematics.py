@@ -1,0 +1,328 @@
+"""The acceleration-level terms J' v of a contact's rows: the gap's second derivative and the rolling point's, compiled.
+
+The event-driven scheme (rbody.engine.constraints.events) holds a touching contact by J qacc + J' v = 0 on its
+normal row (the gap stays 0) and, while it sticks, on its tangent rows (no slip). J' v is the part of the rows'
+time derivative that does not multiply qacc. The material points' accelerations at the contact point (what a
+connect row would use) are not it: the contact point moves over both surfaces, and the normal turns with them.
+
+Each candidate of rbody.engine.contacts.geometry is, at any configuration, one of two shapes of gap:
+
+- PLANE: a plane fixed in body P (outward unit normal m, turning with P) and a point x fixed in body Q (a sphere's
+  centre, a capsule's end, a box's corner) with radius rho: g = m . (x - o) - rho, o a material point of P on the
+  plane. With o taken at the foot of x (x - o = m (g + rho)):
+
+      g'' = m . (a_Q(x) - a_P(o)) + 2 (w_P x m) . (v_Q(x) - v_P(o)) - (g + rho) |w_P - (w_P . m) m|^2
+
+  (a_X(y): the acceleration of body X's material point at y with qacc = 0; a fixed plane gives m . a_Q(x): the
+  centre's, not the contact point's). Plane-sphere, plane-capsule, plane-box, and a box's face against a point.
+- CORES: two core points x_A = c_A + s u_A, x_B = c_B + t u_B (a sphere's centre: fixed; a capsule's segment or a
+  box's edge: the closest point, sliding along the axis u while its parameter is inside the segment), radii summing
+  to rho: d = x_B - x_A, g = |d| - rho, n = d / |d|. The parameters' rates s', t' follow from the closest-point
+  conditions d . u_A = 0, d . u_B = 0 differentiated, d' = (v_B(x_B) - v_A(x_A)) + t' u_B - s' u_A, and
+
+      g'' = n . (a_B(x_B) - a_A(x_A)) + 2 t' n . (w_B x u_B) - 2 s' n . (w_A x u_A) + |d'_perp|^2 / |d|
+
+  (|d'_perp|^2 / |d| the curvature term of sphere on sphere). Sphere-sphere, sphere-capsule, capsule-capsule, a
+  point against a box's edge or corner. Parallel segments (both parameters inside, the closest pair not unique)
+  take the least-norm rates.
+
+The tangent rows of a sticking contact: with e a tangent, p the contact point and p' its velocity (from the shapes
+above: the foot point or x_A + n (r_A + g / 2)), d/dt e . (v_B(p) - v_A(p)) without qacc is
+e . (a_B(p) - a_A(p) + w_B x (p' - v_B(p)) - w_A x (p' - v_A(p))) + e' . (v_B(p) - v_A(p)); the last term is
+dropped: it multiplies the slip velocity, which is 0 (to round-off) wherever these rows are held.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from rbody.engine.contacts.geometry import CAPSULE, PLANE, SPHERE, segment_closest
+from rbody.engine.contacts.rows import geom_pose
+from rbody.engine.multibody import _views
+from rbody.engine.constraints.table import (U_BODY1, U_BODY2, U_DOF, U_GMAT_A, U_GMAT_B, U_GPOS_A, U_GPOS_B,
+                                            U_GSIZE_A, U_GSIZE_B, U_GTYPE_A, U_GTYPE_B)
+
+SHAPE_PLANE, SHAPE_CORES = 0, 1
+
+
+@njit(cache=True)
+def _point_against_box(c, r, pbox, Rbox, sbox, x, u, slide, m):
+    """The shape of the gap of a point c (radius r) against a box: returns 0 for a face (m its outward normal, x[1]
+    a point of its plane), 1 for an edge (x[1] its point nearest to c, u[1] its axis, slide[1] = 1), 2 for a corner
+    (x[1] the corner); x[0] = c in every case."""
+    local = np.empty(3)
+    for i in range(3):
+        local[i] = Rbox[0, i] * (c[0] - pbox[0]) + Rbox[1, i] * (c[1] - pbox[1]) + Rbox[2, i] * (c[2] - pbox[2])
+    nearest = np.empty(3)
+    clamped = 0
+    last_free = 0
+    for i in range(3):
+        nearest[i] = min(max(local[i], -sbox[i]), sbox[i])
+        if local[i] != nearest[i]:
+            clamped += 1
+        else:
+            last_free = i
+    for a in range(3):
+        x[0, a] = c[a]
+    face = -1
+    if clamped == 0:  # inside: the face of least depth
+        face, depth = 0, sbox[0] - abs(local[0])
+        for i in range(1, 3):
+            if sbox[i] - abs(local[i]) < depth:
+                face, depth = i, sbox[i] - abs(local[i])
+    elif clamped == 1:
+        for i in range(3):
+            if local[i] != nearest[i]:
+                face = i
+    if face >= 0:
+        side = 1.0 if local[face] >= 0.0 else -1.0
+        for a in range(3):
+            m[a] = side * Rbox[a, face]
+            x[1, a] = pbox[a] + side * sbox[face] * Rbox[a, face]
+        return 0
+    for a in range(3):
+        x[1, a] = pbox[a] + Rbox[a, 0] * nearest[0] + Rbox[a, 1] * nearest[1] + Rbox[a, 2] * nearest[2]
+    if clamped == 2:
+        for a in range(3):
+            u[1, a] = Rbox[a, last_free]
+        slide[1] = 1.0
+        return 1
+    return 2
+
+
+@njit(cache=True)
+def contact_shape(ta, pa, Ra, sa, tb, pb, Rb, sb, k, x, u, slide, m, radius):
+    """The shape of candidate k's gap of geoms a and b (as collide takes them; module docstring). Returns
+    (shape, plane_on). SHAPE_PLANE: the plane on geom a (plane_on 0) or b (1), m (3,) its outward normal, x[0] a
+    point of the plane, x[1] the point on the other geom, radius[1] that point's radius. SHAPE_CORES: x (2, 3) the
+    core points on geoms a and b, u (2, 3) their axes, slide (2,) 1 where the point slides along its axis, radius
+    (2,) the radii of a and b."""
+    for i in range(2):
+        slide[i] = 0.0
+        radius[i] = 0.0
+        for a in range(3):
+            u[i, a] = 0.0
+    if ta == PLANE:
+        for a in range(3):
+            m[a] = Ra[a, 2]
+        if tb == SPHERE:
+            for a in range(3):
+                x[1, a] = pb[a]
+            radius[1] = sb[0]
+        elif tb == CAPSULE:
+            side = 1.0 if k == 0 else -1.0
+            for a in range(3):
+                x[1, a] = pb[a] + side * sb[1] * Rb[a, 2]
+            radius[1] = sb[0]
+        else:  # box corner k
+            cx = sb[0] if k & 1 else -sb[0]
+            cy = sb[1] if k & 2 else -sb[1]
+            cz = sb[2] if k & 4 else -sb[2]
+            for a in range(3):
+                x[1, a] = pb[a] + Rb[a, 0] * cx + Rb[a, 1] * cy + Rb[a, 2] * cz
+        for a in range(3):
+            x[0, a] = pa[a]
+        return SHAPE_PLANE, 0
+    if ta == SPHERE and tb == SPHERE:
+        for a in range(3):
+            x[0, a], x[1, a] = pa[a], pb[a]
+        radius[0], radius[1] = sa[0], sb[0]
+        return SHAPE_CORES, 0
+    if ta == SPHERE and tb == CAPSULE:
+        s = 0.0
+        for a in range(3):
+            s += (pa[a] - pb[a]) * Rb[a, 2]
+        if abs(s) < sb[1]:
+            slide[1] = 1.0
+        s = min(max(s, -sb[1]), sb[1])
+        for a in range(3):
+            x[0, a] = pa[a]
+            x[1, a] = pb[a] + s * Rb[a, 2]
+            u[1, a] = Rb[a, 2]
+        radius[0], radius[1] = sa[0], sb[0]
+        return SHAPE_CORES, 0
+    if ta == CAPSULE and tb == CAPSULE:
+        ua, ub = np.empty(3), np.empty(3)
+        for a in range(3):
+            ua[a], ub[a] = Ra[a, 2], Rb[a, 2]
+        s, t = segment_closest(pa, ua, sa[1], pb, ub, sb[1])
+        slide[0] = 1.0 if abs(s) < sa[1] else 0.0
+        slide[1] = 1.0 if abs(t) < sb[1] else 0.0
+        for a in range(3):
+            x[0, a], x[1, a] = pa[a] + s * ua[a], pb[a] + t * ub[a]
+            u[0, a], u[1, a] = ua[a], ub[a]
+        radius[0], radius[1] = sa[0], sb[0]
+        return SHAPE_CORES, 0
+    # a point (sphere centre or box corner) against a box: the point on geom a (sphere; box-box k >= 8) or b
+    xs, us, ss = np.empty((2, 3)), np.zeros((2, 3)), np.zeros(2)
+    c = np.empty(3)
+    if ta == SPHERE:
+        point_on, r = 0, sa[0]
+        for a in range(3):
+            c[a] = pa[a]
+        case = _point_against_box(c, r, pb, Rb, sb, xs, us, ss, m)
+    else:
+        own_p, own_R, own_s = (pb, Rb, sb) if k < 8 else (pa, Ra, sa)
+        other_p, other_R, other_s = (pa, Ra, sa) if k < 8 else (pb, Rb, sb)
+        point_on, r = (1 if k < 8 else 0), 0.0
+        j = k % 8
+        cx = own_s[0] if j & 1 else -own_s[0]
+        cy = own_s[1] if j & 2 else -own_s[1]
+        cz = own_s[2] if j & 4 else -own_s[2]
+        for a in range(3):
+            c[a] = own_p[a] + own_R[a, 0] * cx + own_R[a, 1] * cy + own_R[a, 2] * cz
+        case = _point_against_box(c, r, other_p, other_R, other_s, xs, us, ss, m)
+    box_on = 1 - point_on
+    if case == 0:  # a face of the box: the plane on the box's geom
+        for a in range(3):
+            x[0, a], x[1, a] = xs[1, a], xs[0, a]
+        radius[1] = r
+        return SHAPE_PLANE, box_on
+    for a in range(3):
+        x[point_on, a], x[box_on, a] = xs[0, a], xs[1, a]
+        u[box_on, a] = us[1, a]
+    slide[box_on] = ss[1]
+    radius[point_on] = r
+    return SHAPE_CORES, 0
+
+
+@njit(cache=True, inline="always")
+def _cross(a, b, out):
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+
+
+@njit(cache=True, inline="always")
+def _dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@njit(cache=True)
+def body_motion(p, w, acc, body, x, velocity, acceleration, omega, alpha):
+    """At the world point x (3,) fixed on `body` (-1: the world): its velocity, its acceleration with qacc = 0
+    (a_O + alpha x r + omega x v), the body's angular velocity and its angular acceleration with qacc = 0."""
+    if body < 0:
+        for a in range(3):
+            velocity[a] = acceleration[a] = omega[a] = alpha[a] = 0.0
+        return
+    ws = _views(p, w)
+    vel = ws.vel[body]
+    r = np.empty(3)
+    for a in range(3):
+        r[a] = x[a] - ws.xorigin[body, a]
+        omega[a] = vel[a]
+        alpha[a] = acc[body, a]
+    velocity[0] = vel[3] + vel[1] * r[2] - vel[2] * r[1]
+    velocity[1] = vel[4] + vel[2] * r[0] - vel[0] * r[2]
+    velocity[2] = vel[5] + vel[0] * r[1] - vel[1] * r[0]
+    A = acc[body]
+    acceleration[0] = A[3] + A[1] * r[2] - A[2] * r[1] + vel[1] * velocity[2] - vel[2] * velocity[1]
+    acceleration[1] = A[4] + A[2] * r[0] - A[0] * r[2] + vel[2] * velocity[0] - vel[0] * velocity[2]
+    acceleration[2] = A[5] + A[0] * r[1] - A[1] * r[0] + vel[0] * velocity[1] - vel[1] * velocity[0]
+
+
+@njit(cache=True)
+def contact_bias(p, w, acc, uo, g, frame, r, jdot, row):
+    """jdot[row:row + r] = J' v of the contact unit at uo (module docstring): the gap's second derivative without
+    qacc on the normal row, and on the tangent rows (frame[1], frame[2]) the rolling point's term; g [m] its gap,
+    frame (3, 3) its normal and tangents (rows), after the tree's kinematics and velocities (workspace w) and
+    acc (nb, 6) its bias accelerations."""
+    pa, pb = np.empty(3), np.empty(3)
+    Ra, Rb = np.empty((3, 3)), np.empty((3, 3))
+    bodies = (int(p[uo + U_BODY1]), int(p[uo + U_BODY2]))
+    geom_pose(p, w, bodies[0], uo + U_GPOS_A, uo + U_GMAT_A, pa, Ra)
+    geom_pose(p, w, bodies[1], uo + U_GPOS_B, uo + U_GMAT_B, pb, Rb)
+    x, u = np.empty((2, 3)), np.empty((2, 3))
+    slide, radius, m = np.empty(2), np.empty(2), np.empty(3)
+    shape, plane_on = contact_shape(int(p[uo + U_GTYPE_A]), pa, Ra, p[uo + U_GSIZE_A:uo + U_GSIZE_A + 3],
+                                    int(p[uo + U_GTYPE_B]), pb, Rb, p[uo + U_GSIZE_B:uo + U_GSIZE_B + 3],
+                                    int(p[uo + U_DOF]), x, u, slide, m, radius)
+    vel, accel, om, al = np.empty((2, 3)), np.empty((2, 3)), np.empty((2, 3)), np.empty((2, 3))
+    tmp, tmp2 = np.empty(3), np.empty(3)
+    point, pdot = np.empty(3), np.empty(3)
+    normal = frame[0]
+    if shape == SHAPE_PLANE:
+        P, Q = bodies[plane_on], bodies[1 - plane_on]
+        rho = radius[1]
+        foot = np.empty(3)
+        for a in range(3):
+            foot[a] = x[1, a] - m[a] * (g + rho)
+        body_motion(p, w, acc, P, foot, vel[0], accel[0], om[0], al[0])
+        body_motion(p, w, acc, Q, x[1], vel[1], accel[1], om[1], al[1])
+        _cross(om[0], m, tmp)  # m' = w_P x m
+        dv = np.empty(3)
+        for a in range(3):
+            dv[a] = vel[1, a] - vel[0, a]
+        wm = _dot(om[0], m)
+        perp = _dot(om[0], om[0]) - wm * wm
+        gdd = (m[0] * (accel[1, 0] - accel[0, 0]) + m[1] * (accel[1, 1] - accel[0, 1])
+               + m[2] * (accel[1, 2] - accel[0, 2]) + 2.0 * _dot(tmp, dv) - (g + rho) * perp)
+        gd = _dot(m, dv)  # v_P(x) and v_P(foot) differ by w_P x m (g + rho), normal to m
+        for a in range(3):
+            point[a] = x[1, a] - m[a] * (rho + 0.5 * g)
+            pdot[a] = vel[1, a] - tmp[a] * (rho + 0.5 * g) - m[a] * 0.5 * gd
+    else:
+        for i in range(2):
+            body_motion(p, w, acc, bodies[i], x[i], vel[i], accel[i], om[i], al[i])
+        d, dv = np.empty(3), np.empty(3)
+        for a in range(3):
+            d[a] = x[1, a] - x[0, a]
+            dv[a] = vel[1, a] - vel[0, a]
+        length = np.sqrt(_dot(d, d))
+        n = np.empty(3)
+        for a in range(3):
+            n[a] = d[a] / length if length > 0.0 else normal[a]
+        turn_a, turn_b = np.empty(3), np.empty(3)
+        _cross(om[0], u[0], turn_a)
+        _cross(om[1], u[1], turn_b)
+        ca = -_dot(dv, u[0]) - _dot(d, turn_a)  # eq. A: -s' + t' b = ca
+        cb = -_dot(dv, u[1]) - _dot(d, turn_b)  # eq. B: -s' b + t' = cb
+        b = _dot(u[0], u[1])
+        sd, td = 0.0, 0.0
+        if slide[0] != 0.0 and slide[1] != 0.0:
+            det = b * b - 1.0
+            if abs(det) > 1e-12:
+                sd = (ca - b * cb) / det
+                td = (b * ca - cb) / det
+            else:  # parallel: least-norm rates of the (consistent) pair of equations
+                A2 = np.array([[-1.0, b], [-b, 1.0]])
+                rhs = np.array([ca, cb])
+                sol = np.linalg.lstsq(A2, rhs, 1e-12)[0]
+                sd, td = sol[0], sol[1]
+        elif slide[0] != 0.0:
+            sd = -ca
+        elif slide[1] != 0.0:
+            td = cb
+        dd = np.empty(3)
+        for a in range(3):
+            dd[a] = dv[a] + td * u[1, a] - sd * u[0, a]
+        gd = _dot(n, dd)
+        gdd = (n[0] * (accel[1, 0] - accel[0, 0]) + n[1] * (accel[1, 1] - accel[0, 1])
+               + n[2] * (accel[1, 2] - accel[0, 2]) + 2.0 * td * _dot(n, turn_b) - 2.0 * sd * _dot(n, turn_a))
+        if length > 0.0:
+            gdd += (_dot(dd, dd) - gd * gd) / length
+        reach = radius[0] + 0.5 * g
+        for a in range(3):
+            point[a] = x[0, a] + n[a] * reach
+            ndot = (dd[a] - n[a] * gd) / length if length > 0.0 else 0.0
+            pdot[a] = vel[0, a] + sd * u[0, a] + ndot * reach + n[a] * 0.5 * gd
+    jdot[row] = gdd
+    if r == 1:
+        return
+    # tangent rows: e . (a_B(p) - a_A(p) + w_B x (p' - v_B(p)) - w_A x (p' - v_A(p)))
+    total = np.zeros(3)
+    for i in range(2):
+        body_motion(p, w, acc, bodies[i], point, vel[i], accel[i], om[i], al[i])
+        sign = 1.0 if i == 1 else -1.0
+        for a in range(3):
+            tmp[a] = pdot[a] - vel[i, a]
+        _cross(om[i], tmp, tmp2)
+        for a in range(3):
+            total[a] += sign * (accel[i, a] + tmp2[a])
+    for e in range(1, r):
+        jdot[row + e] = frame[e, 0] * total[0] + frame[e, 1] * total[1] + frame[e, 2] * total[2]
+
+
+__all__ = ["contact_shape", "contact_bias", "body_motion", "SHAPE_PLANE", "SHAPE_CORES"]
