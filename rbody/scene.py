@@ -577,6 +577,19 @@ class TreeScene(Scene):
         native = self._native_with_elements() if model.has_elements else self._native_tree()
         return dataclasses.replace(native, rate=self.rates_for(native))
 
+    def family_native(self) -> NativeModel:
+        """native() for a chapter family that runs this tree inside a model of its own (rbody.scenes: chains,
+        pendulums, rolling): without MuJoCo's integrators where the model is planar, because those step the 3-D
+        engine's rows, which only a TreeScene's own runs swap in (native_model_for)."""
+        from rbody.engine.mujoco_steps import MUJOCO_METHODS
+        from rbody.engine.planar import planar_rhs
+
+        model = self.native()
+        if model.rhs is planar_rhs:
+            model = dataclasses.replace(model, split={name: step for name, step in model.split.items()
+                                                      if name not in MUJOCO_METHODS})
+        return model
+
     def native_model_for(self, method: str | None) -> NativeModel:
         """The native model a run by `method` integrates: native_model, except that a planar tree runs MuJoCo's
         integrators on the 3-D engine's rows (rbody.engine.mujoco_steps reads those)."""

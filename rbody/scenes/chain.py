@@ -277,7 +277,7 @@ class PendulumChain(Scene):
         theta0, omega0 = self._state0()
         tree = Scene.from_layout(self._layout(), t_end=self.t_end, name=self.name, gravity=self.gravity,
                                  qpos0=np.diff(theta0, axis=1, prepend=0.0), qvel0=np.diff(omega0, axis=1, prepend=0.0))
-        model = tree.native()
+        model = tree.family_native()
 
         def observe(t, y):
             """Absolute angles and rates: cumulative sums of the relative ones along the chain."""

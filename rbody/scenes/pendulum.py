@@ -223,7 +223,7 @@ class Pendulum(Scene):
         distinct, which = np.unique(keys, axis=0, return_inverse=True)
         trees = [self._engine_tree(dict(zip(physical, row.tolist()))) for row in distinct]
         tree = dataclasses.replace(trees[0], qpos0=theta0[:, None], qvel0=omega0[:, None])
-        model = tree.native()
+        model = tree.family_native()
         rows = [model.params[0]] + [other.native().params[0] for other in trees[1:]]
         if len({row.shape for row in rows}) != 1:
             raise ValueError(f"scene {self.describe()}: the engine's model rows differ in size across the batch")

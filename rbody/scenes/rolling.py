@@ -436,7 +436,7 @@ def _stacked_tree_native(trees: Sequence[Layout], gravity: float, t_end: float, 
     """The general engine's model of each tree (rbody.Scene.from_layout), one row per batch element: element
     b runs trees[which[b]] (trees of one structure, so their params rows have one length). Its stability rate
     is 0, as the hand kernel's (constant accelerations: any step is stable), not the tree's Jacobian."""
-    models = [Scene.from_layout(tree, t_end=t_end, gravity=gravity).native() for tree in trees]
+    models = [Scene.from_layout(tree, t_end=t_end, gravity=gravity).family_native() for tree in trees]
     if len({m.params.shape[1] for m in models}) != 1 or len({m.y0.shape[1] for m in models}) != 1:
         raise ValueError("the rolling trees of this batch differ in structure; they cannot run as one batch")
     params = np.vstack([m.params for m in models])[which]

@@ -160,3 +160,14 @@ def test_the_stability_limit_of_a_damped_servo_is_the_closed_form(method, kv, da
     quarter = len(swing) // 4
     if c > 0.0:  # a damped mode decays at any stable step (an undamped one keeps a bounded, sampled, swing)
         assert np.max(swing[-quarter:]) < np.max(swing[:quarter])
+
+
+@pytest.mark.parametrize("method", ["mujoco_euler", "implicitfast", "implicit"])
+def test_a_planar_family_does_not_offer_mujocos_integrators(method):
+    """A chapter family that runs a planar tree inside its own model (a chain of three rods on the planar kernels)
+    cannot hand its planar row to MuJoCo's one-step maps, which read the 3-D engine's rows: it does not list them
+    and refuses them with the reason (it once stepped the planar row as a tree's and never returned)."""
+    chain = rbody.scenes.pendulum_chain(3, theta0=[0.6, 0.4, 0.2], t_end=0.2)
+    assert method not in chain.methods
+    with pytest.raises(rbody.errors.MethodNotApplicable, match=method):
+        rbody.simulate(chain, dt=0.1, method=method)
