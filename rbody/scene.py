@@ -720,7 +720,8 @@ class TreeScene(Scene):
         """The tree with its limits, dry friction and equalities: state (qpos, qvel, phi, act, dissipated), params the
         tree's row, its force elements (actuators with the controls ctrl0 written in, tendons, gravity
         compensation, fluid: part of the smooth forces) and the constraint table, run by the constraint layer
-        (rbody.engine.constraints)."""
+        (rbody.engine.constraints). Its stability rate (rates_for): the Jacobian's of the motion in the starting mode
+        (the equalities held), and for MuJoCo's integrators, the time-stepping's free motion, their step's."""
         from rbody.engine.constraints.dynamics import constrained_rhs
 
         model, table = self.multibody, self.constraint_table
@@ -741,8 +742,12 @@ class TreeScene(Scene):
                 ctrl = np.broadcast_to(params[None, :, slots.ctrl:slots.ctrl + model.nu], y.shape[:-1] + (model.nu,))
             return self._observables(y[..., :nq], y[..., nq:nq + nv], y[..., a0:a0 + na], ctrl, step)
 
-        return NativeModel(y0=y0, params=params, rhs=constrained_rhs, observe=observe, rate_from_jacobian=True,
-                           constraints=table, controls=slots)
+        if self._ellipsoid_fluid:  # as for a free tree: implicit and implicitfast need its velocity derivative
+            table = dataclasses.replace(table, methods=tuple(name for name in table.methods
+                                                             if name not in ("implicit", "implicitfast")))
+        native = NativeModel(y0=y0, params=params, rhs=constrained_rhs, observe=observe, rate_from_jacobian=True,
+                             constraints=table, controls=slots)
+        return dataclasses.replace(native, rate=self.rates_for(native))
 
     # ----- what other simulators build -----------------------------------------------------------------
 

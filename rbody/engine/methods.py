@@ -10,7 +10,8 @@ scenes read (no parallel tables):
                   "split"  the scene's own symmetric one-step map under this method's name (model.split)
                   "constraints"  a constrained tree (model.constraints): the constraint layer's time-stepping
                 A constrained tree (limits, dry friction, equalities) takes only the methods its constraint table
-                names (rk4: event-driven, rk4 between events; moreau: time-stepping): rbody.engine.constraints.
+                names (rk4: event-driven, rk4 between events; moreau: time-stepping; mujoco_euler, implicitfast,
+                implicit: the time-stepping with MuJoCo's step as its free motion): rbody.engine.constraints.
                 A scene may also supply its own flow under any method's name in model.split (a free rotation's
                 "yoshida6" composes its exact sub-rotations): that flow is then what runs.
     symplectic, symmetric, explicit
@@ -86,9 +87,10 @@ class Method:
     def missing(self, model) -> str:
         """"" when `model` (a NativeModel) provides what this method needs, else what it lacks."""
         table = getattr(model, "constraints", None)
-        if table is not None and self.name not in table.methods:  # the constraint layer runs its own schemes
-            return (f"{self.name!r} does not run a constrained tree (limits, dry friction, equalities): the constraint "
-                    f"layer runs {', '.join(table.methods)} (rbody.engine.constraints)")
+        if table is not None:  # the constraint layer runs its own schemes
+            return "" if self.name in table.methods else (
+                f"{self.name!r} does not run a constrained tree (limits, dry friction, equalities, contacts): the "
+                f"constraint layer runs {', '.join(table.methods)} (rbody.engine.constraints)")
         if self.needs == "constraints":
             return "" if table is not None else f"{self.name!r} needs {NEEDS['constraints']}"
         if self.flow(model) is not None:
@@ -257,8 +259,8 @@ def applicable(model, preferred: tuple[str, ...] = ()) -> tuple[str, ...]:
     """Names of the methods whose needs `model` (a NativeModel) meets: those of `preferred` first, in its
     order, then the rest in METHODS order."""
     table = getattr(model, "constraints", None)  # a constrained tree: its layer's default scheme first
-    if table is not None:
-        preferred = tuple(table.methods[:1]) + tuple(name for name in preferred if name not in table.methods[:1])
+    if table is not None:  # its own order: its default scheme, the other, then MuJoCo's integrators
+        preferred = tuple(table.methods)
     names = tuple(name for name in preferred if name in BY_NAME) + tuple(n for n in METHODS if n not in preferred)
     return tuple(name for name in names if BY_NAME[name].applies(model))
 

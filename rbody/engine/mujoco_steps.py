@@ -140,7 +140,7 @@ def _bias_derivative(p, q, v, columns_from, columns_to, out, w, zero, vplus, plu
 
 
 @njit(cache=True)
-def _solve(H, b, x, nv):
+def solve_general(H, b, x, nv):
     """x (nv,) = H^-1 b by Gaussian elimination with partial pivoting (H and b are overwritten)."""
     for k in range(nv):
         pivot = k
@@ -268,7 +268,7 @@ def _mujoco_step(y, p, h, mode, elements, matrices):
     for a in range(nv):
         for c in range(nv):
             H[a, c] = M[a, c] - h * D[a, c]
-    _solve(H, qfrc, qacc, nv)
+    solve_general(H, qfrc, qacc, nv)
 
     if elements:  # activations first (mj_advance), from the act' of the step's start
         E = extension_start(p)
@@ -329,4 +329,4 @@ def mujoco_steps(elements: bool) -> dict:
     return {name: (step, ONE) for name, step in zip(MUJOCO_METHODS, steps)}
 
 
-__all__ = ["mujoco_step", "step_matrices", "mujoco_steps", "integrate_positions", "MUJOCO_METHODS"]
+__all__ = ["mujoco_step", "step_matrices", "mujoco_steps", "integrate_positions", "solve_general", "MUJOCO_METHODS"]

@@ -1,7 +1,8 @@
 """A constrained tree's run: each batch element by the scheme its method names, and the constraint observables.
 
 simulate (rbody.simulation) hands a NativeModel with a constraint table here. method "rk4": the event-driven
-scheme (rbody.engine.constraints.events); "moreau": the time-stepping scheme (rbody.engine.constraints.stepping).
+scheme (rbody.engine.constraints.events); "moreau": the time-stepping scheme (rbody.engine.constraints.stepping);
+"mujoco_euler", "implicitfast", "implicit": the same time-stepping with MuJoCo's integrator as its free motion.
 Observables added to the tree's: constraint_force (T, *batch, rows) every row's force at each saved state (held
 rows: their Lagrange multiplier, sliding friction -frictionloss sign v, free rows 0; columns named in
 meta["constraint_rows"] as (kind, name, component)), constraint_error (T, *batch, rows) each row's error at
@@ -20,6 +21,7 @@ import numpy as np
 
 from rbody.engine.constraints import dynamics as dyn
 from rbody.engine.constraints.events import EventRun
+from rbody.engine.constraints.stepping import MODES, SCHEMES, MoreauRun
 from rbody.engine.constraints.table import CONTACT_KINDS, FRICTION, UNILATERAL, ConstraintTable
 
 
@@ -78,9 +80,8 @@ def run_constrained(description: str, model, method: str, dt: float, nsteps: int
     events = {"time": [], "element": [], "what": [], "constraints": [], "energy_lost": []}
     impacts = changes = 0
     for b in range(batch):
-        if method == "moreau":
-            from rbody.engine.constraints.stepping import MoreauRun
-            run = MoreauRun(table, params[b], description)
+        if method in MODES:  # time-stepping: Moreau-Jean's free motion, or MuJoCo's integrator's
+            run = MoreauRun(table, params[b], description, method)
         else:
             run = EventRun(table, params[b], description)
         hook = None
@@ -120,7 +121,7 @@ def run_constrained(description: str, model, method: str, dt: float, nsteps: int
             "constraint_rows": table.labels(), "limits": [table.units[k].name for k in limits],
             "frictions": [table.units[k].name for k in frictions],
             "contacts": [table.units[k].name for k in contact_units],
-            "scheme": "time-stepping (Moreau-Jean)" if method == "moreau" else "event-driven (rk4 between events)"}
+            "scheme": SCHEMES.get(method, "event-driven (rk4 between events)")}
     arrays = {"time": np.array(events["time"], dtype=float), "element": np.array(events["element"], dtype=int),
               "what": np.array(events["what"], dtype=str), "constraints": np.array(events["constraints"], dtype=str),
               "energy_lost": np.array(events["energy_lost"], dtype=float)}

@@ -18,6 +18,24 @@ Anitescu and Potra's term); a dof with dry friction
 configuration is projected onto the equalities and any stop it passed (rbody.engine.constraints.dynamics.project),
 so neither drifts beyond round-off.
 
+MuJoCo's integrators in the rigid limit (methods "mujoco_euler", "implicitfast", "implicit"; `mode` below): the
+velocity update is the file's own integrator's (rbody.engine.mujoco_steps) with the impulses added,
+
+    H (v_k+1 - v_k) = h f(q_k, v_k) + J^T P,      H = M - h D: D the joints' damping (mujoco_euler),
+                                                  d(passive + actuator)/d qvel (implicitfast), with d bias / d qvel
+                                                  (implicit)
+    v_free = v_k + h H^-1 f,   v_k+1 = v_free + H^-1 J^T P,   q_k+1 = MuJoCo's mj_integratePos(q_k, v_k+1, h),
+
+the problem of a step with the Delassus matrix J H^-1 J^T, and the activations advanced as MuJoCo advances them
+(filterexact by the filter's exact solution). A servo's damping thus acts through H on the constrained motion as on
+the free one: a stiff servo pushing a joint into its stop is held with the impulse h f, the force the closed form
+gives. Where H is not symmetric (implicit's Coriolis derivative, implicitfast's lone free body: terms that vanish
+at rest) the impulses take its symmetric part, (H + H^T) / 2, which keeps the step's problem a convex one (and M
+where even that is not positive definite, an actuator whose force grows with the velocity). With no constraint active
+a step is MuJoCo's step exactly (to round-off): rbody and MuJoCo then run the same scheme on a robot with limits,
+friction or contacts and differ by the constraints' model (rigid here, soft there) only. Stable where MuJoCo's step
+is: a stiff servo's damping is implicit.
+
 Order 1 in h (an event falls inside a step). The problem of a step is solved exactly (mlcp_exact) when it has at
 most EXACT_ROWS rows, else by projected Gauss-Seidel to STEP_TOLERANCE of the free velocities' scale, with at most
 PGS_SWEEPS sweeps; a step whose problem is left with a larger residual fails the run (SimulationError naming the
@@ -29,7 +47,11 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from rbody.engine.actuation import next_activation
 from rbody.engine.constraints import dynamics as dyn
+from rbody.engine.elements import A_ACTADR, ACT_SIZE, X_ACT, X_ACTIVE, X_NU, extension_start
+from rbody.engine.mujoco_steps import EULER, IMPLICIT, IMPLICITFAST, MUJOCO_METHODS, integrate_positions, \
+    solve_general, step_matrices
 from rbody.engine.constraints.jacobians import row_count, unit_at, unit_count
 from rbody.engine.constraints.cone import NORMAL, ROW, TANGENT, TANGENT2, cone_pgs, cone_polish, stick_polish
 from rbody.engine.constraints.solver import mlcp_exact, mlcp_pgs, natural_residual
@@ -45,11 +67,73 @@ PGS_SWEEPS = 2000
 CONE_ROUND = 50          # Gauss-Seidel sweeps between two exact finishes of a problem with contacts' cones
 TOUCH_TOLERANCE = 1e-10  # [m or rad]
 PROJECTION_ROUNDS = 6    # projections after a step, each with the stops the last one pushed past
+MOREAU = -1              # mode of moreau_step: Moreau-Jean's own free motion, v + h M^-1 f
+MODES = {"moreau": MOREAU, "mujoco_euler": EULER, "implicitfast": IMPLICITFAST, "implicit": IMPLICIT}
+SCHEMES = {"moreau": "time-stepping (Moreau-Jean)",
+           **{name: f"time-stepping (Moreau-Jean impulses, MuJoCo's {integrator} step as the free motion)"
+              for name, integrator in zip(MUJOCO_METHODS, ("Euler", "implicitfast", "implicit"))}}
 
 
 @njit(cache=True)
-def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included):
-    """One step of the scheme (module docstring) of the state y (n,) (phi all zero) in place, h [s]. P (rows,)
+def mujoco_free_velocity(p, y, h, mode, M, f, vfree, metric):
+    """vfree (nv,) = v + h (M - h D)^-1 f: the free motion of MuJoCo's integrator `mode` (EULER, IMPLICITFAST,
+    IMPLICIT) from the state y, with M (nv, nv) and f (nv,) at that state (module docstring); metric (nv, nv) <-
+    the impulses' metric, the symmetric part of M - h D. Returns whether that metric is positive definite (else the
+    caller takes M's)."""
+    nq, nv, _n = dyn.sizes(p)
+    matrices = np.empty((2, nv, nv))
+    step_matrices(y, p, mode, p[extension_start(p) + X_ACTIVE] != 0.0, matrices)
+    H = np.empty((nv, nv))
+    for a in range(nv):
+        for c in range(nv):
+            H[a, c] = M[a, c] - h * matrices[1, a, c]
+    for a in range(nv):
+        for c in range(nv):
+            metric[a, c] = 0.5 * (H[a, c] + H[c, a])
+    rhs = f.copy()
+    qacc = np.empty(nv)
+    solve_general(H, rhs, qacc, nv)
+    for d in range(nv):
+        vfree[d] = y[nq + d] + h * qacc[d]
+    return positive_definite(metric)
+
+
+@njit(cache=True)
+def positive_definite(A):
+    """Whether the symmetric A (n, n) is positive definite (Cholesky's pivots all positive), A unchanged."""
+    n = A.shape[0]
+    L = np.zeros((n, n))
+    for j in range(n):
+        pivot = A[j, j]
+        for k in range(j):
+            pivot -= L[j, k] * L[j, k]
+        if not pivot > 0.0:
+            return False
+        L[j, j] = np.sqrt(pivot)
+        for i in range(j + 1, n):
+            acc = A[i, j]
+            for k in range(j):
+                acc -= L[i, k] * L[j, k]
+            L[i, j] = acc / L[j, j]
+    return True
+
+
+@njit(cache=True)
+def next_activations(p, act, rates, h):
+    """act (na,) advanced over h [s] at the rates (na,) of the step's start as MuJoCo's mj_advance does (its
+    mj_nextActivation, clamped to actrange)."""
+    E = extension_start(p)
+    for i in range(int(p[E + X_NU])):
+        r = int(p[E + X_ACT]) + i * ACT_SIZE
+        adr = int(p[r + A_ACTADR])
+        if adr >= 0:
+            act[adr] = next_activation(p, r, act[adr], rates[adr], h)
+
+
+@njit(cache=True)
+def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
+    """One step of the scheme (module docstring) of the state y (n,) (phi all zero) in place, h [s], its free motion
+    Moreau-Jean's own (mode MOREAU) or MuJoCo's integrator `mode` (EULER, IMPLICITFAST, IMPLICIT). P (rows,)
     gets every row's impulse [N s or N m s] (0 for rows not in the problem), included (rows,) 1 on the rows of the
     step's problem. Returns (status, residual, rows in
     the problem): status 0 done, 1 the complementarity problem left a residual above the tolerance, 2 the
@@ -68,12 +152,19 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included):
     rates = np.empty(na)
     if na:  # the activations' rates at the step's start (advanced by explicit Euler below, as MuJoCo's Euler does)
         dyn.actuator_rates(p, y[:nq], y[nq:nq + nv], y[at:at + na], rates)
-    L = np.linalg.cholesky(M)
     v = y[nq:nq + nv]
-    a0 = dyn.upper_solve(L, dyn.lower_solve(L, f))
     vfree = np.empty(nv)
-    for d in range(nv):
-        vfree[d] = v[d] + h * a0[d]
+    metric = M  # the impulses move the velocities by metric^-1 J^T P
+    if mode == MOREAU:
+        L = np.linalg.cholesky(M)
+        a0 = dyn.upper_solve(L, dyn.lower_solve(L, f))
+        for d in range(nv):
+            vfree[d] = v[d] + h * a0[d]
+    else:
+        stepped = np.empty((nv, nv))
+        if mujoco_free_velocity(p, y, h, mode, M, f, vfree, stepped):
+            metric = stepped
+        L = np.linalg.cholesky(metric)
     jfree = J @ vfree
     index = np.empty(rows, dtype=np.int64)
     lo, hi, b = np.empty(rows), np.empty(rows), np.empty(rows)
@@ -185,11 +276,16 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included):
     delta = np.empty(nv)
     for d in range(nv):
         delta[d] = h * v[d]
-    dyn.displace(p, y, delta)
-    if na:
+    if mode == MOREAU:
+        dyn.displace(p, y, delta)
+    else:
+        integrate_positions(p, y[:nq], v, h)
+    if na and mode == MOREAU:
         for i in range(na):
             y[at + i] += h * rates[i]
         dyn.clamp_activations(p, y[at:at + na])
+    elif na:
+        next_activations(p, y[at:at + na], rates, h)
     # positions onto the equalities and onto every stop passed or touched (a projection in the metric of M moves
     # every dof: a stop it pushes past joins the set, and the projection is repeated), velocities onto the equalities
     position_rows = np.zeros(rows)
@@ -220,7 +316,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included):
 
 
 @njit(cache=True)
-def moreau_loop(p, y0, h, nsteps, save_every, out, impulses, exact_rows, sweeps, tolerance, included):
+def moreau_loop(p, y0, h, nsteps, save_every, out, impulses, exact_rows, sweeps, tolerance, included, mode):
     """nsteps steps from y0 (n,); out (S, n) every save_every-th state (out[0] = y0), impulses (S, rows) the impulses
     of the step that ended at each saved state. Returns (failed step or -1, its status, its residual, its rows)."""
     y = y0.copy()
@@ -229,7 +325,7 @@ def moreau_loop(p, y0, h, nsteps, save_every, out, impulses, exact_rows, sweeps,
     out[0] = y
     impulses[0] = 0.0
     for k in range(1, nsteps + 1):
-        status, residual, m = moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included)
+        status, residual, m = moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode)
         if status != 0:
             return k, status, residual, m
         for a in range(y.shape[0]):
@@ -246,9 +342,11 @@ class MoreauRun:
     run(y0, dt, nsteps, save_every) -> (samples (S, n), modes (S, units)); forces (S, rows) the impulses of the step
     ending at each sample divided by dt (its mean force); log: impacts and mode changes are not events here."""
 
-    def __init__(self, table: ConstraintTable, params: np.ndarray, description: str) -> None:
+    def __init__(self, table: ConstraintTable, params: np.ndarray, description: str, method: str = "moreau") -> None:
         from rbody.engine.constraints.events import EventLog
 
+        self.method = method
+        self.mode = MODES[method]  # the free motion: Moreau-Jean's own, or MuJoCo's integrator's
         self.table = table
         self.p = np.array(params, dtype=np.float64)
         self.p[table.mode_slice()] = np.where(np.array([u.code for u in table.units]) == FRICTION, 0.0,
@@ -266,7 +364,8 @@ class MoreauRun:
         included = np.zeros(self.table.rows)
         if before_step is None:
             failed, status, residual, m = moreau_loop(self.p, np.array(y0, dtype=np.float64), dt, nsteps, save_every,
-                                                      out, impulses, EXACT_ROWS, PGS_SWEEPS, STEP_TOLERANCE, included)
+                                                      out, impulses, EXACT_ROWS, PGS_SWEEPS, STEP_TOLERANCE, included,
+                                                      self.mode)
         else:
             failed, status, residual, m = self._stepwise(np.array(y0, dtype=np.float64), dt, nsteps, save_every, out,
                                                          impulses, included, before_step)
@@ -280,7 +379,7 @@ class MoreauRun:
                     3: "a non-finite state; try a smaller dt"}[status]
             named = [u for u in self.table.units if included[u.row0]] or list(self.table.units)
             names = ", ".join(repr(u.name) for u in named)
-            raise SimulationError(f"scene {self.description}: method 'moreau' with dt={dt}: at t={failed * dt:.9g} s, "
+            raise SimulationError(f"scene {self.description}: method {self.method!r} with dt={dt}: at t={failed * dt:.9g} s, "
                                   f"constraints {names}: {what}; residual {residual:.3g}")
         self.forces = impulses / dt
         modes = np.empty((count, len(self.table.units)))
@@ -304,7 +403,8 @@ class MoreauRun:
         impulses[0] = 0.0
         for k in range(1, nsteps + 1):
             before_step(k - 1, (k - 1) * dt, y, self.p)
-            status, residual, m = moreau_step(self.p, y, dt, P, EXACT_ROWS, PGS_SWEEPS, STEP_TOLERANCE, included)
+            status, residual, m = moreau_step(self.p, y, dt, P, EXACT_ROWS, PGS_SWEEPS, STEP_TOLERANCE, included,
+                                              self.mode)
             if status != 0:
                 return k, status, residual, m
             if not np.all(np.isfinite(y)):
@@ -319,4 +419,5 @@ def unit_bound(p: np.ndarray, table: ConstraintTable, k: int) -> float:
     return float(p[table.offset + C_HEADER + UNIT_SIZE * k + U_BOUND])
 
 
-__all__ = ["moreau_step", "moreau_loop", "MoreauRun", "EXACT_ROWS", "STEP_TOLERANCE", "PGS_SWEEPS"]
+__all__ = ["moreau_step", "moreau_loop", "MoreauRun", "EXACT_ROWS", "STEP_TOLERANCE", "PGS_SWEEPS", "MODES", "SCHEMES",
+           "mujoco_free_velocity", "next_activations"]

@@ -39,6 +39,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from rbody.engine.mujoco_steps import MUJOCO_METHODS
 from rbody.engine.schema import FLOAT, INT, Record
 from rbody.layout import JOINTS, WORLD, Layout
 
@@ -130,7 +131,7 @@ class ConstraintTable:
     block: np.ndarray
     offset: int
     mode0: np.ndarray
-    methods: tuple[str, ...] = ("rk4", "moreau")
+    methods: tuple[str, ...] = ("rk4", "moreau") + MUJOCO_METHODS
     equalities: tuple = ()  # every equality but tendons, each made explicit (a connect's anchor2, a weld's relpose)
     tree_size: int = 0
     section: np.ndarray | None = None
@@ -335,8 +336,10 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
     UNIT.check(block, C_HEADER, count)
     block.setflags(write=False)
     mode0.setflags(write=False)
-    # contacts: time-stepping by default (persistent contacts: stacks, feet, grasps), event-driven on request
+    # contacts: time-stepping by default (persistent contacts: stacks, feet, grasps), event-driven on request;
+    # MuJoCo's integrators as the time-stepping's free motion (a file's own scheme, at its own step)
     methods = ("moreau", "rk4") if any(unit.code in CONTACT_KINDS for unit in units) else ("rk4", "moreau")
+    methods += MUJOCO_METHODS
     return ConstraintTable(units=tuple(units), block=block, offset=offset, mode0=mode0, equalities=tuple(resolved),
                            methods=methods, tree_size=tree_size, section=section)
 

@@ -22,9 +22,10 @@ def limited_pendulum(theta0=1.0, low=-0.5, high=2.0, restitution=0.0, friction=0
     return Scene.from_layout(Layout(bodies=(Body("rod", rod()),), joints=(joint,)), t_end=t_end, **scene)
 
 
-def test_a_constrained_tree_runs_rk4_between_events_or_moreau_and_nothing_else():
+def test_a_constrained_tree_runs_rk4_between_events_or_a_time_stepping_and_nothing_else():
+    """rk4 between events by default; moreau, and MuJoCo's integrators as the time-stepping's free motion."""
     scene = limited_pendulum()
-    assert scene.methods == ("rk4", "moreau")
+    assert scene.methods == ("rk4", "moreau", "mujoco_euler", "implicitfast", "implicit")
     with pytest.raises(MethodNotApplicable, match="constraint layer runs rk4, moreau"):
         simulate(scene, dt=1e-2, method="verlet")
     with pytest.raises(MethodNotApplicable, match="constrained tree"):

@@ -39,9 +39,10 @@ def test_contact_fields_checked():
 
 
 def test_contacts_run_by_the_constraint_layers_schemes_only():
-    """Time-stepping (moreau) by default, event-driven (rk4) on request; any other integrator is refused."""
+    """Time-stepping (moreau) by default, event-driven (rk4) or MuJoCo's integrators as the time-stepping's free
+    motion on request; any other integrator is refused."""
     scene = Scene.from_layout(layout_with(Contact("floor", "s", friction=0.5)), t_end=0.01)
-    assert scene.methods == ("moreau", "rk4")
+    assert scene.methods == ("moreau", "rk4", "mujoco_euler", "implicitfast", "implicit")
     with pytest.raises(MethodNotApplicable, match="moreau"):
         rbody.simulate(scene, dt=1e-3, method="verlet")
 
