@@ -102,10 +102,20 @@ def mlcp_exact(W, b, lo, hi, lam):
     """Solve the MLCP (module docstring) by the primal active-set method, from lambda = clamp(0, lo, hi); lam (m,)
     out. Returns (status, steps): status 0 solved, UNBOUNDED when rows free of bounds contradict each other (no
     lambda makes their w vanish), 1 when the step budget ran out."""
+    for i in range(b.shape[0]):
+        lam[i] = 0.0
+    return mlcp_exact_from(W, b, lo, hi, lam)
+
+
+@njit(cache=True)
+def mlcp_exact_from(W, b, lo, hi, lam):
+    """mlcp_exact from the lambda given in lam (clamped to its bounds; a warm start: the rows at a bound start on
+    it, the others free), the time-stepping's last impulses: where the set of rows at their bounds does not change
+    from one step to the next, the method stops after one face's solve."""
     m = b.shape[0]
     state = np.zeros(m, dtype=np.int64)  # 0 free, -1 at lo, +1 at hi
     for i in range(m):
-        lam[i] = clamp(0.0, lo[i], hi[i])
+        lam[i] = clamp(lam[i], lo[i], hi[i])
         if lam[i] == lo[i]:
             state[i] = -1
         elif lam[i] == hi[i]:
@@ -205,4 +215,4 @@ def mlcp_pgs(W, b, lo, hi, lam, tolerance, max_sweeps):
     return max_sweeps, residual
 
 
-__all__ = ["natural_residual", "symmetric_solve", "mlcp_exact", "mlcp_pgs", "clamp", "RANK_RTOL", "UNBOUNDED"]
+__all__ = ["natural_residual", "symmetric_solve", "mlcp_exact", "mlcp_exact_from", "mlcp_pgs", "clamp", "RANK_RTOL", "UNBOUNDED"]

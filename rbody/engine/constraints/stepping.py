@@ -54,7 +54,7 @@ from rbody.engine.mujoco_steps import EULER, IMPLICIT, IMPLICITFAST, MUJOCO_METH
     solve_general, step_matrices
 from rbody.engine.constraints.jacobians import row_count, unit_at, unit_count
 from rbody.engine.constraints.cone import NORMAL, ROW, TANGENT, TANGENT2, cone_pgs, cone_polish, stick_polish
-from rbody.engine.constraints.solver import mlcp_exact, mlcp_pgs, natural_residual
+from rbody.engine.constraints.solver import mlcp_exact_from, mlcp_pgs, natural_residual
 from rbody.engine.constraints.table import (C_HEADER, CONE, CONNECT, CONTACT, CONTACT1, CONTACT_KINDS, COUPLING,
                                             FRICTION, LOWER, U_BOUND, U_KIND,
                                             UNIT_SIZE,
@@ -244,7 +244,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
                     break
             status = 0 if residual <= tolerance * scale else 1
         elif m <= exact_rows:
-            status, _steps = mlcp_exact(W, bb, ll, hh, lam)
+            status, _steps = mlcp_exact_from(W, bb, ll, hh, lam)  # warm: the last step's impulses
             residual = natural_residual(W, bb, ll, hh, lam)
             if status == 0 and residual > tolerance * scale:
                 status = 1
@@ -293,13 +293,14 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
     worst = 0.0
     for _round in range(PROJECTION_ROUNDS):
         dyn.state_rows(p, y, M, f, J, jdot, g)
-        grown = _round == 0
+        grown = False  # a row newly flagged (nothing flagged at all: no projection, the step stands as it is)
         for k in range(unit_count(p)):
             u = unit_at(p, k)
             kind = int(p[u + U_KIND])
             r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])
             if kind == CONNECT or kind == WELD or kind == COUPLING:
                 for a in range(r0, r0 + r):
+                    grown = grown or position_rows[a] == 0.0
                     position_rows[a] = 1.0
                     velocity_rows[a] = 1.0
             elif (kind == LOWER or kind == UPPER or kind == CONE or kind == CONTACT or kind == CONTACT1) \
