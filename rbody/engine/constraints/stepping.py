@@ -47,6 +47,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from rbody.engine import multibody as mb
 from rbody.engine.actuation import next_activation
 from rbody.engine.constraints import dynamics as dyn
 from rbody.engine.elements import A_ACTADR, ACT_SIZE, X_ACT, X_ACTIVE, X_NU, extension_start
@@ -81,12 +82,19 @@ def mujoco_free_velocity(p, y, h, mode, M, f, vfree, metric):
     the impulses' metric, the symmetric part of M - h D. Returns whether that metric is positive definite (else the
     caller takes M's)."""
     nq, nv, _n = dyn.sizes(p)
-    matrices = np.empty((2, nv, nv))
-    step_matrices(y, p, mode, p[extension_start(p) + X_ACTIVE] != 0.0, matrices)
     H = np.empty((nv, nv))
-    for a in range(nv):
-        for c in range(nv):
-            H[a, c] = M[a, c] - h * matrices[1, a, c]
+    if mode == EULER:  # D = -diag(the joints' damping): M and the rows already hold all of it
+        do = int(p[mb.H_DOF])
+        for a in range(nv):
+            for c in range(nv):
+                H[a, c] = M[a, c]
+            H[a, a] = M[a, a] - h * -p[do + a * mb.DOF_SIZE + mb.D_DAMPING]
+    else:
+        matrices = np.empty((2, nv, nv))
+        step_matrices(y, p, mode, p[extension_start(p) + X_ACTIVE] != 0.0, matrices)
+        for a in range(nv):
+            for c in range(nv):
+                H[a, c] = M[a, c] - h * matrices[1, a, c]
     for a in range(nv):
         for c in range(nv):
             metric[a, c] = 0.5 * (H[a, c] + H[c, a])
