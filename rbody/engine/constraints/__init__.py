@@ -42,6 +42,11 @@ The scheme, in this order and for this reason:
    the projection after each step keeps equalities and stops at round-off. Why: a chattering joint, a ball coming
    to rest by infinitely many bounces (Zeno), the many contacts of feet and grasps would stop an event-driven run;
    a time-stepped one passes through them at a cost per step independent of the number of events.
+3. The same time-stepping with MuJoCo's integrator as its free motion (method="mujoco_euler", "implicitfast",
+   "implicit"; stepping.py): H (v' - v) = h f + J^T P with H = M - h D the file's own step matrix. Why: published
+   robots run stiff position servos at a step only an implicit damping keeps stable (a 7-dof arm's servos make rk4
+   unstable above about 1e-5 s); with the file's integrator rbody and MuJoCo run one scheme, equal to round-off
+   where no constraint acts, so what remains between them is the constraints' model, rigid against soft.
 
 Contacts between geoms (table.CONTACT, CONTACT1: gap functions from rbody.engine.contacts, Coulomb's circular cone
 solved by cone.py) run by either scheme, time-stepping by default (method="moreau": persistent contacts, stacks,
