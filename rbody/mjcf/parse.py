@@ -405,9 +405,13 @@ class _Reader:
         self.read_compiler(sections.get("compiler", []))
         self.read_option(sections.get("option", []))
         self.numerics = read_numerics(sections.get("custom", []))  # rbody's restitution (rbody.mjcf.constraints)
+        self.nkey = 0  # <size nkey>: MuJoCo allocates max(nkey, <key> count) keyframes, the extra ones at qpos0
+        for element in sections.get("size", []):
+            self.nkey = max(self.nkey, integer(element, "nkey", element.attrib, 0))  # MuJoCo takes -1 as none
         for tag in ("size", "statistic", "visual", "custom"):
             if tag in sections:
-                self.note(tag, f"<{tag}> ignored (no effect on the dynamics rbody runs)" if tag != "custom" else
+                self.note(tag, f"<{tag}> ignored (no effect on the dynamics rbody runs)" if tag not in ("custom", "size")
+                          else "<size> ignored but for nkey (the keyframes MuJoCo allocates)" if tag == "size" else
                           "<custom> ignored (except the numerics rbody.restitution[.JOINT], rbody.mjcf.constraints)")
         self.classes = {"main": {}}
         for element in sections.get("default", []):
@@ -1451,6 +1455,8 @@ class _Reader:
         """(act (na,), ctrl (nu,)) of the chosen keyframe (zeros where it gives none)."""
         names = list(keyframes)
         index = int(keyframe) if isinstance(keyframe, (int, np.integer)) else names.index(keyframe)
+        if index >= len(self.key_elements):  # one of <size nkey>'s keyframes: at rest, no control
+            return np.zeros(na), np.zeros(nu)
         key = self.key_elements[index]
         act = numbers(key, "act", key.attrib, na) if "act" in key.attrib else np.zeros(na)
         ctrl = numbers(key, "ctrl", key.attrib, nu) if "ctrl" in key.attrib else np.zeros(nu)
@@ -1466,6 +1472,8 @@ class _Reader:
             if name in keys:
                 raise key.error(f"two keyframes are called {name!r}")
             keys[name] = (qpos, qvel)
+        for i in range(len(keys), self.nkey):  # <size nkey> beyond the <key> elements: MuJoCo's default keyframes
+            keys[f"key{i}"] = (qpos0.copy(), np.zeros(nv))
         return keys
 
     def unit_quaternions(self, joints: list[Joint], qpos: np.ndarray) -> np.ndarray:

@@ -182,3 +182,20 @@ def test_a_world_fixed_height_field_is_static_terrain_and_one_on_a_body_is_refus
     with pytest.raises(ValueError, match=r"line 2, <geom>: hfield geoms are not supported on a body"):
         layout_from_mjcf(f"""<mujoco>{asset}{OFF}<worldbody><body><joint/><geom size="0.1"/>
           <geom type="hfield" hfield="h"/></body></worldbody></mujoco>""")
+
+
+def test_size_nkey_allocates_keyframes_at_qpos0_as_mujoco_does():
+    """<size nkey="3"> with one <key>: MuJoCo's model has three keyframes, the two extra ones at qpos0 with no
+    velocity and no control; rbody lists the same three and starts from any of them."""
+    xml = """<mujoco><size nkey="3"/><worldbody><body><joint name="h" axis="0 1 0"/><geom size="0.1" pos="0 0 -1"/>
+      </body></worldbody><actuator><motor joint="h"/></actuator>
+      <keyframe><key name="up" qpos="1.0" ctrl="0.5"/></keyframe></mujoco>"""
+    m = mujoco.MjModel.from_xml_string(xml)
+    model = layout_from_mjcf(xml)
+    assert len(model.keyframes) == m.nkey == 3
+    for (qpos, qvel), key_qpos, key_qvel in zip(model.keyframes.values(), m.key_qpos, m.key_qvel):
+        np.testing.assert_array_equal(qpos, key_qpos)
+        np.testing.assert_array_equal(qvel, key_qvel)
+    last = rbody.from_mjcf(xml, keyframe=2)
+    assert last.qpos0[0] == 0.0 and last.ctrl0[0] == m.key_ctrl[2, 0] == 0.0
+    assert rbody.from_mjcf(xml, keyframe="up").ctrl0[0] == 0.5
