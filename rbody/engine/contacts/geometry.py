@@ -129,10 +129,11 @@ def segment_closest(p1, u1, l1, p2, u2, l2):
 
 
 @njit(cache=True)
-def collide(ta, pa, Ra, sa, tb, pb, Rb, sb, dist, normal, point):
+def collide(ta, pa, Ra, sa, tb, pb, Rb, sb, dist, normal, point, only=-1):
     """The candidate contacts of geom a (type ta <= tb, centre pa (3,) [m], axes Ra (3, 3), size sa (3,) [m]) and
     geom b, into dist (MAX_SLOTS,) [m], normal (MAX_SLOTS, 3) from a to b and point (MAX_SLOTS, 3) [m]; returns
-    their count (SLOTS of the pair), or -1 for a pair of types it does not compute."""
+    their count (SLOTS of the pair), or -1 for a pair of types it does not compute. only >= 0: that candidate's
+    entries alone are written (a contact unit is one candidate: a box pair's other 15 corners cost nothing)."""
     if ta == PLANE:
         n = np.empty(3)
         for a in range(3):
@@ -143,6 +144,8 @@ def collide(ta, pa, Ra, sa, tb, pb, Rb, sb, dist, normal, point):
         if tb == CAPSULE:
             end = np.empty(3)
             for k in range(2):
+                if only >= 0 and k != only:
+                    continue
                 side = 1.0 if k == 0 else -1.0
                 for a in range(3):
                     end[a] = pb[a] + side * sb[1] * Rb[a, 2]
@@ -151,6 +154,8 @@ def collide(ta, pa, Ra, sa, tb, pb, Rb, sb, dist, normal, point):
         if tb == BOX:
             corner = np.empty(3)
             for k in range(8):
+                if only >= 0 and k != only:
+                    continue
                 x = sb[0] if k & 1 else -sb[0]
                 y = sb[1] if k & 2 else -sb[1]
                 z = sb[2] if k & 4 else -sb[2]
@@ -180,6 +185,8 @@ def collide(ta, pa, Ra, sa, tb, pb, Rb, sb, dist, normal, point):
     if ta == BOX and tb == BOX:  # each box's corners against the other box (vertex-face contacts)
         corner = np.empty(3)
         for k in range(16):
+            if only >= 0 and k != only:
+                continue
             own_p, own_R, own_s = (pb, Rb, sb) if k < 8 else (pa, Ra, sa)
             other_p, other_R, other_s = (pa, Ra, sa) if k < 8 else (pb, Rb, sb)
             c = k % 8

@@ -52,7 +52,7 @@ def contact_geometry(p, w, u, normal, point):
     geom_pose(p, w, int(p[u + U_BODY2]), u + U_GPOS_B, u + U_GMAT_B, pb, Rb)
     dist, normals, points = np.empty(MAX_SLOTS), np.empty((MAX_SLOTS, 3)), np.empty((MAX_SLOTS, 3))
     collide(int(p[u + U_GTYPE_A]), pa, Ra, p[u + U_GSIZE_A:u + U_GSIZE_A + 3], int(p[u + U_GTYPE_B]), pb, Rb,
-            p[u + U_GSIZE_B:u + U_GSIZE_B + 3], dist, normals, points)
+            p[u + U_GSIZE_B:u + U_GSIZE_B + 3], dist, normals, points, int(p[u + U_DOF]))
     k = int(p[u + U_DOF])
     for a in range(3):
         normal[a] = normals[k, a]
