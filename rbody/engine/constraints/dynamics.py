@@ -27,14 +27,15 @@ import numpy as np
 from numba import njit
 
 from rbody.engine.multibody import (D_DAMPING, DOF_SIZE, FREE, H_BODIES, H_DOF, H_DOFS, H_JOINT, H_JOINTS, H_NQ,
-                                    H_ROT, HINGE, J_DADR, J_KIND, J_QADR, JOINT_SIZE, ROLL, SLIDE, _effective_qpos,
+                                    H_ROT, HINGE, J_DADR, J_KIND, J_QADR, JOINT_SIZE, ROLL, SLIDE, _effective_qpos, _frames,
                                     coordinate_rates, inverse_one, mass_matrix_one, passive, tree_finish,
                                     workspace_size)
 from rbody.engine.spatial import quat_exp, quat_multiply
 from rbody.engine.elements import X_ACTIVE, X_NA, extension_start
 from rbody.engine.system import actuator_rates, add_element_forces, clamp_activations
 from rbody.engine.constraints.jacobians import (all_rows, bias_accelerations, some_rows, mode_at, row_count, unit_at,
-                                                unit_count)
+                                                unit_count, unit_rows)
+from rbody.engine.contacts.rows import GEOMETRY_WORK, contact_geometry
 from rbody.engine.constraints.solver import symmetric_solve
 from rbody.engine.constraints.sliding import general_held_solve, sliding_columns
 from rbody.engine.constraints.table import (CONE, CONNECT, CONTACT, CONTACT1, COUPLING, FRICTION, LOWER, U_BOUND,
@@ -58,21 +59,23 @@ def act_range(p):
 
 
 @njit(cache=True)
-def snapshot(p, q, v, act, M, f, J, jdot, g, w, acc, rows_wanted=None):
+def snapshot(p, q, v, act, M, f, J, jdot, g, w, acc, rows_wanted=None, with_bias=True):
     """At qpos q (nq,) and qvel v (nv,): M (nv, nv); f (nv,) = passive - bias (gravity included; with force elements
     also the actuators' forces at the controls written in p, the tendons', fluid and gravity compensation:
     rbody.engine.system.add_element_forces); every unit's rows
     J (rows, nv), jdot (rows,) and g (rows,) (rbody.engine.constraints.jacobians), or only the units with a row
-    flagged in rows_wanted (rows,). w: the tree's workspace; acc (nb, 6) scratch."""
+    flagged in rows_wanted (rows,). w: the tree's workspace; acc (nb, 6) scratch. with_bias False: the contacts'
+    J' v are left 0 (what the time-stepping and the projection read is J and g only)."""
     nv = int(p[H_DOFS])
     mass_matrix_one(p, q, M, w)
     zero = np.zeros(nv)
     inverse_one(p, q, v, zero, True, f, w)  # f = bias, and the workspace's frames at (q, v)
-    bias_accelerations(p, w, acc)
+    if with_bias:
+        bias_accelerations(p, w, acc)
     if rows_wanted is None:
-        all_rows(p, q, v, w, acc, J, jdot, g)
+        all_rows(p, q, v, w, acc, J, jdot, g, with_bias)
     else:
-        some_rows(p, q, v, w, acc, J, jdot, g, rows_wanted)
+        some_rows(p, q, v, w, acc, J, jdot, g, rows_wanted, with_bias)
     held = np.empty(nv)
     passive(p, q, v, held)
     if p[extension_start(p) + X_ACTIVE] != 0.0:  # actuators, tendons, gravity compensation, fluid
@@ -412,16 +415,20 @@ def project(p, y, position_rows, velocity_rows):
     w = np.empty(workspace_size(p))
     M = np.empty((nv, nv))
     f = np.empty(nv)
-    J = np.empty((rows, nv))
-    jdot = np.empty(rows)
-    g = np.empty(rows)
+    J = np.zeros((rows, nv))  # the rows flagged are computed, the others stay 0
+    jdot = np.zeros(rows)
+    g = np.zeros(rows)
     acc = np.empty((int(p[H_BODIES]), 6))
     lam = np.empty(rows)
     delta = np.empty(nv)
     v = y[nq:nq + nv]
+    flagged = np.zeros(rows)
+    for a in range(rows):
+        if position_rows[a] != 0.0 or velocity_rows[a] != 0.0:
+            flagged[a] = 1.0
     worst = 0.0
     for iteration in range(PROJECTION_ITERATIONS + 1):
-        snapshot(p, y[:nq], v, y[a0:a0 + na], M, f, J, jdot, g, w, acc)
+        snapshot(p, y[:nq], v, y[a0:a0 + na], M, f, J, jdot, g, w, acc, flagged, False)
         worst = 0.0
         for a in range(rows):
             if position_rows[a] != 0.0:
@@ -478,18 +485,46 @@ def guards(p, y, out):
 
 
 @njit(cache=True)
-def state_rows(p, y, M, f, J, jdot, g):
-    """snapshot at the state y (phi folded in): M, f (passive - bias, sliding friction of the mode included), rows."""
+def state_gaps(p, y, g):
+    """g (rows,) every row's residual at the state y (phi folded in) as state_rows gives it, from the tree's
+    kinematics alone: a contact by its candidate's signed distance (no Jacobian), the other units by their rows."""
+    nq, nv, _n = sizes(p)
+    rows = row_count(p)
+    q = np.empty(nq)
+    _effective_qpos(p, y, q, 0)
+    w = np.empty(workspace_size(p))
+    _frames(p, q, y[nq:nq + nv], w)
+    J = np.empty((rows, nv))
+    jdot = np.empty(rows)
+    acc = np.empty((int(p[H_BODIES]), 6))
+    normal, point = np.empty(3), np.empty(3)
+    work = np.empty(GEOMETRY_WORK)
+    for k in range(unit_count(p)):
+        u = unit_at(p, k)
+        kind = int(p[u + U_KIND])
+        row = int(p[u + U_ROW0])
+        if kind == CONTACT or kind == CONTACT1:
+            for a in range(row, row + int(p[u + U_ROWS])):
+                g[a] = 0.0
+            g[row] = contact_geometry(p, w, u, normal, point, work)
+        else:
+            unit_rows(p, k, q, y[nq:nq + nv], w, acc, J, jdot, g, row, False)
+
+
+@njit(cache=True)
+def state_rows(p, y, M, f, J, jdot, g, with_bias=True):
+    """snapshot at the state y (phi folded in): M, f (passive - bias, sliding friction of the mode included), rows
+    (with_bias: as snapshot's)."""
     nq, nv, _n = sizes(p)
     q = np.empty(nq)
     _effective_qpos(p, y, q, 0)
     w = np.empty(workspace_size(p))
     acc = np.empty((int(p[H_BODIES]), 6))
     a0, na = act_range(p)
-    snapshot(p, q, y[nq:nq + nv], y[a0:a0 + na], M, f, J, jdot, g, w, acc)
+    snapshot(p, q, y[nq:nq + nv], y[a0:a0 + na], M, f, J, jdot, g, w, acc, None, with_bias)
     add_sliding_friction(p, f)
 
 
-__all__ = ["sizes", "snapshot", "mode_accel", "constrained_rhs", "rk4_step", "project", "guards", "state_rows",
+__all__ = ["sizes", "snapshot", "mode_accel", "constrained_rhs", "rk4_step", "project", "guards", "state_rows", "state_gaps",
            "held_rows", "held_solve", "lower_solve", "upper_solve", "displace", "friction_power",
            "PROJECTION_TOLERANCE"]

@@ -167,11 +167,12 @@ def rotation_vector(quat, out):
 
 
 @njit(cache=True)
-def _contact_rows(p, w, acc, u, r, J, jdot, g, row):
+def _contact_rows(p, w, acc, u, r, J, jdot, g, row, with_bias):
     """A contact unit's r rows (1: the normal; 3: the normal and the tangents t1, t2 of the contact frame): g the
     signed distance of its candidate, J = (n; t1; t2) . (J_b - J_a) the relative velocity of geom b's material
     point at the contact point with respect to geom a's, J' v the gap's second derivative without qacc (normal)
-    and the sticking contact point's (tangents), rbody.engine.contacts.kinematics."""
+    and the sticking contact point's (tangents), rbody.engine.contacts.kinematics; with_bias False: J' v left 0
+    (the time-stepping reads no J' v)."""
     normal, point = np.empty(3), np.empty(3)
     g[row] = contact_geometry(p, w, u, normal, point)
     frame = np.empty((3, 3))
@@ -187,20 +188,22 @@ def _contact_rows(p, w, acc, u, r, J, jdot, g, row):
         for a in range(3):  # the point about the origin of the body's tree, where its subspaces are written
             local[a] = point[a] - _origin(p, w, body, a)
         _add_point_rows(p, w, body, local, sign, Jp, 0, False)
-        _point_bias(p, w, acc, body, local, bias, sign)
+        if with_bias:
+            _point_bias(p, w, acc, body, local, bias, sign)
     for e in range(r):
         for c in range(nv):
             J[row + e, c] = frame[e, 0] * Jp[0, c] + frame[e, 1] * Jp[1, c] + frame[e, 2] * Jp[2, c]
         jdot[row + e] = frame[e, 0] * bias[0] + frame[e, 1] * bias[1] + frame[e, 2] * bias[2]
-    contact_bias(p, w, acc, u, g[row], frame, r, jdot, row)  # the gap's and the rolling point's own terms
+    if with_bias:
+        contact_bias(p, w, acc, u, g[row], frame, r, jdot, row)  # the gap's and the rolling point's own terms
 
 
 @njit(cache=True)
-def unit_rows(p, k, q, v, w, acc, J, jdot, g, row):
+def unit_rows(p, k, q, v, w, acc, J, jdot, g, row, with_bias=True):
     """Rows of unit k into J[row:row + r] (zeroed here, r its rows, over all nv columns), jdot[row:] (J' v) and
     g[row:] (residual: >= 0 feasible for limits, 0 held for equalities, 0 for friction), at the effective qpos q
     (nq,) and qvel v (nv,), the workspace w holding the tree's frames at (q, v) and acc (nb, 6) its
-    bias_accelerations. Returns r."""
+    bias_accelerations (with_bias False: a contact's J' v is left 0, acc unread by it). Returns r."""
     u = unit_at(p, k)
     kind = int(p[u + U_KIND])
     r = int(p[u + U_ROWS])
@@ -248,7 +251,7 @@ def unit_rows(p, k, q, v, w, acc, J, jdot, g, row):
             jdot[row] = -curvature * v[d2] * v[d2]
         g[row] = q[qa] - p[u + U_REF1] - value
     elif kind == CONTACT or kind == CONTACT1:
-        _contact_rows(p, w, acc, u, r, J, jdot, g, row)
+        _contact_rows(p, w, acc, u, r, J, jdot, g, row, with_bias)
     else:  # CONNECT or WELD: body1's point p1 on body2's point p2
         body1, body2 = int(p[u + U_BODY1]), int(p[u + U_BODY2])
         p1 = np.empty(3)
@@ -286,21 +289,21 @@ def unit_rows(p, k, q, v, w, acc, J, jdot, g, row):
 
 
 @njit(cache=True)
-def all_rows(p, q, v, w, acc, J, jdot, g):
+def all_rows(p, q, v, w, acc, J, jdot, g, with_bias=True):
     """Every unit's rows, in unit order, into J (rows, nv), jdot (rows,), g (rows,) (see unit_rows)."""
     row = 0
     for k in range(unit_count(p)):
-        row += unit_rows(p, k, q, v, w, acc, J, jdot, g, row)
+        row += unit_rows(p, k, q, v, w, acc, J, jdot, g, row, with_bias)
 
 
 @njit(cache=True)
-def some_rows(p, q, v, w, acc, J, jdot, g, rows_wanted):
+def some_rows(p, q, v, w, acc, J, jdot, g, rows_wanted, with_bias=True):
     """As all_rows for the units with a row flagged in rows_wanted (rows,); the other rows are left as they were."""
     for k in range(unit_count(p)):
         u = unit_at(p, k)
         row = int(p[u + U_ROW0])
         if rows_wanted[row] != 0.0:
-            unit_rows(p, k, q, v, w, acc, J, jdot, g, row)
+            unit_rows(p, k, q, v, w, acc, J, jdot, g, row, with_bias)
 
 
 __all__ = ["block_offset", "unit_count", "row_count", "unit_at", "mode_at", "bias_accelerations", "unit_rows",

@@ -26,10 +26,13 @@ from rbody.engine.constraints.table import CONTACT_KINDS, FRICTION, UNILATERAL, 
 
 
 def sample_rows(table: ConstraintTable, params: np.ndarray, samples: np.ndarray,
-                modes: np.ndarray, slips: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                modes: np.ndarray, slips: np.ndarray | None = None,
+                forces_known: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """(forces (S, rows), errors (S, rows)) at each saved state (S, n) in its mode (S, units): every row's force
     (runner docstring) and its error: an equality's residual [m or rad], a limit's overshoot past its stop min(g, 0),
-    0 for friction rows. slips (S, units, 3): the sliding contacts' directions at each state (event-driven runs)."""
+    0 for friction rows. slips (S, units, 3): the sliding contacts' directions at each state (event-driven runs).
+    forces_known: the run has its own forces (time-stepping: impulse / dt); forces are then left 0 here and the
+    errors come from the gaps alone (dynamics.state_gaps: no mass matrix, no Jacobian)."""
     p = np.array(params, dtype=np.float64)
     nq, nv, _n = dyn.sizes(p)
     a0, na = dyn.act_range(p)
@@ -48,6 +51,10 @@ def sample_rows(table: ConstraintTable, params: np.ndarray, samples: np.ndarray,
             for k in range(len(table.units)):
                 start = table.offset + C_HEADER + UNIT_SIZE * k + U_SLIP
                 p[start:start + 3] = slips[s, k]
+        if forces_known:
+            forces[s] = 0.0
+            dyn.state_gaps(p, samples[s], errors[s])
+            continue
         _effective_qpos(p, samples[s], q, 0)
         dyn.mode_accel(p, q, samples[s, nq:nq + nv], samples[s, a0:a0 + na], qacc, forces[s], errors[s])
     limits = np.isin(codes, UNILATERAL)
@@ -92,8 +99,10 @@ def run_constrained(description: str, model, method: str, dt: float, nsteps: int
                 value = control(k, b, t, y)
                 p[at:at + value.shape[0]] = value
         out[:, b], modes[:, b] = run.run(y0[b], dt, nsteps, save_every, hook)
-        forces[:, b], errors[:, b] = sample_rows(table, params[b], out[:, b], modes[:, b], getattr(run, "slips", None))
-        if getattr(run, "forces", None) is not None:  # time-stepping: the mean force of the step (impulse / dt)
+        stepped = getattr(run, "forces", None) is not None  # time-stepping: the mean force of the step (impulse / dt)
+        forces[:, b], errors[:, b] = sample_rows(table, params[b], out[:, b], modes[:, b], getattr(run, "slips", None),
+                                                 forces_known=stepped)
+        if stepped:
             forces[:, b] = run.forces
         impacts += run.log.impacts
         changes += run.log.mode_changes

@@ -53,11 +53,13 @@ from rbody.engine.constraints import dynamics as dyn
 from rbody.engine.elements import A_ACTADR, ACT_SIZE, X_ACT, X_ACTIVE, X_NU, extension_start
 from rbody.engine.mujoco_steps import EULER, IMPLICIT, IMPLICITFAST, MUJOCO_METHODS, integrate_positions, \
     solve_general, step_matrices
-from rbody.engine.constraints.jacobians import row_count, unit_at, unit_count
+from rbody.engine.constraints.jacobians import row_count, unit_at, unit_count, unit_rows
+from rbody.engine.contacts.rows import GEOMETRY_WORK, contact_geometry
+from rbody.engine.multibody import _effective_qpos
 from rbody.engine.constraints.cone import NORMAL, ROW, TANGENT, TANGENT2, cone_pgs, cone_polish, stick_polish
 from rbody.engine.constraints.solver import mlcp_exact_from, mlcp_pgs, natural_residual
 from rbody.engine.constraints.table import (C_HEADER, CONE, CONNECT, CONTACT, CONTACT1, CONTACT_KINDS, COUPLING,
-                                            FRICTION, LOWER, U_BOUND, U_KIND,
+                                            FRICTION, LOWER, U_BODY1, U_BODY2, U_BOUND, U_KIND,
                                             UNIT_SIZE,
                                             U_RESTITUTION, U_ROW0, U_ROWS, UPPER, WELD, ConstraintTable)
 from rbody.errors import SimulationError
@@ -107,6 +109,52 @@ def mujoco_free_velocity(p, y, h, mode, M, f, vfree, metric):
 
 
 @njit(cache=True)
+def smooth_rows(p):
+    """(rows,) 1 on the rows of every unit but contacts (limits, friction, equalities: computed at every step)."""
+    flags = np.zeros(row_count(p))
+    for k in range(unit_count(p)):
+        u = unit_at(p, k)
+        kind = int(p[u + U_KIND])
+        if kind != CONTACT and kind != CONTACT1:
+            flags[int(p[u + U_ROW0])] = 1.0
+    return flags
+
+
+@njit(cache=True)
+def near_contacts(p, q, w, acc, vfree, h, J, jdot, g):
+    """Every contact's gap into g, and the rows J of the contacts a step can involve: touching (g <= TOUCH_TOLERANCE)
+    or closing within it (g + h n . (v_b - v_a) < 0 at the contact point, the bodies moving with the free velocities
+    vfree (nv,)). The others keep J = 0: a model's far candidates (a humanoid's limbs against the floor in the air)
+    cost a distance each, not a row of nv numbers. After the step's kinematics in the workspace w (its velocities are
+    then vfree's)."""
+    mb.velocities(p, vfree, w)
+    ws = mb._views(p, w)
+    normal, point = np.empty(3), np.empty(3)
+    work = np.empty(GEOMETRY_WORK)
+    for k in range(unit_count(p)):
+        u = unit_at(p, k)
+        kind = int(p[u + U_KIND])
+        if kind != CONTACT and kind != CONTACT1:
+            continue
+        row = int(p[u + U_ROW0])
+        gap = contact_geometry(p, w, u, normal, point, work)
+        g[row] = gap
+        closing = 0.0  # n . (v_b - v_a) at the contact point
+        for body, sign in ((int(p[u + U_BODY2]), 1.0), (int(p[u + U_BODY1]), -1.0)):
+            if body < 0:
+                continue
+            vel = ws.vel[body]
+            r0 = point[0] - ws.xorigin[body, 0]
+            r1 = point[1] - ws.xorigin[body, 1]
+            r2 = point[2] - ws.xorigin[body, 2]
+            closing += sign * (normal[0] * (vel[3] + vel[1] * r2 - vel[2] * r1)
+                               + normal[1] * (vel[4] + vel[2] * r0 - vel[0] * r2)
+                               + normal[2] * (vel[5] + vel[0] * r1 - vel[1] * r0))
+        if gap <= TOUCH_TOLERANCE or gap + h * closing < 0.0:
+            unit_rows(p, k, q, vfree, w, acc, J, jdot, g, row, False)
+
+
+@njit(cache=True)
 def positive_definite(A):
     """Whether the symmetric A (n, n) is positive definite (Cholesky's pivots all positive), A unchanged."""
     n = A.shape[0]
@@ -152,11 +200,16 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
     rows = row_count(p)
     M = np.empty((nv, nv))
     f = np.empty(nv)
-    J = np.empty((rows, nv))
-    jdot = np.empty(rows)
-    g = np.empty(rows)
-    dyn.state_rows(p, y, M, f, J, jdot, g)
+    J = np.zeros((rows, nv))  # a contact's rows stay 0 unless it touches or closes within the step (near_contacts)
+    jdot = np.zeros(rows)
+    g = np.zeros(rows)
+    q = np.empty(nq)
+    _effective_qpos(p, y, q, 0)
+    w = np.empty(mb.workspace_size(p))
+    acc = np.empty((int(p[mb.H_BODIES]), 6))
     at, na = dyn.act_range(p)
+    dyn.snapshot(p, q, y[nq:nq + nv], y[at:at + na], M, f, J, jdot, g, w, acc, smooth_rows(p), False)
+    dyn.add_sliding_friction(p, f)
     rates = np.empty(na)
     if na:  # the activations' rates at the step's start (advanced by explicit Euler below, as MuJoCo's Euler does)
         dyn.actuator_rates(p, y[:nq], y[nq:nq + nv], y[at:at + na], rates)
@@ -173,6 +226,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
         if mujoco_free_velocity(p, y, h, mode, M, f, vfree, stepped):
             metric = stepped
         L = np.linalg.cholesky(metric)
+    near_contacts(p, q, w, acc, vfree, h, J, jdot, g)
     jfree = J @ vfree
     index = np.empty(rows, dtype=np.int64)
     lo, hi, b = np.empty(rows), np.empty(rows), np.empty(rows)
@@ -300,7 +354,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
     velocity_rows = np.zeros(rows)
     worst = 0.0
     for _round in range(PROJECTION_ROUNDS):
-        dyn.state_rows(p, y, M, f, J, jdot, g)
+        dyn.state_gaps(p, y, g)
         grown = False  # a row newly flagged (nothing flagged at all: no projection, the step stands as it is)
         for k in range(unit_count(p)):
             u = unit_at(p, k)

@@ -72,26 +72,25 @@ def _point_box(c, r, pb, Rb, sb, k, dist, normal, point):
     """Contact k of a sphere (centre c, radius r; r = 0: a point) and a box (centre pb, axes Rb, half sizes sb), the
     normal from the sphere towards the box: along the line to the box's nearest point, or, with the centre inside
     the box, against the outward normal of the face of least depth."""
-    local = np.empty(3)
-    for i in range(3):
-        local[i] = Rb[0, i] * (c[0] - pb[0]) + Rb[1, i] * (c[1] - pb[1]) + Rb[2, i] * (c[2] - pb[2])
-    out = np.empty(3)
-    outside = 0.0
-    for i in range(3):
-        nearest = min(max(local[i], -sb[i]), sb[i])
-        out[i] = local[i] - nearest
-        outside += out[i] * out[i]
+    l0 = Rb[0, 0] * (c[0] - pb[0]) + Rb[1, 0] * (c[1] - pb[1]) + Rb[2, 0] * (c[2] - pb[2])  # c in the box's axes
+    l1 = Rb[0, 1] * (c[0] - pb[0]) + Rb[1, 1] * (c[1] - pb[1]) + Rb[2, 1] * (c[2] - pb[2])
+    l2 = Rb[0, 2] * (c[0] - pb[0]) + Rb[1, 2] * (c[1] - pb[1]) + Rb[2, 2] * (c[2] - pb[2])
+    o0 = l0 - min(max(l0, -sb[0]), sb[0])  # the offset from the box's nearest point
+    o1 = l1 - min(max(l1, -sb[1]), sb[1])
+    o2 = l2 - min(max(l2, -sb[2]), sb[2])
+    outside = o0 * o0 + o1 * o1 + o2 * o2
     if outside > 0.0:
         length = np.sqrt(outside)
         d = length - r
         for a in range(3):  # from the sphere towards the box: against the outward offset
-            normal[k, a] = -(Rb[a, 0] * out[0] + Rb[a, 1] * out[1] + Rb[a, 2] * out[2]) / length
+            normal[k, a] = -(Rb[a, 0] * o0 + Rb[a, 1] * o1 + Rb[a, 2] * o2) / length
     else:  # the centre inside the box (or on its surface): out through the face of least depth
-        face, depth = 0, sb[0] - abs(local[0])
-        for i in range(1, 3):
-            if sb[i] - abs(local[i]) < depth:
-                face, depth = i, sb[i] - abs(local[i])
-        side = 1.0 if local[face] >= 0.0 else -1.0
+        face, depth, along = 0, sb[0] - abs(l0), l0
+        if sb[1] - abs(l1) < depth:
+            face, depth, along = 1, sb[1] - abs(l1), l1
+        if sb[2] - abs(l2) < depth:
+            face, depth, along = 2, sb[2] - abs(l2), l2
+        side = 1.0 if along >= 0.0 else -1.0
         d = -depth - r
         for a in range(3):
             normal[k, a] = -side * Rb[a, face]
@@ -134,15 +133,16 @@ def collide(ta, pa, Ra, sa, tb, pb, Rb, sb, dist, normal, point, only=-1):
     geom b, into dist (MAX_SLOTS,) [m], normal (MAX_SLOTS, 3) from a to b and point (MAX_SLOTS, 3) [m]; returns
     their count (SLOTS of the pair), or -1 for a pair of types it does not compute. only >= 0: that candidate's
     entries alone are written (a contact unit is one candidate: a box pair's other 15 corners cost nothing)."""
+    scratch = np.empty(12)  # the small vectors below, one allocation
     if ta == PLANE:
-        n = np.empty(3)
+        n = scratch[0:3]
         for a in range(3):
             n[a] = Ra[a, 2]
         if tb == SPHERE:
             _plane_point(pa, n, pb, sb[0], 0, dist, normal, point)
             return 1
         if tb == CAPSULE:
-            end = np.empty(3)
+            end = scratch[3:6]
             for k in range(2):
                 if only >= 0 and k != only:
                     continue
@@ -152,7 +152,7 @@ def collide(ta, pa, Ra, sa, tb, pb, Rb, sb, dist, normal, point, only=-1):
                 _plane_point(pa, n, end, sb[0], k, dist, normal, point)
             return 2
         if tb == BOX:
-            corner = np.empty(3)
+            corner = scratch[3:6]
             for k in range(8):
                 if only >= 0 and k != only:
                     continue
@@ -173,7 +173,7 @@ def collide(ta, pa, Ra, sa, tb, pb, Rb, sb, dist, normal, point, only=-1):
             for a in range(3):
                 s += (pa[a] - pb[a]) * Rb[a, 2]
             s = min(max(s, -sb[1]), sb[1])
-            centre = np.empty(3)
+            centre = scratch[0:3]
             for a in range(3):
                 centre[a] = pb[a] + s * Rb[a, 2]
             _sphere_sphere(pa, sa[0], centre, sb[0], 0, dist, normal, point)
@@ -183,7 +183,7 @@ def collide(ta, pa, Ra, sa, tb, pb, Rb, sb, dist, normal, point, only=-1):
             return 1
         return -1
     if ta == BOX and tb == BOX:  # each box's corners against the other box (vertex-face contacts)
-        corner = np.empty(3)
+        corner = scratch[0:3]
         for k in range(16):
             if only >= 0 and k != only:
                 continue
@@ -201,14 +201,14 @@ def collide(ta, pa, Ra, sa, tb, pb, Rb, sb, dist, normal, point, only=-1):
                     normal[k, a] = -normal[k, a]
         return 16
     if ta == CAPSULE and tb == CAPSULE:
-        ua = np.empty(3)
-        ub = np.empty(3)
+        ua = scratch[0:3]
+        ub = scratch[3:6]
         for a in range(3):
             ua[a] = Ra[a, 2]
             ub[a] = Rb[a, 2]
         s, t = segment_closest(pa, ua, sa[1], pb, ub, sb[1])
-        ca = np.empty(3)
-        cb = np.empty(3)
+        ca = scratch[6:9]
+        cb = scratch[9:12]
         for a in range(3):
             ca[a] = pa[a] + s * ua[a]
             cb[a] = pb[a] + t * ub[a]

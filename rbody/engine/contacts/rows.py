@@ -42,15 +42,23 @@ def geom_pose(p, w, body, pos_at, mat_at, pos, mat):
     return
 
 
+GEOMETRY_WORK = 24 + 7 * MAX_SLOTS  # the floats contact_geometry's scratch holds
+
+
 @njit(cache=True)
-def contact_geometry(p, w, u, normal, point):
+def contact_geometry(p, w, u, normal, point, work=None):
     """The gap g [m] of the contact unit whose record starts at u (returned), its normal (3,) from geom a to geom b
-    and its point (3,) [m, world], after the tree's kinematics in the workspace w."""
-    pa, pb = np.empty(3), np.empty(3)
-    Ra, Rb = np.empty((3, 3)), np.empty((3, 3))
+    and its point (3,) [m, world], after the tree's kinematics in the workspace w. work: None, or scratch of
+    GEOMETRY_WORK floats a caller looping over many units passes to spare the allocations."""
+    if work is None:
+        work = np.empty(GEOMETRY_WORK)
+    pa, pb = work[0:3], work[3:6]
+    Ra, Rb = work[6:15].reshape((3, 3)), work[15:24].reshape((3, 3))
     geom_pose(p, w, int(p[u + U_BODY1]), u + U_GPOS_A, u + U_GMAT_A, pa, Ra)
     geom_pose(p, w, int(p[u + U_BODY2]), u + U_GPOS_B, u + U_GMAT_B, pb, Rb)
-    dist, normals, points = np.empty(MAX_SLOTS), np.empty((MAX_SLOTS, 3)), np.empty((MAX_SLOTS, 3))
+    dist = work[24:24 + MAX_SLOTS]
+    normals = work[24 + MAX_SLOTS:24 + 4 * MAX_SLOTS].reshape((MAX_SLOTS, 3))
+    points = work[24 + 4 * MAX_SLOTS:24 + 7 * MAX_SLOTS].reshape((MAX_SLOTS, 3))
     collide(int(p[u + U_GTYPE_A]), pa, Ra, p[u + U_GSIZE_A:u + U_GSIZE_A + 3], int(p[u + U_GTYPE_B]), pb, Rb,
             p[u + U_GSIZE_B:u + U_GSIZE_B + 3], dist, normals, points, int(p[u + U_DOF]))
     k = int(p[u + U_DOF])
@@ -60,4 +68,4 @@ def contact_geometry(p, w, u, normal, point):
     return dist[k]
 
 
-__all__ = ["geom_pose", "contact_geometry"]
+__all__ = ["geom_pose", "contact_geometry", "GEOMETRY_WORK"]
