@@ -364,3 +364,27 @@ def test_limit_disable_and_autolimits_are_honoured_for_tendons():
     assert any("tendon limits ignored" in note for note in off.import_notes)
     with pytest.raises(MJCFError, match="autolimits"):
         from_mjcf(base.format(compiler='<compiler autolimits="false"/>', flag="", rod=ROD))
+
+
+def test_to_mjcf_writes_the_tendon_constraints_and_reads_them_back():
+    """A layout's tendon range, frictionloss, restitution and tendon equality survive to_mjcf and from_mjcf; MuJoCo
+    compiles the file with the same limits, friction and equality."""
+    mujoco = pytest.importorskip("mujoco")
+    from rbody import to_mjcf
+
+    rod = Inertia(1.0, (0, 0, -0.5), np.diag([1 / 12, 1 / 12, 1e-6]))
+    layout = Layout(bodies=(Body("a", rod), Body("b", rod, pos=(2, 0, 0))),
+                    joints=(Joint("qa", "hinge", "a", axis=(0, 1, 0)), Joint("qb", "hinge", "b", axis=(0, 1, 0))),
+                    tendons=(Tendon("ta", "fixed", joints=(("qa", 1.0),), range=(-0.5, 0.7), frictionloss=0.1,
+                                    restitution=0.5),
+                             Tendon("tb", "fixed", joints=(("qb", 2.0),))),
+                    equalities=(Equality("tie", "tendon", tendon1="tb", tendon2="ta", polycoef=(0.1, 0.5, 0, 0, 0)),))
+    text = to_mjcf(Scene.from_layout(layout, t_end=1.0))
+    model = mujoco.MjModel.from_xml_string(text)
+    np.testing.assert_allclose(model.tendon_range[0], (-0.5, 0.7))
+    assert model.tendon_limited[0] == 1 and model.tendon_frictionloss[0] == pytest.approx(0.1)
+    np.testing.assert_allclose(model.eq_data[0, :5], (0.1, 0.5, 0, 0, 0))
+    back = from_mjcf(text).tree
+    assert back.tendons[0].range == (-0.5, 0.7) and back.tendons[0].frictionloss == 0.1
+    assert back.tendons[0].restitution == 0.5
+    assert back.equalities == layout.equalities
