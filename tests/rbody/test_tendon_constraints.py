@@ -388,3 +388,35 @@ def test_to_mjcf_writes_the_tendon_constraints_and_reads_them_back():
     assert back.tendons[0].range == (-0.5, 0.7) and back.tendons[0].frictionloss == 0.1
     assert back.tendons[0].restitution == 0.5
     assert back.equalities == layout.equalities
+
+
+def test_a_spatial_tendons_rows_are_its_length_s_derivatives():
+    """On a double pendulum with a spatial tendon from a world site over a site of each link, at a moving state: the
+    limit rows' J is -+ dL/dq (MuJoCo's ten_J from Multibody.tendons) and their J'v is -+ the second derivative of L
+    along the motion with qacc = 0 (q = q0 + v t), by a central difference of L'(t) = J(q0 + v t) v (to 1e-8)."""
+    from rbody.engine.constraints import dynamics as dyn
+    from rbody.engine.multibody import workspace_size
+
+    xml = f"""<mujoco><worldbody><site name="hook" pos="0.3 0.1 0.4"/>
+      <body name="a"><joint name="qa" axis="0 1 0"/>{ROD}<site name="s1" pos="0.1 0 -0.6"/>
+        <body name="b" pos="0 0 -1"><joint name="qb" axis="1 0 0"/>{ROD}<site name="s2" pos="0 0.2 -0.9"/></body>
+      </body></worldbody>
+    <tendon><spatial name="cable" range="0.5 3"><site site="hook"/><site site="s1"/><site site="s2"/></spatial>
+    </tendon></mujoco>"""
+    scene = from_mjcf(xml)
+    model, table = scene.multibody, scene.constraint_table
+    q0, v = np.array([0.7, -0.4]), np.array([1.3, -2.1])
+    p = table.row(model.params)
+    nv, rows = model.nv, table.rows
+    M, f, J = np.empty((nv, nv)), np.empty(nv), np.empty((rows, nv))
+    jdot, g = np.empty(rows), np.empty(rows)
+    dyn.snapshot(p, q0, v, np.zeros(0), M, f, J, jdot, g, np.empty(workspace_size(p)), np.empty((2, 6)))
+    tendon = model.tendons(q0, v)
+    np.testing.assert_allclose(J[0], tendon["jacobian"][0], rtol=0, atol=1e-14)
+    np.testing.assert_allclose(J[1], -tendon["jacobian"][0], rtol=0, atol=1e-14)
+    assert g[0] == pytest.approx(tendon["length"][0] - 0.5, abs=1e-14)
+    h = 1e-4
+    rate = [model.tendons(q0 + s * h * v, v)["velocity"][0] for s in (-1.0, 1.0)]
+    second = (rate[1] - rate[0]) / (2 * h)
+    assert jdot[0] == pytest.approx(second, abs=1e-8) and jdot[1] == pytest.approx(-second, abs=1e-8)
+    assert abs(second) > 0.1  # the path bends: the term is not trivially 0
