@@ -620,16 +620,16 @@ class Layout:
 
     @property
     def joint_constraints(self) -> bool:
-        """True when a joint has a range or frictionloss or an equality is active (the constraints between joints
-        and bodies, contacts aside)."""
+        """True when a joint or a tendon has a range or frictionloss or an equality is active (the constraints
+        between joints, tendons and bodies, contacts aside)."""
         return (any(j.range is not None or j.frictionloss > 0 for j in self.joints)
                 or any(t.range is not None or t.frictionloss > 0 for t in self.tendons)
                 or any(e.active for e in self.equalities))
 
     @property
     def constrained(self) -> bool:
-        """True when a joint has a range or frictionloss, an equality is active or contacts are listed: the model
-        then runs through the constraint layer (rbody.engine.constraints)."""
+        """True when a joint or a tendon has a range or frictionloss, an equality is active or contacts are listed:
+        the model then runs through the constraint layer (rbody.engine.constraints)."""
         return self.joint_constraints or bool(self.contacts)
 
     def __post_init__(self) -> None:
