@@ -420,3 +420,40 @@ def test_a_spatial_tendons_rows_are_its_length_s_derivatives():
     second = (rate[1] - rate[0]) / (2 * h)
     assert jdot[0] == pytest.approx(second, abs=1e-8) and jdot[1] == pytest.approx(-second, abs=1e-8)
     assert abs(second) > 0.1  # the path bends: the term is not trivially 0
+
+
+@pytest.mark.parametrize("friction", [1.5, 12.0])
+def test_a_tendon_with_dry_friction_on_its_stop_leaves_it_or_sticks_there_as_the_spring_against_F_says(friction):
+    """The block on its spring (k = 50 N/m, m = 2 kg) with a tendon L = x that has dry friction F and a stop at
+    x = -0.2 (e = 0), released at x = 1: it slides left about the shifted equilibrium +F/k, hits the stop at
+    t1 = acos((-0.2 - F/k) / (1 - F/k)) / w, and there the spring pushes with k 0.2 = 10 N: F = 1.5 N cannot hold it
+    and it slides back, turning at -F/k + (0.2 - F/k) half a period later; F = 12 N holds it on its stop for ever
+    (the stop's and the friction's rows merged: the friction pulls up to F). The same run, bit for bit, as the joint's
+    own range and frictionloss."""
+    reach = friction / K
+    xml = f"""<mujoco><option gravity="0 0 0"/><worldbody><body name="block">
+      <joint name="x" type="slide" axis="1 0 0" stiffness="{K}"/>
+      <inertial pos="0 0 0" mass="{M_BLOCK}" diaginertia="0.01 0.01 0.01"/></body></worldbody>
+    <tendon><fixed name="cable" frictionloss="{friction}" range="-0.2 5"><joint joint="x" coef="1"/></fixed></tendon>
+    </mujoco>"""
+    run = simulate(from_mjcf(xml, qpos0=[1.0], t_end=1.5), dt=1e-3, method="rk4")
+    w = math.sqrt(K / M_BLOCK)
+    t1 = math.acos((-0.2 - reach) / (1 - reach)) / w
+    what, times = run.events["what"], run.events["time"]
+    assert what[0] == "impact" and times[0] == pytest.approx(t1, abs=1e-10)
+    x = run["qpos"][:, 0]
+    assert x.min() >= -0.2 - 1e-13
+    if friction < K * 0.2:
+        slips = times[what == "slip"]  # the friction turns at the stop (at t1), then at the turning point
+        assert slips[0] == times[0]
+        turn = slips[1]
+        assert turn == pytest.approx(t1 + math.pi / w, abs=1e-10)
+        assert x[np.argmin(np.abs(run.t - turn))] == pytest.approx(-reach + (0.2 - reach), abs=1e-6)
+    else:
+        held = run.t > t1 + 1e-3
+        np.testing.assert_allclose(x[held], -0.2, rtol=0, atol=1e-13)
+        assert np.all(run["sticking"][held, 0]) or np.all(run["active_limits"][held, 0])
+    joint = xml.replace(f' frictionloss="{friction}" range="-0.2 5"', "").replace(
+        f'stiffness="{K}"', f'stiffness="{K}" frictionloss="{friction}" range="-0.2 5"')
+    twin = simulate(from_mjcf(joint, qpos0=[1.0], t_end=1.5), dt=1e-3, method="rk4")
+    np.testing.assert_array_equal(x, twin["qpos"][:, 0])
