@@ -327,11 +327,13 @@ class Equality:
     kind "joint": qpos[joint1] - ref1 = c0 + c1 d + c2 d^2 + c3 d^3 + c4 d^4, d = qpos[joint2] - ref2, with
             polycoef (c0, ..., c4) [m or rad, then per unit]; joint2 None: qpos[joint1] - ref1 = c0. Hinge,
             slide and roll joints (ref: the joint's ref, MuJoCo's qpos0).
-    kind "tendon": two tendons' lengths by the same polynomial (tendon1, tendon2): the constraint layer holds no
-            tendon rows yet, so compiling an active one raises NotImplementedError.
+    kind "tendon": L1 - L1_0 = c0 + c1 d + c2 d^2 + c3 d^3 + c4 d^4, d = L2 - L2_0, L1 and L2 the lengths of
+            tendons tendon1 and tendon2 and L1_0, L2_0 their lengths at the reference pose (MuJoCo's qpos0 and
+            tendon_length0); tendon2 None: L1 - L1_0 = c0 (MuJoCo's convention, engine_core_constraint.c).
     body2 defaults to the world. active False: the constraint is declared but does nothing (MJCF's active).
     Constraint forces are reported per equality (rbody.engine.constraints): connect 3 rows (force on body1,
-    world frame [N]), weld 6 (force [N], then moment [N m], world frame), joint 1 (generalised force on joint1).
+    world frame [N]), weld 6 (force [N], then moment [N m], world frame), joint 1 (generalised force on joint1), tendon
+    1 (force along tendon1).
     """
 
     name: str
@@ -375,6 +377,8 @@ class Equality:
             raise ValueError(f"{what}: body1 and body2 are both {self.body1!r}: a {self.kind} joins two bodies")
         if self.kind == "joint" and self.joint1 == self.joint2:
             raise ValueError(f"{what}: joint1 and joint2 are both {self.joint1!r}")
+        if self.kind == "tendon" and self.tendon1 == self.tendon2:
+            raise ValueError(f"{what}: tendon1 and tendon2 are both {self.tendon1!r}")
 
 
 TENDON_KINDS = ("fixed", "spatial")
@@ -392,6 +396,12 @@ class Tendon:
              of L outside [springlength[0], springlength[1]] (a dead band; equal ends: a plain spring);
              springlength None: both ends at the length in the reference pose at the joints' springref
              (MuJoCo's springlength="-1 -1")
+    range:   None, or (lower, upper) with lower < upper: the tendon's length is held within it rigidly (a unilateral
+             constraint of the constraint layer on each side, rbody.engine.constraints: a rope that goes taut at
+             its upper end, a fixed tendon coupling joints to a stop) [m, or the units of L]
+    frictionloss: dry friction along the tendon [N, or the units of force dual to L], >= 0: the tendon sticks
+             while the force it needs stays within it, and slides against it otherwise (Coulomb)
+    restitution: Newton's coefficient e in [0, 1] of an impact on the tendon's range (0: it stays at its limit)
     Units: L in m for a spatial tendon, in the units of coef * q for a fixed one.
     """
 
@@ -402,6 +412,9 @@ class Tendon:
     stiffness: float = 0.0
     damping: float = 0.0
     springlength: tuple[float, float] | None = None
+    range: tuple[float, float] | None = None
+    frictionloss: float = 0.0
+    restitution: float = 0.0
 
     def __post_init__(self) -> None:
         what = f"tendon {self.name!r}"
@@ -425,6 +438,16 @@ class Tendon:
             if low > high:
                 raise ValueError(f"{what}: springlength={self.springlength!r}: expected (low, high) with low <= high")
             object.__setattr__(self, "springlength", (low, high))
+        if self.range is not None:
+            low, high = finite_array(self.range, f"{what}: range", shape=(2,)).tolist()
+            if not low < high:
+                raise ValueError(f"{what}: range={self.range!r}: expected (lower, upper) with lower < upper")
+            object.__setattr__(self, "range", (low, high))
+        friction = finite_array(self.frictionloss, f"{what}: frictionloss", shape=())
+        object.__setattr__(self, "frictionloss", float(nonnegative(friction, f"{what}: frictionloss")))
+        restitution = finite_array(self.restitution, f"{what}: restitution", shape=())
+        object.__setattr__(self, "restitution", float(in_interval(restitution, f"{what}: restitution", 0.0, 1.0,
+                                                                  closed=True)))
 
 
 ACTUATOR_DYNAMICS = ("none", "integrator", "filter", "filterexact")
@@ -597,15 +620,16 @@ class Layout:
 
     @property
     def joint_constraints(self) -> bool:
-        """True when a joint has a range or frictionloss or an equality is active (the constraints between joints
-        and bodies, contacts aside)."""
+        """True when a joint or a tendon has a range or frictionloss or an equality is active (the constraints
+        between joints, tendons and bodies, contacts aside)."""
         return (any(j.range is not None or j.frictionloss > 0 for j in self.joints)
+                or any(t.range is not None or t.frictionloss > 0 for t in self.tendons)
                 or any(e.active for e in self.equalities))
 
     @property
     def constrained(self) -> bool:
-        """True when a joint has a range or frictionloss, an equality is active or contacts are listed: the model
-        then runs through the constraint layer (rbody.engine.constraints)."""
+        """True when a joint or a tendon has a range or frictionloss, an equality is active or contacts are listed:
+        the model then runs through the constraint layer (rbody.engine.constraints)."""
         return self.joint_constraints or bool(self.contacts)
 
     def __post_init__(self) -> None:

@@ -3,7 +3,8 @@ engine_forward.c mj_fwdActuation), over the force-element section of the params 
 
 Tendon length L and Jacobian J (dL/dq as a row over the degrees of freedom, L' = J qvel):
 - fixed: L = sum coef_k q_k (q itself, not q - ref), J = coef_k at each joint's degree of freedom;
-- spatial (sites only): L = sum |x_{k+1} - x_k| over consecutive sites, world positions x = xpos + xmat point;
+- spatial (sites only): L = sum |x_{k+1} - x_k| over consecutive sites, world positions x = xorigin + xpos + xmat
+  point (xpos about the origin of the body's tree);
   where two consecutive sites lie on different bodies, J += u^T (J_{k+1} - J_k), u the unit vector from x_k to
   x_{k+1} and J_k the point Jacobian of x_k (MuJoCo skips pairs on one body: their distance is constant).
 Actuator length, moment (its row of dL/dq) and velocity L' = moment . qvel (transmission):
@@ -66,7 +67,8 @@ def add_point_jacobian(p, S, body, x, direction, scale, row):
 
 @njit(cache=True, inline="always")
 def site_position(p, xpos, xmat, body, point, out):
-    """World position (3,) of `point` (3,) fixed in `body`'s frame (-1: the world frame)."""
+    """Position (3,) of `point` (3,) fixed in `body`'s frame (-1: the world frame), about the origin of body's tree
+    (rbody.engine.multibody: xpos is; add xorigin for the world position)."""
     if body < 0:
         for a in range(3):
             out[a] = point[a]
@@ -104,8 +106,9 @@ def tendon_kinematics(p, q, v, w, length, velocity, J):
                 b0, b1 = int(p[e0]), int(p[e1])
                 site_position(p, xpos, xmat, b0, p[e0 + 1:e0 + 4], x0)
                 site_position(p, xpos, xmat, b1, p[e1 + 1:e1 + 4], x1)
-                for a in range(3):
-                    u[a] = x1[a] - x0[a]
+                for a in range(3):  # sites about their trees' origins: the origins' difference first
+                    u[a] = ((ws.xorigin[b1, a] if b1 >= 0 else 0.0) - (ws.xorigin[b0, a] if b0 >= 0 else 0.0)) \
+                        + (x1[a] - x0[a])
                 distance = np.sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2])
                 total += distance
                 if b0 != b1:

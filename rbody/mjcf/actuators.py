@@ -21,7 +21,11 @@ adhesion, pid, dcmotor and orientation actuators, plugins, user (callback) dynam
 damping and armature, delays.
 
 Tendons: <fixed> (joints with coef) and <spatial> through <site>s only; a <geom> wrap or a <pulley> is refused,
-and so are a tendon's armature, its limits and its frictionloss (constraints: they are not modelled here).
+and so is a tendon's armature. Its limits (range, when limited="true", or "auto" with compiler autolimits and a
+range; at range less margin, as joints') and its frictionloss are rows of the constraint layer, held rigidly
+(rbody.engine.constraints); <flag limit="disable"/> and <flag frictionloss="disable"/> drop them (noted), and
+solreflimit, solimplimit, solreffriction, solimpfriction are noted as ignored. Restitution of a tendon's limit:
+<custom><numeric name="rbody.restitution.TENDON" data="e"/> (rbody.mjcf.constraints), else the model's.
 springlength: one value a is (a, a); absent ("-1 -1") the length at the reference pose (rbody.layout.Tendon).
 """
 
@@ -240,9 +244,10 @@ def read_tendon(element: Element, attrib: dict) -> TendonSpec:
 
 
 def tendon_of(spec: TendonSpec, name: str, sites: dict, spring_on: bool, damper_on: bool,
-              limits_on: bool, frictionloss_on: bool, autolimits: bool, notes) -> Tendon:
-    """The rbody Tendon of a read tendon; sites: site name -> (body name or "world", point in that body's frame).
-    Refuses what applies forces rbody does not model (limits, frictionloss, armature, polynomial springs)."""
+              limits_on: bool, frictionloss_on: bool, autolimits: bool, notes, restitution: float = 0.0) -> Tendon:
+    """The rbody Tendon of a read tendon; sites: site name -> (body name or "world", point in that body's frame);
+    restitution: Newton's coefficient of its limit's impacts. Its range (when limited) and frictionloss as the
+    flags allow (module docstring); refuses what rbody does not model (armature, polynomial springs)."""
     element, attrib = spec.element, spec.attrib
     for key in ("stiffness", "damping"):
         if key in attrib and np.any(numbers(element, key, attrib)[1:] != 0):
@@ -255,11 +260,33 @@ def tendon_of(spec: TendonSpec, name: str, sites: dict, spring_on: bool, damper_
             raise element.error(f"{key}={value!r}: must be >= 0")
     if number(element, "armature", attrib, 0.0) != 0:
         raise element.error("tendon armature (inertia added along the tendon) is not modelled")
-    if frictionloss_on and number(element, "frictionloss", attrib, 0.0) != 0:
-        raise element.error("tendon frictionloss (dry friction, a constraint) is not modelled")
+    frictionloss = number(element, "frictionloss", attrib, 0.0)
+    if frictionloss < 0:
+        raise element.error(f"frictionloss={frictionloss!r}: must be >= 0 (a dry friction force)")
+    if frictionloss and not frictionloss_on:
+        notes("tendon frictionloss", "tendon frictionloss ignored (<flag frictionloss=\"disable\"/>)")
+        frictionloss = 0.0
     limited = choice(element, "limited", attrib, LIMITED, "auto")
-    if limits_on and (limited == "true" or (limited == "auto" and autolimits and "range" in attrib)):
-        raise element.error("tendon limits (range, a constraint) are not modelled")
+    tendon_range = None
+    if limited == "true" or (limited == "auto" and autolimits and "range" in attrib):
+        if "range" not in attrib:
+            raise element.error("limited=\"true\" needs a range")
+        low, high = numbers(element, "range", attrib, 2)
+        if not low < high:
+            raise element.error(f"range={attrib['range']!r}: a tendon's range needs lower < upper")
+        margin = number(element, "margin", attrib, 0.0)
+        if not low + margin < high - margin:
+            raise element.error(f"range={attrib['range']!r} less margin={margin!r} leaves no room")
+        if limits_on:
+            tendon_range = (float(low + margin), float(high - margin))
+        else:
+            notes("tendon limit", "tendon limits ignored (<flag limit=\"disable\"/>)")
+    elif limited == "auto" and "range" in attrib and not autolimits:
+        raise element.error("range given but limited is \"auto\" without compiler autolimits: set limited=\"true\" "
+                            "or autolimits=\"true\" (MuJoCo's rule)")
+    soft = sorted(key for key in attrib if key.startswith(("solref", "solimp")))
+    if soft and (tendon_range is not None or frictionloss):
+        notes("tendon soft", f"tendon {', '.join(soft)} ignored: rbody's tendon limits and dry friction are rigid")
     if not spring_on and stiffness:
         notes("tendon spring", "tendon stiffness ignored (<flag spring=\"disable\"/>)")
         stiffness = 0.0
@@ -274,15 +301,18 @@ def tendon_of(spec: TendonSpec, name: str, sites: dict, spring_on: bool, damper_
             raise element.error("invalid springlength in tendon (low > high)")
         if not (low == -1 and high == -1):
             springlength = (float(low), float(high))
+    constraints = dict(range=tendon_range, frictionloss=frictionloss,
+                       restitution=restitution if tendon_range is not None else 0.0)
     if spec.kind == "fixed":
         return Tendon(name, "fixed", joints=tuple((joint, coef) for joint, coef, _child in spec.joints),
-                      stiffness=stiffness, damping=damping, springlength=springlength)
+                      stiffness=stiffness, damping=damping, springlength=springlength, **constraints)
     path = []
     for site, child in spec.sites:
         if site not in sites:
             raise child.error(f"site={site!r} is not a <site> of the model")
         path.append(sites[site])
-    return Tendon(name, "spatial", sites=tuple(path), stiffness=stiffness, damping=damping, springlength=springlength)
+    return Tendon(name, "spatial", sites=tuple(path), stiffness=stiffness, damping=damping, springlength=springlength,
+                  **constraints)
 
 
 def _limited(spec: ActuatorSpec, key: str, autolimits: bool) -> bool:
@@ -435,6 +465,11 @@ def tendon_xml(tendon: Tendon, springlength, attrs, vec, num, indent: str) -> li
         head["damping"] = num(tendon.damping)
     if springlength is not None:
         head["springlength"] = vec(springlength)
+    if tendon.range is not None:
+        head["limited"] = "true"
+        head["range"] = f"{num(tendon.range[0])} {num(tendon.range[1])}"
+    if tendon.frictionloss:
+        head["frictionloss"] = num(tendon.frictionloss)
     lines = [f"{indent}<{tendon.kind} {attrs(**head)}>"]
     if tendon.kind == "fixed":
         lines += [f"{indent}  <joint {attrs(joint=name, coef=num(coef))}/>" for name, coef in tendon.joints]

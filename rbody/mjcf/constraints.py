@@ -19,7 +19,10 @@ the reader notes them where a model sets them. What is read, as MuJoCo's compile
   completes an equality from the model's reference configuration qpos0 (a connect's point on body2; a weld's
   relative pose when relpose is not given), the reader does the same from the bodies' frames, so that the
   Equality it returns is explicit. ``<flag equality="disable"/>`` drops every equality (noted).
-  ``tendon`` equalities are refused (tendons are force elements, not yet rows of the constraint layer).
+  ``tendon`` (tendon1, tendon2, polycoef: L1 - L1_0 = P(L2 - L2_0), L_0 the lengths at qpos0, MuJoCo's
+  convention; rbody.layout.Equality) is read too; its tendons must be tendons of the model.
+- a tendon's limit restitution: ``name="rbody.restitution.TENDON"`` as for a joint (tendon and joint names share
+  the numerics' namespace; the model-wide ``rbody.restitution`` applies to tendon limits too).
 """
 
 from __future__ import annotations
@@ -68,7 +71,7 @@ def restitution_of(numerics: dict[str, np.ndarray], joint: str) -> float:
 
 
 def unknown_restitutions(numerics: dict[str, np.ndarray], joints: set[str]) -> list[str]:
-    """Restitution numerics that name no joint of the model (a typo would otherwise pass unseen)."""
+    """Restitution numerics that name no joint (nor tendon) of the model (a typo would otherwise pass unseen)."""
     prefix = RESTITUTION_NUMERIC + "."
     return sorted(name for name in numerics if name.startswith(prefix) and name[len(prefix):] not in joints)
 
@@ -117,10 +120,6 @@ class Frames:
 
 def equality_kind_error(element: Element) -> MJCFError | None:
     """The error for an equality element rbody cannot hold, or None."""
-    if element.tag == "tendon":
-        return element.error("tendon equality constraints are not supported: rbody's tendons are force elements "
-                             "(springs, dampers, actuator transmissions), not yet rows of the constraint layer; remove "
-                             "it or set active=\"false\"")
     if element.tag == "flex":
         return element.error("flex equality constraints are not supported (rbody models no deformable bodies)")
     if element.tag not in EQUALITY_ATTRS:
@@ -129,13 +128,24 @@ def equality_kind_error(element: Element) -> MJCFError | None:
 
 
 def equality_from(element: Element, attrib: dict, name: str, frames: Frames, sites: dict,
-                  joints: dict) -> Equality:
+                  joints: dict, tendons=frozenset()) -> Equality:
     """The rbody Equality of one MJCF equality element (attrib: its attributes over its class's defaults).
 
     frames: Frames of the model; sites: site name -> (MJCF body index, pos (3,), quat (4,)) in that body's frame;
-    joints: joint name -> rbody Joint (for a joint equality's kinds)."""
+    joints: joint name -> rbody Joint (for a joint equality's kinds); tendons: the model's tendon names."""
     active = boolean(element, "active", attrib, True)
     tag = element.tag
+    if tag == "tendon":
+        first, second = attrib.get("tendon1"), attrib.get("tendon2")
+        if first is None:
+            raise element.error("a tendon equality needs tendon1")
+        for tendon in (first, second):
+            if tendon is not None and tendon not in tendons:
+                raise element.error(f"tendon {tendon!r} is not a tendon of the model (tendons: {sorted(tendons)})")
+        coefficients = numbers(element, "polycoef", attrib, 5) if "polycoef" in attrib else np.array(
+            [0.0, 1.0, 0.0, 0.0, 0.0])
+        return Equality(name, "tendon", tendon1=first, tendon2=second, polycoef=tuple(coefficients.tolist()),
+                        active=active)
     if tag == "joint":
         first, second = attrib.get("joint1"), attrib.get("joint2")
         if first is None:

@@ -561,6 +561,9 @@ def _equality(e) -> str:
     if e.kind == "joint":
         joint2 = {"joint2": e.joint2} if e.joint2 else {}
         return f"<joint {_attrs(name=e.name, joint1=e.joint1, **joint2, polycoef=_vec(e.polycoef), **active)}/>"
+    if e.kind == "tendon":
+        tendon2 = {"tendon2": e.tendon2} if e.tendon2 else {}
+        return f"<tendon {_attrs(name=e.name, tendon1=e.tendon1, **tendon2, polycoef=_vec(e.polycoef), **active)}/>"
     return f"<{e.kind} {_attrs(name=e.name, site1=f'{e.name}_site1', site2=f'{e.name}_site2', **active)}/>"
 
 
@@ -664,6 +667,7 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
     equalities = table.equalities if table is not None else tuple(e for e in layout.equalities if e.kind == "joint")
     sites = _equality_sites(equalities)
     restitutions = [(j.name, j.restitution) for j in layout.joints if j.range is not None and j.restitution > 0]
+    restitutions += [(t.name, t.restitution) for t in layout.tendons if t.range is not None and t.restitution > 0]
 
     # --- the comment: what the model holds and where it came from ---
     counts = {kind: sum(j.kind == kind for j in layout.joints) for kind in ("hinge", "slide", "ball", "free", "roll")}
@@ -684,10 +688,12 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
         + f"; timestep {dt!r} s; integrator {integrator}.",
         f"Initial state: keyframe {INITIAL_KEY!r} (free joints: angular velocity in the body frame).",
     ]
-    if any(j.range is not None or j.frictionloss > 0 for j in layout.joints) or equalities:
+    if (any(j.range is not None or j.frictionloss > 0 for j in layout.joints) or equalities
+            or any(t.range is not None or t.frictionloss > 0 for t in layout.tendons)):
         lines.append("Joint limits, frictionloss and equalities as the scene gives them, at MuJoCo's default softness "
                      "(rbody holds them rigidly); connect and weld with sites at the points rbody joins; a limit's "
-                     "restitution as the custom numeric rbody.restitution.<joint> (MuJoCo ignores it).")
+                     "restitution as the custom numeric rbody.restitution.<joint> (MuJoCo ignores it); tendons' "
+                     "limits and frictionloss likewise (rbody.restitution.<tendon>).")
     if impacts:
         lines.append(f"Impacts (restitution > 0): contact springs solref=(-K, -B), solimp={CONTACT_SOLIMP}; elastic "
                      f"(e = 1): K=(1/dt)^2={1 / dt**2!r}, B=0; 0 < e < 1: K=(pi/({IMPACT_STEPS} dt))^2 with the "

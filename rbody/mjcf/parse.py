@@ -29,7 +29,7 @@ equal MuJoCo's body_mass, body_ipos and body_inertia/body_iquat to round-off):
   more than round-off (a small rotation left undone); rbody takes MuJoCo's, noting any difference
   beyond 1e-12, so that both engines run the same bodies;
 - joints hinge, slide, ball, free and ``<freejoint>``, with pos, axis, ref, damping, stiffness,
-  springref, armature, range, limited, margin and frictionloss, and ``<equality>`` connect, weld and joint,
+  springref, armature, range, limited, margin and frictionloss, and ``<equality>`` connect, weld, joint and tendon,
   held rigidly (rbody.mjcf.constraints: MuJoCo's defaults, active flags, what replaces solref and solimp, and
   the ``<custom>`` numeric that gives a limit its restitution); springdamper (MuJoCo's stiffness and damping from
   a time constant and damping ratio at the reference pose, hinge and slide); actuatorgravcomp,
@@ -40,7 +40,7 @@ equal MuJoCo's body_mass, body_ipos and body_inertia/body_iquat to round-off):
 - actuators (rbody.mjcf.actuators): <general>, <motor>, <position> (kp, kv, dampratio, timeconst, inheritrange),
   <velocity>, <intvelocity>, <damper>, with their one-default-per-class rule, ctrl/force/act ranges, actearly,
   gear, through a joint, a tendon or a site (no refsite); <fixed> and <spatial> tendons (through sites, no
-  wrapping) with stiffness, damping and springlength;
+  wrapping) with stiffness, damping and springlength, range (limited) and frictionloss held rigidly;
 - ``<option>``: timestep, gravity (along -z: rbody's scenes have gravity -g z), integrator (the scene's
   file_method: Euler -> "mujoco_euler", implicitfast, implicit, RK4 -> "rk4"), density, viscosity and wind
   (fluid forces: MuJoCo's inertia-box model, or its ellipsoid model on geoms with fluidshape="ellipsoid",
@@ -69,8 +69,7 @@ dynamic pair of their geoms.
 
 Refused (MJCFError, naming the element, its file and line): contacts rbody does not compute (a pair with a
 cylinder, ellipsoid, mesh or height field, condim 4 or 6) while the contact flag is on (set contype="0"
-conaffinity="0" on the geoms, or <flag contact="disable"/>); tendon and flex equalities; tendon limits,
-frictionloss and armature (the constraint layer holds joints' limits and friction, not yet tendons'), wrapping
+conaffinity="0" on the geoms, or <flag contact="disable"/>); flex equalities; tendon armature, wrapping
 tendons (geoms, pulleys); actuators that rbody does not model (muscle, cylinder, adhesion, pid, dcmotor,
 orientation; user dynamics, gains or biases; actuator damping or armature; body, slider-crank or refsite
 transmissions; see rbody.mjcf.actuators); springdamper on a ball or free joint; fluidshape="ellipsoid" on a mesh
@@ -851,9 +850,6 @@ class _Reader:
                 self.note("equality", "equality constraints ignored (<flag equality=\"disable\"/>)")
                 continue
             if error is not None:
-                if child.tag == "tendon" and attrib.get("active", "true") == "false":
-                    self.note("equality tendon", "inactive tendon equalities ignored (the constraint layer holds no tendon rows yet)")
-                    continue
                 raise error
             self.check_attrs(child, EQUALITY_ATTRS[child.tag])
             soft = softness_note(attrib)
@@ -1289,7 +1285,8 @@ class _Reader:
                 name += "_"
             taken.add(name)
             try:
-                out.append(equality_from(element, attrib, name, frames, sites, joints))
+                out.append(equality_from(element, attrib, name, frames, sites, joints,
+                                         {tendon.name for tendon in layout.tendons}))
             except MJCFError:
                 raise
             except ValueError as error:  # the Equality's own checks
@@ -1352,9 +1349,11 @@ class _Reader:
             state_qvel = _state_vector(qvel0, "qvel0", nv)
         state_qpos = self.unit_quaternions(joints, state_qpos)
         joints = self.joints_at(joints, state_qpos, state_qvel)
-        stray = unknown_restitutions(self.numerics, {joint.name for joint in joints})
+        stray = unknown_restitutions(self.numerics, {joint.name for joint in joints}
+                                     | {name for name, _spec in self.tendon_specs})
         if stray:
-            raise MJCFError(f"{self.root.file}: <custom><numeric name={stray[0]!r}> names no joint of the model")
+            raise MJCFError(f"{self.root.file}: <custom><numeric name={stray[0]!r}> names no joint or tendon of the "
+                            "model")
         layout = self.force_elements(self.spring_dampers(self.layout(joints), model_qpos0), model_qpos0)
         layout = dataclasses.replace(layout, equalities=self.equalities(layout))
         if self.contact_pairs:
@@ -1418,7 +1417,8 @@ class _Reader:
             if any(t.name == name for t in tendons):
                 raise spec.element.error(f"two tendons are called {name!r}")
             tendons.append(mjcf_actuators.tendon_of(spec, name, sites, self.spring_on, self.damper_on, self.limits_on,
-                                                    self.frictionloss_on, self.autolimits, self.note))
+                                                    self.frictionloss_on, self.autolimits, self.note,
+                                                    restitution_of(self.numerics, name)))
             if "range" in spec.attrib:
                 ranges[name] = tuple(numbers(spec.element, "range", spec.attrib, 2).tolist())
         for body in self.bodies:

@@ -153,13 +153,16 @@ def test_bad_equalities_are_refused_naming_them(kwargs, match):
         Equality("e", **kwargs)
 
 
-def test_tendon_equality_is_refused_unless_inactive():
-    body = "<body name='b'><joint/><geom size='0.1'/></body>"
-    xml = f"<mujoco>{OFF}<worldbody>{body}</worldbody><equality><tendon tendon1='t' {{}}/></equality></mujoco>"
-    with pytest.raises(MJCFError, match="tendon equality constraints are not supported"):
-        layout_from_mjcf(xml.format(""))
-    read = layout_from_mjcf(xml.format("active='false'"))
-    assert read.layout.equalities == () and any("tendon" in note for note in read.notes)
+def test_tendon_equality_is_read_and_its_tendons_must_exist():
+    body = "<body name='b'><joint name='q'/><geom size='0.1'/></body>"
+    tendon = "<tendon><fixed name='t'><joint joint='q' coef='2'/></fixed></tendon>"
+    xml = (f"<mujoco>{OFF}<worldbody>{body}</worldbody>{tendon}<equality><tendon tendon1='{{}}' polycoef='0.1 0 0 0 0' "
+           "active='false'/></equality></mujoco>")
+    with pytest.raises(MJCFError, match="tendon 'nope' is not a tendon of the model"):
+        layout_from_mjcf(xml.format("nope"))
+    read = layout_from_mjcf(xml.format("t"))
+    assert read.layout.equalities == (Equality("equality0", "tendon", tendon1="t", polycoef=(0.1, 0, 0, 0, 0),
+                                               active=False),)
 
 
 def test_to_mjcf_writes_the_constraints_and_reads_them_back():

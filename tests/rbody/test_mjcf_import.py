@@ -336,7 +336,7 @@ BODY = '<body name="b"><joint/><geom size="0.1"/></body>'
     ("<mujoco><worldbody><geom name='floor' type='plane' size='1 1 1'/>\n" + BODY.replace('size="0.1"', 'type="cylinder" size="0.1 0.2"') + "</worldbody></mujoco>",
      r"line 1, <geom name='floor'>.*'floor' and 'b_geom0'.*can collide, and rbody computes contacts of plane, sphere.*contype"),
     (f"<mujoco>{OFF}<worldbody>{BODY}</worldbody><equality>\n<tendon tendon1='t'/></equality></mujoco>",
-     r"line 2, <tendon>: tendon equality constraints are not supported"),
+     r"line 2, <tendon>: tendon 't' is not a tendon of the model"),
     (f"<mujoco>{OFF}<worldbody>{BODY}</worldbody><equality>\n<weld body1='nobody'/></equality></mujoco>",
      r"line 2, <weld>: body 'nobody' is not a body"),
     (f"<mujoco>{OFF}<worldbody>{BODY}</worldbody><equality>\n<joint joint1='b_joint0' joint2='b_joint0'/></equality>"
@@ -345,8 +345,8 @@ BODY = '<body name="b"><joint/><geom size="0.1"/></body>'
      "</mujoco>", r"rbody.restitution.nope.*names no joint"),
     (f"<mujoco>{OFF}<custom>\n<numeric name='rbody.restitution' data='2'/></custom><worldbody>{BODY}</worldbody>"
      "</mujoco>", r"line 2, <numeric.*restitution is one number in \[0, 1\]"),
-    (f"<mujoco>{OFF}<worldbody>{BODY}</worldbody><tendon>\n<fixed range='0 1'><joint joint='b_joint0' coef='1'/>"
-     "</fixed></tendon></mujoco>", r"line 2, <fixed>: tendon limits"),
+    (f"<mujoco>{OFF}<worldbody>{BODY}</worldbody><tendon>\n<fixed range='1 0'><joint joint='b_joint0' coef='1'/>"
+     "</fixed></tendon></mujoco>", r"line 2, <fixed>: range='1 0': a tendon's range needs lower < upper"),
     (f"<mujoco><option density='-1.2'><flag contact='disable'/></option><worldbody>{BODY}</worldbody></mujoco>",
      "density='-1.2': must be >= 0"),
     (f"<mujoco>{OFF}<worldbody><body><joint/><geom size='0.1' fluidshape='cube'/></body></worldbody></mujoco>",

@@ -117,11 +117,13 @@ def build(scene: Scene, dt: float, **settings) -> tuple[mujoco.MjModel, str]:
 
 def disable_unused(model: mujoco.MjModel) -> mujoco.MjModel:
     """The model with collision detection disabled when it has no contact pair (to_mjcf excludes every
-    other contact), and the constraint solver too when it also has no equality, joint limit or tendon
-    limit: MJCF's <flag contact="disable" constraint="disable"/>, the same motion at less cost."""
+    other contact), and the constraint solver too when it also has no equality, joint or tendon limit, nor
+    joint or tendon frictionloss (MuJoCo's dry friction is a constraint too): MJCF's <flag contact="disable"
+    constraint="disable"/>, the same motion at less cost."""
     if model.npair == 0:
         model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONTACT)
-        if model.neq == 0 and not np.any(model.jnt_limited) and not np.any(model.tendon_limited):
+        if (model.neq == 0 and not np.any(model.jnt_limited) and not np.any(model.tendon_limited)
+                and not np.any(model.dof_frictionloss > 0) and not np.any(model.tendon_frictionloss > 0)):
             model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_CONSTRAINT)
     return model
 

@@ -1,10 +1,13 @@
 """The constraint layer: joint limits, dry joint friction, equalities and contacts between geoms held rigidly.
 
-What is modelled (rbody.layout: Joint.range, Joint.frictionloss, Joint.restitution, Equality) is the rigid limit of
-MuJoCo's soft constraints: a limit is a unilateral constraint that the joint never passes by more than round-off;
-dry friction is Coulomb's law per degree of freedom, exact stick and exact slip; an equality (a loop closed by a
-connect or a weld, a joint coupling) holds to round-off; an impact on a limit obeys Newton's law with the joint's
-restitution e (0 by default: the joint stays at its stop).
+What is modelled (rbody.layout: Joint.range, Joint.frictionloss, Joint.restitution, Tendon.range,
+Tendon.frictionloss, Tendon.restitution, Equality) is the rigid limit of MuJoCo's soft constraints: a limit is a
+unilateral constraint that the joint never passes by more than round-off; dry friction is Coulomb's law per degree
+of freedom, exact stick and exact slip; an equality (a loop closed by a connect or a weld, a joint coupling) holds
+to round-off; an impact on a limit obeys Newton's law with the joint's restitution e (0 by default: the joint stays
+at its stop). A tendon's limits, its dry friction and a tendon equality are the same rows with the tendon's length
+L(q) in place of a joint's coordinate (J = dL/dq; table.py, tendon_rows.py): a rope that goes taut, a cable that
+sticks, fingers coupled through their tendons.
 
 The problem. With the mass matrix M(q), the generalised forces f = passive - bias and the constraint rows J (their
 kinds in table.py, their Jacobians in jacobians.py), the forces lambda on the rows solve a mixed complementarity

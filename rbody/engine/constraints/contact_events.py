@@ -42,7 +42,7 @@ def _rows_at(p, y, M, f, J, jdot, g, F, share, w):
     acc = np.empty((int(p[H_BODIES]), 6))
     a0, na = dyn.act_range(p)
     dyn.snapshot(p, q, y[nq:nq + nv], y[a0:a0 + na], M, f, J, jdot, g, w, acc)
-    dyn.add_sliding_friction(p, f)
+    dyn.add_sliding_friction(p, f, J)
     sliding_columns(p, w, J, y[nq:nq + nv], F, share)
 
 

@@ -2,7 +2,8 @@
 Runge-Kutta step, and the projection of a state onto the constraint manifold.
 
 A mode (rbody.engine.constraints.table) fixes which rows hold: every equality, each limit held at its stop, each
-sticking degree of freedom; a sliding one feels the constant force -frictionloss sign. With M(q) the mass matrix
+sticking degree of freedom or tendon; a sliding one feels the constant force -frictionloss sign (along its row
+J for a tendon: -frictionloss sign J^T). With M(q) the mass matrix
 (CRBA, armature included), f = passive - bias (RNEA: gravity, Coriolis, centrifugal; springs, dampers; the sliding
 friction) and the held rows J (m, nv) with their J' v, the accelerations and forces solve
 
@@ -31,15 +32,16 @@ from rbody.engine.multibody import (D_DAMPING, DOF_SIZE, FREE, H_BODIES, H_DOF, 
                                     coordinate_rates, inverse_one, mass_matrix_one, passive, tree_finish,
                                     workspace_size)
 from rbody.engine.spatial import quat_exp, quat_multiply
-from rbody.engine.elements import X_ACTIVE, X_NA, extension_start
+from rbody.engine.elements import X_ACTIVE, X_NA, X_NTEN, extension_start
 from rbody.engine.system import actuator_rates, add_element_forces, clamp_activations
 from rbody.engine.constraints.jacobians import (all_rows, bias_accelerations, some_rows, mode_at, row_count, unit_at,
                                                 unit_count, unit_rows)
 from rbody.engine.contacts.rows import GEOMETRY_WORK, contact_geometry
 from rbody.engine.constraints.solver import symmetric_solve
 from rbody.engine.constraints.sliding import general_held_solve, sliding_columns
-from rbody.engine.constraints.table import (CONE, CONNECT, CONTACT, CONTACT1, COUPLING, FRICTION, LOWER, U_BOUND,
-                                            U_DOF, U_KIND, U_ROW0, U_ROWS, UPPER, WELD)
+from rbody.engine.constraints.table import (CONE, CONNECT, CONTACT, CONTACT1, COUPLING, FRICTION, LOWER,
+                                            TENDON_EQUALITY, TENDON_FRICTION, TENDON_LOWER, TENDON_UPPER, U_BOUND,
+                                            U_DOF, U_KIND, U_ROW0, U_ROWS, U_TENDON, UPPER, WELD)
 
 PROJECTION_TOLERANCE = 1e-13   # |g| [m or rad] a projection aims for on the held rows (round-off of metre-scale trees)
 PROJECTION_ITERATIONS = 8      # Newton iterations of a projection at most
@@ -85,30 +87,54 @@ def snapshot(p, q, v, act, M, f, J, jdot, g, w, acc, rows_wanted=None, with_bias
 
 
 @njit(cache=True)
-def add_sliding_friction(p, f):
-    """f (nv,) += -frictionloss s on every dof whose friction unit slides (mode s = +-1)."""
-    modes = mode_at(p)
-    for k in range(unit_count(p)):
-        u = unit_at(p, k)
-        if int(p[u + U_KIND]) == FRICTION and p[modes + k] != 0.0:
-            f[int(p[u + U_DOF])] -= p[u + U_BOUND] * p[modes + k]
-
-
-@njit(cache=True)
-def dof_states(p):
-    """(stop_held (nv,), sticking (nv,)): per dof, 1 where a LOWER or UPPER unit on it is held, and its frictionloss
-    where its friction sticks (0 elsewhere), in the mode written in p."""
-    nv = int(p[H_DOFS])
-    stop_held = np.zeros(nv)
-    sticking = np.zeros(nv)
+def add_sliding_friction(p, f, J):
+    """f (nv,) += -frictionloss s on every dof whose friction unit slides (mode s = +-1), and -frictionloss s J^T
+    for every sliding tendon friction (J (rows, nv): its row formed at the state)."""
     modes = mode_at(p)
     for k in range(unit_count(p)):
         u = unit_at(p, k)
         kind = int(p[u + U_KIND])
-        d = int(p[u + U_DOF])
-        if (kind == LOWER or kind == UPPER) and p[modes + k] == 1.0:
+        if kind == FRICTION and p[modes + k] != 0.0:
+            f[int(p[u + U_DOF])] -= p[u + U_BOUND] * p[modes + k]
+        elif kind == TENDON_FRICTION and p[modes + k] != 0.0:
+            force = p[u + U_BOUND] * p[modes + k]
+            row = int(p[u + U_ROW0])
+            for d in range(f.shape[0]):
+                f[d] -= force * J[row, d]
+
+
+@njit(cache=True, inline="always")
+def is_tendon_kind(kind):
+    return kind == TENDON_LOWER or kind == TENDON_UPPER or kind == TENDON_FRICTION or kind == TENDON_EQUALITY
+
+
+@njit(cache=True, inline="always")
+def coordinate_key(p, u):
+    """What a stop or a dry friction unit acts along, as one index: its dof (joints), nv + its tendon (tendons)."""
+    if is_tendon_kind(int(p[u + U_KIND])):
+        return int(p[H_DOFS]) + int(p[u + U_TENDON])
+    return int(p[u + U_DOF])
+
+
+@njit(cache=True)
+def dof_states(p):
+    """(stop_held (nv + ntendon,), sticking (nv + ntendon,)): per dof, then per tendon (coordinate_key), 1 where a
+    stop (LOWER, UPPER; TENDON_LOWER, TENDON_UPPER) on it is held, and its frictionloss where its friction sticks
+    (0 elsewhere), in the mode written in p."""
+    size = int(p[H_DOFS]) + int(p[extension_start(p) + X_NTEN])
+    stop_held = np.zeros(size)
+    sticking = np.zeros(size)
+    modes = mode_at(p)
+    for k in range(unit_count(p)):
+        u = unit_at(p, k)
+        kind = int(p[u + U_KIND])
+        if not (kind == LOWER or kind == UPPER or kind == FRICTION or kind == TENDON_LOWER
+                or kind == TENDON_UPPER or kind == TENDON_FRICTION):
+            continue
+        d = coordinate_key(p, u)
+        if (kind == LOWER or kind == UPPER or kind == TENDON_LOWER or kind == TENDON_UPPER) and p[modes + k] == 1.0:
             stop_held[d] = 1.0
-        elif kind == FRICTION and p[modes + k] == 0.0:
+        elif (kind == FRICTION or kind == TENDON_FRICTION) and p[modes + k] == 0.0:
             sticking[d] = p[u + U_BOUND]
     return stop_held, sticking
 
@@ -123,8 +149,8 @@ def sticking_friction_on(p, dof):
 def held_rows(p, rows_held):
     """rows_held (rows,) = 1 where the mode holds the row (equalities, limits held, sticking dofs), else 0; returns
     their count. Two held rows that would say the same thing are held once, so that each force is defined: a
-    sticking dof whose stop is held (the stop carries the load; the dof's friction then does nothing), and a ball's
-    cone when all three of its dofs stick (the ball is locked by its friction)."""
+    sticking dof (or tendon) whose stop is held (the stop carries the load; the friction then does nothing), and a
+    ball's cone when all three of its dofs stick (the ball is locked by its friction)."""
     stop_held, sticking = dof_states(p)
     modes = mode_at(p)
     count = 0
@@ -132,12 +158,12 @@ def held_rows(p, rows_held):
         u = unit_at(p, k)
         kind = int(p[u + U_KIND])
         mode = p[modes + k]
-        d = int(p[u + U_DOF])
-        on = (kind == CONNECT or kind == WELD or kind == COUPLING or
-              ((kind == LOWER or kind == UPPER) and mode == 1.0) or
+        d = coordinate_key(p, u)
+        on = (kind == CONNECT or kind == WELD or kind == COUPLING or kind == TENDON_EQUALITY or
+              ((kind == LOWER or kind == UPPER or kind == TENDON_LOWER or kind == TENDON_UPPER) and mode == 1.0) or
               (kind == CONE and mode == 1.0 and not (sticking[d] > 0.0 and sticking[d + 1] > 0.0
                                                      and sticking[d + 2] > 0.0)) or
-              (kind == FRICTION and mode == 0.0 and stop_held[d] == 0.0))
+              ((kind == FRICTION or kind == TENDON_FRICTION) and mode == 0.0 and stop_held[d] == 0.0))
         r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])
         if (kind == CONTACT or kind == CONTACT1) and mode != 0.0:  # sticking: every row; sliding: the normal
             for a in range(r0, r0 + r):
@@ -241,13 +267,14 @@ def held_solve(L, J, held, r, correction, lam_rows):
 
 
 @njit(cache=True)
-def mode_accel(p, q, v, act, qacc, lam_rows, g, every_row=True, power=None):
+def mode_accel(p, q, v, act, qacc, lam_rows, g, every_row=True, power=None, rates=None):
     """qacc (nv,) and the force of every row lam_rows (rows,) (held rows: their lambda; sliding friction: -F s;
     others 0) in the mode written in p, at the effective qpos q and qvel v; g (rows,) gets every row's residual
     (every_row False: only the held rows' are formed, the others left as they were: the right-hand side needs no
     more). Sliding contacts (rbody.engine.constraints.sliding) push along their force columns, their tangent rows
-    reporting their friction; power (1,), when given, gets the power their friction takes [W]. Returns (residual,
-    scale): |W lambda - r|_inf of the held rows and |r|_inf (the caller judges it)."""
+    reporting their friction; power (1,), when given, gets the power their friction and the sliding tendons'
+    friction take [W]; rates (rows,), when given, every row's J v. Returns (residual, scale): |W lambda - r|_inf of
+    the held rows and |r|_inf (the caller judges it)."""
     nv = int(p[H_DOFS])
     rows = row_count(p)
     w = np.empty(workspace_size(p))
@@ -260,9 +287,17 @@ def mode_accel(p, q, v, act, qacc, lam_rows, g, every_row=True, power=None):
     held_rows(p, held)
     if every_row:
         snapshot(p, q, v, act, M, f, J, jdot, g, w, acc)
-    else:
-        snapshot(p, q, v, act, M, f, J, jdot, g, w, acc, held)
-    add_sliding_friction(p, f)
+    else:  # the held rows, and the sliding tendons' (their friction acts along their row)
+        wanted = held.copy()
+        sliding_tendon_rows(p, wanted)
+        snapshot(p, q, v, act, M, f, J, jdot, g, w, acc, wanted)
+    add_sliding_friction(p, f, J)
+    if rates is not None:
+        for a in range(rows):
+            rate = 0.0
+            for d in range(nv):
+                rate += J[a, d] * v[d]
+            rates[a] = rate
     L = np.linalg.cholesky(M)
     a0 = upper_solve(L, lower_solve(L, f))
     r = np.zeros(rows)
@@ -293,19 +328,46 @@ def mode_accel(p, q, v, act, qacc, lam_rows, g, every_row=True, power=None):
                         speed += J[a, d] * v[d]
                     slip_power -= lam_rows[a] * speed
         if power is not None:
-            power[0] = slip_power
+            power[0] = slip_power + tendon_friction_power(p, J, v)
     else:
         residual = held_solve(L, J, held, r, correction, lam_rows)
         if power is not None:
-            power[0] = 0.0
+            power[0] = tendon_friction_power(p, J, v)
     for d in range(nv):
         qacc[d] = a0[d] + correction[d]
     modes = mode_at(p)
     for k in range(unit_count(p)):
         u = unit_at(p, k)
-        if int(p[u + U_KIND]) == FRICTION and p[modes + k] != 0.0:
+        kind = int(p[u + U_KIND])
+        if (kind == FRICTION or kind == TENDON_FRICTION) and p[modes + k] != 0.0:
             lam_rows[int(p[u + U_ROW0])] = -p[u + U_BOUND] * p[modes + k]
     return residual, scale
+
+
+@njit(cache=True)
+def sliding_tendon_rows(p, wanted):
+    """wanted (rows,) = 1 on the row of every sliding tendon friction unit (the rest left as it was)."""
+    modes = mode_at(p)
+    for k in range(unit_count(p)):
+        u = unit_at(p, k)
+        if int(p[u + U_KIND]) == TENDON_FRICTION and p[modes + k] != 0.0:
+            wanted[int(p[u + U_ROW0])] = 1.0
+
+
+@njit(cache=True)
+def tendon_friction_power(p, J, v):
+    """Power [W] the sliding tendons lose to dry friction: frictionloss s (J v) over their units (J their rows)."""
+    modes = mode_at(p)
+    power = 0.0
+    for k in range(unit_count(p)):
+        u = unit_at(p, k)
+        if int(p[u + U_KIND]) == TENDON_FRICTION and p[modes + k] != 0.0:
+            row = int(p[u + U_ROW0])
+            rate = 0.0
+            for d in range(v.shape[0]):
+                rate += J[row, d] * v[d]
+            power += p[u + U_BOUND] * p[modes + k] * rate
+    return power
 
 
 @njit(cache=True)
@@ -455,8 +517,8 @@ def project(p, y, position_rows, velocity_rows):
 def guards(p, y, out):
     """out (units,): each unit's guard in the mode written in p, >= 0 while the mode is right (an event where one
     crosses 0): a free limit its distance g; a held limit its force lambda; a sticking dof frictionloss - |lambda|;
-    a sliding one s v (its velocity in the direction it slides); equalities +inf. Returns (residual, scale) of the
-    held rows' forces (mode_accel)."""
+    a sliding one s v (its velocity in the direction it slides; a tendon's s L'); equalities +inf. Returns
+    (residual, scale) of the held rows' forces (mode_accel)."""
     nq, nv, _n = sizes(p)
     rows = row_count(p)
     q = np.empty(nq)
@@ -465,7 +527,8 @@ def guards(p, y, out):
     g = np.empty(rows)
     qacc = np.empty(nv)
     a0, na = act_range(p)
-    residual, scale = mode_accel(p, q, y[nq:nq + nv], y[a0:a0 + na], qacc, lam, g)
+    rates = np.empty(rows)
+    residual, scale = mode_accel(p, q, y[nq:nq + nv], y[a0:a0 + na], qacc, lam, g, True, None, rates)
     modes = mode_at(p)
     _stop_held, sticking = dof_states(p)
     for k in range(unit_count(p)):
@@ -473,12 +536,13 @@ def guards(p, y, out):
         kind = int(p[u + U_KIND])
         row = int(p[u + U_ROW0])
         mode = p[modes + k]
-        if kind == LOWER or kind == UPPER:  # a held stop with friction on its dof: friction can pull up to F too
-            out[k] = lam[row] + sticking[int(p[u + U_DOF])] if mode == 1.0 else g[row]
+        if kind == LOWER or kind == UPPER or kind == TENDON_LOWER or kind == TENDON_UPPER:
+            # a held stop with friction on its dof (tendon): friction can pull up to F too
+            out[k] = lam[row] + sticking[coordinate_key(p, u)] if mode == 1.0 else g[row]
         elif kind == CONE:
             out[k] = lam[row] if mode == 1.0 else g[row]
-        elif kind == FRICTION:
-            out[k] = p[u + U_BOUND] - abs(lam[row]) if mode == 0.0 else mode * y[nq + int(p[u + U_DOF])]
+        elif kind == FRICTION or kind == TENDON_FRICTION:
+            out[k] = p[u + U_BOUND] - abs(lam[row]) if mode == 0.0 else mode * rates[row]
         else:
             out[k] = np.inf
     return residual, scale
@@ -522,7 +586,7 @@ def state_rows(p, y, M, f, J, jdot, g, with_bias=True):
     acc = np.empty((int(p[H_BODIES]), 6))
     a0, na = act_range(p)
     snapshot(p, q, y[nq:nq + nv], y[a0:a0 + na], M, f, J, jdot, g, w, acc, None, with_bias)
-    add_sliding_friction(p, f)
+    add_sliding_friction(p, f, J)
 
 
 __all__ = ["sizes", "snapshot", "mode_accel", "constrained_rhs", "rk4_step", "project", "guards", "state_rows", "state_gaps",

@@ -37,9 +37,9 @@ from rbody.engine.constraints.contact_events import (closing_time, contact_guard
                                                      tangent_frames)
 from rbody.engine.constraints.sliding import SLIDING, SLIDING_HELD
 from rbody.engine.constraints.solver import mlcp_exact, natural_residual, UNBOUNDED
-from rbody.engine.constraints.table import (C_HEADER, CONTACT, CONTACT_KINDS, EQUALITY_KINDS, FRICTION, LOWER,
-                                            U_BODY1, U_BODY2, U_BOUND, UPPER, U_DOF, U_RESTITUTION, U_SLIP, UNILATERAL, UNIT_SIZE,
-                                            ConstraintTable)
+from rbody.engine.constraints.table import (C_HEADER, CONTACT, CONTACT_KINDS, EQUALITY_KINDS, FRICTION_KINDS,
+                                            LOWER_KINDS, STOP_KINDS, TENDON_KINDS, U_BODY1, U_BODY2, U_BOUND, U_DOF,
+                                            U_RESTITUTION, U_SLIP, U_TENDON, UNILATERAL, UNIT_SIZE, ConstraintTable)
 
 TOUCH_TOLERANCE = 1e-10   # [m or rad] a limit this close to its stop at an event touches it (projected onto it)
 REST_SPEED = 1e-9         # [m/s or rad/s] a dof with friction this slow at an event is at rest (it may stick)
@@ -97,7 +97,7 @@ class EventRun:
         self.restitution = np.array([self.p[self._record(k) + U_RESTITUTION] for k in range(len(self.units))])
         self.fastest = np.zeros(len(self.units))
         self.is_limit = np.isin(self.codes, UNILATERAL)
-        self.is_friction = self.codes == FRICTION
+        self.is_friction = np.isin(self.codes, FRICTION_KINDS)
         self.largest_bound = max([0.0] + [float(self.p[self._record(k) + U_BOUND])
                                           for k in np.flatnonzero(self.is_friction)])
         self.is_contact = np.isin(self.codes, CONTACT_KINDS)
@@ -108,7 +108,7 @@ class EventRun:
         tangent_row = np.zeros(self.rows, dtype=bool)
         for k in self.contact_units:
             tangent_row[self.units[k].row0 + 1:self.units[k].row0 + self.units[k].rows] = True
-        self.has_position = ((self.codes[self.row_unit] != FRICTION) & ~tangent_row).astype(float)
+        self.has_position = (~self.is_friction[self.row_unit] & ~tangent_row).astype(float)
         self.pair = {int(k): (int(self.p[self._record(k) + U_BODY1]), int(self.p[self._record(k) + U_BODY2]))
                      for k in self.contact_units}
         self.mu = np.array([self.p[self._record(k) + U_BOUND] if self.codes[k] == CONTACT else 0.0
@@ -119,6 +119,12 @@ class EventRun:
 
     def _record(self, k: int) -> int:
         return self.table.offset + C_HEADER + UNIT_SIZE * k
+
+    def _along(self, k: int) -> tuple[str, int]:
+        """What unit k's stop or dry friction acts along: ("dof", its dof) or ("tendon", its tendon)."""
+        if self.codes[k] in TENDON_KINDS:
+            return "tendon", int(self.p[self._record(k) + U_TENDON])
+        return "dof", int(self.p[self._record(k) + U_DOF])
 
     @property
     def mode(self) -> np.ndarray:
@@ -339,8 +345,8 @@ class EventRun:
         for k in range(len(self.units)):
             if self.codes[k] in UNILATERAL or self.is_contact[k]:
                 mode[k] = 0.0
-            elif self.codes[k] == FRICTION:
-                speed = v[int(self.p[self._record(k) + U_DOF])]
+            elif self.is_friction[k]:  # the velocity along its row: a dof's, or a tendon's L'
+                speed = jv[self.units[k].row0]
                 mode[k] = 0.0 if abs(speed) <= REST_SPEED else math.copysign(1.0, speed)
         self.set_mode(mode)
         # the velocities of the resting rows exactly 0 (changes below REST_SPEED), so that a dof that starts to slide
@@ -350,11 +356,11 @@ class EventRun:
             if self.is_contact[k]:
                 if k in resting:  # its normal, and its tangents where it does not slip
                     at_rest[unit.row0:unit.row0 + (unit.rows if slip_speed[k] <= REST_SPEED else 1)] = 1.0
-            elif self.codes[k] in EQUALITY_KINDS or k in resting or (self.codes[k] == FRICTION and mode[k] == 0.0):
+            elif self.codes[k] in EQUALITY_KINDS or k in resting or (self.is_friction[k] and mode[k] == 0.0):
                 at_rest[unit.row0:unit.row0 + unit.rows] = 1.0
         dyn.project(self.p, y, np.zeros(self.rows), at_rest)
         v = y[nq:nq + nv]
-        breaking = [k for k in triggered if k < len(self.units) and self.codes[k] == FRICTION and before[k] == 0.0]
+        breaking = [k for k in triggered if k < len(self.units) and self.is_friction[k] and before[k] == 0.0]
         releasing = [k for k in triggered if k < len(self.units) and self.codes[k] in UNILATERAL
                      and before[k] == 1.0]
         first_b = len(self.units) + self.contact_units.size  # a contact's guard A: its force reached a bound
@@ -370,6 +376,8 @@ class EventRun:
         if changed.size and not start:
             self.log.mode_changes += 1
             kinds = {("limit", 1.0): "limit", ("limit", 0.0): "release", ("friction", 0.0): "stick",
+                     ("tendon limit", 1.0): "limit", ("tendon limit", 0.0): "release",
+                     ("tendon friction", 0.0): "stick",
                      ("contact", 0.0): "release", ("contact", 1.0): "stick", ("contact", SLIDING): "slip",
                      ("contact", SLIDING_HELD): "slip"}
             for k in changed:
@@ -480,8 +488,7 @@ class EventRun:
         cone, and on its edge starts to slide along its tangential acceleration); if it slips, its friction is
         -mu lambda_n along the slip (its force column, rbody.engine.constraints.sliding)."""
         mode = self.mode.copy()
-        friction_of = {int(self.p[self._record(k) + U_DOF]): k for k in range(len(self.units))
-                       if self.codes[k] == FRICTION}
+        friction_of = {self._along(k): k for k in range(len(self.units)) if self.is_friction[k]}
         slips = np.zeros((len(self.units), 3))
         if self.contact_units.size:
             slip_velocities(self.p, y, slips)
@@ -495,8 +502,8 @@ class EventRun:
         merged = {}  # stop unit -> the friction unit of its dof, both at rest
         rows, lo, hi, units, role, mu = [], [], [], [], [], []
         for k in resting:
-            if self.codes[k] in (LOWER, UPPER):
-                j = friction_of.get(int(self.p[self._record(k) + U_DOF]))
+            if self.codes[k] in STOP_KINDS:
+                j = friction_of.get(self._along(k))
                 if j is not None and mode[j] == 0.0:
                     merged[k] = j
         for k, unit in enumerate(self.units):
@@ -515,7 +522,7 @@ class EventRun:
                 bound = self.p[self._record(merged[k]) + U_BOUND] if k in merged else 0.0
                 rows.append(unit.row0), lo.append(-bound), hi.append(np.inf), units.append(k), role.append(ROW)
                 mu.append(0.0)
-            elif self.codes[k] == FRICTION and mode[k] == 0.0 and k not in merged.values():
+            elif self.is_friction[k] and mode[k] == 0.0 and k not in merged.values():
                 bound = self.p[self._record(k) + U_BOUND]
                 rows.append(unit.row0), lo.append(-bound), hi.append(bound), units.append(k), role.append(ROW)
                 mu.append(0.0)
@@ -569,8 +576,8 @@ class EventRun:
                 leaves = w[i] > tolerance or (at_bound and k in releasing)
                 mode[k] = 0.0 if leaves else 1.0
                 if k in merged:  # the dof sticks at the stop, or slides away from it
-                    mode[merged[k]] = (1.0 if code == LOWER else -1.0) if leaves and lo[i] < 0.0 else 0.0
-            elif code == FRICTION:
+                    mode[merged[k]] = (1.0 if code in LOWER_KINDS else -1.0) if leaves and lo[i] < 0.0 else 0.0
+            elif code in FRICTION_KINDS:
                 mode[k] = 0.0 if abs(w[i]) <= tolerance else math.copysign(1.0, w[i])
                 if k in breaking and abs(lam[i]) >= (1 - 1e-9) * hi[i]:
                     mode[k] = -math.copysign(1.0, lam[i])
@@ -589,7 +596,7 @@ class EventRun:
                 continue
             others = [j for j, u in enumerate(units) if j != i and (self.codes[u] in EQUALITY_KINDS or
                       (self.codes[u] in UNILATERAL and mode[u] == 1.0)
-                      or (self.codes[u] == FRICTION and mode[u] == 0.0))]
+                      or (self.is_friction[u] and mode[u] == 0.0))]
             if not others:
                 continue
             block = W[np.ix_(others, others)]

@@ -13,7 +13,10 @@ motion subspaces and velocities at (q, v):
   omega' = 0, theta'' = (|omega|^2 - theta'^2) cot(theta / 2) / 2 (from the inverse right Jacobian of SO(3));
 - a weld's orientation error E = q1 qrel q2^-1 (world frame, identity when held) turns at omega1 - omega2, so its
   rows are J_omega1 - J_omega2, J' v = alpha1 - alpha2, and its residual is E's rotation vector;
-- a joint coupling's residual (q1 - ref1) - P(d), d = q2 - ref2, has J = e1 - P'(d) e2 and J' v = -P''(d) v2^2.
+- a joint coupling's residual (q1 - ref1) - P(d), d = q2 - ref2, has J = e1 - P'(d) e2 and J' v = -P''(d) v2^2;
+- a tendon's rows (its limits, its dry friction) are its length's: J = +-dL/dq and J' v = +-L'' without qacc
+  (rbody.engine.constraints.tendon_rows); a tendon equality (L1 - L1_0) - P(d), d = L2 - L2_0, has
+  J = J1 - P'(d) J2 and J' v = J1' v - P'(d) J2' v - P''(d) (J2 v)^2.
 """
 
 from __future__ import annotations
@@ -26,11 +29,13 @@ from rbody.engine.multibody import (B_DOF0, B_NDOF, B_PARENT, BODY_SIZE, H_BODIE
 from rbody.engine.contacts.geometry import tangents
 from rbody.engine.contacts.rows import contact_geometry
 from rbody.engine.contacts.kinematics import contact_bias
+from rbody.engine.constraints.tendon_rows import tendon_row
 from rbody.engine.constraints.table import (C_MODE, C_ROWS, C_UNIT, C_UNITS, CONE, CONTACT, CONTACT1, COUPLING,
                                             FRICTION,
-                                            LOWER, U_A1, U_A2, U_BOUND, U_BODY1, U_BODY2, U_DOF, U_DOF2, U_KIND,
+                                            LOWER, TENDON_EQUALITY, TENDON_FRICTION, TENDON_LOWER, TENDON_UPPER,
+                                            U_A1, U_A2, U_BOUND, U_BODY1, U_BODY2, U_DOF, U_DOF2, U_KIND,
                                             U_POLY, U_QADR, U_QADR2, U_QUAT, U_REF1, U_REF2, U_ROW0, U_ROWS,
-                                            UNIT_SIZE, UPPER, WELD)
+                                            U_TENDON, U_TENDON2, UNIT_SIZE, UPPER, WELD)
 
 
 @njit(cache=True, inline="always")
@@ -252,6 +257,36 @@ def unit_rows(p, k, q, v, w, acc, J, jdot, g, row, with_bias=True):
         g[row] = q[qa] - p[u + U_REF1] - value
     elif kind == CONTACT or kind == CONTACT1:
         _contact_rows(p, w, acc, u, r, J, jdot, g, row, with_bias)
+    elif kind == TENDON_LOWER or kind == TENDON_UPPER or kind == TENDON_FRICTION:
+        length, curvature = tendon_row(p, int(p[u + U_TENDON]), q, w, acc, J[row])
+        sign = -1.0 if kind == TENDON_UPPER else 1.0
+        if sign < 0.0:
+            for c in range(nv):
+                J[row, c] = -J[row, c]
+        jdot[row] = sign * curvature
+        if kind == TENDON_LOWER:
+            g[row] = length - p[u + U_BOUND]
+        elif kind == TENDON_UPPER:
+            g[row] = p[u + U_BOUND] - length
+    elif kind == TENDON_EQUALITY:
+        length, curvature = tendon_row(p, int(p[u + U_TENDON]), q, w, acc, J[row])
+        jdot[row] = curvature
+        value = p[u + U_POLY]
+        t2 = int(p[u + U_TENDON2])
+        if t2 >= 0:
+            row2 = np.empty(nv)
+            length2, curvature2 = tendon_row(p, t2, q, w, acc, row2)
+            x = length2 - p[u + U_REF2]
+            c1, c2, c3, c4 = p[u + U_POLY + 1], p[u + U_POLY + 2], p[u + U_POLY + 3], p[u + U_POLY + 4]
+            value += x * (c1 + x * (c2 + x * (c3 + x * c4)))
+            slope = c1 + x * (2.0 * c2 + x * (3.0 * c3 + x * 4.0 * c4))
+            bend = 2.0 * c2 + x * (6.0 * c3 + x * 12.0 * c4)
+            rate = 0.0
+            for c in range(nv):
+                J[row, c] -= slope * row2[c]
+                rate += row2[c] * v[c]
+            jdot[row] -= slope * curvature2 + bend * rate * rate
+        g[row] = length - p[u + U_REF1] - value
     else:  # CONNECT or WELD: body1's point p1 on body2's point p2
         body1, body2 = int(p[u + U_BODY1]), int(p[u + U_BODY2])
         p1 = np.empty(3)

@@ -8,8 +8,8 @@ rows: their Lagrange multiplier, sliding friction -frictionloss sign v, free row
 meta["constraint_rows"] as (kind, name, component)), constraint_error (T, *batch, rows) each row's error at
 each saved state (an equality's residual [m or rad]: a loop's closure error; a limit's overshoot past its stop,
 min(g, 0); 0 for friction), active_limits (T, *batch, limits) 1 where a limit holds the
-joint at its stop (columns meta["limits"]), sticking (T, *batch, frictions) 1 where a dof with dry friction sticks
-(columns meta["frictions"]); with contacts (rbody.engine.contacts.observe) contacts (T, *batch) their count and
+joint (or tendon) at its stop (columns meta["limits"], a tendon's as "<tendon>.lower"), sticking (T, *batch,
+frictions) 1 where a dof or a tendon with dry friction sticks (columns meta["frictions"]); with contacts (rbody.engine.contacts.observe) contacts (T, *batch) their count and
 per candidate contact (columns meta["contacts"]) its distance, point, normal, normal and friction force; dissipated (T, *batch) [J] the energy dry friction, impacts and the joints' dampers have taken so far (the
 energy observable plus dissipated is constant: the integrator's error aside, nothing else loses energy). The events of element b are in
 trajectory.events (time, element, what, constraints, energy_lost) and meta["events"] counts them.
@@ -22,7 +22,7 @@ import numpy as np
 from rbody.engine.constraints import dynamics as dyn
 from rbody.engine.constraints.events import EventRun
 from rbody.engine.constraints.stepping import MODES, SCHEMES, MoreauRun
-from rbody.engine.constraints.table import CONTACT_KINDS, FRICTION, UNILATERAL, ConstraintTable
+from rbody.engine.constraints.table import CONTACT_KINDS, FRICTION_KINDS, UNILATERAL, ConstraintTable
 
 
 def sample_rows(table: ConstraintTable, params: np.ndarray, samples: np.ndarray,
@@ -59,7 +59,7 @@ def sample_rows(table: ConstraintTable, params: np.ndarray, samples: np.ndarray,
         dyn.mode_accel(p, q, samples[s, nq:nq + nv], samples[s, a0:a0 + na], qacc, forces[s], errors[s])
     limits = np.isin(codes, UNILATERAL)
     errors[:, limits] = np.minimum(errors[:, limits], 0.0)
-    errors[:, codes == FRICTION] = 0.0
+    errors[:, np.isin(codes, FRICTION_KINDS)] = 0.0
     normals = np.array([unit.code in CONTACT_KINDS for unit in table.units], dtype=bool)
     if normals.any():  # a contact's normal row: its penetration min(g, 0); its tangent rows 0
         first = np.array([unit.row0 for unit in table.units])[normals]
@@ -115,7 +115,7 @@ def run_constrained(description: str, model, method: str, dt: float, nsteps: int
     t = np.arange(count) * (dt * save_every)
     data = dict(model.observe(t, out))
     limits = [k for k, unit in enumerate(table.units) if unit.code in UNILATERAL]
-    frictions = [k for k, unit in enumerate(table.units) if unit.code == FRICTION]
+    frictions = [k for k, unit in enumerate(table.units) if unit.code in FRICTION_KINDS]
     data["constraint_force"] = forces
     data["constraint_error"] = errors
     data["active_limits"] = modes[:, :, limits] == 1.0

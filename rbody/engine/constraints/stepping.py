@@ -13,7 +13,7 @@ restitution e > 0 and a gap that would close within the step (g + h J v_free < 0
 J v_k+1 + e min(J v_free, 0) >= 0, P >= 0, complementary (Moreau's impact law at the velocity level: the stop passed
 within the step is restored by the projection below); a plastic limit (e = 0) whose gap would close within the
 step by J v_k+1 + g / h >= 0, P >= 0, complementary (it reaches the stop at the end of the step, never beyond:
-Anitescu and Potra's term); a dof with dry friction
+Anitescu and Potra's term); a dof (or a tendon) with dry friction
 |P| <= frictionloss h, sticking (v_k+1 = 0) inside the box, sliding against it on its boundary. After the step the
 configuration is projected onto the equalities and any stop it passed (rbody.engine.constraints.dynamics.project),
 so neither drifts beyond round-off.
@@ -59,7 +59,8 @@ from rbody.engine.multibody import _effective_qpos
 from rbody.engine.constraints.cone import NORMAL, ROW, TANGENT, TANGENT2, cone_pgs, cone_polish, stick_polish
 from rbody.engine.constraints.solver import mlcp_exact_from, mlcp_pgs, natural_residual
 from rbody.engine.constraints.table import (C_HEADER, CONE, CONNECT, CONTACT, CONTACT1, CONTACT_KINDS, COUPLING,
-                                            FRICTION, LOWER, U_BODY1, U_BODY2, U_BOUND, U_KIND,
+                                            FRICTION, FRICTION_KINDS, LOWER, TENDON_EQUALITY, TENDON_FRICTION,
+                                            TENDON_LOWER, TENDON_UPPER, U_BODY1, U_BODY2, U_BOUND, U_KIND, UNILATERAL,
                                             UNIT_SIZE,
                                             U_RESTITUTION, U_ROW0, U_ROWS, UPPER, WELD, ConstraintTable)
 from rbody.errors import SimulationError
@@ -209,7 +210,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
     acc = np.empty((int(p[mb.H_BODIES]), 6))
     at, na = dyn.act_range(p)
     dyn.snapshot(p, q, y[nq:nq + nv], y[at:at + na], M, f, J, jdot, g, w, acc, smooth_rows(p), False)
-    dyn.add_sliding_friction(p, f)
+    dyn.add_sliding_friction(p, f, J)
     rates = np.empty(na)
     if na:  # the activations' rates at the step's start (advanced by explicit Euler below, as MuJoCo's Euler does)
         dyn.actuator_rates(p, y[:nq], y[nq:nq + nv], y[at:at + na], rates)
@@ -237,11 +238,11 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
         u = unit_at(p, k)
         kind = int(p[u + U_KIND])
         r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])
-        if kind == CONNECT or kind == WELD or kind == COUPLING:
+        if kind == CONNECT or kind == WELD or kind == COUPLING or kind == TENDON_EQUALITY:
             for a in range(r0, r0 + r):
                 index[m], lo[m], hi[m], b[m] = a, -np.inf, np.inf, jfree[a]
                 m += 1
-        elif kind == LOWER or kind == UPPER or kind == CONE:
+        elif kind == LOWER or kind == UPPER or kind == CONE or kind == TENDON_LOWER or kind == TENDON_UPPER:
             e = p[u + U_RESTITUTION]
             if g[r0] <= TOUCH_TOLERANCE or (e > 0.0 and g[r0] + h * jfree[r0] < 0.0):
                 index[m], lo[m], hi[m] = r0, 0.0, np.inf
@@ -250,7 +251,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
             elif g[r0] + h * jfree[r0] < 0.0:
                 index[m], lo[m], hi[m], b[m] = r0, 0.0, np.inf, jfree[r0] + g[r0] / h
                 m += 1
-        elif kind == FRICTION:
+        elif kind == FRICTION or kind == TENDON_FRICTION:
             bound = p[u + U_BOUND] * h
             index[m], lo[m], hi[m], b[m] = r0, -bound, bound, jfree[r0]
             m += 1
@@ -360,12 +361,13 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
             u = unit_at(p, k)
             kind = int(p[u + U_KIND])
             r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])
-            if kind == CONNECT or kind == WELD or kind == COUPLING:
+            if kind == CONNECT or kind == WELD or kind == COUPLING or kind == TENDON_EQUALITY:
                 for a in range(r0, r0 + r):
                     grown = grown or position_rows[a] == 0.0
                     position_rows[a] = 1.0
                     velocity_rows[a] = 1.0
-            elif (kind == LOWER or kind == UPPER or kind == CONE or kind == CONTACT or kind == CONTACT1) \
+            elif (kind == LOWER or kind == UPPER or kind == CONE or kind == CONTACT or kind == CONTACT1
+                  or kind == TENDON_LOWER or kind == TENDON_UPPER) \
                     and g[r0] <= TOUCH_TOLERANCE * 1e-3 \
                     and position_rows[r0] == 0.0 and (g[r0] < 0.0 or P[r0] > 0.0):
                 position_rows[r0] = 1.0
@@ -412,7 +414,7 @@ class MoreauRun:
         self.mode = MODES[method]  # the free motion: Moreau-Jean's own, or MuJoCo's integrator's
         self.table = table
         self.p = np.array(params, dtype=np.float64)
-        self.p[table.mode_slice()] = np.where(np.array([u.code for u in table.units]) == FRICTION, 0.0,
+        self.p[table.mode_slice()] = np.where(np.isin([u.code for u in table.units], FRICTION_KINDS), 0.0,
                                               self.p[table.mode_slice()])
         self.description = description
         self.log = EventLog()
@@ -448,10 +450,10 @@ class MoreauRun:
         modes = np.empty((count, len(self.table.units)))
         for k, unit in enumerate(self.table.units):
             value = impulses[:, unit.row0]
-            if unit.code == FRICTION:
+            if unit.code in FRICTION_KINDS:
                 bound = unit_bound(self.p, self.table, k) * dt
                 modes[:, k] = np.where(np.abs(value) < bound * (1 - 1e-9), 0.0, -np.sign(value))
-            elif unit.code in (LOWER, UPPER, CONE) or unit.code in CONTACT_KINDS:
+            elif unit.code in UNILATERAL or unit.code in CONTACT_KINDS:
                 modes[:, k] = (value > 0).astype(float)
             else:
                 modes[:, k] = 1.0

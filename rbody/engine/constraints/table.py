@@ -21,10 +21,17 @@ Unit kinds and their rows (g >= 0 feasible for unilateral rows; the force on the
     CONNECT p1 - p2 = 0 (3 rows, world)        J = J_p1 - J_p2
     WELD    p1 - p2 = 0, log(q1 qrel q2^-1) = 0 (6 rows, world)
     COUPLING (qpos1 - ref1) - P(qpos2 - ref2) = 0 (1 row)
+    TENDON_LOWER  L - lower >= 0               J = +dL/dq (the tendon's Jacobian, rbody.engine.actuation)
+    TENDON_UPPER  upper - L >= 0               J = -dL/dq
+    TENDON_FRICTION  |lambda| <= frictionloss  J = dL/dq (lambda: the force along the tendon)
+    TENDON_EQUALITY (L1 - L1_0) - P(L2 - L2_0) = 0 (1 row), L_0 the lengths at the reference pose (MuJoCo's)
 
     CONTACT  the signed distance g >= 0 of a candidate contact of two geoms (rbody.engine.contacts.geometry), 3 rows:
              the normal (J = n . (J_b - J_a) at the contact point, lambda >= 0) and two tangents whose forces stay
              within the circular cone |lambda_t| <= mu lambda_n (Coulomb); CONTACT1 the normal row alone (condim 1)
+
+The tendon kinds are the joint kinds with a tendon's length in place of a coordinate (rows: tendon_rows.py), and
+every scheme treats them as it treats their joint twins (UNILATERAL, FRICTION_KINDS, EQUALITY_KINDS below).
 
 mode, per unit: limits, cones and contacts 1 active (held as an equality, lambda >= 0), 0 inactive; friction 0 sticking,
 +1 / -1 sliding with the dof's velocity of that sign (force -frictionloss sign); equalities 1 (always active); a
@@ -43,13 +50,20 @@ from rbody.engine.mujoco_steps import MUJOCO_METHODS
 from rbody.engine.schema import FLOAT, INT, Record
 from rbody.layout import JOINTS, WORLD, Layout
 
-LOWER, UPPER, CONE, FRICTION, CONNECT, WELD, COUPLING, CONTACT, CONTACT1 = range(9)
-KIND_ROWS = {LOWER: 1, UPPER: 1, CONE: 1, FRICTION: 1, CONNECT: 3, WELD: 6, COUPLING: 1, CONTACT: 3, CONTACT1: 1}
+(LOWER, UPPER, CONE, FRICTION, CONNECT, WELD, COUPLING, CONTACT, CONTACT1, TENDON_LOWER, TENDON_UPPER,
+ TENDON_FRICTION, TENDON_EQUALITY) = range(13)
+KIND_ROWS = {LOWER: 1, UPPER: 1, CONE: 1, FRICTION: 1, CONNECT: 3, WELD: 6, COUPLING: 1, CONTACT: 3, CONTACT1: 1,
+             TENDON_LOWER: 1, TENDON_UPPER: 1, TENDON_FRICTION: 1, TENDON_EQUALITY: 1}
 KIND_NAMES = {LOWER: "limit", UPPER: "limit", CONE: "limit", FRICTION: "friction", CONNECT: "connect",
-              WELD: "weld", COUPLING: "joint", CONTACT: "contact", CONTACT1: "contact"}
+              WELD: "weld", COUPLING: "joint", CONTACT: "contact", CONTACT1: "contact", TENDON_LOWER: "tendon limit",
+              TENDON_UPPER: "tendon limit", TENDON_FRICTION: "tendon friction", TENDON_EQUALITY: "tendon"}
 CONTACT_KINDS = (CONTACT, CONTACT1)
-UNILATERAL = (LOWER, UPPER, CONE)
-EQUALITY_KINDS = (CONNECT, WELD, COUPLING)
+UNILATERAL = (LOWER, UPPER, CONE, TENDON_LOWER, TENDON_UPPER)
+LOWER_KINDS = (LOWER, TENDON_LOWER)        # a stop below: the row's J is +dx/dq
+STOP_KINDS = (LOWER, UPPER, TENDON_LOWER, TENDON_UPPER)  # one-row stops (a cone aside)
+FRICTION_KINDS = (FRICTION, TENDON_FRICTION)
+EQUALITY_KINDS = (CONNECT, WELD, COUPLING, TENDON_EQUALITY)
+TENDON_KINDS = (TENDON_LOWER, TENDON_UPPER, TENDON_FRICTION, TENDON_EQUALITY)
 
 # The constraint block appended to the tree's row (rbody.engine.schema): a header of absolute offsets, one
 # record per unit, then the mode of every unit.
@@ -62,13 +76,14 @@ CONSTRAINT_HEADER = Record("constraint header", [
 C_UNITS, C_ROWS, C_UNIT, C_MODE = CONSTRAINT_HEADER.offsets()
 C_HEADER = CONSTRAINT_HEADER.size
 UNIT = Record("constraint unit", [
-    ("kind", 1, INT, "LOWER, UPPER, CONE, FRICTION, CONNECT, WELD, COUPLING, CONTACT or CONTACT1"),
+    ("kind", 1, INT, "LOWER, UPPER, CONE, FRICTION, CONNECT, WELD, COUPLING, CONTACT, CONTACT1, TENDON_LOWER, "
+                     "TENDON_UPPER, TENDON_FRICTION or TENDON_EQUALITY"),
     ("rows", 1, INT, "its rows"),
     ("row0", 1, INT, "its first row among all rows"),
     ("dof", 1, INT, "its degree of freedom (limits, friction, joint coupling); a contact's candidate slot"),
     ("qadr", 1, INT, "its qpos address"),
     ("bound", 1, FLOAT, "lower or upper limit, a cone's largest angle [rad | m], frictionloss [N m | N], or a "
-                                "contact's friction coefficient mu"),
+                                "contact's friction coefficient mu; a tendon's limit or frictionloss"),
     ("restitution", 1, FLOAT, "Newton's coefficient at an impact"),
     ("body1", 1, INT, "first body (-1: the world)"),
     ("body2", 1, INT, "second body (-1: the world)"),
@@ -77,9 +92,10 @@ UNIT = Record("constraint unit", [
     ("relquat", 4, FLOAT, "a weld's relative orientation"),
     ("dof2", 1, INT, "a coupling's second dof (-1: none)"),
     ("qadr2", 1, INT, "its qpos address (-1: none)"),
-    ("ref1", 1, FLOAT, "reference coordinate of the first joint"),
+    ("ref1", 1, FLOAT, "reference coordinate of the first joint (a tendon equality: tendon1's length at the "
+                       "reference pose)"),
     ("ref2", 1, FLOAT, "of the second"),
-    ("polycoef", 5, FLOAT, "a joint coupling's polynomial"),
+    ("polycoef", 5, FLOAT, "a joint or tendon coupling's polynomial"),
     ("gtype_a", 1, INT, "a contact's geom a: its type (MuJoCo's code)"),
     ("gpos_a", 3, FLOAT, "its position in its body's frame [m]"),
     ("gmat_a", 9, FLOAT, "its axes in its body's frame (row-major)"),
@@ -90,6 +106,8 @@ UNIT = Record("constraint unit", [
     ("gsize_b", 3, FLOAT, "its size [m]"),
     ("slip", 3, FLOAT, "a contact sliding in the event-driven scheme: its slip direction when its mode began "
                        "(world, unit)"),
+    ("tendon", 1, INT, "a tendon unit's tendon (its index among the tendons; -1: none)"),
+    ("tendon2", 1, INT, "a tendon equality's second tendon (-1: none)"),
 ])
 (U_KIND, U_ROWS, U_ROW0, U_DOF, U_QADR, U_BOUND, U_RESTITUTION, U_BODY1, U_BODY2, U_A1, U_A2, U_QUAT, U_DOF2,
  U_QADR2, U_REF1, U_REF2, U_POLY) = UNIT.offsets(
@@ -101,14 +119,16 @@ UNIT = Record("constraint unit", [
 U_GTYPE_A, U_GPOS_A, U_GMAT_A, U_GSIZE_A = UNIT.offsets("gtype_a", "gpos_a", "gmat_a", "gsize_a")
 U_GTYPE_B, U_GPOS_B, U_GMAT_B, U_GSIZE_B = UNIT.offsets("gtype_b", "gpos_b", "gmat_b", "gsize_b")
 (U_SLIP,) = UNIT.offsets("slip")
+U_TENDON, U_TENDON2 = UNIT.offsets("tendon", "tendon2")
 UNIT_SIZE = UNIT.size
 
 
 @dataclass(frozen=True)
 class Unit:
-    """One constraint as users see it: kind ("limit", "friction", "connect", "weld", "joint"), name (the joint's or
-    the equality's, a limit's side as "<joint>.lower" / ".upper", a multi-dof joint's friction as "<joint>[k]"),
-    its rows and where they start among all rows."""
+    """One constraint as users see it: kind ("limit", "friction", "connect", "weld", "joint", "contact", "tendon
+    limit", "tendon friction", "tendon"), name (the joint's, the tendon's or the equality's, a limit's side as
+    "<joint>.lower" / ".upper" (a tendon's likewise), a multi-dof joint's friction as "<joint>[k]"), its rows and
+    where they start among all rows."""
 
     code: int
     kind: str
@@ -132,7 +152,7 @@ class ConstraintTable:
     offset: int
     mode0: np.ndarray
     methods: tuple[str, ...] = ("rk4", "moreau") + MUJOCO_METHODS
-    equalities: tuple = ()  # every equality but tendons, each made explicit (a connect's anchor2, a weld's relpose)
+    equalities: tuple = ()  # every equality, each made explicit (a connect's anchor2, a weld's relpose)
     tree_size: int = 0
     section: np.ndarray | None = None
 
@@ -208,9 +228,10 @@ def _frames_at(layout: Layout, multibody, q: np.ndarray) -> dict[str, tuple[np.n
 
 
 def build_table(layout: Layout, multibody) -> ConstraintTable | None:
-    """The ConstraintTable of a Layout's joints' ranges and frictionloss and its active equalities (None when it has
-    none), for the tree compiled in `multibody` (rbody.Multibody of the same layout). Raises ValueError naming the
-    equality for one whose bodies or joints are not in the tree, and NotImplementedError for a tendon equality."""
+    """The ConstraintTable of a Layout's joints' and tendons' ranges and frictionloss and its active equalities
+    (None when it has none), for the tree compiled in `multibody` (rbody.Multibody of the same layout, with its
+    tendons). Raises ValueError naming the equality for one whose bodies, joints or tendons are not in the
+    layout."""
     arrays = multibody.arrays
     body_index = {name: i for i, name in enumerate(multibody.body_names)}
     body_index[WORLD] = -1
@@ -224,7 +245,7 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
         nonlocal rows
         record = np.zeros(UNIT_SIZE)
         record[[U_KIND, U_ROWS, U_ROW0]] = code, KIND_ROWS[code], rows
-        record[[U_BODY1, U_BODY2, U_DOF2, U_QADR2]] = -1, -1, -1, -1
+        record[[U_BODY1, U_BODY2, U_DOF2, U_QADR2, U_TENDON, U_TENDON2]] = -1, -1, -1, -1, -1, -1
         for key, value in fields.items():
             start = globals()[key]
             values = np.atleast_1d(np.asarray(value, dtype=float))
@@ -249,6 +270,17 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
             for k in range(count):
                 add(FRICTION, name if count == 1 else f"{name}[{k}]", U_DOF=da + k, U_BOUND=joint.frictionloss)
 
+    tendon_index = {tendon.name: t for t, tendon in enumerate(layout.tendons)}
+    for t, tendon in enumerate(layout.tendons):
+        if tendon.range is not None:
+            low, high = tendon.range
+            add(TENDON_LOWER, f"{tendon.name}.lower", U_TENDON=t, U_BOUND=low, U_RESTITUTION=tendon.restitution)
+            add(TENDON_UPPER, f"{tendon.name}.upper", U_TENDON=t, U_BOUND=high, U_RESTITUTION=tendon.restitution)
+    for t, tendon in enumerate(layout.tendons):
+        if tendon.frictionloss > 0:
+            add(TENDON_FRICTION, tendon.name, U_TENDON=t, U_BOUND=tendon.frictionloss)
+    lengths0 = None
+
     names = [e.name for e in layout.equalities]
     repeated = sorted({n for n in names if names.count(n) > 1})
     if repeated:
@@ -257,12 +289,25 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
     resolved = []
     for equality in layout.equalities:  # inactive ones are checked and made explicit too (exported as declared)
         what = f"equality {equality.name!r}"
-        if equality.kind == "tendon" and not equality.active:
-            continue
         if equality.kind == "tendon":
-            raise NotImplementedError(f"{what}: tendon equalities are not rows of the constraint layer yet (tendons are force "
-                                      "elements: rbody.engine.system); "
-                                      "remove it or set active=False")
+            indices = []
+            for field_name in ("tendon1", "tendon2"):
+                tendon_name = getattr(equality, field_name)
+                if tendon_name is not None and tendon_name not in tendon_index:
+                    raise ValueError(f"{what}: {field_name}={tendon_name!r} is not a tendon of the layout (tendons: "
+                                     f"{sorted(tendon_index)})")
+                indices.append(-1 if tendon_name is None else tendon_index[tendon_name])
+            if lengths0 is None:  # MuJoCo's tendon_length0: the lengths at qpos0
+                q0 = reference_qpos(layout, multibody)
+                lengths0 = multibody.tendons(q0, np.zeros(multibody.nv))["length"]
+            t1, t2 = indices
+            fields = dict(U_TENDON=t1, U_REF1=lengths0[t1], U_POLY=equality.polycoef)
+            if t2 >= 0:
+                fields.update(U_TENDON2=t2, U_REF2=lengths0[t2])
+            if equality.active:
+                add(TENDON_EQUALITY, equality.name, **fields)
+            resolved.append(equality)
+            continue
         if equality.kind == "joint":
             indices = []
             for field_name in ("joint1", "joint2"):

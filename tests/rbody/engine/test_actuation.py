@@ -295,7 +295,8 @@ REFUSED = [
      r"line 2, <geom>: a spatial tendon's <geom>"),
     ('<tendon>\n<spatial><site site="s"/><pulley divisor="2"/><site site="s"/></spatial></tendon>',
      r"line 2, <pulley>"),
-    ('<tendon>\n<fixed frictionloss="1"><joint joint="j" coef="1"/></fixed></tendon>', r"line 2, <fixed>: tendon frictionloss"),
+    ('<tendon>\n<fixed frictionloss="-1"><joint joint="j" coef="1"/></fixed></tendon>',
+     r"line 2, <fixed>: frictionloss=-1.0: must be >= 0"),
     ('<tendon>\n<fixed armature="1"><joint joint="j" coef="1"/></fixed></tendon>', r"line 2, <fixed>: tendon armature"),
     ('<tendon>\n<spatial><site site="s"/><site site="nope"/></spatial></tendon>', r"line 2, <site>: site='nope'"),
 ]

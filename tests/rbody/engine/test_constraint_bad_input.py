@@ -33,8 +33,8 @@ def test_an_equality_naming_what_the_tree_lacks_is_refused_before_any_work(equal
         two_rods(equality)
 
 
-def test_a_tendon_equality_is_not_implemented_yet():
-    with pytest.raises(NotImplementedError, match="tendon equalities are not rows of the constraint layer"):
+def test_a_tendon_equality_naming_no_tendon_is_refused_naming_it():
+    with pytest.raises(ValueError, match="equality 't': tendon1='cable' is not a tendon of the layout"):
         two_rods(Equality("t", "tendon", tendon1="cable"))
 
 
