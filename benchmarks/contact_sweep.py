@@ -20,7 +20,7 @@ Prints the machine, its load and the package versions, then
    2 dt is not run (MuJoCo would clamp it to 2 dt: the same run as 2 dt). rbody: method "moreau" over the same dts,
    and the event-driven "rk4" (dt its sampling interval) on the sphere and the incline.
    Cost: wall time per simulated second [s/s], the minimum over --repeats timed runs (the stepping loop with the
-   recording of qpos and qvel at every step for MuJoCo, mj_step in a Python loop; the whole simulate() call for
+   keeping of every state for MuJoCo, mujoco.rollout on one thread; the whole simulate() call for
    rbody, after one untimed warm-up per scene and method, which compiles), with the spread (max - min) / min.
    A point predicted (from the previous, coarser one) to take more than MAX_RUN_SECONDS is not run, and says so.
    Printed: per scene and error level, the cheapest MuJoCo setting reaching it and the cheapest rbody run, their
@@ -44,6 +44,7 @@ import itertools
 import math
 import os
 import platform
+import re
 import sys
 import time
 import warnings
@@ -58,6 +59,7 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests" / "rbody" / "engine"))
 
 import mujoco  # noqa: E402
+from mujoco import rollout  # noqa: E402
 import numba  # noqa: E402
 
 import rbody  # noqa: E402
@@ -227,21 +229,22 @@ def world_omega(qpos: np.ndarray, qvel: np.ndarray) -> np.ndarray:
 
 
 def mujoco_rollout(model: mujoco.MjModel, data: mujoco.MjData, steps: int, keyframe: int | None = 0):
-    """(seconds, qpos (steps + 1, nq), qvel (steps + 1, nv)): mj_step `steps` times from the keyframe (or qpos0 at
-    rest), recording every step; seconds is the loop's wall time."""
+    """(seconds, qpos (steps + 1, nq), qvel (steps + 1, nv)): `steps` steps from the keyframe (or from qpos0 at rest)
+    through mujoco.rollout (the stepping loop in C, one thread, every state kept); seconds is the rollout's wall
+    time."""
     if keyframe is None:
         mujoco.mj_resetData(model, data)
     else:
         mujoco.mj_resetDataKeyframe(model, data, keyframe)
-    qpos = np.empty((steps + 1, model.nq))
-    qvel = np.empty((steps + 1, model.nv))
-    qpos[0], qvel[0] = data.qpos, data.qvel
+    kind = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    initial = np.empty(mujoco.mj_stateSize(model, kind))
+    mujoco.mj_getState(model, data, initial, kind)
+    states = np.empty((1, steps, initial.size))
     start = time.perf_counter()
-    for k in range(1, steps + 1):
-        mujoco.mj_step(model, data)
-        qpos[k] = data.qpos
-        qvel[k] = data.qvel
-    return time.perf_counter() - start, qpos, qvel
+    rollout.rollout(model, data, initial[None], nstep=steps, state=states)
+    seconds = time.perf_counter() - start
+    path = np.concatenate([initial[None], states[0]])  # FULLPHYSICS: time, qpos, qvel, ...
+    return seconds, path[:, 1:1 + model.nq], path[:, 1 + model.nq:1 + model.nq + model.nv]
 
 
 def repeat(run: Callable[[], tuple], repeats: int, budget: float = 2.0) -> tuple[list[float], tuple]:
@@ -357,22 +360,40 @@ def floor_of(rows: Sequence[Row], scene: str, measure: str, engine: str, family:
     return min(fits, key=lambda r: (r.errors[measure], r.cost)) if fits else None
 
 
+def cost_cell(row: Row) -> str:
+    """The cost [s/s] with its spread over the repeats, or "1 run" when it was timed once."""
+    return f"{row.cost:.3g} " + (f"(+{100 * row.spread:.0f}%)" if row.repeats > 1 else "(1 run)")
+
+
 def level_table(rows: Sequence[Row]) -> list[str]:
-    lines = ["| scene: measure | error level | cheapest MuJoCo setting reaching it (dt) | MuJoCo cost [s/s] "
-             "| cheapest rbody run (dt) | rbody cost [s/s] | rbody / MuJoCo |", "|---|---|---|---|---|---|---|"]
+    """Per scene and measure, each error level some MuJoCo run reaches: the cheapest MuJoCo setting reaching it and
+    the cheapest rbody run reaching it, their costs and ratio; then one row for the levels below MuJoCo's floor on
+    the grid (none of its runs reaches them), with rbody's cheapest run there."""
+    lines = ["| scene: measure | error level | cheapest MuJoCo setting reaching it (dt): its error | MuJoCo cost [s/s] "
+             "| cheapest rbody run (dt): its error | rbody cost [s/s] | rbody / MuJoCo |",
+             "|---|---|---|---|---|---|---|"]
+
+    def cell(row: Row | None, measure: str, label: str) -> tuple[str, str]:
+        if row is None:
+            return "none reaches it", "-"
+        return f"{label} ({row.dt:g}): {row.errors[measure]:.2g}", cost_cell(row)
+
     for case in CASES:
         for measure in case.primary:
+            name = f"{case.name}: {measure} [{UNITS[measure]}]"
             for level in LEVELS:
                 theirs = cheapest(rows, case.name, measure, "mujoco", level)
                 ours = cheapest(rows, case.name, measure, "rbody", level)
-                if theirs is None and ours is None:
-                    continue
-                name = f"{case.name}: {measure} [{UNITS[measure]}]"
-                mj = (f"{theirs.setting} ({theirs.dt:g}): {theirs.errors[measure]:.2g}", f"{theirs.cost:.3g} "
-                      f"(+{100 * theirs.spread:.0f}%)") if theirs else ("none reaches it", "-")
-                rb = (f"{ours.family} ({ours.dt:g}): {ours.errors[measure]:.2g}", f"{ours.cost:.3g} "
-                      f"(+{100 * ours.spread:.0f}%)") if ours else ("none reaches it", "-")
-                ratio = f"{ours.cost / theirs.cost:.2g}" if theirs and ours else "-"
+                if theirs is None:
+                    floor = floor_of(rows, case.name, measure, "mujoco")
+                    below = f"below MuJoCo's floor ({floor.errors[measure]:.2g})" if floor else "MuJoCo: no run"
+                    mj = cell(None, measure, "")
+                    rb = cell(ours, measure, ours.family if ours else "")
+                    lines.append(f"| {name} | {level:g} and below: {below} | {mj[0]} | {mj[1]} | {rb[0]} | {rb[1]} "
+                                 f"| - |")
+                    break
+                mj, rb = cell(theirs, measure, theirs.setting), cell(ours, measure, ours.family if ours else "")
+                ratio = f"{ours.cost / theirs.cost:.2g}" if ours else "-"
                 lines.append(f"| {name} | {level:g} | {mj[0]} | {mj[1]} | {rb[0]} | {rb[1]} | {ratio} |")
     return lines
 
@@ -394,7 +415,7 @@ def floor_table(rows: Sequence[Row]) -> list[str]:
                 if best is None:
                     continue
                 lines.append(f"| {name} | {engine} {family} | {best.errors[measure]:.2g} | {best.setting} "
-                             f"({best.dt:g}) | {best.cost:.3g} | {at_default} |")
+                             f"({best.dt:g}) | {cost_cell(best)} | {at_default} |")
     return lines
 
 
@@ -432,8 +453,12 @@ def figure(rows: Sequence[Row], path: Path) -> None:
     import matplotlib.pyplot as plt
 
     panels = [(case, measure) for case in CASES for measure in case.primary]
-    fig, axes = plt.subplots(1, len(panels), figsize=(4.2 * len(panels), 4.2))
-    for ax, (case, measure) in zip(np.atleast_1d(axes), panels):
+    columns = 2
+    fig, axes = plt.subplots(math.ceil(len(panels) / columns), columns, figsize=(11, 4.6 * math.ceil(len(panels) / 2)),
+                             squeeze=False)
+    for ax in axes.flat[len(panels):]:
+        ax.set_visible(False)
+    for ax, (case, measure) in zip(axes.flat, panels):
         for family in sorted({r.family for r in rows if r.engine == "mujoco"}):
             solver, cone = family.split()
             pts = [r for r in rows if r.scene == case.name and r.engine == "mujoco" and r.family == family
@@ -454,7 +479,7 @@ def figure(rows: Sequence[Row], path: Path) -> None:
         ax.set_ylabel(f"error [{UNITS[measure]}]")
         ax.set_title(WHAT[(case.name, measure)], fontsize=9)
         ax.grid(True, which="major", alpha=0.3)
-    np.atleast_1d(axes)[0].legend(fontsize=7, loc="best")
+    axes.flat[0].legend(fontsize=7, loc="center left")
     fig.suptitle(f"MuJoCo {mujoco.__version__} contact settings (solver, cone, impratio, noslip, timeconst, dt) "
                  f"against rbody; an error of 0 is drawn at {ZERO_DRAWN_AT:g}", fontsize=9)
     fig.tight_layout()
@@ -567,6 +592,12 @@ def moved(qpos: np.ndarray, body: int) -> float:
     return float(np.max(np.linalg.norm(pos - pos[0], axis=1)))
 
 
+def accuracy_note(message: str) -> str:
+    """The gist of rbody's AccuracyWarning: the stiffest linearised rate and the step it asks for."""
+    found = re.search(r"dt \* w = ([0-9.]+).*?(w = [0-9.]+ rad/s).*?(Use dt <= [0-9.e-]+ s)", message)
+    return f"AccuracyWarning: dt w = {found[1]} ({found[2]}); {found[3]}" if found else message[:120]
+
+
 def model_costs(name: str, xml: str, free_body: int, tolerance: float, repeats: int, quick: bool) -> list[str]:
     """Cost per step [us] (min / median / max) and the free body's largest displacement [m] over COST_T_END at
     COST_DT: rbody moreau, MuJoCo's defaults, MuJoCo's cheapest setting keeping the displacement within tolerance."""
@@ -583,8 +614,7 @@ def model_costs(name: str, xml: str, free_body: int, tolerance: float, repeats: 
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             rbody.simulate(scene, dt=COST_DT, method="moreau")
-        note = "; ".join(sorted({str(w.message).split(":")[0] + ": " + str(w.message).split("Use ")[-1][:60]
-                                 for w in caught})) if caught else ""
+        note = "; ".join(sorted({accuracy_note(str(w.message)) for w in caught}))
         seconds, (run,) = repeat(lambda: rbody_timed(scene, COST_DT, "moreau"), repeats, budget=30.0)
         lines.append(f"| {name} | rbody moreau | {COST_DT:g} | {us(seconds)} | {moved(run['qpos'], free_body):.2g} | "
                      f"{note or '-'} |")
