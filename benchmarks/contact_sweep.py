@@ -244,7 +244,12 @@ def mujoco_rollout(model: mujoco.MjModel, data: mujoco.MjData, steps: int, keyfr
     rollout.rollout(model, data, initial[None], nstep=steps, state=states)
     seconds = time.perf_counter() - start
     path = np.concatenate([initial[None], states[0]])  # FULLPHYSICS: time, qpos, qvel, ...
-    return seconds, path[:, 1:1 + model.nq], path[:, 1 + model.nq:1 + model.nq + model.nv]
+    qpos, qvel = path[:, 1:1 + model.nq], path[:, 1 + model.nq:1 + model.nq + model.nv]
+    if np.any(np.diff(path[:, 0]) <= 0):
+        # MuJoCo met a bad acceleration and reset the state to qpos0 (its autoreset): the run failed; poison it so
+        # that it is reported as non-finite rather than measured as a body back at its start
+        qpos = np.full_like(qpos, np.nan)
+    return seconds, qpos, qvel
 
 
 def repeat(run: Callable[[], tuple], repeats: int, budget: float = 2.0) -> tuple[list[float], tuple]:
@@ -273,7 +278,7 @@ def mujoco_point(case: Case, model, data, setting: MujocoSetting, dt: float, t_e
     with np.errstate(all="ignore"):
         seconds, (qpos, qvel) = repeat(lambda: mujoco_rollout(model, data, steps), repeats)
     if not (np.all(np.isfinite(qpos)) and np.all(np.isfinite(qvel))):
-        row.failure = "non-finite state"
+        row.failure = "unstable: non-finite acceleration (MuJoCo reset the state)"
         return row
     samples = {"t": np.arange(steps + 1) * dt, "qpos": qpos, "v": qvel[:, :3], "w": world_omega(qpos, qvel)}
     row.errors = case.measures(samples)
