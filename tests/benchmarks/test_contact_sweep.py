@@ -86,3 +86,26 @@ def test_quick_run_prints_the_tables_and_writes_points_and_figure(tmp_path, caps
         # MuJoCo's soft contacts: every setting of the quick grid misses the closed form by more than 1e-6
         assert min(float(r[measure]) for r in theirs) > 1e-6
     assert "humanoid figure standing" in out and "gripper holding a box" in out
+
+
+def test_the_figure_stands_on_its_soles_and_the_pads_touch_the_box_at_qpos0():
+    """The two models of the cost section start in contact, not above or inside: MuJoCo's own distances at qpos0."""
+    import mujoco
+
+    figure = mujoco.MjModel.from_xml_string(sweep.humanoid_xml())
+    data = mujoco.MjData(figure)
+    mujoco.mj_forward(figure, data)
+    assert (figure.nbody, figure.nv) == (13, 24)                # world + 12 bodies; a free root and 18 hinges
+    soles = [i for i in range(figure.ngeom) if figure.geom(i).name.startswith("sole_")]
+    lowest = [data.geom_xpos[i][2] - figure.geom_size[i][0] for i in soles]   # capsules lying flat
+    np.testing.assert_allclose(lowest, 0.0, atol=1e-12)
+    # every other geom clear of the floor by its bounding sphere (the shins' lowest points are 5.5 cm up)
+    others = [data.geom_xpos[i][2] - figure.geom_rbound[i] for i in range(1, figure.ngeom) if i not in soles]
+    assert min(others) > 0.05
+    gripper = mujoco.MjModel.from_xml_string(sweep.gripper_xml())
+    data = mujoco.MjData(gripper)
+    mujoco.mj_forward(gripper, data)
+    box = gripper.geom("object").id
+    for pad in ("pad_left", "pad_right"):
+        distance = mujoco.mj_geomDistance(gripper, data, gripper.geom(pad).id, box, 0.01, None)
+        assert abs(distance) <= 1e-12
