@@ -79,7 +79,9 @@ def test_quick_run_prints_the_tables_and_writes_points_and_figure(tmp_path, caps
     rows = list(csv.DictReader(points.open()))
     primary = {"sphere": "speed", "incline": "creep", "stack": "rest"}
     for scene, measure in primary.items():
-        ours = [r for r in rows if r["scene"] == scene and r["engine"] == "rbody" and r["family"] == "moreau"]
+        # (a finer point may be skipped as predicted too long on a loaded machine: "not run", with its reason)
+        ours = [r for r in rows if r["scene"] == scene and r["engine"] == "rbody" and r["family"] == "moreau"
+                and not r["failure"].startswith("not run")]
         theirs = [r for r in rows if r["scene"] == scene and r["engine"] == "mujoco" and not r["failure"]]
         assert ours and theirs
         assert all(float(r[measure]) <= 1e-12 for r in ours)          # the rigid limit: round-off
