@@ -455,7 +455,9 @@ def _winding_kernel(points, triangles, total):
             la = np.sqrt(ax * ax + ay * ay + az * az)
             lb = np.sqrt(bx * bx + by * by + bz * bz)
             lc = np.sqrt(cx * cx + cy * cy + cz * cz)
-            numerator = ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)
+            # summed from +0.0 as numpy's einsum sums: a point on a triangle's plane then has numerator +0, and
+            # atan2(+0, -|x|) = +pi, so a point on a face counts as inside that face's solid
+            numerator = 0.0 + ax * (by * cz - bz * cy) + ay * (bz * cx - bx * cz) + az * (bx * cy - by * cx)
             denominator = (la * lb * lc + (ax * bx + ay * by + az * bz) * lc + (bx * cx + by * cy + bz * cz) * la
                            + (cx * ax + cy * ay + cz * az) * lb)
             angle += 2.0 * np.arctan2(numerator, denominator)
