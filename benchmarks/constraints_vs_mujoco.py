@@ -2,6 +2,7 @@
 the cost per step of each on models with limits and dry friction, and which published models now load.
 
     python benchmarks/constraints_vs_mujoco.py [--repeats 5] [--models DIR] [--skip-sweep] [--skip-cost]
+                                               [--published FILE.xml ...]
 
 Prints the machine and versions, then
 1. the sweep: on the limit pendulum (a rod falling onto its stop, e = 0) and the dry-friction oscillator
@@ -21,7 +22,11 @@ Prints the machine and versions, then
    to pass), and again with contacts disabled (<flag contact="disable"/>, the contact layer being
    another issue); each that loads is run 2 s from its reference pose at its own timestep, and MuJoCo runs the same
    file: how far MuJoCo's joints pass their stops (rbody's never do beyond round-off), and the largest difference of
-   the two runs' joint coordinates.
+   the two runs' joint coordinates;
+4. with --published FILE...: each file (a published quadruped, a humanoid) with contacts disabled, run 1 s by both
+   engines with the file's own integrator at its own step (rbody: scene.file_method, the constraint layer's
+   time-stepping with MuJoCo's step as its free motion): the cost per step with its spread, and the largest
+   difference of the two runs' joint coordinates.
 Benchmarks are not tests: compare figures of one run with each other; the machine may be shared.
 """
 
@@ -109,8 +114,9 @@ def spread(samples: list[float]) -> str:
     return f"{values.min():.1f} / {np.median(values):.1f} / {values.max():.1f}"
 
 
-def mujoco_step_seconds(xml: str, qpos0, qvel0, dt: float, steps: int, integrator: str) -> float:
-    model = mujoco.MjModel.from_xml_string(xml)
+def mujoco_step_seconds(xml: str | Path, qpos0, qvel0, dt: float, steps: int, integrator: str) -> float:
+    """Seconds per mj_step of the model (an XML string, or a file whose assets resolve beside it)."""
+    model = mujoco.MjModel.from_xml_path(str(xml)) if isinstance(xml, Path) else mujoco.MjModel.from_xml_string(xml)
     model.opt.timestep = dt
     model.opt.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{integrator.upper()}")
     data = mujoco.MjData(model)
@@ -216,12 +222,51 @@ def published(folder: Path) -> None:
             modified.unlink(missing_ok=True)
 
 
+def published_cost(paths: list[Path], repeats: int, t_end: float = 1.0) -> None:
+    """Cost per step of published files with their limits and dry friction, contacts off, each engine with the file's
+    own integrator at the file's own step (rbody: scene.file_method, the constraint layer's time-stepping with that
+    step as its free motion): the whole simulate call per step against mj_step in a loop, min / median / max."""
+    print(f"\n4. Published models, contacts off, the file's integrator and step, {t_end:g} s from the reference pose: "
+          "cost per step [us] (min / median / max over the repeats)")
+    print("| model | dofs | constraint units | integrator, dt | rbody | MuJoCo | ratio (medians) | max |dq| rbody-MuJoCo |")
+    print("|---|---|---|---|---|---|---|---|")
+    for path in paths:
+        modified = path.with_name(f".{path.stem}.nocontact.xml")
+        modified.write_text(without_contacts(path.read_text()))
+        try:
+            scene = from_mjcf(modified, t_end=t_end, overlapping_geoms="sum")
+            dt, method = float(scene.timestep), scene.file_method
+            steps = int(round(t_end / dt))
+            run = simulate(scene, dt=dt, method=method, allow_large=True)  # warm-up (compilation, caches)
+            samples = []
+            for _ in range(repeats):
+                start = time.perf_counter()
+                simulate(scene, dt=dt, method=method, allow_large=True)
+                samples.append((time.perf_counter() - start) / steps)
+            integrator = str(scene.integrator or "Euler")
+            mujoco_step_seconds(modified, scene.qpos0, np.zeros(scene.multibody.nv), dt, 100, integrator)
+            theirs = [mujoco_step_seconds(modified, scene.qpos0, np.zeros(scene.multibody.nv), dt, steps,
+                                          integrator) for _ in range(repeats)]
+            t, qpos, _sites, _seconds = hard.run_mujoco(modified, scene.qpos0, t_end, dt, integrator=integrator)
+            count = min(len(t), len(run.t))
+            difference = float(np.abs(qpos[:count] - run["qpos"][:count]).max())
+            units = len(scene.constraint_table.units) if scene.constraint_table is not None else 0
+            print(f"| {path.name} | {scene.multibody.nv} | {units} | {integrator}, {dt:g} | {spread(samples)} | "
+                  f"{spread(theirs)} | {np.median(samples) / np.median(theirs):.1f} | {difference:.3g} |")
+        except Exception as error:  # noqa: BLE001 - the report names every refusal
+            print(f"| {path.name} | | | | failed: {first_line(error)} | | | |")
+        finally:
+            modified.unlink(missing_ok=True)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--models", type=Path, default=None, help="a folder of MJCF files to try")
     parser.add_argument("--skip-sweep", action="store_true")
     parser.add_argument("--skip-cost", action="store_true")
+    parser.add_argument("--published", type=Path, nargs="*", default=[],
+                        help="MJCF files (a quadruped, a humanoid) to time with their own integrator, contacts off")
     args = parser.parse_args()
     header()
     if not args.skip_sweep:
@@ -230,6 +275,8 @@ def main() -> None:
         cost(args.repeats)
     if args.models is not None:
         published(args.models)
+    if args.published:
+        published_cost(args.published, args.repeats)
 
 
 if __name__ == "__main__":
