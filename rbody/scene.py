@@ -626,10 +626,16 @@ class TreeScene(Scene):
                 return np.zeros(native.y0.shape[0])
             if method not in MUJOCO_METHODS:
                 return jacobian_rate(native.rhs, native.y0, native.params)
-            stepped = self._native_tree(planar=False) if native.rhs is planar_rhs else native
+            source = native
+            if native.constraints is not None:  # the time-stepping's free motion is the tree's own MuJoCo step, its
+                # constraints impulses and projections (which take no energy in): that step's stability is the run's
+                free = self._native_with_elements() if model.has_elements else self._native_tree(planar=False)
+                source = dataclasses.replace(free, y0=np.ascontiguousarray(native.y0[:, :free.y0.shape[1]]),
+                                             params=native.params)
+            stepped = self._native_tree(planar=False) if source.rhs is planar_rhs else source
             rates = []
-            for params in (native.params, unclamped(native.params)) if model.has_elements else (native.params,):
-                jacobians = jacobian_matrices(native.rhs, native.y0, params)[:, rows]
+            for params in (source.params, unclamped(source.params)) if model.has_elements else (source.params,):
+                jacobians = jacobian_matrices(source.rhs, source.y0, params)[:, rows]
                 rates.append(step_rate(method, jacobians[:, :, columns], jacobians[:, :, velocities], stepped.y0,
                                        params if model.has_elements else stepped.params, model.has_elements))
             return np.max(rates, axis=0)
