@@ -28,6 +28,16 @@ WORLD = "world"
 SHAPE_KINDS = ("sphere", "cylinder", "box", "capsule", "plane", "mesh")
 
 
+def _check_dry_friction(element, what: str) -> None:
+    """A joint's or a tendon's frictionloss (>= 0, [N or N m]) and its stops' restitution (Newton's, in [0, 1]),
+    checked and set as floats on the frozen `element`."""
+    friction = finite_array(element.frictionloss, f"{what}: frictionloss", shape=())
+    object.__setattr__(element, "frictionloss", float(nonnegative(friction, f"{what}: frictionloss")))
+    restitution = finite_array(element.restitution, f"{what}: restitution", shape=())
+    object.__setattr__(element, "restitution", float(in_interval(restitution, f"{what}: restitution", 0.0, 1.0,
+                                                                 closed=True)))
+
+
 @dataclass(frozen=True)
 class Shape:
     """Collision and drawing geometry, in the frame of the body that carries it (or the world).
@@ -269,11 +279,7 @@ class Joint:
             elif not low < high:
                 raise ValueError(f"{what}: range={self.range!r}: expected (lo, hi) with lo < hi")
             object.__setattr__(self, "range", (low, high))
-        friction = finite_array(self.frictionloss, f"{what}: frictionloss", shape=())
-        object.__setattr__(self, "frictionloss", float(nonnegative(friction, f"{what}: frictionloss")))
-        restitution = finite_array(self.restitution, f"{what}: restitution", shape=())
-        object.__setattr__(self, "restitution", float(in_interval(restitution, f"{what}: restitution", 0.0, 1.0,
-                                                                  closed=True)))
+        _check_dry_friction(self, what)
 
     @property
     def line(self) -> np.ndarray:
@@ -443,11 +449,7 @@ class Tendon:
             if not low < high:
                 raise ValueError(f"{what}: range={self.range!r}: expected (lower, upper) with lower < upper")
             object.__setattr__(self, "range", (low, high))
-        friction = finite_array(self.frictionloss, f"{what}: frictionloss", shape=())
-        object.__setattr__(self, "frictionloss", float(nonnegative(friction, f"{what}: frictionloss")))
-        restitution = finite_array(self.restitution, f"{what}: restitution", shape=())
-        object.__setattr__(self, "restitution", float(in_interval(restitution, f"{what}: restitution", 0.0, 1.0,
-                                                                  closed=True)))
+        _check_dry_friction(self, what)
 
 
 ACTUATOR_DYNAMICS = ("none", "integrator", "filter", "filterexact")
