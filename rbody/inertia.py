@@ -194,6 +194,9 @@ class Inertia:
                 tensor = tensor * size
             except FloatingPointError:
                 raise ValueError(f"positions span {size:.3g} m: the moments m |x|^2 overflow float64") from None
+        # Particles within ~1e-146 m of their centre have moments below float64's normal range: to float64 the set
+        # is a point mass (as the sum of two point bodies so close is: __add__), not a body given in wrong units
+        tensor[np.abs(tensor) < SMALLEST_CARRIED] = 0.0
         return cls(total, com, tensor)
 
     @classmethod

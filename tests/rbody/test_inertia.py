@@ -430,3 +430,15 @@ def test_two_coincident_points_far_below_a_metre_join():
     assert joined.mass == 6.0
     assert np.allclose(joined.com, x[0], rtol=1e-15, atol=0)
     assert np.all(joined.tensor == 0.0)
+
+
+def test_particles_closer_than_float64s_normal_moments_are_a_point_mass():
+    """Two unit masses 1e-157 m apart (found by hypothesis): their moments, 5e-315 kg m^2, are subnormal. The set is
+    a point mass to float64, as the sum of the two point bodies is, not a body refused for its units."""
+    x = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 9.96413417e-158]])
+    union = Inertia.point_masses([1.0, 1.0], x)
+    joined = Inertia.point_masses([1.0], x[:1]) + Inertia.point_masses([1.0], x[1:])
+    assert union.mass == joined.mass == 2.0
+    assert np.array_equal(union.tensor, np.zeros((3, 3))) and np.array_equal(joined.tensor, union.tensor)
+    wide = Inertia.point_masses([1.0, 1.0], [[0.0, 0.0, 0.0], [0.0, 0.0, 1e-140]])  # normal moments: kept
+    assert wide.tensor[0, 0] == pytest.approx(0.5e-280, rel=1e-12)
