@@ -58,7 +58,8 @@ NOCONTACT_TAG = ".nocontact"
 
 @contextlib.contextmanager
 def quiet():
-    """The process's stdout and stderr (file descriptors 1 and 2: MuJoCo's C prints there) muted."""
+    """The process's stdout and stderr (file descriptors 1 and 2: MuJoCo's C and Bullet's C++ print there) muted
+    (benchmarks/urdf_survey.py uses it too)."""
     sys.stdout.flush()
     sys.stderr.flush()
     saved = [os.dup(1), os.dup(2)]

@@ -19,8 +19,6 @@ machine, the versions, a summary per collection and one row per file. No publish
 from __future__ import annotations
 
 import argparse
-import contextlib
-import os
 import signal
 import sys
 import time
@@ -30,27 +28,12 @@ from pathlib import Path
 
 import numpy as np
 
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # the sibling survey's helpers
+from mjcf_survey import quiet  # noqa: E402
+
 RUN_SECONDS = 30    # wall-time limit of the short run [s]
 RUN_T_END = 0.1     # [s]
 STATES = 3          # random states at which the dynamics are compared with Pinocchio's
-
-
-@contextlib.contextmanager
-def quiet():
-    """The process's stdout and stderr (file descriptors 1 and 2: Bullet's and MuJoCo's C++ print there) muted."""
-    sys.stdout.flush()
-    sys.stderr.flush()
-    saved = [os.dup(1), os.dup(2)]
-    null = os.open(os.devnull, os.O_WRONLY)
-    os.dup2(null, 1)
-    os.dup2(null, 2)
-    try:
-        yield
-    finally:
-        os.dup2(saved[0], 1)
-        os.dup2(saved[1], 2)
-        for fd in saved + [null]:
-            os.close(fd)
 
 
 class Timeout(Exception):
