@@ -204,23 +204,36 @@ def upper_solve(L, b):
 
 
 @njit(cache=True)
+def cholesky_factor(A, L, rtol):
+    """L (m, m) <- the lower Cholesky factor of the symmetric A (m, m) when every pivot exceeds rtol times its diagonal
+    entry (rtol = 0: A positive definite), returning True; False (L partly written) otherwise."""
+    m = A.shape[0]
+    for i in range(m):
+        for j in range(m):
+            L[i, j] = 0.0
+    for i in range(m):
+        for j in range(i + 1):
+            acc = A[i, j]
+            for k in range(j):
+                acc -= L[i, k] * L[j, k]
+            if i == j:
+                if not acc > rtol * A[i, i]:
+                    return False
+                L[i, i] = np.sqrt(acc)
+            else:
+                L[i, j] = acc / L[j, j]
+    return True
+
+
+@njit(cache=True)
 def definite_solve(W, r, x):
     """x = W^-1 r by Cholesky when W (m, m) is positive definite beyond round-off (every pivot above 1e-10 of its
     diagonal entry), returning True; False (x untouched) when it is not: the caller then takes the minimum-norm
     solution (redundant rows)."""
     m = r.shape[0]
-    L = np.zeros((m, m))
-    for i in range(m):
-        for j in range(i + 1):
-            acc = W[i, j]
-            for k in range(j):
-                acc -= L[i, k] * L[j, k]
-            if i == j:
-                if not acc > 1e-10 * W[i, i]:
-                    return False
-                L[i, i] = np.sqrt(acc)
-            else:
-                L[i, j] = acc / L[j, j]
+    L = np.empty((m, m))
+    if not cholesky_factor(W, L, 1e-10):
+        return False
     z = lower_solve(L, r)
     out = upper_solve(L, z)
     for i in range(m):

@@ -79,11 +79,11 @@ SCHEMES = {"moreau": "time-stepping (Moreau-Jean)",
 
 
 @njit(cache=True)
-def mujoco_free_velocity(p, y, h, mode, M, f, vfree, metric):
+def mujoco_free_velocity(p, y, h, mode, M, f, vfree, L):
     """vfree (nv,) = v + h (M - h D)^-1 f: the free motion of MuJoCo's integrator `mode` (EULER, IMPLICITFAST,
-    IMPLICIT) from the state y, with M (nv, nv) and f (nv,) at that state (module docstring); metric (nv, nv) <-
-    the impulses' metric, the symmetric part of M - h D. Returns whether that metric is positive definite (else the
-    caller takes M's)."""
+    IMPLICIT) from the state y, with M (nv, nv) and f (nv,) at that state (module docstring); L (nv, nv) <- the lower
+    Cholesky factor of the impulses' metric: the symmetric part of M - h D, or M where that is not positive
+    definite."""
     nq, nv, _n = dyn.sizes(p)
     H = np.empty((nv, nv))
     if mode == EULER:  # D = -diag(the joints' damping): M and the rows already hold all of it
@@ -98,15 +98,17 @@ def mujoco_free_velocity(p, y, h, mode, M, f, vfree, metric):
         for a in range(nv):
             for c in range(nv):
                 H[a, c] = M[a, c] - h * matrices[1, a, c]
+    metric = np.empty((nv, nv))
     for a in range(nv):
         for c in range(nv):
             metric[a, c] = 0.5 * (H[a, c] + H[c, a])
+    if not dyn.cholesky_factor(metric, L, 0.0):
+        dyn.cholesky_factor(M, L, 0.0)
     rhs = f.copy()
     qacc = np.empty(nv)
     solve_general(H, rhs, qacc, nv)
     for d in range(nv):
         vfree[d] = y[nq + d] + h * qacc[d]
-    return positive_definite(metric)
 
 
 @njit(cache=True)
@@ -156,26 +158,6 @@ def near_contacts(p, q, w, acc, vfree, h, J, jdot, g):
 
 
 @njit(cache=True)
-def positive_definite(A):
-    """Whether the symmetric A (n, n) is positive definite (Cholesky's pivots all positive), A unchanged."""
-    n = A.shape[0]
-    L = np.zeros((n, n))
-    for j in range(n):
-        pivot = A[j, j]
-        for k in range(j):
-            pivot -= L[j, k] * L[j, k]
-        if not pivot > 0.0:
-            return False
-        L[j, j] = np.sqrt(pivot)
-        for i in range(j + 1, n):
-            acc = A[i, j]
-            for k in range(j):
-                acc -= L[i, k] * L[j, k]
-            L[i, j] = acc / L[j, j]
-    return True
-
-
-@njit(cache=True)
 def next_activations(p, act, rates, h):
     """act (na,) advanced over h [s] at the rates (na,) of the step's start as MuJoCo's mj_advance does (its
     mj_nextActivation, clamped to actrange)."""
@@ -216,17 +198,14 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
         dyn.actuator_rates(p, y[:nq], y[nq:nq + nv], y[at:at + na], rates)
     v = y[nq:nq + nv]
     vfree = np.empty(nv)
-    metric = M  # the impulses move the velocities by metric^-1 J^T P
-    if mode == MOREAU:
+    if mode == MOREAU:  # L: the factor of the impulses' metric, which moves the velocities by metric^-1 J^T P
         L = np.linalg.cholesky(M)
         a0 = dyn.upper_solve(L, dyn.lower_solve(L, f))
         for d in range(nv):
             vfree[d] = v[d] + h * a0[d]
     else:
-        stepped = np.empty((nv, nv))
-        if mujoco_free_velocity(p, y, h, mode, M, f, vfree, stepped):
-            metric = stepped
-        L = np.linalg.cholesky(metric)
+        L = np.empty((nv, nv))
+        mujoco_free_velocity(p, y, h, mode, M, f, vfree, L)
     near_contacts(p, q, w, acc, vfree, h, J, jdot, g)
     jfree = J @ vfree
     index = np.empty(rows, dtype=np.int64)
