@@ -54,6 +54,7 @@ from rbody.engine.elements import A_ACTADR, ACT_SIZE, X_ACT, X_ACTIVE, X_NU, ext
 from rbody.engine.mujoco_steps import EULER, IMPLICIT, IMPLICITFAST, MUJOCO_METHODS, integrate_positions, \
     solve_general, step_matrices
 from rbody.engine.constraints.jacobians import row_count, unit_at, unit_count, unit_rows
+from rbody.engine.contacts.kinematics import point_velocity
 from rbody.engine.contacts.rows import GEOMETRY_WORK, contact_geometry
 from rbody.engine.multibody import _effective_qpos
 from rbody.engine.constraints.cone import NORMAL, ROW, TANGENT, TANGENT2, cone_pgs, cone_polish, stick_polish
@@ -131,8 +132,7 @@ def near_contacts(p, q, w, acc, vfree, h, J, jdot, g):
     cost a distance each, not a row of nv numbers. After the step's kinematics in the workspace w (its velocities are
     then vfree's)."""
     mb.velocities(p, vfree, w)
-    ws = mb._views(p, w)
-    normal, point = np.empty(3), np.empty(3)
+    normal, point, v_a, v_b = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
     work = np.empty(GEOMETRY_WORK)
     for k in range(unit_count(p)):
         u = unit_at(p, k)
@@ -142,17 +142,10 @@ def near_contacts(p, q, w, acc, vfree, h, J, jdot, g):
         row = int(p[u + U_ROW0])
         gap = contact_geometry(p, w, u, normal, point, work)
         g[row] = gap
-        closing = 0.0  # n . (v_b - v_a) at the contact point
-        for body, sign in ((int(p[u + U_BODY2]), 1.0), (int(p[u + U_BODY1]), -1.0)):
-            if body < 0:
-                continue
-            vel = ws.vel[body]
-            r0 = point[0] - ws.xorigin[body, 0]
-            r1 = point[1] - ws.xorigin[body, 1]
-            r2 = point[2] - ws.xorigin[body, 2]
-            closing += sign * (normal[0] * (vel[3] + vel[1] * r2 - vel[2] * r1)
-                               + normal[1] * (vel[4] + vel[2] * r0 - vel[0] * r2)
-                               + normal[2] * (vel[5] + vel[0] * r1 - vel[1] * r0))
+        point_velocity(p, w, int(p[u + U_BODY2]), point, v_b)
+        point_velocity(p, w, int(p[u + U_BODY1]), point, v_a)
+        closing = (normal[0] * (v_b[0] - v_a[0]) + normal[1] * (v_b[1] - v_a[1])   # n . (v_b - v_a) there
+                   + normal[2] * (v_b[2] - v_a[2]))
         if gap <= TOUCH_TOLERANCE or gap + h * closing < 0.0:
             unit_rows(p, k, q, vfree, w, acc, J, jdot, g, row, False)
 

@@ -200,6 +200,22 @@ def _dot(a, b):
 
 
 @njit(cache=True)
+def point_velocity(p, w, body, x, velocity):
+    """velocity (3,) [m/s] of the world point x (3,) fixed on `body` (-1: the world, at rest), v_O + omega x r with r
+    from the origin of the body's tree, from the workspace's body velocities (world axes)."""
+    if body < 0:
+        for a in range(3):
+            velocity[a] = 0.0
+        return
+    ws = _views(p, w)
+    vel = ws.vel[body]
+    r0, r1, r2 = x[0] - ws.xorigin[body, 0], x[1] - ws.xorigin[body, 1], x[2] - ws.xorigin[body, 2]
+    velocity[0] = vel[3] + vel[1] * r2 - vel[2] * r1
+    velocity[1] = vel[4] + vel[2] * r0 - vel[0] * r2
+    velocity[2] = vel[5] + vel[0] * r1 - vel[1] * r0
+
+
+@njit(cache=True)
 def body_motion(p, w, acc, body, x, velocity, acceleration, omega, alpha):
     """At the world point x (3,) fixed on `body` (-1: the world): its velocity, its acceleration with qacc = 0
     (a_O + alpha x r + omega x v), the body's angular velocity and its angular acceleration with qacc = 0."""
@@ -214,9 +230,7 @@ def body_motion(p, w, acc, body, x, velocity, acceleration, omega, alpha):
         r[a] = x[a] - ws.xorigin[body, a]
         omega[a] = vel[a]
         alpha[a] = acc[body, a]
-    velocity[0] = vel[3] + vel[1] * r[2] - vel[2] * r[1]
-    velocity[1] = vel[4] + vel[2] * r[0] - vel[0] * r[2]
-    velocity[2] = vel[5] + vel[0] * r[1] - vel[1] * r[0]
+    point_velocity(p, w, body, x, velocity)
     A = acc[body]
     acceleration[0] = A[3] + A[1] * r[2] - A[2] * r[1] + vel[1] * velocity[2] - vel[2] * velocity[1]
     acceleration[1] = A[4] + A[2] * r[0] - A[0] * r[2] + vel[2] * velocity[0] - vel[0] * velocity[2]
