@@ -33,10 +33,15 @@ from rbody.engine.constraints.table import CONTACT, CONTACT1, U_BOUND, U_KIND, U
 
 
 @njit(cache=True)
-def _rows_at(p, y, M, f, J, jdot, g, F, share, w):
-    """M, f (sliding dofs' friction included), every row and the force columns F (sliding_columns) at state y; w
-    keeps the tree's kinematics there."""
+def _rows_state(p, y):
+    """(M, f, J, jdot, g, F, share, w) at state y: M, f (sliding dofs' friction included), every row and the force
+    columns F (sliding_columns); w keeps the tree's kinematics there."""
     nq, nv, _n = dyn.sizes(p)
+    rows = row_count(p)
+    M, f = np.empty((nv, nv)), np.empty(nv)
+    J, F = np.empty((rows, nv)), np.empty((rows, nv))
+    jdot, g, share = np.empty(rows), np.empty(rows), np.empty(rows)
+    w = np.empty(workspace_size(p))
     q = np.empty(nq)
     _effective_qpos(p, y, q, 0)
     acc = np.empty((int(p[H_BODIES]), 6))
@@ -44,6 +49,7 @@ def _rows_at(p, y, M, f, J, jdot, g, F, share, w):
     dyn.snapshot(p, q, y[nq:nq + nv], y[a0:a0 + na], M, f, J, jdot, g, w, acc)
     dyn.add_sliding_friction(p, f, J)
     sliding_columns(p, w, J, y[nq:nq + nv], F, share)
+    return M, f, J, jdot, g, F, share, w
 
 
 @njit(cache=True)
@@ -51,12 +57,7 @@ def event_problem(p, y, index, W, b):
     """The acceleration-level problem over the rows `index` (m,) at state y in the mode written in p: W (m, m) =
     J M^-1 F^T (F the force columns: a sliding contact's J_n - mu s_hat . J_t), b (m,) = J M^-1 f + J' v."""
     nq, nv, _n = dyn.sizes(p)
-    rows = row_count(p)
-    M, f = np.empty((nv, nv)), np.empty(nv)
-    J, F = np.empty((rows, nv)), np.empty((rows, nv))
-    jdot, g, share = np.empty(rows), np.empty(rows), np.empty(rows)
-    w = np.empty(workspace_size(p))
-    _rows_at(p, y, M, f, J, jdot, g, F, share, w)
+    M, f, J, jdot, g, F, share, w = _rows_state(p, y)
     L = np.linalg.cholesky(M)
     a0 = dyn.upper_solve(L, dyn.lower_solve(L, f))
     m = index.shape[0]
@@ -76,11 +77,7 @@ def contact_guards(p, y, out_a, out_b):
     """out_a, out_b (contact units,): the guards A and B of every contact unit, in unit order (module docstring)."""
     nq, nv, _n = dyn.sizes(p)
     rows = row_count(p)
-    M, f = np.empty((nv, nv)), np.empty(nv)
-    J, F = np.empty((rows, nv)), np.empty((rows, nv))
-    jdot, g, share = np.empty(rows), np.empty(rows), np.empty(rows)
-    w = np.empty(workspace_size(p))
-    _rows_at(p, y, M, f, J, jdot, g, F, share, w)
+    M, f, J, jdot, g, F, share, w = _rows_state(p, y)
     v = y[nq:nq + nv]
     held = np.empty(rows)
     dyn.held_rows(p, held)
@@ -164,12 +161,7 @@ def slip_velocities(p, y, out):
     """out (units, 3): each contact unit's slip velocity [m/s, world] (the tangential velocity of geom b's material
     point at the contact point relative to geom a's); 0 for the other units."""
     nq, nv, _n = dyn.sizes(p)
-    rows = row_count(p)
-    M, f = np.empty((nv, nv)), np.empty(nv)
-    J, F = np.empty((rows, nv)), np.empty((rows, nv))
-    jdot, g, share = np.empty(rows), np.empty(rows), np.empty(rows)
-    w = np.empty(workspace_size(p))
-    _rows_at(p, y, M, f, J, jdot, g, F, share, w)
+    M, f, J, jdot, g, F, share, w = _rows_state(p, y)
     v = y[nq:nq + nv]
     normal, point, t1, t2 = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
     for k in range(unit_count(p)):
@@ -193,12 +185,7 @@ def slip_velocities(p, y, out):
 def tangent_frames(p, y, out):
     """out (units, 3, 3): each contact unit's frame (normal, t1, t2 as rows) at state y."""
     nq, nv, _n = dyn.sizes(p)
-    rows = row_count(p)
-    M, f = np.empty((nv, nv)), np.empty(nv)
-    J, F = np.empty((rows, nv)), np.empty((rows, nv))
-    jdot, g, share = np.empty(rows), np.empty(rows), np.empty(rows)
-    w = np.empty(workspace_size(p))
-    _rows_at(p, y, M, f, J, jdot, g, F, share, w)
+    M, f, J, jdot, g, F, share, w = _rows_state(p, y)
     for k in range(unit_count(p)):
         u = unit_at(p, k)
         kind = int(p[u + U_KIND])
@@ -218,12 +205,7 @@ def closing_time(p, y):
     +inf when none approaches): the event-driven run steps no further than just past it, so that a fast body
     cannot pass through another within one step (its gap closing and opening again unseen)."""
     nq, nv, _n = dyn.sizes(p)
-    rows = row_count(p)
-    M, f = np.empty((nv, nv)), np.empty(nv)
-    J, F = np.empty((rows, nv)), np.empty((rows, nv))
-    jdot, g, share = np.empty(rows), np.empty(rows), np.empty(rows)
-    w = np.empty(workspace_size(p))
-    _rows_at(p, y, M, f, J, jdot, g, F, share, w)
+    M, f, J, jdot, g, F, share, w = _rows_state(p, y)
     v = y[nq:nq + nv]
     modes = mode_at(p)
     earliest = np.inf
