@@ -37,7 +37,7 @@ from rbody.engine.system import actuator_rates, add_element_forces, clamp_activa
 from rbody.engine.constraints.jacobians import (all_rows, bias_accelerations, some_rows, mode_at, row_count, unit_at,
                                                 unit_count, unit_rows)
 from rbody.engine.contacts.rows import GEOMETRY_WORK, contact_geometry
-from rbody.engine.constraints.solver import symmetric_solve
+from rbody.engine.constraints.solver import lower_solve, symmetric_solve, upper_solve
 from rbody.engine.constraints.sliding import general_held_solve, sliding_columns
 from rbody.engine.constraints.table import (CONE, CONNECT, CONTACT, CONTACT1, COUPLING, FRICTION, LOWER,
                                             TENDON_EQUALITY, TENDON_FRICTION, TENDON_LOWER, TENDON_UPPER, U_BOUND,
@@ -175,32 +175,6 @@ def held_rows(p, rows_held):
         if on:
             count += r
     return count
-
-
-@njit(cache=True)
-def lower_solve(L, b):
-    """x = L^-1 b for a lower-triangular L (n, n) and b (n,)."""
-    n = b.shape[0]
-    x = np.empty(n)
-    for i in range(n):
-        acc = b[i]
-        for j in range(i):
-            acc -= L[i, j] * x[j]
-        x[i] = acc / L[i, i]
-    return x
-
-
-@njit(cache=True)
-def upper_solve(L, b):
-    """x = L^-T b for a lower-triangular L (n, n)."""
-    n = b.shape[0]
-    x = np.empty(n)
-    for i in range(n - 1, -1, -1):
-        acc = b[i]
-        for j in range(i + 1, n):
-            acc -= L[j, i] * x[j]
-        x[i] = acc / L[i, i]
-    return x
 
 
 @njit(cache=True)

@@ -27,7 +27,7 @@ from numba import njit
 from rbody.engine.contacts.geometry import tangents
 from rbody.engine.contacts.rows import contact_geometry
 from rbody.engine.constraints.jacobians import mode_at, unit_at, unit_count
-from rbody.engine.constraints.solver import RANK_RTOL
+from rbody.engine.constraints.solver import RANK_RTOL, lower_solve, upper_solve
 from rbody.engine.constraints.table import CONTACT, U_BOUND, U_KIND, U_ROW0, U_SLIP
 
 SLIDING = 2.0        # a contact sliding along its own slip
@@ -113,8 +113,8 @@ def general_held_solve(L, J, F, held, r, correction, lam_rows):
     AJ = np.empty((nv, m))
     AF = np.empty((nv, m))
     for c in range(m):
-        AJ[:, c] = _lower(L, J[index[c]])
-        AF[:, c] = _lower(L, F[index[c]])
+        AJ[:, c] = lower_solve(L, J[index[c]])
+        AF[:, c] = lower_solve(L, F[index[c]])
     W = AJ.T @ AF
     rhs = np.empty(m)
     for c in range(m):
@@ -129,34 +129,10 @@ def general_held_solve(L, J, F, held, r, correction, lam_rows):
     for c in range(m):
         lam_rows[index[c]] = lam[c]
     z = AF @ lam
-    x = _upper(L, z)
+    x = upper_solve(L, z)
     for d in range(nv):
         correction[d] = x[d]
     return residual
-
-
-@njit(cache=True)
-def _lower(L, b):
-    n = b.shape[0]
-    x = np.empty(n)
-    for i in range(n):
-        acc = b[i]
-        for j in range(i):
-            acc -= L[i, j] * x[j]
-        x[i] = acc / L[i, i]
-    return x
-
-
-@njit(cache=True)
-def _upper(L, b):
-    n = b.shape[0]
-    x = np.empty(n)
-    for i in range(n - 1, -1, -1):
-        acc = b[i]
-        for j in range(i + 1, n):
-            acc -= L[j, i] * x[j]
-        x[i] = acc / L[i, i]
-    return x
 
 
 __all__ = ["sliding_columns", "general_held_solve", "slip_direction", "SLIDING", "SLIDING_HELD"]

@@ -44,6 +44,32 @@ UNBOUNDED = -1         # status of a problem whose bilateral rows contradict eac
 
 
 @njit(cache=True)
+def lower_solve(L, b):
+    """x = L^-1 b for a lower-triangular L (n, n) and b (n,)."""
+    n = b.shape[0]
+    x = np.empty(n)
+    for i in range(n):
+        acc = b[i]
+        for j in range(i):
+            acc -= L[i, j] * x[j]
+        x[i] = acc / L[i, i]
+    return x
+
+
+@njit(cache=True)
+def upper_solve(L, b):
+    """x = L^-T b for a lower-triangular L (n, n)."""
+    n = b.shape[0]
+    x = np.empty(n)
+    for i in range(n - 1, -1, -1):
+        acc = b[i]
+        for j in range(i + 1, n):
+            acc -= L[j, i] * x[j]
+        x[i] = acc / L[i, i]
+    return x
+
+
+@njit(cache=True)
 def clamp(x, lo, hi):
     return lo if x < lo else (hi if x > hi else x)
 
@@ -215,4 +241,5 @@ def mlcp_pgs(W, b, lo, hi, lam, tolerance, max_sweeps):
     return max_sweeps, residual
 
 
-__all__ = ["natural_residual", "symmetric_solve", "mlcp_exact", "mlcp_exact_from", "mlcp_pgs", "clamp", "RANK_RTOL", "UNBOUNDED"]
+__all__ = ["lower_solve", "upper_solve", "natural_residual", "symmetric_solve", "mlcp_exact", "mlcp_exact_from",
+           "mlcp_pgs", "clamp", "RANK_RTOL", "UNBOUNDED"]
