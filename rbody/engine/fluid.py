@@ -88,6 +88,22 @@ def _local_velocity(p, F, vel, body, R, x, lvel):
 
 
 @njit(cache=True)
+def _box_motion(p, F, k, xpos, xmat, vel, h, R, x, work, lvel):
+    """(body, record) of inertia box k, with its frame R (3, 3), its centre of mass x (3,) and its local velocity lvel
+    (6,) (_frame, _local_velocity); body -1 for a massless body, which feels no fluid force (MuJoCo's mjMINVAL)."""
+    r = int(p[F + F_BOX]) + k * BOX_SIZE
+    i = int(p[r])
+    mass = p[int(p[H_BODY]) + i * BODY_SIZE + B_MASS]
+    if mass < MJ_MINVAL:
+        return -1, r
+    for a in range(3):
+        x[a] = h[i, a] / mass
+    _frame(p, xpos, xmat, i, -1, r + 1, R, x, work)
+    _local_velocity(p, F, vel, i, R, x, lvel)
+    return i, r
+
+
+@njit(cache=True)
 def fluid_forces(p, S, xpos, xmat, vel, h, out):
     """out (nv,) += MuJoCo's qfrc_fluid (module docstring), from the tree's workspace: S (nv, 6), xpos (nb, 3), xmat
     (nb, 3, 3), vel (nb, 6), h (nb, 3) = m c."""
@@ -100,15 +116,9 @@ def fluid_forces(p, S, xpos, xmat, vel, h, out):
     x, lvel, lfrc = np.empty(3), np.empty(6), np.empty(6)
     force, torque = np.empty(3), np.empty(3)
     for k in range(int(p[F + F_NBOX])):
-        r = int(p[F + F_BOX]) + k * BOX_SIZE
-        i = int(p[r])
-        mass = p[bo + i * BODY_SIZE + B_MASS]
-        if mass < MJ_MINVAL:
+        i, r = _box_motion(p, F, k, xpos, xmat, vel, h, R, x, work, lvel)
+        if i < 0:
             continue
-        for a in range(3):
-            x[a] = h[i, a] / mass
-        _frame(p, xpos, xmat, i, -1, r + 1, R, x, work)
-        _local_velocity(p, F, vel, i, R, x, lvel)
         b0, b1, b2 = p[r + 5], p[r + 6], p[r + 7]
         for a in range(6):
             lfrc[a] = 0.0
@@ -230,22 +240,16 @@ def box_velocity_derivative(p, S, xpos, xmat, vel, h, D):
     F = int(p[extension_start(p) + X_FLUID])
     if F < 0:
         return
-    bo, do = int(p[H_BODY]), int(p[H_DOF])
+    do = int(p[H_DOF])
     density, viscosity = p[F + F_DENSITY], p[F + F_VISCOSITY]
     nv = D.shape[0]
     R, work = np.empty((3, 3)), np.empty((3, 3))
     x, lvel, B = np.empty(3), np.empty(6), np.empty(6)
     J = np.zeros((6, nv))
     for k in range(int(p[F + F_NBOX])):
-        r = int(p[F + F_BOX]) + k * BOX_SIZE
-        i = int(p[r])
-        mass = p[bo + i * BODY_SIZE + B_MASS]
-        if mass < MJ_MINVAL:
+        i, r = _box_motion(p, F, k, xpos, xmat, vel, h, R, x, work, lvel)
+        if i < 0:
             continue
-        for a in range(3):
-            x[a] = h[i, a] / mass
-        _frame(p, xpos, xmat, i, -1, r + 1, R, x, work)
-        _local_velocity(p, F, vel, i, R, x, lvel)
         b0, b1, b2 = p[r + 5], p[r + 6], p[r + 7]
         for a in range(6):
             B[a] = 0.0
