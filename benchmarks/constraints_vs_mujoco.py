@@ -26,7 +26,8 @@ Prints the machine and versions, then
 4. with --published FILE...: each file (a published quadruped, a humanoid) with contacts disabled, run 1 s by both
    engines with the file's own integrator at its own step (rbody: scene.file_method, the constraint layer's
    time-stepping with MuJoCo's step as its free motion): the cost per step with its spread, and the largest
-   difference of the two runs' joint coordinates.
+   difference of the two runs' joint coordinates; with --with-contacts, the files as published (their contacts on:
+   the pairs rbody computes).
 Benchmarks are not tests: compare figures of one run with each other; the machine may be shared.
 """
 
@@ -222,17 +223,18 @@ def published(folder: Path) -> None:
             modified.unlink(missing_ok=True)
 
 
-def published_cost(paths: list[Path], repeats: int, t_end: float = 1.0) -> None:
-    """Cost per step of published files with their limits and dry friction, contacts off, each engine with the file's
-    own integrator at the file's own step (rbody: scene.file_method, the constraint layer's time-stepping with that
-    step as its free motion): the whole simulate call per step against mj_step in a loop, min / median / max."""
-    print(f"\n4. Published models, contacts off, the file's integrator and step, {t_end:g} s from the reference pose: "
-          "cost per step [us] (min / median / max over the repeats)")
+def published_cost(paths: list[Path], repeats: int, t_end: float = 1.0, contacts: bool = False) -> None:
+    """Cost per step of published files with their limits and dry friction, contacts off (contacts=True: as
+    published, their contacts on), each engine with the file's own integrator at the file's own step (rbody:
+    scene.file_method, the constraint layer's time-stepping with that step as its free motion): the whole simulate
+    call per step against mj_step in a loop, min / median / max."""
+    print(f"\n4. Published models, contacts {'on' if contacts else 'off'}, the file's integrator and step, {t_end:g} s "
+          "from the reference pose: cost per step [us] (min / median / max over the repeats)")
     print("| model | dofs | constraint units | integrator, dt | rbody | MuJoCo | ratio (medians) | max |dq| rbody-MuJoCo |")
     print("|---|---|---|---|---|---|---|---|")
     for path in paths:
-        modified = path.with_name(f".{path.stem}.nocontact.xml")
-        modified.write_text(without_contacts(path.read_text()))
+        modified = path.with_name(f".{path.stem}.{'copy' if contacts else 'nocontact'}.xml")
+        modified.write_text(path.read_text() if contacts else without_contacts(path.read_text()))
         try:
             scene = from_mjcf(modified, t_end=t_end, overlapping_geoms="sum")
             dt, method = float(scene.timestep), scene.file_method
@@ -267,6 +269,8 @@ def main() -> None:
     parser.add_argument("--skip-cost", action="store_true")
     parser.add_argument("--published", type=Path, nargs="*", default=[],
                         help="MJCF files (a quadruped, a humanoid) to time with their own integrator, contacts off")
+    parser.add_argument("--with-contacts", action="store_true",
+                        help="time the --published files as published, their contacts on")
     args = parser.parse_args()
     header()
     if not args.skip_sweep:
@@ -276,7 +280,7 @@ def main() -> None:
     if args.models is not None:
         published(args.models)
     if args.published:
-        published_cost(args.published, args.repeats)
+        published_cost(args.published, args.repeats, contacts=args.with_contacts)
 
 
 if __name__ == "__main__":

@@ -88,6 +88,8 @@ class Method:
         """"" when `model` (a NativeModel) provides what this method needs, else what it lacks."""
         table = getattr(model, "constraints", None)
         if table is not None:  # the constraint layer runs its own schemes
+            if self.name == "rk4" and table.events_refused:
+                return table.events_refused
             return "" if self.name in table.methods else (
                 f"{self.name!r} does not run a constrained tree (limits, dry friction, equalities, contacts): the "
                 f"constraint layer runs {', '.join(table.methods)} (rbody.engine.constraints)")

@@ -86,8 +86,8 @@ def unsupported_pair(g1, g2, spec: dict | None = None) -> str:
         return (f"rbody computes contacts of plane, sphere, capsule and box geoms, not {kind} (cylinder, ellipsoid, "
                 "mesh and height-field contacts are to come)")
     if tuple(sorted(codes)) not in SLOTS:
-        return (f"rbody does not compute {g1.kind}-{g2.kind} contacts yet (it computes plane with sphere, capsule and "
-                "box; sphere with sphere, capsule and box; capsule with capsule; box with box)")
+        return (f"rbody does not compute {g1.kind}-{g2.kind} contacts (it computes any two of plane, sphere, capsule "
+                "and box but two planes)")
     condim = spec["condim"] if spec else _combined(g1, g2, "condim", _condim)
     if condim not in (1, 3):
         return (f"their contact has condim {condim}: rbody models condim 1 (frictionless) and 3 (Coulomb's cone), "

@@ -36,6 +36,7 @@ from rbody.engine.elements import X_ACTIVE, X_NA, X_NTEN, extension_start
 from rbody.engine.system import actuator_rates, add_element_forces, clamp_activations
 from rbody.engine.constraints.jacobians import (all_rows, bias_accelerations, some_rows, mode_at, row_count, unit_at,
                                                 unit_count, unit_rows)
+from rbody.engine.contacts.kinematics import clearance
 from rbody.engine.contacts.rows import GEOMETRY_WORK, contact_geometry
 from rbody.engine.constraints.solver import lower_solve, symmetric_solve, upper_solve
 from rbody.engine.constraints.sliding import general_held_solve, sliding_columns
@@ -480,6 +481,9 @@ def project(p, y, position_rows, velocity_rows):
         snapshot(p, y[:nq], v, y[a0:a0 + na], M, f, J, jdot, g, w, acc, flagged, False)
         worst = 0.0
         for a in range(rows):
+            if position_rows[a] != 0.0 and not np.isfinite(g[a]):  # no longer a contact point (geometry.APART)
+                position_rows[a] = 0.0
+                velocity_rows[a] = 0.0
             if position_rows[a] != 0.0:
                 worst = max(worst, abs(g[a]))
         if worst <= PROJECTION_TOLERANCE or iteration == PROJECTION_ITERATIONS:
@@ -538,7 +542,8 @@ def guards(p, y, out):
 @njit(cache=True)
 def state_gaps(p, y, g):
     """g (rows,) every row's residual at the state y (phi folded in) as state_rows gives it, from the tree's
-    kinematics alone: a contact by its candidate's signed distance (no Jacobian), the other units by their rows."""
+    kinematics alone: a contact by its candidate's signed distance (no Jacobian; a pair whose bounding spheres are
+    apart by the gap between them, a positive lower bound), the other units by their rows."""
     nq, nv, _n = sizes(p)
     rows = row_count(p)
     q = np.empty(nq)
@@ -550,6 +555,7 @@ def state_gaps(p, y, g):
     acc = np.empty((int(p[H_BODIES]), 6))
     normal, point = np.empty(3), np.empty(3)
     work = np.empty(GEOMETRY_WORK)
+    reach = 0.0
     for k in range(unit_count(p)):
         u = unit_at(p, k)
         kind = int(p[u + U_KIND])
@@ -557,7 +563,9 @@ def state_gaps(p, y, g):
         if kind == CONTACT or kind == CONTACT1:
             for a in range(row, row + int(p[u + U_ROWS])):
                 g[a] = 0.0
-            g[row] = contact_geometry(p, w, u, normal, point, work)
+            if int(p[u + U_DOF]) == 0:  # bounding spheres apart: a lower bound will do (one per pair)
+                reach = clearance(p, w, u, 0.0, work)
+            g[row] = reach if reach > 0.0 else contact_geometry(p, w, u, normal, point, work)
         else:
             unit_rows(p, k, q, y[nq:nq + nv], w, acc, J, jdot, g, row, False)
 

@@ -54,14 +54,15 @@ from rbody.engine.elements import A_ACTADR, ACT_SIZE, X_ACT, X_ACTIVE, X_NU, ext
 from rbody.engine.mujoco_steps import EULER, IMPLICIT, IMPLICITFAST, MUJOCO_METHODS, integrate_positions, \
     solve_general, step_matrices
 from rbody.engine.constraints.jacobians import row_count, unit_at, unit_count, unit_rows
-from rbody.engine.contacts.kinematics import point_velocity
+from rbody.engine.contacts.kinematics import clearance, point_velocity
 from rbody.engine.contacts.rows import GEOMETRY_WORK, contact_geometry
 from rbody.engine.multibody import _effective_qpos
 from rbody.engine.constraints.cone import NORMAL, ROW, TANGENT, TANGENT2, cone_pgs, cone_polish, stick_polish
 from rbody.engine.constraints.solver import mlcp_exact_from, mlcp_pgs, natural_residual
 from rbody.engine.constraints.table import (C_HEADER, CONE, CONNECT, CONTACT, CONTACT1, CONTACT_KINDS, COUPLING,
                                             FRICTION, FRICTION_KINDS, LOWER, TENDON_EQUALITY, TENDON_FRICTION,
-                                            TENDON_LOWER, TENDON_UPPER, U_BODY1, U_BODY2, U_BOUND, U_KIND, UNILATERAL,
+                                            TENDON_LOWER, TENDON_UPPER, U_BODY1, U_BODY2, U_BOUND, U_DOF, U_KIND,
+                                            UNILATERAL,
                                             UNIT_SIZE,
                                             U_RESTITUTION, U_ROW0, U_ROWS, UPPER, WELD, ConstraintTable)
 from rbody.errors import SimulationError
@@ -129,17 +130,24 @@ def near_contacts(p, q, w, acc, vfree, h, J, jdot, g):
     """Every contact's gap into g, and the rows J of the contacts a step can involve: touching (g <= TOUCH_TOLERANCE)
     or closing within it (g + h n . (v_b - v_a) < 0 at the contact point, the bodies moving with the free velocities
     vfree (nv,)). The others keep J = 0: a model's far candidates (a humanoid's limbs against the floor in the air)
-    cost a distance each, not a row of nv numbers. After the step's kinematics in the workspace w (its velocities are
-    then vfree's)."""
+    cost a distance each, not a row of nv numbers, and a pair whose bounding spheres cannot meet within the step
+    (contacts.kinematics.clearance) not even that: its g is then that lower bound (> TOUCH_TOLERANCE). After the
+    step's kinematics in the workspace w (its velocities are then vfree's)."""
     mb.velocities(p, vfree, w)
     normal, point, v_a, v_b = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
     work = np.empty(GEOMETRY_WORK)
+    reach = 0.0
     for k in range(unit_count(p)):
         u = unit_at(p, k)
         kind = int(p[u + U_KIND])
         if kind != CONTACT and kind != CONTACT1:
             continue
         row = int(p[u + U_ROW0])
+        if int(p[u + U_DOF]) == 0:  # a pair's first candidate (the others follow it, the same two geoms)
+            reach = clearance(p, w, u, h, work)
+        if reach > TOUCH_TOLERANCE:  # the broad phase: the pair can neither touch nor close within the step
+            g[row] = reach
+            continue
         gap = contact_geometry(p, w, u, normal, point, work)
         g[row] = gap
         point_velocity(p, w, int(p[u + U_BODY2]), point, v_b)

@@ -155,6 +155,7 @@ class ConstraintTable:
     equalities: tuple = ()  # every equality, each made explicit (a connect's anchor2, a weld's relpose)
     tree_size: int = 0
     section: np.ndarray | None = None
+    events_refused: str = ""  # why the event-driven scheme (rk4) does not run these constraints, if it does not
 
     @property
     def rows(self) -> int:
@@ -358,9 +359,14 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
             if equality.active:
                 add(WELD, equality.name, U_BODY1=b1, U_BODY2=b2, U_A1=relpos, U_A2=anchor, U_QUAT=relquat)
             resolved.append(dataclasses.replace(equality, relpose=tuple(np.concatenate([relpos, relquat]).tolist())))
+    from rbody.engine.contacts.geometry import SWITCHING
+
+    switching = []  # contacts with a candidate that is a contact point in some configurations only
     for contact in layout.contacts:
         for record_fields, name in _contact_units(layout, contact, body_index):
             add(CONTACT if contact.condim == 3 and contact.friction > 0 else CONTACT1, name, **record_fields)
+        if (record_fields["U_GTYPE_A"], record_fields["U_GTYPE_B"]) in SWITCHING:
+            switching.append(f"{contact.shape_a!r}/{contact.shape_b!r}")
     if not units:
         return None
     from rbody.engine.elements import build_elements
@@ -384,9 +390,16 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
     # contacts: time-stepping by default (persistent contacts: stacks, feet, grasps), event-driven on request;
     # MuJoCo's integrators as the time-stepping's free motion (a file's own scheme, at its own step)
     methods = ("moreau", "rk4") if any(unit.code in CONTACT_KINDS for unit in units) else ("rk4", "moreau")
+    events_refused = ""
+    if switching:
+        methods = tuple(name for name in methods if name != "rk4")
+        events_refused = (f"the event-driven scheme (rk4) holds a contact's candidate from event to event, and the "
+                          f"capsule-box contact {switching[0]}{f' (and {len(switching) - 1} more)' if len(switching) > 1 else ''} "
+                          "has candidates that are contact points only while the capsule lies along a face: the "
+                          "time-stepping runs it")
     methods += MUJOCO_METHODS
     return ConstraintTable(units=tuple(units), block=block, offset=offset, mode0=mode0, equalities=tuple(resolved),
-                           methods=methods, tree_size=tree_size, section=section)
+                           methods=methods, tree_size=tree_size, section=section, events_refused=events_refused)
 
 
 def _contact_units(layout: Layout, contact, body_index: dict[str, int]) -> list[tuple[dict, str]]:
@@ -418,9 +431,8 @@ def _contact_units(layout: Layout, contact, body_index: dict[str, int]) -> list[
     geoms.sort(key=lambda geom: geom[0])
     (ta, body_a, shape_a), (tb, body_b, shape_b) = geoms
     if (ta, tb) not in SLOTS:
-        raise ValueError(f"{what}: rbody computes contacts between plane, sphere, capsule and box shapes except "
-                         f"{shape_a.kind}-{shape_b.kind} (pairs it computes: plane with sphere, capsule, box; "
-                         "sphere with sphere, capsule, box; capsule with capsule; box with box)")
+        raise ValueError(f"{what}: rbody computes contacts between any two of plane, sphere, capsule and box "
+                         f"shapes but two planes, not {shape_a.kind}-{shape_b.kind}")
     fields = dict(U_BOUND=contact.friction, U_RESTITUTION=contact.restitution, U_BODY1=body_index[body_a],
                   U_BODY2=body_index[body_b])
     for suffix, code, shape in (("A", ta, shape_a), ("B", tb, shape_b)):

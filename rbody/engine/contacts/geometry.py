@@ -23,8 +23,19 @@ segments and boxes, so the distance is the distance between the cores minus the 
 line of closest approach; where the cores overlap (a sphere's centre inside a box), the normal is that of the face
 of least penetration. Two boxes give 16 candidates, each corner of one against the other box (vertex-face
 contacts: a box resting on a box, a stack); edge-edge contacts of two boxes crossing each other are not among
-them (a known limit: such boxes can pass through each other's edges). The closest points of two segments follow Ericson's clamped solution (Real-Time Collision
-Detection, 5.1.9); parallel segments take the midpoint of their overlap, so the normal is unique there too.
+them (a known limit: such boxes can pass through each other's edges). The closest points of two segments follow
+Ericson's clamped solution (Real-Time Collision Detection, 5.1.9); parallel segments take the midpoint of their
+overlap, so the normal is unique there too.
+
+A capsule and a box give 3 candidates. Slot 2 is the sphere at the segment's point closest to the box
+(segment_box_closest, exact; clamped to the segment, so it moves continuously from a capsule's middle across an
+edge to its end on a face): where it does not touch, nothing does. Slots 0 and 1 are the end spheres, which see
+an end approach a face while the closest point is elsewhere (a capsule tipping off an edge onto a face); an end
+within LYING_SPAN of its half-length of the closest point is APART (+inf: never touching, never closing), so that
+no contact is counted twice, nor twice nearly (two candidates a hair apart make a complementarity problem no
+solver finishes). Where the capsule lies along a face (its closest points span more than LYING_SPAN of its
+half-length: parallel to the face), slot 2 is the middle of that span and slots 0 and 1 its ends, so that the
+capsule rests on the whole span: both ends on a face, or an end and the box's edge where it overhangs.
 """
 
 from __future__ import annotations
@@ -36,7 +47,12 @@ PLANE, SPHERE, CAPSULE, ELLIPSOID, CYLINDER, BOX = 0, 2, 3, 4, 5, 6
 TYPE_CODES = {"plane": PLANE, "sphere": SPHERE, "capsule": CAPSULE, "box": BOX}
 # candidates per pair of type codes (type_a <= type_b): the pairs rbody computes
 SLOTS = {(PLANE, SPHERE): 1, (PLANE, CAPSULE): 2, (PLANE, BOX): 8, (SPHERE, SPHERE): 1, (SPHERE, CAPSULE): 1,
-         (CAPSULE, CAPSULE): 1, (SPHERE, BOX): 1, (BOX, BOX): 16}
+         (CAPSULE, CAPSULE): 1, (SPHERE, BOX): 1, (CAPSULE, BOX): 3, (BOX, BOX): 16}
+APART = np.inf  # the distance of a candidate that is not a contact point in this configuration (capsule-box slot 2)
+# pairs with such a candidate: the time-stepping runs them (a candidate APART is never in a step's problem); the
+# event-driven scheme, which holds a contact's candidate from event to event, does not
+SWITCHING = {(CAPSULE, BOX)}
+LYING_SPAN = 1e-2  # a capsule's closest points spanning more than this fraction of its half-length: it lies along a face
 MAX_SLOTS = 16
 
 
@@ -127,6 +143,77 @@ def segment_closest(p1, u1, l1, p2, u2, l2):
     return s, t
 
 
+@njit(cache=True, inline="always")
+def _box_excess(c, u, t, h):
+    """The squared distance [m^2] of the point c + t u from the box [-h, h] (box coordinates)."""
+    value = 0.0
+    for i in range(3):
+        excess = abs(c[i] + t * u[i]) - h[i]
+        if excess > 0.0:
+            value += excess * excess
+    return value
+
+
+@njit(cache=True)
+def segment_box_closest(c, u, half_length, h):
+    """(t, lo, hi, squared): where the segment c + t u, t in [-half_length, half_length] (box coordinates: c (3,)
+    [m], u (3,) unit), comes closest to the box [-h, h] (h (3,) half sizes [m]): the parameter t of the closest point
+    and the least squared distance [m^2], exact: the squared distance sum_i max(|c_i + t u_i| - h_i, 0)^2 is convex
+    and quadratic between the knots where the segment crosses a face's plane, and each piece's minimum is in closed
+    form. [lo, hi] (holding t): the pieces along which the distance stays the least to 1e-12 of it, whole (a segment
+    lying along a face: from knot to knot, the face's edges or the segment's ends); lo = hi = t otherwise."""
+    knots = np.empty(8)
+    knots[0] = -half_length
+    n = 1
+    for i in range(3):
+        if u[i] != 0.0:
+            for side in (-1.0, 1.0):
+                t = (side * h[i] - c[i]) / u[i]
+                if -half_length < t < half_length:
+                    knots[n] = t
+                    n += 1
+    knots[n] = half_length
+    n += 1
+    knots[:n].sort()
+    best, at = np.inf, -half_length
+    for j in range(n - 1):
+        a, b = knots[j], knots[j + 1]
+        if not b > a:
+            continue
+        middle = 0.5 * (a + b)
+        quad, lin = 0.0, 0.0  # the piece's squared distance: quad t^2 + 2 lin t + const
+        for i in range(3):
+            x = c[i] + middle * u[i]
+            if x > h[i] or x < -h[i]:
+                face = h[i] if x > 0.0 else -h[i]
+                quad += u[i] * u[i]
+                lin += u[i] * (c[i] - face)
+        t = min(max(-lin / quad, a), b) if quad > 0.0 else middle  # constant over the piece: its middle
+        value = _box_excess(c, u, t, h)
+        if value < best:
+            best, at = value, t
+    level = best * (1.0 + 1e-12)
+    lo, hi = at, at
+    for j in range(n - 1):  # whole pieces within the level: convexity makes them one interval about `at`
+        a, b = knots[j], knots[j + 1]
+        if b > a and _box_excess(c, u, a, h) <= level and _box_excess(c, u, b, h) <= level:
+            lo, hi = min(lo, a), max(hi, b)
+    return at, lo, hi, best
+
+
+@njit(cache=True)
+def capsule_box_slot(c, u, half_length, h, k):
+    """(t, apart): the axis parameter [m] of a capsule-box candidate k (module docstring) of the segment c + t u
+    (box coordinates, as segment_box_closest takes it), and whether it is APART in this configuration."""
+    closest, lo, hi, _squared = segment_box_closest(c, u, half_length, h)
+    if hi - lo > LYING_SPAN * half_length:  # lying along a face: the span's middle and its ends
+        return (lo if k == 0 else (hi if k == 1 else 0.5 * (lo + hi))), False
+    if k == 2:
+        return closest, False
+    end = -half_length if k == 0 else half_length
+    return end, abs(end - closest) < LYING_SPAN * half_length  # an end: not where the closest point is
+
+
 @njit(cache=True)
 def collide(ta, pa, Ra, sa, tb, pb, Rb, sb, dist, normal, point, only=-1):
     """The candidate contacts of geom a (type ta <= tb, centre pa (3,) [m], axes Ra (3, 3), size sa (3,) [m]) and
@@ -200,6 +287,22 @@ def collide(ta, pa, Ra, sa, tb, pb, Rb, sb, dist, normal, point, only=-1):
                 for a in range(3):
                     normal[k, a] = -normal[k, a]
         return 16
+    if ta == CAPSULE and tb == BOX:  # the segment's closest point (2) and its ends, or a lying span's (0, 1)
+        c, u = scratch[3:6], scratch[6:9]  # the segment in the box's axes
+        for e in range(3):
+            c[e] = Rb[0, e] * (pa[0] - pb[0]) + Rb[1, e] * (pa[1] - pb[1]) + Rb[2, e] * (pa[2] - pb[2])
+            u[e] = Rb[0, e] * Ra[0, 2] + Rb[1, e] * Ra[1, 2] + Rb[2, e] * Ra[2, 2]
+        centre = scratch[0:3]
+        for k in range(3):
+            if only >= 0 and k != only:
+                continue
+            t, apart = capsule_box_slot(c, u, sa[1], sb, k)
+            for a in range(3):
+                centre[a] = pa[a] + t * Ra[a, 2]
+            _point_box(centre, sa[0], pb, Rb, sb, k, dist, normal, point)
+            if apart:
+                dist[k] = APART
+        return 3
     if ta == CAPSULE and tb == CAPSULE:
         ua = scratch[0:3]
         ub = scratch[3:6]
@@ -268,5 +371,5 @@ def collide_pair(kind_a: str, pos_a, mat_a, size_a, kind_b: str, pos_b, mat_b, s
     return dist, normal, point
 
 
-__all__ = ["collide", "collide_pair", "tangents", "segment_closest", "SLOTS", "MAX_SLOTS", "TYPE_CODES", "PLANE",
+__all__ = ["collide", "collide_pair", "tangents", "segment_closest", "segment_box_closest", "capsule_box_slot", "APART", "SWITCHING", "LYING_SPAN", "SLOTS", "MAX_SLOTS", "TYPE_CODES", "PLANE",
            "SPHERE", "CAPSULE", "BOX"]

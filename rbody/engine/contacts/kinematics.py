@@ -15,16 +15,17 @@ Each candidate of rbody.engine.contacts.geometry is, at any configuration, one o
 
   (a_X(y): the acceleration of body X's material point at y with qacc = 0; a fixed plane gives m . a_Q(x): the
   centre's, not the contact point's). Plane-sphere, plane-capsule, plane-box, and a box's face against a point.
-- CORES: two core points x_A = c_A + s u_A, x_B = c_B + t u_B (a sphere's centre: fixed; a capsule's segment or a
-  box's edge: the closest point, sliding along the axis u while its parameter is inside the segment), radii summing
-  to rho: d = x_B - x_A, g = |d| - rho, n = d / |d|. The parameters' rates s', t' follow from the closest-point
+- CORES: two core points x_A = c_A + s u_A, x_B = c_B + t u_B (a sphere's centre or a capsule's end: fixed; a
+  capsule's segment or a box's edge: the closest point, sliding along the axis u while its parameter is inside the
+  segment), radii summing to rho: d = x_B - x_A, g = |d| - rho, n = d / |d|. The parameters' rates s', t' follow from the closest-point
   conditions d . u_A = 0, d . u_B = 0 differentiated, d' = (v_B(x_B) - v_A(x_A)) + t' u_B - s' u_A, and
 
       g'' = n . (a_B(x_B) - a_A(x_A)) + 2 t' n . (w_B x u_B) - 2 s' n . (w_A x u_A) + |d'_perp|^2 / |d|
 
   (|d'_perp|^2 / |d| the curvature term of sphere on sphere). Sphere-sphere, sphere-capsule, capsule-capsule, a
   point against a box's edge or corner. Parallel segments (both parameters inside, the closest pair not unique)
-  take the least-norm rates.
+  take the least-norm rates. A capsule against a box is a capsule's point against the box's face (PLANE), edge or
+  corner (CORES): an end (fixed), or the segment's closest point (sliding along its axis).
 
 The tangent rows of a sticking contact: with e a tangent, p the contact point and p' its velocity (from the shapes
 above: the foot point or x_A + n (r_A + g / 2)), d/dt e . (v_B(p) - v_A(p)) without qacc is
@@ -37,7 +38,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from rbody.engine.contacts.geometry import CAPSULE, PLANE, SPHERE, segment_closest
+from rbody.engine.contacts.geometry import BOX, CAPSULE, PLANE, SPHERE, capsule_box_slot, segment_closest
 from rbody.engine.contacts.rows import geom_pose
 from rbody.engine.multibody import _views
 from rbody.engine.constraints.table import (U_BODY1, U_BODY2, U_DOF, U_GMAT_A, U_GMAT_B, U_GPOS_A, U_GPOS_B,
@@ -154,13 +155,26 @@ def contact_shape(ta, pa, Ra, sa, tb, pb, Rb, sb, k, x, u, slide, m, radius):
             u[0, a], u[1, a] = ua[a], ub[a]
         radius[0], radius[1] = sa[0], sb[0]
         return SHAPE_CORES, 0
-    # a point (sphere centre or box corner) against a box: the point on geom a (sphere; box-box k >= 8) or b
+    # a point (sphere centre, capsule's end or closest point, box corner) against a box: the point on geom a
+    # (sphere, capsule; box-box k >= 8) or b
     xs, us, ss = np.empty((2, 3)), np.zeros((2, 3)), np.zeros(2)
     c = np.empty(3)
+    sliding = False  # the point slides along geom a's axis (a capsule's closest point, inside its segment)
     if ta == SPHERE:
         point_on, r = 0, sa[0]
         for a in range(3):
             c[a] = pa[a]
+        case = _point_against_box(c, r, pb, Rb, sb, xs, us, ss, m)
+    elif ta == CAPSULE:  # a point of the segment: the closest (slot 2) or a lying span's end (geometry.collide)
+        point_on, r = 0, sa[0]
+        local, axis = np.empty(3), np.empty(3)
+        for e in range(3):
+            local[e] = Rb[0, e] * (pa[0] - pb[0]) + Rb[1, e] * (pa[1] - pb[1]) + Rb[2, e] * (pa[2] - pb[2])
+            axis[e] = Rb[0, e] * Ra[0, 2] + Rb[1, e] * Ra[1, 2] + Rb[2, e] * Ra[2, 2]
+        t, _apart = capsule_box_slot(local, axis, sa[1], sb, k)
+        sliding = -sa[1] < t < sa[1]
+        for a in range(3):
+            c[a] = pa[a] + t * Ra[a, 2]
         case = _point_against_box(c, r, pb, Rb, sb, xs, us, ss, m)
     else:
         own_p, own_R, own_s = (pb, Rb, sb) if k < 8 else (pa, Ra, sa)
@@ -182,7 +196,10 @@ def contact_shape(ta, pa, Ra, sa, tb, pb, Rb, sb, k, x, u, slide, m, radius):
     for a in range(3):
         x[point_on, a], x[box_on, a] = xs[0, a], xs[1, a]
         u[box_on, a] = us[1, a]
+        if sliding:
+            u[point_on, a] = Ra[a, 2]
     slide[box_on] = ss[1]
+    slide[point_on] = 1.0 if sliding else 0.0
     radius[point_on] = r
     return SHAPE_CORES, 0
 
@@ -213,6 +230,67 @@ def point_velocity(p, w, body, x, velocity):
     velocity[0] = vel[3] + vel[1] * r2 - vel[2] * r1
     velocity[1] = vel[4] + vel[2] * r0 - vel[0] * r2
     velocity[2] = vel[5] + vel[0] * r1 - vel[1] * r0
+
+
+@njit(cache=True, inline="always")
+def bounding_radius(kind, p, size_at):
+    """The radius [m] of the sphere about a geom's centre that holds it (a plane: +inf)."""
+    if kind == SPHERE:
+        return p[size_at]
+    if kind == CAPSULE:
+        return p[size_at] + p[size_at + 1]
+    if kind == BOX:
+        return np.sqrt(p[size_at] ** 2 + p[size_at + 1] ** 2 + p[size_at + 2] ** 2)
+    return np.inf
+
+
+@njit(cache=True, inline="always")
+def _geom_centre(p, w, body, pos_at, pos):
+    """pos (3,) [m]: a geom's centre in the world (geom_pose without its axes)."""
+    if body < 0:
+        for a in range(3):
+            pos[a] = p[pos_at + a]
+        return
+    ws = _views(p, w)
+    for a in range(3):
+        pos[a] = (ws.xorigin[body, a] + ws.xpos[body, a] + ws.xmat[body, a, 0] * p[pos_at]
+                  + ws.xmat[body, a, 1] * p[pos_at + 1] + ws.xmat[body, a, 2] * p[pos_at + 2])
+
+
+@njit(cache=True)
+def clearance(p, w, u, h, work):
+    """A lower bound [m] on the gap of every candidate of the contact unit at u over the next h [s] (the broad
+    phase): the gap between the two geoms' bounding spheres (a plane and a sphere: the sphere's height above it),
+    less h times a bound on the speed at which any point of one approaches any point of the other, |v_b - v_a| at
+    the centres plus |omega| times each radius (the workspace's body velocities; h = 0: the gap bound alone).
+    > TOUCH_TOLERANCE: no candidate of the pair touches or closes within h, and its distance need not be computed.
+    work: scratch of GEOMETRY_WORK floats (contact_geometry's)."""
+    pa, pb = work[0:3], work[3:6]
+    body_a, body_b = int(p[u + U_BODY1]), int(p[u + U_BODY2])
+    radius_b = bounding_radius(int(p[u + U_GTYPE_B]), p, u + U_GSIZE_B)
+    if int(p[u + U_GTYPE_A]) == PLANE:
+        Ra = work[6:15].reshape((3, 3))
+        geom_pose(p, w, body_a, u + U_GPOS_A, u + U_GMAT_A, pa, Ra)
+        _geom_centre(p, w, body_b, u + U_GPOS_B, pb)
+        radius_a = 0.0
+        apart = (Ra[0, 2] * (pb[0] - pa[0]) + Ra[1, 2] * (pb[1] - pa[1]) + Ra[2, 2] * (pb[2] - pa[2])) - radius_b
+    else:
+        _geom_centre(p, w, body_a, u + U_GPOS_A, pa)
+        _geom_centre(p, w, body_b, u + U_GPOS_B, pb)
+        radius_a = bounding_radius(int(p[u + U_GTYPE_A]), p, u + U_GSIZE_A)
+        apart = np.sqrt((pb[0] - pa[0]) ** 2 + (pb[1] - pa[1]) ** 2 + (pb[2] - pa[2]) ** 2) - radius_a - radius_b
+    if h == 0.0 or apart <= 0.0:
+        return apart
+    va, vb = work[24:27], work[27:30]
+    point_velocity(p, w, body_a, pa, va)
+    point_velocity(p, w, body_b, pb, vb)
+    speed = np.sqrt((vb[0] - va[0]) ** 2 + (vb[1] - va[1]) ** 2 + (vb[2] - va[2]) ** 2)
+    ws = _views(p, w)
+    for body, radius in ((body_a, radius_a), (body_b, radius_b)):
+        if body >= 0:
+            omega = ws.vel[body]
+            speed += np.sqrt(omega[0] ** 2 + omega[1] ** 2 + omega[2] ** 2) * radius
+    return apart - h * speed
 
 
 @njit(cache=True)
@@ -339,4 +417,5 @@ def contact_bias(p, w, acc, uo, g, frame, r, jdot, row):
         jdot[row + e] = frame[e, 0] * total[0] + frame[e, 1] * total[1] + frame[e, 2] * total[2]
 
 
-__all__ = ["contact_shape", "contact_bias", "body_motion", "SHAPE_PLANE", "SHAPE_CORES"]
+__all__ = ["contact_shape", "contact_bias", "body_motion", "point_velocity", "clearance", "bounding_radius", "SHAPE_PLANE",
+           "SHAPE_CORES"]
