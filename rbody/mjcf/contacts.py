@@ -16,7 +16,7 @@ whatever the filters). For each dynamic pair kept, as MuJoCo's mj_contactParam c
 - solref, solimp, margin, gap, solmix (MuJoCo's softness and activation distance) have no counterpart in the rigid
   limit: a contact acts at distance 0 and holds to round-off.
 
-Geom kinds rbody computes: plane, sphere, capsule, box, the pairs of rbody.engine.contacts.geometry.SLOTS.
+Geom kinds rbody computes: plane, sphere, capsule, cylinder, box, the pairs of rbody.engine.contacts.geometry.SLOTS.
 """
 
 from __future__ import annotations
@@ -78,16 +78,15 @@ def explicit_pairs(pairs, named: dict) -> list:
 def unsupported_pair(g1, g2, spec: dict | None = None) -> str:
     """Why rbody cannot run contacts between geoms g1 and g2 (parse's _Geom; spec: an explicit <pair>'s friction
     and condim), or "" when it can."""
-    from rbody.engine.contacts.geometry import SLOTS
+    from rbody.engine.contacts.geometry import SLOTS, pairs_text
 
     codes = [_kind_code(g) for g in (g1, g2)]
     if None in codes:
         kind = g1.kind if codes[0] is None else g2.kind
-        return (f"rbody computes contacts of plane, sphere, capsule and box geoms, not {kind} (cylinder, ellipsoid, "
+        return (f"rbody computes contacts of plane, sphere, capsule, cylinder and box geoms, not {kind} (ellipsoid, "
                 "mesh and height-field contacts are to come)")
     if tuple(sorted(codes)) not in SLOTS:
-        return (f"rbody does not compute {g1.kind}-{g2.kind} contacts (it computes any two of plane, sphere, capsule "
-                "and box but two planes)")
+        return f"rbody does not compute {g1.kind}-{g2.kind} contacts yet (it computes {pairs_text()})"
     condim = spec["condim"] if spec else _combined(g1, g2, "condim", _condim)
     if condim not in (1, 3):
         return (f"their contact has condim {condim}: rbody models condim 1 (frictionless) and 3 (Coulomb's cone), "

@@ -67,8 +67,8 @@ MuJoCo's friction and condim combination and rbody's restitution numerics (rbody
 rigidly by the constraint layer. Explicit <pair>s too, with their own friction and condim, in place of the
 dynamic pair of their geoms.
 
-Refused (MJCFError, naming the element, its file and line): contacts rbody does not compute (a pair with a
-cylinder, ellipsoid, mesh or height field, condim 4 or 6) while the contact flag is on (set contype="0"
+Refused (MJCFError, naming the element, its file and line): contacts rbody does not compute (a pair with an
+ellipsoid, mesh or height field, a cylinder with a box or a cylinder, condim 4 or 6) while the contact flag is on (set contype="0"
 conaffinity="0" on the geoms, or <flag contact="disable"/>); flex equalities; tendon armature, wrapping
 tendons (geoms, pulleys); actuators that rbody does not model (muscle, cylinder, adhesion, pid, dcmotor,
 orientation; user dynamics, gains or biases; actuator damping or armature; body, slider-crank or refsite

@@ -61,8 +61,13 @@ def test_contact_rules_friction_max_and_filters(tmp_path):
 def test_unsupported_pair_refused_with_its_line(tmp_path):
     path = tmp_path / "cyl.xml"
     path.write_text('<mujoco><worldbody><geom name="floor" type="plane" size="0 0 1"/>\n'
+                    '<body><freejoint/><geom name="c" type="ellipsoid" size="0.1 0.2 0.3"/></body></worldbody></mujoco>')
+    with pytest.raises(MJCFError, match=r"cyl.xml, line 1.*'floor' and 'c' \(line 2\) can collide.*not ellipsoid"):
+        from_mjcf(path)
+    path.write_text('<mujoco><worldbody><geom name="block" type="box" size="1 1 0.1"/>\n'
                     '<body><freejoint/><geom name="c" type="cylinder" size="0.1 0.2"/></body></worldbody></mujoco>')
-    with pytest.raises(MJCFError, match=r"cyl.xml, line 1.*'floor' and 'c' \(line 2\) can collide.*not cylinder"):
+    with pytest.raises(MJCFError, match=r"'block' and 'c' \(line 2\) can collide, and rbody does not compute "
+                                        r"box-cylinder contacts yet \(it computes plane with sphere"):
         from_mjcf(path)
     path.write_text(rolling_ball().replace('friction="0.3"', 'friction="0.3" condim="4"'))
     with pytest.raises(MJCFError, match="condim 4"):

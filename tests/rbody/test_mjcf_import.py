@@ -333,7 +333,7 @@ BODY = '<body name="b"><joint/><geom size="0.1"/></body>'
      "</worldbody></mujoco>", r"line 2, <body>: orientation given twice \(quat and euler\)"),
     (f"<mujoco>{OFF}<worldbody><body><joint/><geom type='capsule' fromto='0 0 0 1 0 0' euler='0 0 1' size='0.1'/>"
      "</body></worldbody></mujoco>", "orientation given twice"),
-    ("<mujoco><worldbody><geom name='floor' type='plane' size='1 1 1'/>\n" + BODY.replace('size="0.1"', 'type="cylinder" size="0.1 0.2"') + "</worldbody></mujoco>",
+    ("<mujoco><worldbody><geom name='floor' type='plane' size='1 1 1'/>\n" + BODY.replace('size="0.1"', 'type="ellipsoid" size="0.1 0.2 0.3"') + "</worldbody></mujoco>",
      r"line 1, <geom name='floor'>.*'floor' and 'b_geom0'.*can collide, and rbody computes contacts of plane, sphere.*contype"),
     (f"<mujoco>{OFF}<worldbody>{BODY}</worldbody><equality>\n<tendon tendon1='t'/></equality></mujoco>",
      r"line 2, <tendon>: tendon 't' is not a tendon of the model"),

@@ -359,14 +359,14 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
             if equality.active:
                 add(WELD, equality.name, U_BODY1=b1, U_BODY2=b2, U_A1=relpos, U_A2=anchor, U_QUAT=relquat)
             resolved.append(dataclasses.replace(equality, relpose=tuple(np.concatenate([relpos, relquat]).tolist())))
-    from rbody.engine.contacts.geometry import SWITCHING
+    from rbody.engine.contacts.geometry import TIME_STEPPED
 
-    switching = []  # contacts with a candidate that is a contact point in some configurations only
+    time_stepped = []  # contacts the event-driven scheme does not run (geometry.TIME_STEPPED)
     for contact in layout.contacts:
         for record_fields, name in _contact_units(layout, contact, body_index):
             add(CONTACT if contact.condim == 3 and contact.friction > 0 else CONTACT1, name, **record_fields)
-        if (record_fields["U_GTYPE_A"], record_fields["U_GTYPE_B"]) in SWITCHING:
-            switching.append(f"{contact.shape_a!r}/{contact.shape_b!r}")
+        if (record_fields["U_GTYPE_A"], record_fields["U_GTYPE_B"]) in TIME_STEPPED:
+            time_stepped.append(f"{contact.shape_a!r}/{contact.shape_b!r}")
     if not units:
         return None
     from rbody.engine.elements import build_elements
@@ -391,11 +391,12 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
     # MuJoCo's integrators as the time-stepping's free motion (a file's own scheme, at its own step)
     methods = ("moreau", "rk4") if any(unit.code in CONTACT_KINDS for unit in units) else ("rk4", "moreau")
     events_refused = ""
-    if switching:
+    if time_stepped:
+        more = f" (and {len(time_stepped) - 1} more)" if len(time_stepped) > 1 else ""
         methods = tuple(name for name in methods if name != "rk4")
-        events_refused = (f"the event-driven scheme (rk4) holds a contact's candidate from event to event, and the "
-                          f"capsule-box contact {switching[0]}{f' (and {len(switching) - 1} more)' if len(switching) > 1 else ''} "
-                          "has candidates that are contact points only while the capsule lies along a face: the "
+        events_refused = (f"the event-driven scheme (rk4) holds a contact's candidate from event to event with "
+                          f"closed-form curvature terms, which the contact {time_stepped[0]}{more} does not have (a "
+                          "capsule against a box, or a cylinder: rbody.engine.contacts.geometry.TIME_STEPPED): the "
                           "time-stepping runs it")
     methods += MUJOCO_METHODS
     return ConstraintTable(units=tuple(units), block=block, offset=offset, mode0=mode0, equalities=tuple(resolved),
@@ -407,7 +408,7 @@ def _contact_units(layout: Layout, contact, body_index: dict[str, int]) -> list[
     pair of geoms (rbody.engine.contacts.geometry.SLOTS), the geoms in MuJoCo's order (type codes ascending).
     Raises ValueError naming the contact for a shape that is not in the layout, two shapes of one body, or a pair
     of kinds rbody does not compute."""
-    from rbody.engine.contacts.geometry import SLOTS, TYPE_CODES
+    from rbody.engine.contacts.geometry import SLOTS, TYPE_CODES, pairs_text
     from rbody.motion import quat_to_matrix
 
     where = {shape.name: (WORLD, shape) for shape in layout.fixed}
@@ -431,8 +432,7 @@ def _contact_units(layout: Layout, contact, body_index: dict[str, int]) -> list[
     geoms.sort(key=lambda geom: geom[0])
     (ta, body_a, shape_a), (tb, body_b, shape_b) = geoms
     if (ta, tb) not in SLOTS:
-        raise ValueError(f"{what}: rbody computes contacts between any two of plane, sphere, capsule and box "
-                         f"shapes but two planes, not {shape_a.kind}-{shape_b.kind}")
+        raise ValueError(f"{what}: rbody computes contacts of {pairs_text()}, not {shape_a.kind}-{shape_b.kind}")
     fields = dict(U_BOUND=contact.friction, U_RESTITUTION=contact.restitution, U_BODY1=body_index[body_a],
                   U_BODY2=body_index[body_b])
     for suffix, code, shape in (("A", ta, shape_a), ("B", tb, shape_b)):

@@ -1,12 +1,13 @@
 """The narrow phase of rbody's contacts: signed distance, normal and contact points of two primitive geoms, compiled.
 
 Geoms are given as MuJoCo gives them to its collision functions (engine_collision_primitive.c): a type code (the
-values of MuJoCo's mjtGeom: PLANE 0, SPHERE 2, CAPSULE 3, BOX 6), the world position pos (3,) [m] of the geom's
+values of MuJoCo's mjtGeom: PLANE 0, SPHERE 2, CAPSULE 3, CYLINDER 5, BOX 6), the world position pos (3,) [m] of the geom's
 centre, its world orientation mat (3, 3) (columns: the geom's axes) and its size (3,) [m]:
 
     plane    infinite, through pos, its normal the geom's z axis (mat[:, 2]); size unused
     sphere   radius size[0]
     capsule  radius size[0], half-length size[1] of its segment along the geom's z axis
+    cylinder radius size[0], half-length size[1] along the geom's z axis
     box      half sizes size[0:3] along the geom's axes
 
 `collide` takes the pair in MuJoCo's order (type_a <= type_b; the caller swaps) and writes each candidate contact:
@@ -36,6 +37,18 @@ no contact is counted twice, nor twice nearly (two candidates a hair apart make 
 solver finishes). Where the capsule lies along a face (its closest points span more than LYING_SPAN of its
 half-length: parallel to the face), slot 2 is the middle of that span and slots 0 and 1 its ends, so that the
 capsule rests on the whole span: both ends on a face, or an end and the box's edge where it overhangs.
+
+Cylinders. A point's signed distance from a cylinder (cylinder_distance) is closed form and convex: from its side
+(rho - radius), a cap (|z| - half) or the rim (their hypotenuse). A sphere and a cylinder: 1 candidate. A capsule
+and a cylinder: 3, as for a box (the segment's closest point, slot 2, found by bisection on the sign of the
+distance's slope along the segment, which convexity makes monotone, to the last bit of its parameter; its ends,
+slots 0 and 1, APART within LYING_SPAN of it); parallel to the side or a cap the closest point is the middle of the
+parallel stretch. A plane and a cylinder: 8, each cap's rim at its point lowest towards the plane and at 90, 180
+and 270 degrees from it (the rim's points along the plane's normal projected onto the caps, which is smooth in
+rolling: a drum on its side touches at its two lowest rim points, and 4 more points of each rim lie a radius or a
+diameter above). Standing upright (the axis within UPRIGHT of the normal) the four points of the lower cap, along
+the cylinder's own axes, hold it. These pairs run by the time-stepping only (TIME_STEPPED): their contact points
+move along a rim, a curve the event-driven scheme's curvature terms do not cover.
 """
 
 from __future__ import annotations
@@ -44,15 +57,19 @@ import numpy as np
 from numba import njit
 
 PLANE, SPHERE, CAPSULE, ELLIPSOID, CYLINDER, BOX = 0, 2, 3, 4, 5, 6
-TYPE_CODES = {"plane": PLANE, "sphere": SPHERE, "capsule": CAPSULE, "box": BOX}
+TYPE_CODES = {"plane": PLANE, "sphere": SPHERE, "capsule": CAPSULE, "cylinder": CYLINDER, "box": BOX}
 # candidates per pair of type codes (type_a <= type_b): the pairs rbody computes
-SLOTS = {(PLANE, SPHERE): 1, (PLANE, CAPSULE): 2, (PLANE, BOX): 8, (SPHERE, SPHERE): 1, (SPHERE, CAPSULE): 1,
-         (CAPSULE, CAPSULE): 1, (SPHERE, BOX): 1, (CAPSULE, BOX): 3, (BOX, BOX): 16}
+SLOTS = {(PLANE, SPHERE): 1, (PLANE, CAPSULE): 2, (PLANE, CYLINDER): 8, (PLANE, BOX): 8, (SPHERE, SPHERE): 1,
+         (SPHERE, CAPSULE): 1, (SPHERE, CYLINDER): 1, (SPHERE, BOX): 1, (CAPSULE, CAPSULE): 1,
+         (CAPSULE, CYLINDER): 3, (CAPSULE, BOX): 3, (BOX, BOX): 16}
 APART = np.inf  # the distance of a candidate that is not a contact point in this configuration (capsule-box slot 2)
-# pairs with such a candidate: the time-stepping runs them (a candidate APART is never in a step's problem); the
-# event-driven scheme, which holds a contact's candidate from event to event, does not
-SWITCHING = {(CAPSULE, BOX)}
+# pairs the event-driven scheme, which holds a contact's candidate from event to event with closed-form curvature
+# terms (contacts.kinematics), does not run: candidates that are contact points in some configurations only, or
+# points that move along a curve of a cylinder's rim; the time-stepping runs them
+TIME_STEPPED = {(CAPSULE, BOX), (PLANE, CYLINDER), (SPHERE, CYLINDER), (CAPSULE, CYLINDER)}
 LYING_SPAN = 1e-2  # a capsule's closest points spanning more than this fraction of its half-length: it lies along a face
+UPRIGHT = 1e-12  # a cylinder whose axis is within this angle [rad] of a plane's normal stands on it
+SLOPE_TOLERANCE = 1e-12  # the rate of distance along a segment [m/m] below which it runs parallel to a surface
 MAX_SLOTS = 16
 
 
@@ -214,6 +231,101 @@ def capsule_box_slot(c, u, half_length, h, k):
     return end, abs(end - closest) < LYING_SPAN * half_length  # an end: not where the closest point is
 
 
+@njit(cache=True, inline="always")
+def cylinder_distance(x, pc, Rc, radius, half, grad):
+    """The signed distance [m] of the point x (3,) from the cylinder of centre pc (3,), axis Rc[:, 2], radius and
+    half-length half [m], and its gradient grad (3,): the outward normal at the nearest point of the surface (the
+    rim's, a cap's or the side's; inside: the nearer of cap and side). Convex in x: max(d_r, d_z) inside,
+    |(d_r, d_z)_+| outside, d_r = rho - radius, d_z = |z| - half."""
+    d0, d1, d2 = x[0] - pc[0], x[1] - pc[1], x[2] - pc[2]
+    z = d0 * Rc[0, 2] + d1 * Rc[1, 2] + d2 * Rc[2, 2]
+    r0, r1, r2 = d0 - z * Rc[0, 2], d1 - z * Rc[1, 2], d2 - z * Rc[2, 2]
+    rho = np.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
+    if rho > 0.0:
+        e0, e1, e2 = r0 / rho, r1 / rho, r2 / rho
+    else:  # on the axis: any radial direction
+        e0, e1, e2 = Rc[0, 0], Rc[1, 0], Rc[2, 0]
+    side = 1.0 if z >= 0.0 else -1.0
+    dr, dz = rho - radius, abs(z) - half
+    if dr > 0.0 and dz > 0.0:  # beyond the rim
+        length = np.sqrt(dr * dr + dz * dz)
+        grad[0] = (dr * e0 + dz * side * Rc[0, 2]) / length
+        grad[1] = (dr * e1 + dz * side * Rc[1, 2]) / length
+        grad[2] = (dr * e2 + dz * side * Rc[2, 2]) / length
+        return length
+    if dz > dr:  # a cap's
+        for a in range(3):
+            grad[a] = side * Rc[a, 2]
+        return dz
+    grad[0], grad[1], grad[2] = e0, e1, e2  # the side's
+    return dr
+
+
+@njit(cache=True)
+def _point_cylinder(c, r, pc, Rc, sc, k, dist, normal, point):
+    """Contact k of a sphere (centre c, radius r) and a cylinder (centre pc, axes Rc, radius sc[0], half-length
+    sc[1]), the normal from the sphere towards the cylinder (against the gradient of its distance)."""
+    grad = np.empty(3)
+    d = cylinder_distance(c, pc, Rc, sc[0], sc[1], grad) - r
+    dist[k] = d
+    reach = r + 0.5 * d
+    for a in range(3):
+        normal[k, a] = -grad[a]
+        point[k, a] = c[a] - grad[a] * reach
+
+
+@njit(cache=True)
+def _cylinder_slope(p, u, t, pc, Rc, radius, half, x, grad):
+    """d/dt of the distance of p + t u from the cylinder (nondecreasing in t: the distance is convex)."""
+    for a in range(3):
+        x[a] = p[a] + t * u[a]
+    cylinder_distance(x, pc, Rc, radius, half, grad)
+    return grad[0] * u[0] + grad[1] * u[1] + grad[2] * u[2]
+
+
+@njit(cache=True)
+def segment_cylinder_closest(p, u, half_length, pc, Rc, radius, half):
+    """(t, lo, hi): the parameter t of the point of the segment p + t u (t in [-half_length, half_length], u unit)
+    closest to the cylinder (centre pc, axes Rc, radius, half-length half), and [lo, hi] the interval where the
+    distance's slope is within SLOPE_TOLERANCE of 0 (one point, unless the segment runs parallel to the side or a
+    cap); t is its middle. The distance is convex along the segment, so its slope is nondecreasing: each end of the
+    interval is found by bisection on the slope's sign, to the last bit of t."""
+    x, grad = np.empty(3), np.empty(3)
+    a, b = -half_length, half_length
+    if _cylinder_slope(p, u, a, pc, Rc, radius, half, x, grad) >= -SLOPE_TOLERANCE:
+        lo = a
+    elif _cylinder_slope(p, u, b, pc, Rc, radius, half, x, grad) < -SLOPE_TOLERANCE:
+        lo = b
+    else:  # slope(a) < -tol <= slope(b)
+        for _ in range(200):
+            m = 0.5 * (a + b)
+            if m <= a or m >= b:
+                break
+            if _cylinder_slope(p, u, m, pc, Rc, radius, half, x, grad) >= -SLOPE_TOLERANCE:
+                b = m
+            else:
+                a = m
+        lo = b
+    a, b = -half_length, half_length
+    if _cylinder_slope(p, u, b, pc, Rc, radius, half, x, grad) <= SLOPE_TOLERANCE:
+        hi = b
+    elif _cylinder_slope(p, u, a, pc, Rc, radius, half, x, grad) > SLOPE_TOLERANCE:
+        hi = a
+    else:  # slope(a) <= tol < slope(b)
+        for _ in range(200):
+            m = 0.5 * (a + b)
+            if m <= a or m >= b:
+                break
+            if _cylinder_slope(p, u, m, pc, Rc, radius, half, x, grad) <= SLOPE_TOLERANCE:
+                a = m
+            else:
+                b = m
+        hi = a
+    if hi < lo:
+        lo, hi = hi, lo
+    return 0.5 * (lo + hi), lo, hi
+
+
 @njit(cache=True)
 def collide(ta, pa, Ra, sa, tb, pb, Rb, sb, dist, normal, point, only=-1):
     """The candidate contacts of geom a (type ta <= tb, centre pa (3,) [m], axes Ra (3, 3), size sa (3,) [m]) and
@@ -238,6 +350,34 @@ def collide(ta, pa, Ra, sa, tb, pb, Rb, sb, dist, normal, point, only=-1):
                     end[a] = pb[a] + side * sb[1] * Rb[a, 2]
                 _plane_point(pa, n, end, sb[0], k, dist, normal, point)
             return 2
+        if tb == CYLINDER:  # each cap's rim at its lowest point towards the plane and at 90, 180, 270 degrees
+            along = n[0] * Rb[0, 2] + n[1] * Rb[1, 2] + n[2] * Rb[2, 2]
+            w = scratch[3:6]  # the plane's normal projected onto the caps' plane, made unit
+            for a in range(3):
+                w[a] = n[a] - along * Rb[a, 2]
+            length = np.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+            if length > UPRIGHT:
+                for a in range(3):
+                    w[a] /= length
+            else:  # standing upright: the rim's points along the cylinder's own x and y axes
+                for a in range(3):
+                    w[a] = Rb[a, 0]
+            v = scratch[6:9]  # axis x w
+            v[0] = Rb[1, 2] * w[2] - Rb[2, 2] * w[1]
+            v[1] = Rb[2, 2] * w[0] - Rb[0, 2] * w[2]
+            v[2] = Rb[0, 2] * w[1] - Rb[1, 2] * w[0]
+            rim = scratch[9:12]
+            for k in range(8):
+                if only >= 0 and k != only:
+                    continue
+                cap = sb[1] if k < 4 else -sb[1]
+                j = k % 4
+                cw = -sb[0] if j == 0 else (sb[0] if j == 2 else 0.0)
+                cv = -sb[0] if j == 1 else (sb[0] if j == 3 else 0.0)
+                for a in range(3):
+                    rim[a] = pb[a] + cap * Rb[a, 2] + cw * w[a] + cv * v[a]
+                _plane_point(pa, n, rim, 0.0, k, dist, normal, point)
+            return 8
         if tb == BOX:
             corner = scratch[3:6]
             for k in range(8):
@@ -267,6 +407,9 @@ def collide(ta, pa, Ra, sa, tb, pb, Rb, sb, dist, normal, point, only=-1):
             return 1
         if tb == BOX:
             _point_box(pa, sa[0], pb, Rb, sb, 0, dist, normal, point)
+            return 1
+        if tb == CYLINDER:
+            _point_cylinder(pa, sa[0], pb, Rb, sb, 0, dist, normal, point)
             return 1
         return -1
     if ta == BOX and tb == BOX:  # each box's corners against the other box (vertex-face contacts)
@@ -301,6 +444,22 @@ def collide(ta, pa, Ra, sa, tb, pb, Rb, sb, dist, normal, point, only=-1):
                 centre[a] = pa[a] + t * Ra[a, 2]
             _point_box(centre, sa[0], pb, Rb, sb, k, dist, normal, point)
             if apart:
+                dist[k] = APART
+        return 3
+    if ta == CAPSULE and tb == CYLINDER:  # the segment's closest point (2) and its ends (0, 1)
+        u = scratch[3:6]
+        for a in range(3):
+            u[a] = Ra[a, 2]
+        closest, _lo, _hi = segment_cylinder_closest(pa, u, sa[1], pb, Rb, sb[0], sb[1])
+        centre = scratch[0:3]
+        for k in range(3):
+            if only >= 0 and k != only:
+                continue
+            t = closest if k == 2 else (-sa[1] if k == 0 else sa[1])
+            for a in range(3):
+                centre[a] = pa[a] + t * u[a]
+            _point_cylinder(centre, sa[0], pb, Rb, sb, k, dist, normal, point)
+            if k < 2 and abs(t - closest) < LYING_SPAN * sa[1]:  # that end is the closest point
                 dist[k] = APART
         return 3
     if ta == CAPSULE and tb == CAPSULE:
@@ -338,6 +497,17 @@ def tangents(n, t1, t2):
     t2[2] = n[0] * t1[1] - n[1] * t1[0]
 
 
+def pairs_text() -> str:
+    """The pairs of geom kinds rbody computes, in words (for refusals)."""
+    names = {code: kind for kind, code in TYPE_CODES.items()}
+    parts = []
+    for first in sorted(names):
+        others = [names[b] for a, b in sorted(SLOTS) if a == first]
+        if others:
+            parts.append(f"{names[first]} with {', '.join(others)}")
+    return "; ".join(parts)
+
+
 def collide_pair(kind_a: str, pos_a, mat_a, size_a, kind_b: str, pos_b, mat_b, size_b):
     """The candidate contacts of two geoms in any order, for Python callers: (dist (k,) [m], normal (k, 3) from geom
     a to geom b, point (k, 3) [m]). kind: "plane", "sphere", "capsule", "box"; pos (3,) [m]; mat (3, 3) the geom's
@@ -354,8 +524,8 @@ def collide_pair(kind_a: str, pos_a, mat_a, size_a, kind_b: str, pos_b, mat_b, s
         args.reverse()
     (t1, p1, R1, s1), (t2, p2, R2, s2) = args
     if (t1, t2) not in SLOTS:
-        raise ValueError(f"geoms {kind_a!r} and {kind_b!r}: rbody computes contacts between the pairs "
-                         f"{sorted(SLOTS)} (type codes as MuJoCo's mjtGeom), not this one")
+        raise ValueError(f"geoms {kind_a!r} and {kind_b!r}: rbody computes contacts of {pairs_text()}, not this "
+                         "pair")
     sizes = []
     for s in (s1, s2):
         full = np.zeros(3)
@@ -371,5 +541,6 @@ def collide_pair(kind_a: str, pos_a, mat_a, size_a, kind_b: str, pos_b, mat_b, s
     return dist, normal, point
 
 
-__all__ = ["collide", "collide_pair", "tangents", "segment_closest", "segment_box_closest", "capsule_box_slot", "APART", "SWITCHING", "LYING_SPAN", "SLOTS", "MAX_SLOTS", "TYPE_CODES", "PLANE",
+__all__ = ["collide", "collide_pair", "tangents", "segment_closest", "segment_box_closest", "capsule_box_slot", "APART", "TIME_STEPPED", "LYING_SPAN", "cylinder_distance", "segment_cylinder_closest",
+           "pairs_text", "CYLINDER", "SLOTS", "MAX_SLOTS", "TYPE_CODES", "PLANE",
            "SPHERE", "CAPSULE", "BOX"]

@@ -38,7 +38,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from rbody.engine.contacts.geometry import BOX, CAPSULE, PLANE, SPHERE, capsule_box_slot, segment_closest
+from rbody.engine.contacts.geometry import BOX, CAPSULE, CYLINDER, PLANE, SPHERE, capsule_box_slot, segment_closest
 from rbody.engine.contacts.rows import geom_pose
 from rbody.engine.multibody import _views
 from rbody.engine.constraints.table import (U_BODY1, U_BODY2, U_DOF, U_GMAT_A, U_GMAT_B, U_GPOS_A, U_GPOS_B,
@@ -241,6 +241,8 @@ def bounding_radius(kind, p, size_at):
         return p[size_at] + p[size_at + 1]
     if kind == BOX:
         return np.sqrt(p[size_at] ** 2 + p[size_at + 1] ** 2 + p[size_at + 2] ** 2)
+    if kind == CYLINDER:
+        return np.sqrt(p[size_at] ** 2 + p[size_at + 1] ** 2)
     return np.inf
 
 

@@ -16,11 +16,18 @@ def layout_with(contact, shape=Shape("s", "sphere", (0.1,)), fixed=(Shape("floor
 
 @pytest.mark.parametrize("contact, shape, match", [
     (Contact("floor", "nothing"), Shape("s", "sphere", (0.1,)), r"shape_b='nothing' is not a shape of the layout"),
-    (Contact("floor", "c"), Shape("c", "cylinder", (0.1, 0.2)), r"shape 'c' is a cylinder"),
+    (Contact("floor", "c"), Shape("c", "mesh", ()), r"shape 'c' is a mesh"),
 ])
 def test_layout_contacts_refused(contact, shape, match):
     with pytest.raises(ValueError, match=match):
         Scene.from_layout(layout_with(contact, shape), t_end=1.0)
+
+
+def test_pair_rbody_does_not_compute_refused():
+    fixed = (Shape("block", "box", (1.0, 1.0, 0.1)),)
+    with pytest.raises(ValueError, match=r"contact 'block'/'c': rbody computes contacts of plane with sphere.*"
+                                         r"not cylinder-box"):
+        Scene.from_layout(layout_with(Contact("block", "c"), Shape("c", "cylinder", (0.1, 0.2)), fixed), t_end=1.0)
 
 
 def test_two_world_shapes_refused():
