@@ -4,7 +4,9 @@ Columns: one per candidate contact of the constraint table (meta["contacts"]: "<
 candidate's slot, e.g. "floor/box[3]" for a box's fourth corner), geoms in MuJoCo's order (type codes ascending).
 
     contacts (T, *batch)                       the number of candidates whose normal force is > 0
-    contact_distance (T, *batch, k) [m]        signed distance (< 0: overlap; round-off in the rigid limit)
+    contact_distance (T, *batch, k) [m]        signed distance (< 0: overlap; round-off in the rigid limit);
+                                               +inf where the candidate is not a contact point in that
+                                               configuration (geometry.APART: a capsule's end at its closest point)
     contact_point (T, *batch, k, 3) [m]        the candidate's point, midway between the surfaces, world frame
     contact_normal (T, *batch, k, 3)           its unit normal, from geom a towards geom b, world frame
     contact_normal_force (T, *batch, k) [N]    the force geom a exerts on geom b along the normal (>= 0)
@@ -21,7 +23,9 @@ from numba import njit
 
 from rbody.engine.constraints import dynamics as dyn
 from rbody.engine.constraints.jacobians import row_count, unit_at
-from rbody.engine.contacts.rows import contact_geometry
+from rbody.engine.contacts.geometry import MAX_SLOTS
+from rbody.engine.contacts.rows import GEOMETRY_WORK, pair_candidates
+from rbody.engine.constraints.table import U_DOF
 from rbody.engine.multibody import H_BODIES, _effective_qpos, workspace_size
 
 
@@ -41,8 +45,19 @@ def contact_frames(p, y, units, dist, point, normal):
     wanted = np.zeros(from_rows)
     a0, na = dyn.act_range(p)
     dyn.snapshot(p, q, y[nq:nq + nv], y[a0:a0 + na], M, f, J, jdot, g, w, acc, wanted)  # the frames, no rows
+    work = np.empty(GEOMETRY_WORK)  # a pair's candidates, computed once for all its units (they follow each other)
+    slots = work[24:24 + 7 * MAX_SLOTS]
+    pair = -1
     for i in range(units.shape[0]):
-        dist[i] = contact_geometry(p, w, unit_at(p, units[i]), normal[i], point[i])
+        u = unit_at(p, units[i])
+        k = int(p[u + U_DOF])
+        if pair < 0 or units[i] - k != pair:
+            pair_candidates(p, w, u, work)
+            pair = units[i] - k
+        dist[i] = slots[k]
+        for a in range(3):
+            normal[i, a] = slots[MAX_SLOTS + 3 * k + a]
+            point[i, a] = slots[4 * MAX_SLOTS + 3 * k + a]
 
 
 def contact_observables(table, params: np.ndarray, out: np.ndarray, forces: np.ndarray, units: list[int]) -> dict:

@@ -46,6 +46,22 @@ GEOMETRY_WORK = 24 + 7 * MAX_SLOTS  # the floats contact_geometry's scratch hold
 
 
 @njit(cache=True)
+def pair_candidates(p, w, u, work):
+    """Every candidate of the contact unit at u's pair of geoms at once (the unit's slot aside) into work (GEOMETRY_WORK
+    floats): distances work[24:24 + MAX_SLOTS], normals and points after them (as contact_geometry lays them out);
+    returns their count. For a caller that reads all of a pair's candidates (the observables): the geoms' poses once."""
+    pa, pb = work[0:3], work[3:6]
+    Ra, Rb = work[6:15].reshape((3, 3)), work[15:24].reshape((3, 3))
+    geom_pose(p, w, int(p[u + U_BODY1]), u + U_GPOS_A, u + U_GMAT_A, pa, Ra)
+    geom_pose(p, w, int(p[u + U_BODY2]), u + U_GPOS_B, u + U_GMAT_B, pb, Rb)
+    dist = work[24:24 + MAX_SLOTS]
+    normals = work[24 + MAX_SLOTS:24 + 4 * MAX_SLOTS].reshape((MAX_SLOTS, 3))
+    points = work[24 + 4 * MAX_SLOTS:24 + 7 * MAX_SLOTS].reshape((MAX_SLOTS, 3))
+    return collide(int(p[u + U_GTYPE_A]), pa, Ra, p[u + U_GSIZE_A:u + U_GSIZE_A + 3], int(p[u + U_GTYPE_B]), pb, Rb,
+                   p[u + U_GSIZE_B:u + U_GSIZE_B + 3], dist, normals, points)
+
+
+@njit(cache=True)
 def contact_geometry(p, w, u, normal, point, work=None):
     """The gap g [m] of the contact unit whose record starts at u (returned), its normal (3,) from geom a to geom b
     and its point (3,) [m, world], after the tree's kinematics in the workspace w. work: None, or scratch of
@@ -68,4 +84,4 @@ def contact_geometry(p, w, u, normal, point, work=None):
     return dist[k]
 
 
-__all__ = ["geom_pose", "contact_geometry", "GEOMETRY_WORK"]
+__all__ = ["geom_pose", "contact_geometry", "pair_candidates", "GEOMETRY_WORK"]
