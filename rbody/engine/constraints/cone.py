@@ -118,7 +118,7 @@ def cone_pgs(W, b, lo, hi, role, mu, lam, tolerance, max_sweeps):
     return max_sweeps, residual
 
 
-__all__ = ["cone_pgs", "cone_residual", "ROW", "NORMAL", "TANGENT", "TANGENT2"]
+__all__ = ["cone_pgs", "cone_residual", "slide_polish", "ROW", "NORMAL", "TANGENT", "TANGENT2"]
 
 
 @njit(cache=True)
@@ -129,6 +129,49 @@ def cone_polish(W, b, lo, hi, role, mu, lam, rounds):
     those states (least squares, minimum norm), a sliding contact's force on its cone's edge against its velocity
     (its direction from the last round's velocities; in the first round from Gauss-Seidel's force); `rounds`
     rounds, the best kept. Returns the residual of the lam kept."""
+    return _polish(W, b, lo, hi, role, mu, lam, rounds, np.zeros(b.shape[0], dtype=np.bool_))
+
+
+@njit(cache=True)
+def slide_polish(W, b, lo, hi, role, mu, lam, rounds):
+    """cone_polish with sticking contacts made to slide against the tangential velocity the others leave them (their
+    force on their cone's edge), chosen greedily: each pass tries every sticking contact that slips, keeps the one
+    that lowers the residual most, and goes on from there while one does. Where contacts' tangent rows are nearly
+    dependent (a capsule pivoting on a box's edge as its end lands on the face; a foot's capsule ends) no set of
+    impulses holds them all, and Gauss-Seidel and the stick states settle on a point that is not a solution: some
+    of them slide. Returns the residual kept."""
+    m = b.shape[0]
+    best = cone_residual(W, b, lo, hi, role, mu, lam)
+    forced = np.zeros(m, dtype=np.bool_)
+    for _pass in range(m):
+        w = b + W @ lam
+        chosen, chosen_residual = -1, best
+        chosen_lam = lam.copy()
+        for i in range(m):
+            if forced[i] or role[i] != NORMAL or lam[i] <= 0.0 or i + 1 >= m or role[i + 1] != TANGENT:
+                continue
+            j = i + 1
+            if np.sqrt(lam[j] ** 2 + lam[j + 1] ** 2) >= mu[j] * lam[i] or (w[j] == 0.0 and w[j + 1] == 0.0):
+                continue  # sliding already, or not slipping
+            trial = lam.copy()
+            forced[i] = True
+            residual = _polish(W, b, lo, hi, role, mu, trial, rounds, forced)
+            forced[i] = False
+            if residual < chosen_residual:
+                chosen, chosen_residual = i, residual
+                chosen_lam[:] = trial
+        if chosen < 0:
+            break
+        forced[chosen] = True
+        best = chosen_residual
+        lam[:] = chosen_lam
+    return best
+
+
+@njit(cache=True)
+def _polish(W, b, lo, hi, role, mu, lam, rounds, forced):
+    """cone_polish, the pushing contacts whose normal row is flagged in forced (m,) sliding whatever their force,
+    against their tangential velocity."""
     m = b.shape[0]
     best = cone_residual(W, b, lo, hi, role, mu, lam)
     for _round in range(rounds):
@@ -161,14 +204,14 @@ def cone_polish(W, b, lo, hi, role, mu, lam, rounds):
                 j = i + 1
                 tx, ty = lam[j], lam[j + 1]
                 radius = mu[j] * lam[i]
-                if np.sqrt(tx * tx + ty * ty) < radius * (1.0 - 1e-10):  # sticking: the three rows held
+                if not forced[i] and np.sqrt(tx * tx + ty * ty) < radius * (1.0 - 1e-10):  # sticking: rows held
                     B[i, k], B[j, k + 1], B[j + 1, k + 2] = 1.0, 1.0, 1.0
                     k += 3
                     rows[e], rows[e + 1] = j, j + 1
                     e += 2
                 else:  # sliding: its force on the cone's edge, against the tangential velocity (round 0: along
                     # the force Gauss-Seidel found, whose direction is good where the sliding speed is small)
-                    sx, sy = (tx, ty) if _round == 0 else (-w[j], -w[j + 1])
+                    sx, sy = (tx, ty) if _round == 0 and not forced[i] else (-w[j], -w[j + 1])
                     length = np.sqrt(sx * sx + sy * sy)
                     if length <= tiny:
                         sx, sy = tx, ty
@@ -277,3 +320,4 @@ def stick_polish(W, b, lo, hi, role, mu, lam, rounds):
             for i in range(m):
                 lam[i] = trial[i]
     return best
+

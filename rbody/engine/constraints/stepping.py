@@ -57,7 +57,8 @@ from rbody.engine.constraints.jacobians import row_count, unit_at, unit_count, u
 from rbody.engine.contacts.kinematics import clearance, point_velocity
 from rbody.engine.contacts.rows import GEOMETRY_WORK, contact_geometry
 from rbody.engine.multibody import _effective_qpos
-from rbody.engine.constraints.cone import NORMAL, ROW, TANGENT, TANGENT2, cone_pgs, cone_polish, stick_polish
+from rbody.engine.constraints.cone import (NORMAL, ROW, TANGENT, TANGENT2, cone_pgs, cone_polish, slide_polish,
+                                           stick_polish)
 from rbody.engine.constraints.solver import mlcp_exact_from, mlcp_pgs, natural_residual
 from rbody.engine.constraints.table import (C_HEADER, CONE, CONNECT, CONTACT, CONTACT1, CONTACT_KINDS, COUPLING,
                                             FRICTION, FRICTION_KINDS, LOWER, TENDON_EQUALITY, TENDON_FRICTION,
@@ -283,6 +284,8 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
                 residual = min(stick_polish(W, bb, ll, hh, roles, mus, lam, 8), residual)
                 if residual > 1e-3 * tolerance * scale:
                     residual = cone_polish(W, bb, ll, hh, roles, mus, lam, 4)
+                if residual > 1e-3 * tolerance * scale:  # no stick state holds: some contacts slide
+                    residual = slide_polish(W, bb, ll, hh, roles, mus, lam, 4)
                 if residual <= 1e-3 * tolerance * scale:
                     break
             status = 0 if residual <= tolerance * scale else 1

@@ -13,7 +13,11 @@ centre, its world orientation mat (3, 3) (columns: the geom's axes) and its size
 `collide` takes the pair in MuJoCo's order (type_a <= type_b; the caller swaps) and writes each candidate contact:
 dist [m] (the signed distance between the surfaces along the normal, < 0 when they overlap), normal (3,) the unit
 normal pointing from geom a towards geom b (MuJoCo's contact frame's first axis), and point (3,) [m] midway between
-the two surfaces (MuJoCo's con.pos). It returns the number of candidates, which for a pair of types is fixed
+the two surfaces (MuJoCo's con.pos), or on the face where the nearest feature is flat (a plane, a box's face, a
+cylinder's cap): there a contact that closes within a step will touch, and the friction rows of several such
+contacts of one body (a foot's four capsule ends landing on a floor, at different heights) are then those of a
+rigid motion (midway, the points' heights enter their tangential velocities through the body's turning, and no
+impulses hold them all). It returns the number of candidates, which for a pair of types is fixed
 (SLOTS): a plane and a capsule always give the two end spheres, a plane and a box its 8 corners, whatever their
 distance, so that a contact's identity (which corner, which end) is the same at every state and its distance is a
 smooth function of the configuration (the gap function of the constraint layer). The rigid limit needs no margin:
@@ -91,10 +95,10 @@ def _sphere_sphere(ca, ra, cb, rb, k, dist, normal, point):
 
 @njit(cache=True, inline="always")
 def _plane_point(pa, n, c, r, k, dist, normal, point):
-    """Contact k of the plane (pa, normal n) and a sphere (c, r) (r = 0: a point)."""
+    """Contact k of the plane (pa, normal n) and a sphere (c, r) (r = 0: a point); its point on the plane."""
     d = n[0] * (c[0] - pa[0]) + n[1] * (c[1] - pa[1]) + n[2] * (c[2] - pa[2]) - r
     dist[k] = d
-    reach = r + 0.5 * d
+    reach = r + d
     for a in range(3):
         normal[k, a] = n[a]
         point[k, a] = c[a] - n[a] * reach
@@ -112,9 +116,11 @@ def _point_box(c, r, pb, Rb, sb, k, dist, normal, point):
     o1 = l1 - min(max(l1, -sb[1]), sb[1])
     o2 = l2 - min(max(l2, -sb[2]), sb[2])
     outside = o0 * o0 + o1 * o1 + o2 * o2
+    on_face = True  # the nearest point on a face (its point there), else on an edge or a corner (midway)
     if outside > 0.0:
         length = np.sqrt(outside)
         d = length - r
+        on_face = (o0 != 0.0) + (o1 != 0.0) + (o2 != 0.0) == 1
         for a in range(3):  # from the sphere towards the box: against the outward offset
             normal[k, a] = -(Rb[a, 0] * o0 + Rb[a, 1] * o1 + Rb[a, 2] * o2) / length
     else:  # the centre inside the box (or on its surface): out through the face of least depth
@@ -128,7 +134,7 @@ def _point_box(c, r, pb, Rb, sb, k, dist, normal, point):
         for a in range(3):
             normal[k, a] = -side * Rb[a, face]
     dist[k] = d
-    reach = r + 0.5 * d
+    reach = r + d if on_face else r + 0.5 * d
     for a in range(3):
         point[k, a] = c[a] + normal[k, a] * reach
 
@@ -268,7 +274,8 @@ def _point_cylinder(c, r, pc, Rc, sc, k, dist, normal, point):
     grad = np.empty(3)
     d = cylinder_distance(c, pc, Rc, sc[0], sc[1], grad) - r
     dist[k] = d
-    reach = r + 0.5 * d
+    along = abs(grad[0] * Rc[0, 2] + grad[1] * Rc[1, 2] + grad[2] * Rc[2, 2])
+    reach = r + d if along >= 1.0 - 1e-12 else r + 0.5 * d  # a cap's: its point on the cap; side, rim: midway
     for a in range(3):
         normal[k, a] = -grad[a]
         point[k, a] = c[a] - grad[a] * reach

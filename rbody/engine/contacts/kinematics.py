@@ -28,7 +28,7 @@ Each candidate of rbody.engine.contacts.geometry is, at any configuration, one o
   corner (CORES): an end (fixed), or the segment's closest point (sliding along its axis).
 
 The tangent rows of a sticking contact: with e a tangent, p the contact point and p' its velocity (from the shapes
-above: the foot point or x_A + n (r_A + g / 2)), d/dt e . (v_B(p) - v_A(p)) without qacc is
+above: the foot point on the plane or x_A + n (r_A + g / 2)), d/dt e . (v_B(p) - v_A(p)) without qacc is
 e . (a_B(p) - a_A(p) + w_B x (p' - v_B(p)) - w_A x (p' - v_A(p))) + e' . (v_B(p) - v_A(p)); the last term is
 dropped: it multiplies the slip velocity, which is 0 (to round-off) wherever these rows are held.
 """
@@ -354,9 +354,9 @@ def contact_bias(p, w, acc, uo, g, frame, r, jdot, row):
         gdd = (m[0] * (accel[1, 0] - accel[0, 0]) + m[1] * (accel[1, 1] - accel[0, 1])
                + m[2] * (accel[1, 2] - accel[0, 2]) + 2.0 * _dot(tmp, dv) - (g + rho) * perp)
         gd = _dot(m, dv)  # v_P(x) and v_P(foot) differ by w_P x m (g + rho), normal to m
-        for a in range(3):
-            point[a] = x[1, a] - m[a] * (rho + 0.5 * g)
-            pdot[a] = vel[1, a] - tmp[a] * (rho + 0.5 * g) - m[a] * 0.5 * gd
+        for a in range(3):  # the contact point on the plane (geometry: a face's contact point), the foot
+            point[a] = foot[a]
+            pdot[a] = vel[1, a] - tmp[a] * (rho + g) - m[a] * gd
     else:
         for i in range(2):
             body_motion(p, w, acc, bodies[i], x[i], vel[i], accel[i], om[i], al[i])

@@ -7,7 +7,10 @@ candidate's slot, e.g. "floor/box[3]" for a box's fourth corner), geoms in MuJoC
     contact_distance (T, *batch, k) [m]        signed distance (< 0: overlap; round-off in the rigid limit);
                                                +inf where the candidate is not a contact point in that
                                                configuration (geometry.APART: a capsule's end at its closest point)
-    contact_point (T, *batch, k, 3) [m]        the candidate's point, midway between the surfaces, world frame
+    contact_point (T, *batch, k, 3) [m]        the candidate's point, world frame: on the face where the nearest
+                                               feature is flat (a plane, a box's face, a cylinder's cap), else
+                                               midway between the surfaces (MuJoCo's con.pos is midway: the two
+                                               differ by half the distance, 0 at touch)
     contact_normal (T, *batch, k, 3)           its unit normal, from geom a towards geom b, world frame
     contact_normal_force (T, *batch, k) [N]    the force geom a exerts on geom b along the normal (>= 0)
     contact_friction_force (T, *batch, k, 2) [N]  the friction force on geom b along the contact frame's

@@ -154,15 +154,16 @@ def test_capsule_falls_onto_an_edge_in_the_step_of_the_closed_form():
     assert np.all(np.isfinite(dist[:, 2]))  # the closest point: always a candidate
 
 
-@pytest.mark.xfail(strict=True, raises=rbody.SimulationError,
-                   reason="the cone solver stalls (residual 5.7e-5) on the step where the tipping capsule's end lands "
-                          "on the face while its edge contact sticks (mu >= 1, dt = 1e-3; at dt = 5e-4 it passes): the "
-                          "stall of docs/contacts.md, which a Newton or interior-point cone solver is to remove")
-def test_capsule_tipping_onto_a_face_with_high_friction():
-    run = rbody.simulate(Scene.from_layout(capsule_over_box(0.2, 0.3, 0.05, shift=-0.1, friction=1.0), t_end=0.5),
-                         dt=1e-3)
+@pytest.mark.parametrize("friction", [1.0, 2.0])
+def test_capsule_tipping_onto_a_face_with_high_friction(friction):
+    """The step where the tipping capsule's end lands on the face while its edge contact sticks: the two contacts'
+    tangent rows are nearly dependent, no impulses hold both, and the end slides (cone.slide_polish); nothing
+    passes into the box."""
+    run = rbody.simulate(Scene.from_layout(capsule_over_box(0.2, 0.3, 0.05, shift=-0.1, friction=friction),
+                                           t_end=0.5), dt=1e-3)
     dist = run["contact_distance"]
     assert np.min(dist[np.isfinite(dist)]) >= -1e-13
+    assert run["rod.com"][-1, 2] == pytest.approx(0.55, abs=1e-13)  # lying on the face at the end
 
 
 def test_event_driven_scheme_refuses_capsule_box():
@@ -218,3 +219,33 @@ def test_capsule_on_box_from_mjcf_runs_and_rests(tmp_path):
     for _ in range(500):
         mujoco.mj_step(model, data)
     assert 1.05 - data.qpos[2] > 1e-6  # MuJoCo's contact sinks (measured: 2.1e-4 m in 1 s)
+
+
+def test_slide_polish_finds_the_sliding_solution_the_stick_states_miss():
+    """That landing step's problem (6 rows: the edge contact's normal and tangents, the end's; mu = 2), as the
+    time-stepping posed it, from where Gauss-Seidel settled: both contacts inside their cones, slipping -+5.7e-5 m/s.
+    Holding both sticking has no solution (the tangent rows are dependent to 2e-15), so stick_polish and
+    cone_polish stay at the residual; slide_polish makes the end slide against its slip and solves it exactly."""
+    from rbody.engine.constraints.cone import NORMAL, TANGENT, TANGENT2, cone_polish, cone_residual, slide_polish, \
+        stick_polish
+
+    W = np.array([[3.9387739233812993, 0.48915193883467306, 0.0, -0.17770832309607823, 0.4905338585811731, 0.0],
+                  [0.48915193883467306, 1.0814181782960768, 0.0, -0.1967615280005547, 1.0815256165203968, 0.0],
+                  [0.0, 0.0, 5.950449161299519, 0.0, 0.0, 1.8286378861841486],
+                  [-0.17770832309607823, -0.1967615280005547, 0.0, 1.4719642594275848, -0.19628603189841715, 0.0],
+                  [0.4905338585811731, 1.0815256165203968, 0.0, -0.19628603189841715, 1.0816337371926315, 0.0],
+                  [0.0, 0.0, 1.8286378861841486, 0.0, 0.0, 3.4719908206470613]])
+    b = np.array([-1.856372304041758, 0.003959063282221453, 0.0, -0.008470128160270318, 0.0031599313284780273, 0.0])
+    start = np.array([0.500705175278706, -0.20838136742008317, 0.0, 0.03633591508259261, -0.015095427477989462, 0.0])
+    role = np.array([NORMAL, TANGENT, TANGENT2] * 2)
+    mu = np.array([0.0, 2.0, 0.0] * 2)
+    lo, hi = np.array([0.0, -np.inf, -np.inf] * 2), np.full(6, np.inf)
+    before = cone_residual(W, b, lo, hi, role, mu, start)
+    assert before > 5e-5
+    for polish in (stick_polish, cone_polish):
+        assert polish(W, b, lo, hi, role, mu, start.copy(), 4) >= before * (1 - 1e-9)
+    lam = start.copy()
+    assert slide_polish(W, b, lo, hi, role, mu, lam, 4) <= 1e-13
+    w = b + W @ lam
+    assert lam[4] == pytest.approx(mu[4] * lam[3], rel=1e-12) and w[4] < 0  # the end slides against its slip
+    assert abs(lam[1]) < mu[1] * lam[0] and abs(w[1]) <= 1e-13              # the edge contact sticks

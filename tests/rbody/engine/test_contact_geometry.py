@@ -22,7 +22,7 @@ def test_plane_sphere_closed_form():
     dist, normal, point = collide_pair("plane", [0, 0, 0], R, (), "sphere", 1.0 * n + 5 * R[:, 0], I3, [0.3])
     assert dist[0] == pytest.approx(0.7, abs=1e-15)
     np.testing.assert_allclose(normal[0], n, atol=1e-15)
-    np.testing.assert_allclose(point[0], 5 * R[:, 0] + 0.35 * n, atol=1e-14)
+    np.testing.assert_allclose(point[0], 5 * R[:, 0], atol=1e-14)  # on the plane: where it will touch
 
 
 def test_plane_box_gives_its_corners():
@@ -33,7 +33,7 @@ def test_plane_box_gives_its_corners():
     np.testing.assert_allclose(np.sort(dist), [0.1] * 4 + [1.1] * 4, atol=1e-15)
     np.testing.assert_allclose(normal, np.tile([0, 0, 1.0], (8, 1)))
     low = point[dist < 0.5]
-    np.testing.assert_allclose(low[:, 2], 0.05, atol=1e-15)  # midway between the corner and the floor
+    np.testing.assert_allclose(low[:, 2], 0.0, atol=1e-15)  # on the floor, below the corner
     np.testing.assert_allclose(np.linalg.norm(low[:, :2] - [1, 2], axis=1), np.sqrt(0.5), atol=1e-15)
 
 
