@@ -37,7 +37,7 @@ from rbody.engine.system import actuator_rates, add_element_forces, clamp_activa
 from rbody.engine.constraints.jacobians import (all_rows, bias_accelerations, some_rows, mode_at, row_count, unit_at,
                                                 unit_count, unit_rows)
 from rbody.engine.contacts.kinematics import clearance
-from rbody.engine.contacts.rows import GEOMETRY_WORK, contact_geometry
+from rbody.engine.contacts.rows import GEOMETRY_WORK, pair_candidates
 from rbody.engine.constraints.solver import lower_solve, symmetric_solve, upper_solve
 from rbody.engine.constraints.sliding import general_held_solve, sliding_columns
 from rbody.engine.constraints.table import (CONE, CONNECT, CONTACT, CONTACT1, COUPLING, FRICTION, LOWER,
@@ -553,7 +553,6 @@ def state_gaps(p, y, g):
     J = np.empty((rows, nv))
     jdot = np.empty(rows)
     acc = np.empty((int(p[H_BODIES]), 6))
-    normal, point = np.empty(3), np.empty(3)
     work = np.empty(GEOMETRY_WORK)
     reach = 0.0
     for k in range(unit_count(p)):
@@ -563,9 +562,12 @@ def state_gaps(p, y, g):
         if kind == CONTACT or kind == CONTACT1:
             for a in range(row, row + int(p[u + U_ROWS])):
                 g[a] = 0.0
-            if int(p[u + U_DOF]) == 0:  # bounding spheres apart: a lower bound will do (one per pair)
-                reach = clearance(p, w, u, 0.0, work)
-            g[row] = reach if reach > 0.0 else contact_geometry(p, w, u, normal, point, work)
+            slot = int(p[u + U_DOF])
+            if slot == 0:  # bounding spheres apart: a lower bound will do (one per pair); else every candidate of
+                reach = clearance(p, w, u, 0.0, work)  # the pair at once, its geoms posed once
+                if reach <= 0.0:
+                    pair_candidates(p, w, u, work)
+            g[row] = reach if reach > 0.0 else work[24 + slot]
         else:
             unit_rows(p, k, q, y[nq:nq + nv], w, acc, J, jdot, g, row, False)
 
