@@ -46,10 +46,9 @@ GEOMETRY_WORK = 24 + 7 * MAX_SLOTS  # the floats contact_geometry's scratch hold
 
 
 @njit(cache=True)
-def pair_candidates(p, w, u, work):
-    """Every candidate of the contact unit at u's pair of geoms at once (the unit's slot aside) into work (GEOMETRY_WORK
-    floats): distances work[24:24 + MAX_SLOTS], normals and points after them (as contact_geometry lays them out);
-    returns their count. For a caller that reads all of a pair's candidates (the observables): the geoms' poses once."""
+def _candidates(p, w, u, work, only):
+    """collide on the contact unit at u's pair of geoms, posed after the tree's kinematics, into work (GEOMETRY_WORK
+    floats: the poses, then distances work[24:24 + MAX_SLOTS], normals and points); only: one slot, or -1 for all."""
     pa, pb = work[0:3], work[3:6]
     Ra, Rb = work[6:15].reshape((3, 3)), work[15:24].reshape((3, 3))
     geom_pose(p, w, int(p[u + U_BODY1]), u + U_GPOS_A, u + U_GMAT_A, pa, Ra)
@@ -58,7 +57,15 @@ def pair_candidates(p, w, u, work):
     normals = work[24 + MAX_SLOTS:24 + 4 * MAX_SLOTS].reshape((MAX_SLOTS, 3))
     points = work[24 + 4 * MAX_SLOTS:24 + 7 * MAX_SLOTS].reshape((MAX_SLOTS, 3))
     return collide(int(p[u + U_GTYPE_A]), pa, Ra, p[u + U_GSIZE_A:u + U_GSIZE_A + 3], int(p[u + U_GTYPE_B]), pb, Rb,
-                   p[u + U_GSIZE_B:u + U_GSIZE_B + 3], dist, normals, points)
+                   p[u + U_GSIZE_B:u + U_GSIZE_B + 3], dist, normals, points, only)
+
+
+@njit(cache=True)
+def pair_candidates(p, w, u, work):
+    """Every candidate of the contact unit at u's pair of geoms at once (the unit's slot aside) into work (GEOMETRY_WORK
+    floats): distances work[24:24 + MAX_SLOTS], normals and points after them (as contact_geometry lays them out);
+    returns their count. For a caller that reads all of a pair's candidates: the geoms' poses once."""
+    return _candidates(p, w, u, work, -1)
 
 
 @njit(cache=True)
@@ -68,20 +75,12 @@ def contact_geometry(p, w, u, normal, point, work=None):
     GEOMETRY_WORK floats a caller looping over many units passes to spare the allocations."""
     if work is None:
         work = np.empty(GEOMETRY_WORK)
-    pa, pb = work[0:3], work[3:6]
-    Ra, Rb = work[6:15].reshape((3, 3)), work[15:24].reshape((3, 3))
-    geom_pose(p, w, int(p[u + U_BODY1]), u + U_GPOS_A, u + U_GMAT_A, pa, Ra)
-    geom_pose(p, w, int(p[u + U_BODY2]), u + U_GPOS_B, u + U_GMAT_B, pb, Rb)
-    dist = work[24:24 + MAX_SLOTS]
-    normals = work[24 + MAX_SLOTS:24 + 4 * MAX_SLOTS].reshape((MAX_SLOTS, 3))
-    points = work[24 + 4 * MAX_SLOTS:24 + 7 * MAX_SLOTS].reshape((MAX_SLOTS, 3))
-    collide(int(p[u + U_GTYPE_A]), pa, Ra, p[u + U_GSIZE_A:u + U_GSIZE_A + 3], int(p[u + U_GTYPE_B]), pb, Rb,
-            p[u + U_GSIZE_B:u + U_GSIZE_B + 3], dist, normals, points, int(p[u + U_DOF]))
     k = int(p[u + U_DOF])
+    _candidates(p, w, u, work, k)
     for a in range(3):
-        normal[a] = normals[k, a]
-        point[a] = points[k, a]
-    return dist[k]
+        normal[a] = work[24 + MAX_SLOTS + 3 * k + a]
+        point[a] = work[24 + 4 * MAX_SLOTS + 3 * k + a]
+    return work[24 + k]
 
 
 __all__ = ["geom_pose", "contact_geometry", "pair_candidates", "GEOMETRY_WORK"]
