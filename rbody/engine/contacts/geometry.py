@@ -66,7 +66,7 @@ TYPE_CODES = {"plane": PLANE, "sphere": SPHERE, "capsule": CAPSULE, "cylinder": 
 SLOTS = {(PLANE, SPHERE): 1, (PLANE, CAPSULE): 2, (PLANE, CYLINDER): 8, (PLANE, BOX): 8, (SPHERE, SPHERE): 1,
          (SPHERE, CAPSULE): 1, (SPHERE, CYLINDER): 1, (SPHERE, BOX): 1, (CAPSULE, CAPSULE): 1,
          (CAPSULE, CYLINDER): 3, (CAPSULE, BOX): 3, (BOX, BOX): 16}
-APART = np.inf  # the distance of a candidate that is not a contact point in this configuration (capsule-box slot 2)
+APART = np.inf  # the distance of a candidate that is not a contact point in this configuration (a capsule's end slots)
 # pairs the event-driven scheme, which holds a contact's candidate from event to event with closed-form curvature
 # terms (contacts.kinematics), does not run: candidates that are contact points in some configurations only, or
 # points that move along a curve of a cylinder's rim; the time-stepping runs them
