@@ -259,12 +259,47 @@ def _geom_centre(p, w, body, pos_at, pos):
                   + ws.xmat[body, a, 1] * p[pos_at + 1] + ws.xmat[body, a, 2] * p[pos_at + 2])
 
 
+@njit(cache=True, inline="always")
+def _support_radius(kind, R, size, l0, l1, l2):
+    """Half the extent [m] of a geom (axes R, size) along the unit axis l: its projection onto l is its centre's
+    -+ this."""
+    if kind == SPHERE:
+        return size[0]
+    along = abs(l0 * R[0, 2] + l1 * R[1, 2] + l2 * R[2, 2])
+    if kind == CAPSULE:
+        return along * size[1] + size[0]
+    if kind == CYLINDER:
+        return along * size[1] + size[0] * np.sqrt(max(0.0, 1.0 - along * along))
+    return (abs(l0 * R[0, 0] + l1 * R[1, 0] + l2 * R[2, 0]) * size[0]
+            + abs(l0 * R[0, 1] + l1 * R[1, 1] + l2 * R[2, 1]) * size[1] + along * size[2])
+
+
+@njit(cache=True)
+def axes_gap(ta, pa, Ra, sa, tb, pb, Rb, sb):
+    """A lower bound [m] on the distance of two geoms (not planes) from their projections onto the face normals of
+    whichever is a box: along a unit axis the two project onto intervals, and the gap between them is at most
+    their distance (the separating-axis test's gap). -inf when neither is a box."""
+    best = -np.inf
+    for which in range(2):
+        kind, R = (ta, Ra) if which == 0 else (tb, Rb)
+        if kind != BOX:
+            continue
+        for i in range(3):
+            l0, l1, l2 = R[0, i], R[1, i], R[2, i]
+            gap = (abs(l0 * (pb[0] - pa[0]) + l1 * (pb[1] - pa[1]) + l2 * (pb[2] - pa[2]))
+                   - _support_radius(ta, Ra, sa, l0, l1, l2) - _support_radius(tb, Rb, sb, l0, l1, l2))
+            best = max(best, gap)
+    return best
+
+
 @njit(cache=True)
 def clearance(p, w, u, h, work):
     """A lower bound [m] on the gap of every candidate of the contact unit at u over the next h [s] (the broad
     phase): the gap between the two geoms' bounding spheres (a plane and a sphere: the sphere's height above it),
     less h times a bound on the speed at which any point of one approaches any point of the other, |v_b - v_a| at
-    the centres plus |omega| times each radius (the workspace's body velocities; h = 0: the gap bound alone).
+    the centres plus |omega| times each radius (the workspace's body velocities; h = 0: the gap bound alone). Where
+    that does not part them and one is a box, the gap along its faces' normals, if larger (axes_gap: a long box's
+    bounding sphere reaches far beyond it).
     > TOUCH_TOLERANCE: no candidate of the pair touches or closes within h, and its distance need not be computed.
     work: scratch of GEOMETRY_WORK floats (contact_geometry's)."""
     pa, pb = work[0:3], work[3:6]
@@ -281,18 +316,26 @@ def clearance(p, w, u, h, work):
         _geom_centre(p, w, body_b, u + U_GPOS_B, pb)
         radius_a = bounding_radius(int(p[u + U_GTYPE_A]), p, u + U_GSIZE_A)
         apart = np.sqrt((pb[0] - pa[0]) ** 2 + (pb[1] - pa[1]) ** 2 + (pb[2] - pa[2]) ** 2) - radius_a - radius_b
-    if h == 0.0 or apart <= 0.0:
-        return apart
-    va, vb = work[24:27], work[27:30]
-    point_velocity(p, w, body_a, pa, va)
-    point_velocity(p, w, body_b, pb, vb)
-    speed = np.sqrt((vb[0] - va[0]) ** 2 + (vb[1] - va[1]) ** 2 + (vb[2] - va[2]) ** 2)
-    ws = _views(p, w)
-    for body, radius in ((body_a, radius_a), (body_b, radius_b)):
-        if body >= 0:
-            omega = ws.vel[body]
-            speed += np.sqrt(omega[0] ** 2 + omega[1] ** 2 + omega[2] ** 2) * radius
-    return apart - h * speed
+    motion = 0.0  # h times the bound on the approach speed
+    if h > 0.0:
+        va, vb = work[24:27], work[27:30]
+        point_velocity(p, w, body_a, pa, va)
+        point_velocity(p, w, body_b, pb, vb)
+        speed = np.sqrt((vb[0] - va[0]) ** 2 + (vb[1] - va[1]) ** 2 + (vb[2] - va[2]) ** 2)
+        ws = _views(p, w)
+        for body, radius in ((body_a, radius_a), (body_b, radius_b)):
+            if body >= 0:
+                omega = ws.vel[body]
+                speed += np.sqrt(omega[0] ** 2 + omega[1] ** 2 + omega[2] ** 2) * radius
+        motion = h * speed
+    ta, tb = int(p[u + U_GTYPE_A]), int(p[u + U_GTYPE_B])
+    if apart - motion <= 1e-9 and ta != PLANE and (ta == BOX or tb == BOX):  # a box's spheres are loose (a long
+        Ra, Rb = work[6:15].reshape((3, 3)), work[15:24].reshape((3, 3))   # box beside another): its faces' axes
+        geom_pose(p, w, body_a, u + U_GPOS_A, u + U_GMAT_A, pa, Ra)
+        geom_pose(p, w, body_b, u + U_GPOS_B, u + U_GMAT_B, pb, Rb)
+        apart = max(apart, axes_gap(ta, pa, Ra, p[u + U_GSIZE_A:u + U_GSIZE_A + 3], tb, pb, Rb,
+                                    p[u + U_GSIZE_B:u + U_GSIZE_B + 3]))
+    return apart - motion
 
 
 @njit(cache=True)
@@ -419,5 +462,6 @@ def contact_bias(p, w, acc, uo, g, frame, r, jdot, row):
         jdot[row + e] = frame[e, 0] * total[0] + frame[e, 1] * total[1] + frame[e, 2] * total[2]
 
 
-__all__ = ["contact_shape", "contact_bias", "body_motion", "point_velocity", "clearance", "bounding_radius", "SHAPE_PLANE",
+__all__ = ["contact_shape", "contact_bias", "body_motion", "point_velocity", "clearance", "axes_gap", "bounding_radius",
+           "SHAPE_PLANE",
            "SHAPE_CORES"]
