@@ -563,10 +563,12 @@ class TreeScene(Scene):
                     "rk4")
         if method in TREE_SYMPLECTIC_METHODS:
             return f"{method!r} needs q'' = a(q) with a constant mass matrix, and {self.symplectic_applies}"
-        if self.tree.constrained:
-            table = getattr(self.native_model, "constraints", None)
-            if method == "rk4" and table is not None and table.events_refused:
-                return table.events_refused
+        if self.tree.constrained:  # the constraint layer's own reason (rbody.engine.methods.Method.missing)
+            from rbody.engine.methods import method as record
+
+            missing = record(method).missing(self.native_model)
+            if missing:
+                return missing
         return f"{method!r} is not a method of a general tree (no splitting into exact flows)"
 
     def native(self) -> NativeModel:

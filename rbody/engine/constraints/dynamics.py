@@ -37,7 +37,7 @@ from rbody.engine.system import actuator_rates, add_element_forces, clamp_activa
 from rbody.engine.constraints.jacobians import (all_rows, bias_accelerations, some_rows, mode_at, row_count, unit_at,
                                                 unit_count, unit_rows)
 from rbody.engine.contacts.kinematics import clearance
-from rbody.engine.contacts.rows import GEOMETRY_WORK, pair_candidates
+from rbody.engine.contacts.rows import GEOMETRY_WORK, candidate, pair_candidates
 from rbody.engine.constraints.solver import lower_solve, symmetric_solve, upper_solve
 from rbody.engine.constraints.sliding import general_held_solve, sliding_columns
 from rbody.engine.constraints.table import (CONE, CONNECT, CONTACT, CONTACT1, COUPLING, FRICTION, LOWER,
@@ -553,6 +553,7 @@ def state_gaps(p, y, g):
     J = np.empty((rows, nv))
     jdot = np.empty(rows)
     acc = np.empty((int(p[H_BODIES]), 6))
+    normal, point = np.empty(3), np.empty(3)
     work = np.empty(GEOMETRY_WORK)
     reach = 0.0
     for k in range(unit_count(p)):
@@ -567,7 +568,7 @@ def state_gaps(p, y, g):
                 reach = clearance(p, w, u, 0.0, work)  # the pair at once, its geoms posed once
                 if reach <= 0.0:
                     pair_candidates(p, w, u, work)
-            g[row] = reach if reach > 0.0 else work[24 + slot]
+            g[row] = reach if reach > 0.0 else candidate(work, slot, normal, point)
         else:
             unit_rows(p, k, q, y[nq:nq + nv], w, acc, J, jdot, g, row, False)
 

@@ -55,8 +55,7 @@ from rbody.engine.mujoco_steps import EULER, IMPLICIT, IMPLICITFAST, MUJOCO_METH
     solve_general, step_matrices
 from rbody.engine.constraints.jacobians import row_count, unit_at, unit_count, unit_rows
 from rbody.engine.contacts.kinematics import clearance, point_velocity
-from rbody.engine.contacts.geometry import MAX_SLOTS
-from rbody.engine.contacts.rows import GEOMETRY_WORK, pair_candidates
+from rbody.engine.contacts.rows import GEOMETRY_WORK, candidate, pair_candidates
 from rbody.engine.multibody import _effective_qpos
 from rbody.engine.constraints.cone import (NORMAL, ROW, TANGENT, TANGENT2, cone_pgs, cone_polish, slide_polish,
                                            stick_polish)
@@ -138,7 +137,6 @@ def near_contacts(p, q, w, acc, vfree, h, J, jdot, g):
     mb.velocities(p, vfree, w)
     normal, point, v_a, v_b = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
     work = np.empty(GEOMETRY_WORK)
-    slots = work[24:24 + 7 * MAX_SLOTS]  # a near pair's candidates: distances, normals, points (pair_candidates)
     reach = 0.0
     for k in range(unit_count(p)):
         u = unit_at(p, k)
@@ -154,10 +152,7 @@ def near_contacts(p, q, w, acc, vfree, h, J, jdot, g):
         if reach > TOUCH_TOLERANCE:  # the broad phase: the pair can neither touch nor close within the step
             g[row] = reach
             continue
-        gap = slots[slot]
-        for a in range(3):
-            normal[a] = slots[MAX_SLOTS + 3 * slot + a]
-            point[a] = slots[4 * MAX_SLOTS + 3 * slot + a]
+        gap = candidate(work, slot, normal, point)
         g[row] = gap
         point_velocity(p, w, int(p[u + U_BODY2]), point, v_b)
         point_velocity(p, w, int(p[u + U_BODY1]), point, v_a)

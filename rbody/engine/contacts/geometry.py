@@ -224,6 +224,15 @@ def segment_box_closest(c, u, half_length, h):
     return at, lo, hi, best
 
 
+@njit(cache=True, inline="always")
+def segment_in_box(pa, Ra, pb, Rb, c, u):
+    """c (3,), u (3,): a capsule's centre pa and axis Ra[:, 2] in the axes of the box at pb with axes Rb (as
+    segment_box_closest takes them)."""
+    for e in range(3):
+        c[e] = Rb[0, e] * (pa[0] - pb[0]) + Rb[1, e] * (pa[1] - pb[1]) + Rb[2, e] * (pa[2] - pb[2])
+        u[e] = Rb[0, e] * Ra[0, 2] + Rb[1, e] * Ra[1, 2] + Rb[2, e] * Ra[2, 2]
+
+
 @njit(cache=True)
 def capsule_box_slot(c, u, half_length, h, k):
     """(t, apart): the axis parameter [m] of a capsule-box candidate k (module docstring) of the segment c + t u
@@ -291,6 +300,30 @@ def _cylinder_slope(p, u, t, pc, Rc, radius, half, x, grad):
 
 
 @njit(cache=True)
+def _slope_bracket(p, u, half_length, pc, Rc, radius, half, level, inclusive, x, grad):
+    """(a, b): where along the segment the distance's slope (nondecreasing) first reaches `level` (inclusive:
+    slope >= level, else slope > level), bisected to the last bit: b the first point that does, a the last that
+    does not (both -half_length when the start does, both half_length when the end does not)."""
+    a, b = -half_length, half_length
+    start = _cylinder_slope(p, u, a, pc, Rc, radius, half, x, grad)
+    if start > level or (inclusive and start == level):
+        return a, a
+    end = _cylinder_slope(p, u, b, pc, Rc, radius, half, x, grad)
+    if not (end > level or (inclusive and end == level)):
+        return b, b
+    for _ in range(200):
+        m = 0.5 * (a + b)
+        if m <= a or m >= b:
+            break
+        slope = _cylinder_slope(p, u, m, pc, Rc, radius, half, x, grad)
+        if slope > level or (inclusive and slope == level):
+            b = m
+        else:
+            a = m
+    return a, b
+
+
+@njit(cache=True)
 def segment_cylinder_closest(p, u, half_length, pc, Rc, radius, half):
     """(t, lo, hi): the parameter t of the point of the segment p + t u (t in [-half_length, half_length], u unit)
     closest to the cylinder (centre pc, axes Rc, radius, half-length half), and [lo, hi] the interval where the
@@ -298,36 +331,8 @@ def segment_cylinder_closest(p, u, half_length, pc, Rc, radius, half):
     cap); t is its middle. The distance is convex along the segment, so its slope is nondecreasing: each end of the
     interval is found by bisection on the slope's sign, to the last bit of t."""
     x, grad = np.empty(3), np.empty(3)
-    a, b = -half_length, half_length
-    if _cylinder_slope(p, u, a, pc, Rc, radius, half, x, grad) >= -SLOPE_TOLERANCE:
-        lo = a
-    elif _cylinder_slope(p, u, b, pc, Rc, radius, half, x, grad) < -SLOPE_TOLERANCE:
-        lo = b
-    else:  # slope(a) < -tol <= slope(b)
-        for _ in range(200):
-            m = 0.5 * (a + b)
-            if m <= a or m >= b:
-                break
-            if _cylinder_slope(p, u, m, pc, Rc, radius, half, x, grad) >= -SLOPE_TOLERANCE:
-                b = m
-            else:
-                a = m
-        lo = b
-    a, b = -half_length, half_length
-    if _cylinder_slope(p, u, b, pc, Rc, radius, half, x, grad) <= SLOPE_TOLERANCE:
-        hi = b
-    elif _cylinder_slope(p, u, a, pc, Rc, radius, half, x, grad) > SLOPE_TOLERANCE:
-        hi = a
-    else:  # slope(a) <= tol < slope(b)
-        for _ in range(200):
-            m = 0.5 * (a + b)
-            if m <= a or m >= b:
-                break
-            if _cylinder_slope(p, u, m, pc, Rc, radius, half, x, grad) <= SLOPE_TOLERANCE:
-                a = m
-            else:
-                b = m
-        hi = a
+    _a, lo = _slope_bracket(p, u, half_length, pc, Rc, radius, half, -SLOPE_TOLERANCE, True, x, grad)
+    hi, _b = _slope_bracket(p, u, half_length, pc, Rc, radius, half, SLOPE_TOLERANCE, False, x, grad)
     if hi < lo:
         lo, hi = hi, lo
     return 0.5 * (lo + hi), lo, hi
@@ -439,9 +444,7 @@ def collide(ta, pa, Ra, sa, tb, pb, Rb, sb, dist, normal, point, only=-1):
         return 16
     if ta == CAPSULE and tb == BOX:  # the segment's closest point (2) and its ends, or a lying span's (0, 1)
         c, u = scratch[3:6], scratch[6:9]  # the segment in the box's axes
-        for e in range(3):
-            c[e] = Rb[0, e] * (pa[0] - pb[0]) + Rb[1, e] * (pa[1] - pb[1]) + Rb[2, e] * (pa[2] - pb[2])
-            u[e] = Rb[0, e] * Ra[0, 2] + Rb[1, e] * Ra[1, 2] + Rb[2, e] * Ra[2, 2]
+        segment_in_box(pa, Ra, pb, Rb, c, u)
         centre = scratch[0:3]
         for k in range(3):
             if only >= 0 and k != only:
@@ -548,6 +551,6 @@ def collide_pair(kind_a: str, pos_a, mat_a, size_a, kind_b: str, pos_b, mat_b, s
     return dist, normal, point
 
 
-__all__ = ["collide", "collide_pair", "tangents", "segment_closest", "segment_box_closest", "capsule_box_slot", "APART", "TIME_STEPPED", "LYING_SPAN", "cylinder_distance", "segment_cylinder_closest",
+__all__ = ["collide", "collide_pair", "tangents", "segment_closest", "segment_box_closest", "capsule_box_slot", "segment_in_box", "APART", "TIME_STEPPED", "LYING_SPAN", "cylinder_distance", "segment_cylinder_closest",
            "pairs_text", "CYLINDER", "SLOTS", "MAX_SLOTS", "TYPE_CODES", "PLANE",
            "SPHERE", "CAPSULE", "BOX"]

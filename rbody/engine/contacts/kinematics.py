@@ -38,7 +38,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from rbody.engine.contacts.geometry import BOX, CAPSULE, CYLINDER, PLANE, SPHERE, capsule_box_slot, segment_closest
+from rbody.engine.contacts.geometry import (BOX, CAPSULE, CYLINDER, PLANE, SPHERE, capsule_box_slot, segment_closest,
+                                            segment_in_box)
 from rbody.engine.contacts.rows import geom_pose
 from rbody.engine.multibody import _views
 from rbody.engine.constraints.table import (U_BODY1, U_BODY2, U_DOF, U_GMAT_A, U_GMAT_B, U_GPOS_A, U_GPOS_B,
@@ -168,9 +169,7 @@ def contact_shape(ta, pa, Ra, sa, tb, pb, Rb, sb, k, x, u, slide, m, radius):
     elif ta == CAPSULE:  # a point of the segment: the closest (slot 2) or a lying span's end (geometry.collide)
         point_on, r = 0, sa[0]
         local, axis = np.empty(3), np.empty(3)
-        for e in range(3):
-            local[e] = Rb[0, e] * (pa[0] - pb[0]) + Rb[1, e] * (pa[1] - pb[1]) + Rb[2, e] * (pa[2] - pb[2])
-            axis[e] = Rb[0, e] * Ra[0, 2] + Rb[1, e] * Ra[1, 2] + Rb[2, e] * Ra[2, 2]
+        segment_in_box(pa, Ra, pb, Rb, local, axis)
         t, _apart = capsule_box_slot(local, axis, sa[1], sb, k)
         sliding = -sa[1] < t < sa[1]
         for a in range(3):
@@ -304,8 +303,9 @@ def clearance(p, w, u, h, work):
     work: scratch of GEOMETRY_WORK floats (contact_geometry's)."""
     pa, pb = work[0:3], work[3:6]
     body_a, body_b = int(p[u + U_BODY1]), int(p[u + U_BODY2])
-    radius_b = bounding_radius(int(p[u + U_GTYPE_B]), p, u + U_GSIZE_B)
-    if int(p[u + U_GTYPE_A]) == PLANE:
+    ta, tb = int(p[u + U_GTYPE_A]), int(p[u + U_GTYPE_B])
+    radius_b = bounding_radius(tb, p, u + U_GSIZE_B)
+    if ta == PLANE:
         Ra = work[6:15].reshape((3, 3))
         geom_pose(p, w, body_a, u + U_GPOS_A, u + U_GMAT_A, pa, Ra)
         _geom_centre(p, w, body_b, u + U_GPOS_B, pb)
@@ -314,7 +314,7 @@ def clearance(p, w, u, h, work):
     else:
         _geom_centre(p, w, body_a, u + U_GPOS_A, pa)
         _geom_centre(p, w, body_b, u + U_GPOS_B, pb)
-        radius_a = bounding_radius(int(p[u + U_GTYPE_A]), p, u + U_GSIZE_A)
+        radius_a = bounding_radius(ta, p, u + U_GSIZE_A)
         apart = np.sqrt((pb[0] - pa[0]) ** 2 + (pb[1] - pa[1]) ** 2 + (pb[2] - pa[2]) ** 2) - radius_a - radius_b
     motion = 0.0  # h times the bound on the approach speed
     if h > 0.0:
@@ -328,7 +328,6 @@ def clearance(p, w, u, h, work):
                 omega = ws.vel[body]
                 speed += np.sqrt(omega[0] ** 2 + omega[1] ** 2 + omega[2] ** 2) * radius
         motion = h * speed
-    ta, tb = int(p[u + U_GTYPE_A]), int(p[u + U_GTYPE_B])
     if apart - motion <= 1e-9 and ta != PLANE and (ta == BOX or tb == BOX):  # a box's spheres are loose (a long
         Ra, Rb = work[6:15].reshape((3, 3)), work[15:24].reshape((3, 3))   # box beside another): its faces' axes
         geom_pose(p, w, body_a, u + U_GPOS_A, u + U_GMAT_A, pa, Ra)

@@ -26,8 +26,7 @@ from numba import njit
 
 from rbody.engine.constraints import dynamics as dyn
 from rbody.engine.constraints.jacobians import row_count, unit_at
-from rbody.engine.contacts.geometry import MAX_SLOTS
-from rbody.engine.contacts.rows import GEOMETRY_WORK, pair_candidates
+from rbody.engine.contacts.rows import GEOMETRY_WORK, candidate, pair_candidates
 from rbody.engine.constraints.table import U_DOF
 from rbody.engine.multibody import H_BODIES, _effective_qpos, workspace_size
 
@@ -49,7 +48,6 @@ def contact_frames(p, y, units, dist, point, normal):
     a0, na = dyn.act_range(p)
     dyn.snapshot(p, q, y[nq:nq + nv], y[a0:a0 + na], M, f, J, jdot, g, w, acc, wanted)  # the frames, no rows
     work = np.empty(GEOMETRY_WORK)  # a pair's candidates, computed once for all its units (they follow each other)
-    slots = work[24:24 + 7 * MAX_SLOTS]
     pair = -1
     for i in range(units.shape[0]):
         u = unit_at(p, units[i])
@@ -57,10 +55,7 @@ def contact_frames(p, y, units, dist, point, normal):
         if pair < 0 or units[i] - k != pair:
             pair_candidates(p, w, u, work)
             pair = units[i] - k
-        dist[i] = slots[k]
-        for a in range(3):
-            normal[i, a] = slots[MAX_SLOTS + 3 * k + a]
-            point[i, a] = slots[4 * MAX_SLOTS + 3 * k + a]
+        dist[i] = candidate(work, k, normal[i], point[i])
 
 
 def contact_observables(table, params: np.ndarray, out: np.ndarray, forces: np.ndarray, units: list[int]) -> dict:

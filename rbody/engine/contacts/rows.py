@@ -68,6 +68,15 @@ def pair_candidates(p, w, u, work):
     return _candidates(p, w, u, work, -1)
 
 
+@njit(cache=True, inline="always")
+def candidate(work, k, normal, point):
+    """Slot k's distance [m] (returned), normal (3,) and point (3,) from work as _candidates lays them out."""
+    for a in range(3):
+        normal[a] = work[24 + MAX_SLOTS + 3 * k + a]
+        point[a] = work[24 + 4 * MAX_SLOTS + 3 * k + a]
+    return work[24 + k]
+
+
 @njit(cache=True)
 def contact_geometry(p, w, u, normal, point, work=None):
     """The gap g [m] of the contact unit whose record starts at u (returned), its normal (3,) from geom a to geom b
@@ -77,10 +86,7 @@ def contact_geometry(p, w, u, normal, point, work=None):
         work = np.empty(GEOMETRY_WORK)
     k = int(p[u + U_DOF])
     _candidates(p, w, u, work, k)
-    for a in range(3):
-        normal[a] = work[24 + MAX_SLOTS + 3 * k + a]
-        point[a] = work[24 + 4 * MAX_SLOTS + 3 * k + a]
-    return work[24 + k]
+    return candidate(work, k, normal, point)
 
 
-__all__ = ["geom_pose", "contact_geometry", "pair_candidates", "GEOMETRY_WORK"]
+__all__ = ["geom_pose", "contact_geometry", "pair_candidates", "candidate", "GEOMETRY_WORK"]
