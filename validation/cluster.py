@@ -80,7 +80,10 @@ def scheduler_answers(address: str, seconds: float | None = None) -> None:
     Dask (garbage a Client would try to read as a frame of exabytes)."""
     import asyncio
 
+    from asyncio import open_connection
+
     from distributed.comm import connect as open_comm
+    from distributed.comm.addressing import parse_address, parse_host_port
 
     seconds = HANDSHAKE_SECONDS if seconds is None else seconds
     if not isinstance(address, str) or not address:
@@ -88,32 +91,56 @@ def scheduler_answers(address: str, seconds: float | None = None) -> None:
     if address.startswith("inproc://"):
         return  # a scheduler in this process
 
+    async def accepted() -> bool:
+        """Whether a TCP connection to the address is accepted (a plain socket, before distributed's connect,
+        whose attempts are timed in fifths of its timeout: a pause of this process, such as a garbage collection
+        in a large one, would otherwise turn a silent server into an unreachable one)."""
+        scheme, location = parse_address(address, strict=False)
+        if scheme != "tcp":
+            return True  # tls, ucx, ws: left to distributed's connect
+        host, port = parse_host_port(location)
+        _reader, writer = await open_connection(host, port)
+        writer.close()
+        return True
+
     async def identity():
-        comm = await open_comm(address, timeout=seconds / 2)  # refused or unreachable: an OSError before the deadline
+        comm = await open_comm(address, timeout=seconds)
         try:
             await comm.write({"op": "identity", "reply": True})
             return await comm.read()
         finally:
             comm.abort()
 
+    timeouts = (TimeoutError, asyncio.TimeoutError)  # one class from Python 3.11
     start = time.perf_counter()
+    connected = False
     try:
-        reply = asyncio.run(asyncio.wait_for(identity(), seconds))
-    except asyncio.TimeoutError:
-        raise ClusterUnavailable(f"--scheduler {address}: something accepted the connection but did not answer as a "
-                                 f"Dask scheduler within {seconds:g} s (no handshake): is the port right? Start a "
-                                 f"scheduler with `dask scheduler`") from None
-    except Exception as error:  # noqa: BLE001 - whatever went wrong, it is not a Dask scheduler answering
-        what = f"{type(error).__name__}: {str(error)[:200]}"
-        refused = isinstance(error, OSError)
-        raise ClusterUnavailable(
-            f"--scheduler {address}: " + (f"no Dask scheduler answered there ({what})" if refused else
-                                          f"what answered there is not a Dask scheduler ({what})")
-            + f", after {time.perf_counter() - start:.1f} s; start one with `dask scheduler` and workers with "
-              f"`dask worker {address}`") from None
+        connected = asyncio.run(asyncio.wait_for(accepted(), seconds / 2))
+        left = max(seconds - (time.perf_counter() - start), 0.1)
+        reply = asyncio.run(asyncio.wait_for(identity(), left))
+    except Exception as error:  # noqa: BLE001 - whatever went wrong, no Dask scheduler answered
+        after = f"after {time.perf_counter() - start:.1f} s"
+        start_one = f"start one with `dask scheduler` and workers with `dask worker {address}`"
+        if not connected:  # refused, unreachable, or no connection accepted within seconds / 2
+            raise ClusterUnavailable(f"--scheduler {address}: no Dask scheduler answered there ({_what(error)}), "
+                                     f"{after}; {start_one}") from None
+        if isinstance(error, timeouts) or isinstance(error.__cause__, timeouts):
+            raise ClusterUnavailable(f"--scheduler {address}: something accepted the connection but did not answer "
+                                     f"as a Dask scheduler within {seconds:g} s (no handshake): is the port right? "
+                                     f"Start a scheduler with `dask scheduler`") from None
+        raise ClusterUnavailable(f"--scheduler {address}: what answered there is not a Dask scheduler "
+                                 f"({_what(error)}), {after}; {start_one}") from None
     if not isinstance(reply, dict) or reply.get("type") != "Scheduler":
         raise ClusterUnavailable(f"--scheduler {address}: what answered there is not a Dask scheduler (it replied "
                                  f"{str(reply)[:200]!r} to 'identity')")
+
+
+def _what(error: BaseException) -> str:
+    """An error as "Type: message" (its first 200 characters), "timed out" for a timeout without a message."""
+    text = str(error)[:200]
+    if not text:
+        return "timed out"
+    return f"{type(error).__name__}: {text}"
 
 
 def run_tasks(client: Any, tasks: Sequence[Task], *, what: str, timed: bool = False, log=None) -> list:

@@ -149,6 +149,29 @@ def test_a_scheduler_that_is_not_dask_exits_2_in_bounded_time(tmp_path, capsys, 
     assert ("did not answer as a Dask scheduler" in err) == (reply in (b"", b"\x01\x00\x00\x00"))
 
 
+def test_a_silent_server_is_told_apart_from_no_server_whatever_distributed_connect_reports(monkeypatch):
+    """distributed's connect times its attempts in fifths of its timeout: a pause of the calling process (a
+    garbage collection in a large one) made it report a silent server as "Timed out trying to connect", which
+    was told as no server at all. The plain TCP probe before it decides: a connection was accepted."""
+    import distributed.comm
+
+    async def slow_connect(address, timeout=None, **kwargs):
+        raise OSError(f"Timed out trying to connect to {address} after {timeout} s") from TimeoutError()
+
+    monkeypatch.setattr(distributed.comm, "connect", slow_connect)
+    server = _Server(b"")
+    try:
+        with pytest.raises(cluster.ClusterUnavailable, match="accepted the connection but did not answer as a Dask"):
+            cluster.scheduler_answers(server.address, seconds=2.0)
+    finally:
+        server.close()
+    with socket.socket() as probe:  # a port nothing listens on: refused, whatever connect says
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    with pytest.raises(cluster.ClusterUnavailable, match="no Dask scheduler answered there .*ConnectionRefused"):
+        cluster.scheduler_answers(f"tcp://127.0.0.1:{port}", seconds=2.0)
+
+
 @pytest.mark.parametrize("command", [["--backend", "rbody", "--quick"], ["hard", "--quick", "--case", "1"],
                                      ["bench", "--quick"]])
 def test_an_unreachable_scheduler_exits_2_on_every_command(tmp_path, capsys, command):
