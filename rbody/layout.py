@@ -294,9 +294,12 @@ class Contact:
     """Two pieces of geometry that may touch: shape names (world shapes or body shapes).
 
     friction [-] is the Coulomb coefficient of the pair; restitution in [0, 1] the coefficient of
-    restitution of the pair (Newton's: 1 elastic, 0 plastic, the default); condim 3 (Coulomb's circular cone) or 1
-    (frictionless). Pairs not listed never collide. In a tree (Scene.from_layout) the constraint layer holds
-    them rigidly (rbody.engine.constraints; the pairs rbody.engine.contacts.geometry computes).
+    restitution of the pair (Newton's: 1 elastic, 0 plastic, the default); condim 3 (Coulomb's circular cone), 1
+    (frictionless), 4 (and torsional friction: the torque about the normal |T_s| <= torsion N, torsion [m]) or 6 (and
+    rolling friction: the torque about the tangents |T_r| <= rolling N, rolling [m]); MuJoCo's friction="friction
+    torsion rolling" and condim. Each law is Coulomb's, against its own velocity, sharing the normal force N
+    (rbody.engine.constraints.cone). Pairs not listed never collide. In a tree (Scene.from_layout) the constraint
+    layer holds them rigidly (rbody.engine.constraints; the pairs rbody.engine.contacts.geometry computes).
     """
 
     shape_a: str
@@ -304,15 +307,20 @@ class Contact:
     friction: float = 0.0
     restitution: float = 0.0
     condim: int = 3
+    torsion: float = 0.0
+    rolling: float = 0.0
 
     def __post_init__(self) -> None:
         _name(self.shape_a, "contact", "shape_a")
         _name(self.shape_b, "contact", "shape_b")
         nonnegative(self.friction, "friction")
+        nonnegative(self.torsion, "torsion")
+        nonnegative(self.rolling, "rolling")
         in_interval(self.restitution, "restitution", 0.0, 1.0, closed=True)
-        if self.condim not in (1, 3):
+        if isinstance(self.condim, bool) or self.condim not in (1, 3, 4, 6):
             raise ValueError(f"contact {self.shape_a!r}/{self.shape_b!r}: condim={self.condim!r}, expected 1 "
-                             "(frictionless) or 3 (Coulomb's cone; torsional and rolling friction are not modelled)")
+                             "(frictionless), 3 (Coulomb's cone), 4 (and torsional friction) or 6 (and rolling "
+                             "friction)")
 
 
 EQUALITY_KINDS = ("connect", "weld", "joint", "tendon")

@@ -457,7 +457,7 @@ class TreeScene(Scene):
             names += ["constraint_force", "constraint_error", "active_limits", "sticking", "dissipated"]
         if self.tree.contacts:
             names += ["contacts", "contact_distance", "contact_point", "contact_normal", "contact_normal_force",
-                      "contact_friction_force"]
+                      "contact_friction_force", "contact_spin_torque", "contact_rolling_torque"]
         if model.nu:
             names += ["ctrl", "actuator_force"] + (["act"] if model.na else [])
         for body in model.body_names:

@@ -2,13 +2,15 @@
 
 The broad phase's filter (which pairs can collide) is rbody.mjcf.parse (check_contacts: welds, parent-child,
 <exclude>, contype/conaffinity, the contact flag), and every explicit <pair> (which replaces the dynamic pair of
-the same geoms, as MuJoCo's does, with its own friction (the first of its five, default 1) and condim (default 3),
-whatever the filters). For each dynamic pair kept, as MuJoCo's mj_contactParam combines them:
+the same geoms, as MuJoCo's does, with its own friction (sliding, torsional, rolling: the first, third and fourth of
+its five, default 1 1 0.005 0.0001 0.0001) and condim (default 3), whatever the filters). For each dynamic pair
+kept, as MuJoCo's mj_contactParam combines them:
 
-- friction: the sliding coefficient (the first of a geom's `friction`, default 1) of the geom with the higher
-  `priority`, or, at equal priority, the larger of the two (MuJoCo takes the maximum of each component);
-- condim: the higher-priority geom's, or the larger; rbody models 1 (frictionless) and 3 (Coulomb's circular cone,
-  exact, rigid); 4 and 6 (torsional and rolling friction) are refused;
+- friction: a geom's `friction` is (sliding, torsional [m], rolling [m]), default 1 0.005 0.0001 for what it does
+  not give; the pair's is the geom's with the higher `priority`, or, at equal priority, the larger of each;
+- condim: the higher-priority geom's, or the larger; rbody models 1 (frictionless), 3 (Coulomb's circular cone,
+  exact, rigid), 4 (and torsional friction) and 6 (and rolling friction), each friction its own Coulomb law sharing
+  the normal force (rbody.engine.constraints.cone; MuJoCo bounds them in one cone, pyramidal or elliptic);
 - restitution (rbody's own, MuJoCo's contacts have none but their softness): Newton's coefficient, from
   ``<custom><numeric name="rbody.contact_restitution.GEOM" data="e"/>`` on either geom (the larger of the two when
   both have one), else ``<numeric name="rbody.contact_restitution" data="e"/>`` for every pair, else 0 (plastic:
@@ -41,10 +43,23 @@ def _combined(g1, g2, key: str, read):
     return max(v1, v2)
 
 
-def _friction(geom) -> float:
-    if "friction" not in geom.attrib:
-        return 1.0
-    return float(numbers(geom.element, "friction", geom.attrib)[0])
+GEOM_FRICTION = (1.0, 0.005, 0.0001)  # MuJoCo's default (sliding, torsional [m], rolling [m])
+PAIR_FRICTION = (1.0, 1.0, 0.005, 0.0001, 0.0001)  # a <pair>'s (tangent 1, tangent 2, torsional, rolling 1, 2)
+
+
+def _friction(geom) -> tuple[float, float, float]:
+    """A geom's (sliding, torsional, rolling) friction: what its `friction` gives, MuJoCo's default for the rest."""
+    given = [float(x) for x in numbers(geom.element, "friction", geom.attrib)] if "friction" in geom.attrib else []
+    return tuple(given + list(GEOM_FRICTION[len(given):]))
+
+
+def _combined_friction(g1, g2) -> tuple[float, float, float]:
+    """The pair's friction: the higher-priority geom's, or each component's larger (mj_contactParam)."""
+    p1, p2 = (integer(g.element, "priority", g.attrib, 0) for g in (g1, g2))
+    f1, f2 = _friction(g1), _friction(g2)
+    if p1 != p2:
+        return f1 if p1 > p2 else f2
+    return tuple(max(a, b) for a, b in zip(f1, f2))
 
 
 def _condim(geom) -> int:
@@ -53,9 +68,9 @@ def _condim(geom) -> int:
 
 def explicit_pairs(pairs, named: dict) -> list:
     """(g1, g2, spec) of every <pair> (element, attributes with its class's defaults): the geoms it names (by the
-    names the file gives them) and spec = {"friction": the first of its friction (default 1), "condim": its condim
-    (default 3)}, MuJoCo's defaults for a pair (its own, not its geoms'). Raises MJCFError for a missing or unknown
-    geom, or a pair of one geom with itself."""
+    names the file gives them) and spec = {"friction": (sliding, torsional, rolling), the first, third and fourth
+    of its five (default 1 1 0.005 0.0001 0.0001), "condim": its condim (default 3)}, MuJoCo's defaults for a pair
+    (its own, not its geoms'). Raises MJCFError for a missing or unknown geom, or a pair of one geom with itself."""
     out = []
     for element, attrib in pairs:
         geoms = []
@@ -67,7 +82,9 @@ def explicit_pairs(pairs, named: dict) -> list:
             geoms.append(named[attrib[key]])
         if geoms[0] is geoms[1]:
             raise element.error(f"geom1 and geom2 are both {attrib['geom1']!r}")
-        friction = float(numbers(element, "friction", attrib)[0]) if "friction" in attrib else 1.0
+        given = [float(x) for x in numbers(element, "friction", attrib)] if "friction" in attrib else []
+        five = given + list(PAIR_FRICTION[len(given):])
+        friction = (five[0], five[2], five[3])
         condim = integer(element, "condim", attrib, 3)
         if condim not in (1, 3, 4, 6):
             raise element.error(f"condim={attrib['condim']!r}: MuJoCo allows 1, 3, 4 or 6 (invalid condim)")
@@ -77,7 +94,7 @@ def explicit_pairs(pairs, named: dict) -> list:
 
 def unsupported_pair(g1, g2, spec: dict | None = None) -> str:
     """Why rbody cannot run contacts between geoms g1 and g2 (parse's _Geom; spec: an explicit <pair>'s friction
-    and condim), or "" when it can."""
+    and condim, which rbody models whatever they are), or "" when it can."""
     from rbody.engine.contacts.geometry import SLOTS, pairs_text
 
     codes = [_kind_code(g) for g in (g1, g2)]
@@ -87,10 +104,6 @@ def unsupported_pair(g1, g2, spec: dict | None = None) -> str:
                 "mesh and height-field contacts are to come)")
     if tuple(sorted(codes)) not in SLOTS:
         return f"rbody does not compute {g1.kind}-{g2.kind} contacts yet (it computes {pairs_text()})"
-    condim = spec["condim"] if spec else _combined(g1, g2, "condim", _condim)
-    if condim not in (1, 3):
-        return (f"their contact has condim {condim}: rbody models condim 1 (frictionless) and 3 (Coulomb's cone), "
-                "not torsional (4) or rolling (6) friction")
     return ""
 
 
@@ -118,8 +131,10 @@ def contacts_of(pairs, numerics: dict, source: str) -> tuple[Contact, ...]:
         if spec:
             friction, condim = spec["friction"], spec["condim"]
         else:
-            friction, condim = _combined(g1, g2, "friction", _friction), _combined(g1, g2, "condim", _condim)
-        out.append(Contact(g1.name, g2.name, friction=friction, restitution=restitution, condim=condim))
+            friction, condim = _combined_friction(g1, g2), _combined(g1, g2, "condim", _condim)
+        slide, torsion, rolling = friction
+        out.append(Contact(g1.name, g2.name, friction=slide, restitution=restitution, condim=condim,
+                           torsion=torsion if condim >= 4 else 0.0, rolling=rolling if condim == 6 else 0.0))
     return tuple(out)
 
 

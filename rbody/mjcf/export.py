@@ -52,7 +52,8 @@ Contacts (defaults; every one can be overridden):
   (0.02, 1) and (0.9, 0.95, 0.001) a rolling body sinks ~0.1 mm into the slope and rolls on a radius
   short by that much: measured slip -delta phi', x off by 4e-4 m after 1 s; with these, 4e-7 m.
 - friction mu = 0: condim 1 (normal force only); mu > 0: condim 3 with friction (mu, mu), the cone
-  elliptic and impratio 100 (soft friction trades force for slip; impratio makes it stiffer).
+  elliptic and impratio 100 (soft friction trades force for slip; impratio makes it stiffer); a contact's
+  condim 4 or 6 as it is, with friction (mu, mu, torsion, rolling, rolling).
 - Scenes without impacts default to the RK4 integrator.
 
 Roll joints (rolling without slipping, one coordinate q: rbody.layout.Joint). MuJoCo has no joint that
@@ -254,9 +255,10 @@ def contact_parameters(contact: Contact, dt: float, *, solref: Sequence[float] |
     else:
         default_solref = (RESTING_TIMECONST_STEPS * dt, 1.0)  # critically damped
     default_solimp = CONTACT_SOLIMP
+    frictionless = contact.condim == 1 or mu + contact.torsion + contact.rolling == 0  # rbody's CONTACT1
     return {
-        "condim": (1 if mu == 0 else 3) if condim is None else condim,
-        "friction": (mu, mu, 0.0, 0.0, 0.0),
+        "condim": (1 if frictionless else contact.condim) if condim is None else condim,
+        "friction": (mu, mu, contact.torsion, contact.rolling, contact.rolling),
         "solref": tuple(default_solref if solref is None else solref),
         "solimp": tuple(default_solimp if solimp is None else solimp),
     }

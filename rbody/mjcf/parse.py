@@ -64,12 +64,12 @@ constraints use them); overlapping geoms of a body welded to the world (it never
 Contacts: the geom pairs MuJoCo's broad phase keeps (different bodies, not welded together nor parent
 and child, no <exclude>, contype/conaffinity matching, the contact flag on) become rbody Contacts with
 MuJoCo's friction and condim combination and rbody's restitution numerics (rbody.mjcf.contacts), held
-rigidly by the constraint layer. Explicit <pair>s too, with their own friction and condim, in place of the
-dynamic pair of their geoms.
+rigidly by the constraint layer (condim 4 and 6: torsional and rolling friction, each its own Coulomb law). Explicit
+<pair>s too, with their own friction and condim, in place of the dynamic pair of their geoms.
 
 Refused (MJCFError, naming the element, its file and line): contacts rbody does not compute (a pair with an
-ellipsoid, mesh or height field, a cylinder with a box or a cylinder, condim 4 or 6) while the contact flag is on (set contype="0"
-conaffinity="0" on the geoms, or <flag contact="disable"/>); flex equalities; tendon armature, wrapping
+ellipsoid, mesh or height field, a cylinder with a box or a cylinder) while the contact flag is on (set
+contype="0" conaffinity="0" on the geoms, or <flag contact="disable"/>); flex equalities; tendon armature, wrapping
 tendons (geoms, pulleys); actuators that rbody does not model (muscle, cylinder, adhesion, pid, dcmotor,
 orientation; user dynamics, gains or biases; actuator damping or armature; body, slider-crank or refsite
 transmissions; see rbody.mjcf.actuators); springdamper on a ball or free joint; fluidshape="ellipsoid" on a mesh

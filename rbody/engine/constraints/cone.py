@@ -9,12 +9,19 @@ nonsmooth Gauss-Seidel poses it (not Anitescu's convexified cone, which lifts a 
 with the other rows of the layer (equalities free, limits and frictionless contacts >= 0, joint friction in a box)
 solved alongside them.
 
+Torsional and rolling friction (condim 4 and 6) follow the tangents as more rows of the contact: a spin row (the
+torque about the normal, |lambda_s| <= mu_s lambda_n: an interval, sticking inside, at its end against the spin) and a
+rolling pair (the torque about the tangents, in the disc |lambda_r| <= mu_r lambda_n, as the tangents' force). Each
+is its own Coulomb law sharing the normal impulse (the textbook model of spinning and rolling resistance: a rolling
+ball's torque reaches mu_r N whatever its sliding friction does), not MuJoCo's single cone over all five.
+
 Sweep: every ordinary row i: lambda_i <- clamp(lambda_i - w_i / W_ii, lo_i, hi_i); every contact's tangent pair:
 the projected gradient step lambda_t <- P_disc(lambda_t - w_t / s), s the largest eigenvalue of the pair's 2 x 2
 block of W (a step that decreases the quadratic and whose fixed points are exactly the points where w_t lies in
 the normal cone of the disc, i.e. Coulomb's law), repeated within the block until it settles. The residual is the
 natural residual of the whole problem in the units of w (0 exactly at a solution): the caller compares it with
-its tolerance. Roles: ROW (ordinary), NORMAL (a contact's normal), TANGENT (its first tangent; the second follows).
+its tolerance. Roles: ROW (ordinary), NORMAL (a contact's normal), TANGENT (its first tangent; the second,
+TANGENT2, follows), then SPIN, ROLL and ROLL2 where the contact has them; a contact's rows in that order.
 """
 
 from __future__ import annotations
@@ -24,8 +31,26 @@ from numba import njit
 
 from rbody.engine.constraints.solver import clamp
 
-ROW, NORMAL, TANGENT, TANGENT2 = 0, 1, 2, 3
+ROW, NORMAL, TANGENT, TANGENT2, SPIN, ROLL, ROLL2 = range(7)
 INNER_STEPS = 50
+
+
+@njit(cache=True, inline="always")
+def is_friction(r):
+    """Whether role r is one of a contact's friction rows (they follow its normal)."""
+    return r >= TANGENT
+
+
+@njit(cache=True, inline="always")
+def is_disc(r):
+    """Whether role r leads a pair of rows held in a disc (the tangents, the rolling pair)."""
+    return r == TANGENT or r == ROLL
+
+
+@njit(cache=True, inline="always")
+def normal_of(role, i):
+    """The row of the normal of the contact whose friction row is i (its rows: normal, tangents, spin, rolling)."""
+    return i - (role[i] - NORMAL)
 
 
 @njit(cache=True, inline="always")
@@ -53,32 +78,36 @@ def cone_residual(W, b, lo, hi, role, mu, lam):
     w = b + W @ lam
     worst = 0.0
     for i in range(m):
-        if role[i] == TANGENT:
+        if is_disc(role[i]):
             s = _tangent_step_size(W, i)
             if s > 0.0:
                 radius = mu[i] * max(lam[normal_of(role, i)], 0.0)
                 x, y = _disc(lam[i] - w[i] / s, lam[i + 1] - w[i + 1] / s, radius)
                 worst = max(worst, s * np.sqrt((lam[i] - x) ** 2 + (lam[i + 1] - y) ** 2))
-        elif role[i] != TANGENT2:
+        elif role[i] != TANGENT2 and role[i] != ROLL2:
+            low, high = _bounds(role, mu, lo, hi, lam, i)
             d = W[i, i]
             if d > 0.0:
-                worst = max(worst, d * abs(lam[i] - clamp(lam[i] - w[i] / d, lo[i], hi[i])))
-            elif lam[i] > lo[i] and lam[i] < hi[i]:
+                worst = max(worst, d * abs(lam[i] - clamp(lam[i] - w[i] / d, low, high)))
+            elif lam[i] > low and lam[i] < high:
                 worst = max(worst, abs(w[i]))
     return worst
 
 
 @njit(cache=True, inline="always")
-def normal_of(role, i):
-    """The row of the normal of the contact whose first tangent is row i (the row just before it)."""
-    return i - 1
+def _bounds(role, mu, lo, hi, lam, i):
+    """The interval of a one-row impulse: a spin row's +-mu_s lambda_n, an ordinary or normal row's own."""
+    if role[i] == SPIN:
+        bound = mu[i] * max(lam[normal_of(role, i)], 0.0)
+        return -bound, bound
+    return lo[i], hi[i]
 
 
 @njit(cache=True)
 def cone_pgs(W, b, lo, hi, role, mu, lam, tolerance, max_sweeps):
     """Solve the step's problem with Coulomb cones by block projected Gauss-Seidel from lam (a warm start), until
-    cone_residual <= tolerance or max_sweeps sweeps. role (m,) each row's ROW, NORMAL, TANGENT or TANGENT2; mu (m,)
-    the friction coefficient on TANGENT rows. Returns (sweeps, residual)."""
+    cone_residual <= tolerance or max_sweeps sweeps. role (m,) each row's ROW, NORMAL, TANGENT, TANGENT2, SPIN, ROLL
+    or ROLL2; mu (m,) the friction coefficient on TANGENT, SPIN [m] and ROLL [m] rows. Returns (sweeps, residual)."""
     m = b.shape[0]
     w = b + W @ lam
     residual = cone_residual(W, b, lo, hi, role, mu, lam)
@@ -87,13 +116,13 @@ def cone_pgs(W, b, lo, hi, role, mu, lam, tolerance, max_sweeps):
             return sweep, residual
         w = b + W @ lam  # afresh each sweep: the updates below keep it in step without drift
         for i in range(m):
-            if role[i] == TANGENT2:
+            if role[i] == TANGENT2 or role[i] == ROLL2:
                 continue
-            if role[i] == TANGENT:
+            if is_disc(role[i]):
                 s = _tangent_step_size(W, i)
                 if not s > 0.0:
                     continue
-                radius = mu[i] * max(lam[i - 1], 0.0)
+                radius = mu[i] * max(lam[normal_of(role, i)], 0.0)
                 for _inner in range(INNER_STEPS):
                     x, y = _disc(lam[i] - w[i] / s, lam[i + 1] - w[i + 1] / s, radius)
                     dx, dy = x - lam[i], y - lam[i + 1]
@@ -108,7 +137,8 @@ def cone_pgs(W, b, lo, hi, role, mu, lam, tolerance, max_sweeps):
             d = W[i, i]
             if not d > 0.0:
                 continue
-            new = clamp(lam[i] - w[i] / d, lo[i], hi[i])
+            low, high = _bounds(role, mu, lo, hi, lam, i)
+            new = clamp(lam[i] - w[i] / d, low, high)
             delta = new - lam[i]
             if delta != 0.0:
                 lam[i] = new
@@ -118,7 +148,8 @@ def cone_pgs(W, b, lo, hi, role, mu, lam, tolerance, max_sweeps):
     return max_sweeps, residual
 
 
-__all__ = ["cone_pgs", "cone_residual", "slide_polish", "ROW", "NORMAL", "TANGENT", "TANGENT2"]
+__all__ = ["cone_pgs", "cone_residual", "slide_polish", "ROW", "NORMAL", "TANGENT", "TANGENT2", "SPIN", "ROLL",
+           "ROLL2"]
 
 
 @njit(cache=True)
@@ -196,32 +227,43 @@ def _polish(W, b, lo, hi, role, mu, lam, rounds, forced):
                     continue
                 rows[e] = i
                 e += 1
-                has_cone = i + 1 < m and role[i + 1] == TANGENT
-                if not has_cone:
-                    B[i, k] = 1.0
-                    k += 1
-                    continue
+                column = k  # the normal's: a sliding group's force on its edge moves with it
+                B[i, column] = 1.0
+                k += 1
                 j = i + 1
-                tx, ty = lam[j], lam[j + 1]
-                radius = mu[j] * lam[i]
-                if not forced[i] and np.sqrt(tx * tx + ty * ty) < radius * (1.0 - 1e-10):  # sticking: rows held
-                    B[i, k], B[j, k + 1], B[j + 1, k + 2] = 1.0, 1.0, 1.0
-                    k += 3
-                    rows[e], rows[e + 1] = j, j + 1
-                    e += 2
-                else:  # sliding: its force on the cone's edge, against the tangential velocity (round 0: along
-                    # the force Gauss-Seidel found, whose direction is good where the sliding speed is small)
-                    sx, sy = (tx, ty) if _round == 0 and not forced[i] else (-w[j], -w[j + 1])
-                    length = np.sqrt(sx * sx + sy * sy)
-                    if length <= tiny:
-                        sx, sy = tx, ty
-                        length = np.sqrt(sx * sx + sy * sy)
-                    if length > 0.0:
-                        sx, sy = sx / length, sy / length
-                    else:
-                        sx, sy = 0.0, 0.0
-                    B[i, k], B[j, k], B[j + 1, k] = 1.0, mu[j] * sx, mu[j] * sy
-                    k += 1
+                while j < m and is_friction(role[j]):
+                    radius = mu[j] * lam[i]
+                    if is_disc(role[j]):
+                        tx, ty = lam[j], lam[j + 1]
+                        held = np.sqrt(tx * tx + ty * ty) < radius * (1.0 - 1e-10)
+                        if held and not (forced[i] and role[j] == TANGENT):  # sticking (rolling): rows held
+                            B[j, k], B[j + 1, k + 1] = 1.0, 1.0
+                            k += 2
+                            rows[e], rows[e + 1] = j, j + 1
+                            e += 2
+                        else:  # sliding: its force on the cone's edge, against the velocity (round 0: along the
+                            # force Gauss-Seidel found, whose direction is good where the sliding speed is small)
+                            sx, sy = (tx, ty) if _round == 0 and not forced[i] else (-w[j], -w[j + 1])
+                            length = np.sqrt(sx * sx + sy * sy)
+                            if length <= tiny:
+                                sx, sy = tx, ty
+                                length = np.sqrt(sx * sx + sy * sy)
+                            if length > 0.0:
+                                sx, sy = sx / length, sy / length
+                            else:
+                                sx, sy = 0.0, 0.0
+                            B[j, column], B[j + 1, column] = mu[j] * sx, mu[j] * sy
+                        j += 2
+                    else:  # a spin row: held inside its interval, else at its end against the spin
+                        if abs(lam[j]) < radius * (1.0 - 1e-10):
+                            B[j, k] = 1.0
+                            k += 1
+                            rows[e] = j
+                            e += 1
+                        else:
+                            sign = lam[j] if _round == 0 or abs(w[j]) <= tiny else -w[j]
+                            B[j, column] = mu[j] * (1.0 if sign > 0.0 else -1.0 if sign < 0.0 else 0.0)
+                        j += 1
         if k == 0 or e == 0:
             break
         base = lam.copy()  # the impulses not in any column (rows at a bound), the others solved for whole
@@ -285,9 +327,11 @@ def stick_polish(W, b, lo, hi, role, mu, lam, rounds):
             k += 1
             total += lam[i]
             count += 1
-            if i + 1 < m and role[i + 1] == TANGENT:
-                rows[k], owner[k], rows[k + 1], owner[k + 1] = i + 1, i, i + 2, i
-                k += 2
+            j = i + 1
+            while j < m and is_friction(role[j]):  # its tangents, spin and rolling rows
+                rows[k], owner[k] = j, i
+                k += 1
+                j += 1
         elif role[i] == ROW and lam[i] > lo[i] and lam[i] < hi[i]:
             rows[k], owner[k] = i, -1
             k += 1

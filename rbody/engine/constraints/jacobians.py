@@ -173,11 +173,12 @@ def rotation_vector(quat, out):
 
 @njit(cache=True)
 def _contact_rows(p, w, acc, u, r, J, jdot, g, row, with_bias):
-    """A contact unit's r rows (1: the normal; 3: the normal and the tangents t1, t2 of the contact frame): g the
-    signed distance of its candidate, J = (n; t1; t2) . (J_b - J_a) the relative velocity of geom b's material
-    point at the contact point with respect to geom a's, J' v the gap's second derivative without qacc (normal)
+    """A contact unit's r rows (1: the normal; 3: the normal and the tangents t1, t2 of the contact frame; 4 and 6:
+    then the spin about n and the rolling about t1, t2): g the signed distance of its candidate, J = (n; t1; t2) .
+    (J_b - J_a) the relative velocity of geom b's material point at the contact point with respect to geom a's (then
+    (n; t1; t2) . (W_b - W_a), the relative angular velocity), J' v the gap's second derivative without qacc (normal)
     and the sticking contact point's (tangents), rbody.engine.contacts.kinematics; with_bias False: J' v left 0
-    (the time-stepping reads no J' v)."""
+    (the time-stepping reads no J' v; the spin and rolling rows, run by the time-stepping only, have none)."""
     normal, point = np.empty(3), np.empty(3)
     g[row] = contact_geometry(p, w, u, normal, point)
     frame = np.empty((3, 3))
@@ -195,10 +196,19 @@ def _contact_rows(p, w, acc, u, r, J, jdot, g, row, with_bias):
         _add_point_rows(p, w, body, local, sign, Jp, 0, False)
         if with_bias:
             _point_bias(p, w, acc, body, local, bias, sign)
-    for e in range(r):
+    for e in range(min(r, 3)):
         for c in range(nv):
             J[row + e, c] = frame[e, 0] * Jp[0, c] + frame[e, 1] * Jp[1, c] + frame[e, 2] * Jp[2, c]
         jdot[row + e] = frame[e, 0] * bias[0] + frame[e, 1] * bias[1] + frame[e, 2] * bias[2]
+    if r > 3:  # spin (n) and rolling (t1, t2): (n; t1; t2) . (W_b - W_a), the relative angular velocity
+        Jw = np.zeros((3, nv))
+        for body, sign in ((int(p[u + U_BODY2]), 1.0), (int(p[u + U_BODY1]), -1.0)):
+            if body >= 0:
+                _add_point_rows(p, w, body, local, sign, Jw, 0, True)
+        for e in range(3, r):
+            f = frame[e - 3]
+            for c in range(nv):
+                J[row + e, c] = f[0] * Jw[0, c] + f[1] * Jw[1, c] + f[2] * Jw[2, c]
     if with_bias:
         contact_bias(p, w, acc, u, g[row], frame, r, jdot, row)  # the gap's and the rolling point's own terms
 

@@ -57,7 +57,7 @@ from rbody.engine.constraints.jacobians import row_count, unit_at, unit_count, u
 from rbody.engine.contacts.kinematics import clearance, point_velocity
 from rbody.engine.contacts.rows import GEOMETRY_WORK, candidate, pair_candidates
 from rbody.engine.multibody import _effective_qpos
-from rbody.engine.constraints.cone import (NORMAL, ROW, TANGENT, TANGENT2, cone_pgs, cone_polish, slide_polish,
+from rbody.engine.constraints.cone import (NORMAL, ROLL, ROW, SPIN, TANGENT, cone_pgs, cone_polish, slide_polish,
                                            stick_polish)
 from rbody.engine.constraints.solver import mlcp_exact_from, mlcp_pgs, natural_residual
 from rbody.engine.constraints.table import (C_HEADER, CONE, CONNECT, CONTACT, CONTACT1, CONTACT_KINDS, COUPLING,
@@ -65,7 +65,8 @@ from rbody.engine.constraints.table import (C_HEADER, CONE, CONNECT, CONTACT, CO
                                             TENDON_LOWER, TENDON_UPPER, U_BODY1, U_BODY2, U_BOUND, U_DOF, U_KIND,
                                             UNILATERAL,
                                             UNIT_SIZE,
-                                            U_RESTITUTION, U_ROW0, U_ROWS, UPPER, WELD, ConstraintTable)
+                                            U_RESTITUTION, U_ROLL, U_ROW0, U_ROWS, U_SPIN, UPPER, WELD,
+                                            ConstraintTable)
 from rbody.errors import SimulationError
 
 EXACT_ROWS = 64          # a step's problem with at most this many rows is solved exactly
@@ -250,10 +251,12 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
                     b[m] = jfree[r0] + g[r0] / h
                 m += 1
                 role[m - 1] = NORMAL
-                if kind == CONTACT:
-                    for t in range(1, 3):
+                if kind == CONTACT:  # tangents, then spin and rolling (condim 4, 6): cone's roles in order
+                    for t in range(1, r):
                         index[m], lo[m], hi[m], b[m] = r0 + t, -np.inf, np.inf, jfree[r0 + t]
-                        role[m], mu[m] = (TANGENT, p[u + U_BOUND]) if t == 1 else (TANGENT2, 0.0)
+                        role[m] = NORMAL + t
+                        mu[m] = (p[u + U_BOUND] if role[m] == TANGENT else p[u + U_SPIN] if role[m] == SPIN
+                                 else p[u + U_ROLL] if role[m] == ROLL else 0.0)
                         m += 1
                     cones = True
     previous = P.copy()  # the last step's impulses: the warm start of Gauss-Seidel

@@ -28,7 +28,10 @@ Unit kinds and their rows (g >= 0 feasible for unilateral rows; the force on the
 
     CONTACT  the signed distance g >= 0 of a candidate contact of two geoms (rbody.engine.contacts.geometry), 3 rows:
              the normal (J = n . (J_b - J_a) at the contact point, lambda >= 0) and two tangents whose forces stay
-             within the circular cone |lambda_t| <= mu lambda_n (Coulomb); CONTACT1 the normal row alone (condim 1)
+             within the circular cone |lambda_t| <= mu lambda_n (Coulomb); CONTACT1 the normal row alone (condim 1).
+             condim 4 adds a spin row (J = n . (W_b - W_a), the relative angular velocity about the normal,
+             |lambda_s| <= mu_s lambda_n), condim 6 two rolling rows after it (t1, t2 . (W_b - W_a), in the disc
+             |lambda_r| <= mu_r lambda_n): 4 or 6 rows (rbody.engine.constraints.cone)
 
 The tendon kinds are the joint kinds with a tendon's length in place of a coordinate (rows: tendon_rows.py), and
 every scheme treats them as it treats their joint twins (UNILATERAL, FRICTION_KINDS, EQUALITY_KINDS below).
@@ -108,6 +111,8 @@ UNIT = Record("constraint unit", [
                        "(world, unit)"),
     ("tendon", 1, INT, "a tendon unit's tendon (its index among the tendons; -1: none)"),
     ("tendon2", 1, INT, "a tendon equality's second tendon (-1: none)"),
+    ("spin", 1, FLOAT, "a contact's torsional friction coefficient [m] (condim 4 and 6)"),
+    ("roll", 1, FLOAT, "a contact's rolling friction coefficient [m] (condim 6)"),
 ])
 (U_KIND, U_ROWS, U_ROW0, U_DOF, U_QADR, U_BOUND, U_RESTITUTION, U_BODY1, U_BODY2, U_A1, U_A2, U_QUAT, U_DOF2,
  U_QADR2, U_REF1, U_REF2, U_POLY) = UNIT.offsets(
@@ -120,6 +125,7 @@ U_GTYPE_A, U_GPOS_A, U_GMAT_A, U_GSIZE_A = UNIT.offsets("gtype_a", "gpos_a", "gm
 U_GTYPE_B, U_GPOS_B, U_GMAT_B, U_GSIZE_B = UNIT.offsets("gtype_b", "gpos_b", "gmat_b", "gsize_b")
 (U_SLIP,) = UNIT.offsets("slip")
 U_TENDON, U_TENDON2 = UNIT.offsets("tendon", "tendon2")
+U_SPIN, U_ROLL = UNIT.offsets("spin", "roll")
 UNIT_SIZE = UNIT.size
 
 
@@ -242,18 +248,19 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
     units: list[Unit] = []
     rows = 0
 
-    def add(code: int, name: str, **fields) -> None:
+    def add(code: int, name: str, count: int | None = None, **fields) -> None:
         nonlocal rows
+        count = KIND_ROWS[code] if count is None else count  # a contact's rows: its condim
         record = np.zeros(UNIT_SIZE)
-        record[[U_KIND, U_ROWS, U_ROW0]] = code, KIND_ROWS[code], rows
+        record[[U_KIND, U_ROWS, U_ROW0]] = code, count, rows
         record[[U_BODY1, U_BODY2, U_DOF2, U_QADR2, U_TENDON, U_TENDON2]] = -1, -1, -1, -1, -1, -1
         for key, value in fields.items():
             start = globals()[key]
             values = np.atleast_1d(np.asarray(value, dtype=float))
             record[start:start + values.size] = values
         records.append(record)
-        units.append(Unit(code, KIND_NAMES[code], name, KIND_ROWS[code], rows))
-        rows += KIND_ROWS[code]
+        units.append(Unit(code, KIND_NAMES[code], name, count, rows))
+        rows += count
 
     for name, kind, qa, da in zip(multibody.joint_names, arrays.joint_kinds, arrays.qposadr, arrays.dofadr):
         joint = joints[name]
@@ -362,11 +369,18 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
     from rbody.engine.contacts.geometry import TIME_STEPPED
 
     time_stepped = []  # contacts the event-driven scheme does not run (geometry.TIME_STEPPED)
+    spinning = []  # and those with torsional or rolling friction (condim 4, 6)
     for contact in layout.contacts:
+        with_friction = contact.condim > 1 and contact.friction + contact.torsion + contact.rolling > 0
         for record_fields, name in _contact_units(layout, contact, body_index):
-            add(CONTACT if contact.condim == 3 and contact.friction > 0 else CONTACT1, name, **record_fields)
+            if with_friction:
+                add(CONTACT, name, count=contact.condim, **record_fields)
+            else:
+                add(CONTACT1, name, **record_fields)
         if (record_fields["U_GTYPE_A"], record_fields["U_GTYPE_B"]) in TIME_STEPPED:
             time_stepped.append(f"{contact.shape_a!r}/{contact.shape_b!r}")
+        if with_friction and contact.condim > 3:
+            spinning.append(f"{contact.shape_a!r}/{contact.shape_b!r}")
     if not units:
         return None
     from rbody.engine.elements import build_elements
@@ -398,6 +412,11 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
                           f"closed-form curvature terms, which the contact {time_stepped[0]}{more} does not have (a "
                           "capsule against a box, or a cylinder: rbody.engine.contacts.geometry.TIME_STEPPED): the "
                           "time-stepping runs it")
+    elif spinning:
+        more = f" (and {len(spinning) - 1} more)" if len(spinning) > 1 else ""
+        methods = tuple(name for name in methods if name != "rk4")
+        events_refused = (f"the event-driven scheme (rk4) models sliding friction only; the contact {spinning[0]}"
+                          f"{more} has torsional or rolling friction (condim 4 or 6): the time-stepping runs it")
     methods += MUJOCO_METHODS
     return ConstraintTable(units=tuple(units), block=block, offset=offset, mode0=mode0, equalities=tuple(resolved),
                            methods=methods, tree_size=tree_size, section=section, events_refused=events_refused)
@@ -434,7 +453,7 @@ def _contact_units(layout: Layout, contact, body_index: dict[str, int]) -> list[
     if (ta, tb) not in SLOTS:
         raise ValueError(f"{what}: rbody computes contacts of {pairs_text()}, not {shape_a.kind}-{shape_b.kind}")
     fields = dict(U_BOUND=contact.friction, U_RESTITUTION=contact.restitution, U_BODY1=body_index[body_a],
-                  U_BODY2=body_index[body_b])
+                  U_BODY2=body_index[body_b], U_SPIN=contact.torsion, U_ROLL=contact.rolling)
     for suffix, code, shape in (("A", ta, shape_a), ("B", tb, shape_b)):
         size = np.zeros(3)
         size[:len(shape.size)] = shape.size[:3]

@@ -15,6 +15,10 @@ candidate's slot, e.g. "floor/box[3]" for a box's fourth corner), geoms in MuJoC
     contact_normal_force (T, *batch, k) [N]    the force geom a exerts on geom b along the normal (>= 0)
     contact_friction_force (T, *batch, k, 2) [N]  the friction force on geom b along the contact frame's
                                                tangents (rbody.engine.contacts.geometry.tangents); 0 for condim 1
+    contact_spin_torque (T, *batch, k) [N m]   the torsional friction torque on geom b about the normal; 0 below
+                                               condim 4
+    contact_rolling_torque (T, *batch, k, 2) [N m]  the rolling friction torque on geom b about the tangents; 0
+                                               below condim 6
 
 Forces are those of the constraint_force observable (time-stepping: the step's impulse over dt, its mean force).
 """
@@ -70,13 +74,19 @@ def contact_observables(table, params: np.ndarray, out: np.ndarray, forces: np.n
         for s in range(S):
             contact_frames(p, out[s, b], index, dist[s, b], point[s, b], normal[s, b])
     first = np.array([table.units[u].row0 for u in units])
-    friction = np.zeros((S, B, k, 2))
+    friction, spin, rolling = np.zeros((S, B, k, 2)), np.zeros((S, B, k)), np.zeros((S, B, k, 2))
     for i, u in enumerate(units):
-        if table.units[u].rows == 3:
+        rows = table.units[u].rows  # the contact's condim: normal, tangents, spin, rolling
+        if rows >= 3:
             friction[:, :, i] = forces[:, :, first[i] + 1:first[i] + 3]
+        if rows >= 4:
+            spin[:, :, i] = forces[:, :, first[i] + 3]
+        if rows == 6:
+            rolling[:, :, i] = forces[:, :, first[i] + 4:first[i] + 6]
     normal_force = forces[:, :, first]
     return {"contacts": (normal_force > 0).sum(axis=-1), "contact_distance": dist, "contact_point": point,
-            "contact_normal": normal, "contact_normal_force": normal_force, "contact_friction_force": friction}
+            "contact_normal": normal, "contact_normal_force": normal_force, "contact_friction_force": friction,
+            "contact_spin_torque": spin, "contact_rolling_torque": rolling}
 
 
 __all__ = ["contact_observables", "contact_frames"]

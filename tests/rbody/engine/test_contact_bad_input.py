@@ -37,8 +37,12 @@ def test_two_world_shapes_refused():
 
 
 def test_contact_fields_checked():
-    with pytest.raises(ValueError, match="condim=4"):
-        Contact("a", "b", condim=4)
+    for condim in (2, 5, True, 3.5):
+        with pytest.raises(ValueError, match=f"condim={condim!r}, expected 1 .*3 .*4 .*or 6"):
+            Contact("a", "b", condim=condim)
+    for field in ("torsion", "rolling"):
+        with pytest.raises(ValueError, match=field):
+            Contact("a", "b", condim=6, **{field: -1e-3})
     with pytest.raises(ValueError, match="restitution"):
         Contact("a", "b", restitution=1.5)
     with pytest.raises(ValueError, match="friction"):
