@@ -64,11 +64,6 @@ def test_unsupported_pair_refused_with_its_line(tmp_path):
                     '<body><freejoint/><geom name="c" type="ellipsoid" size="0.1 0.2 0.3"/></body></worldbody></mujoco>')
     with pytest.raises(MJCFError, match=r"cyl.xml, line 1.*'floor' and 'c' \(line 2\) can collide.*not ellipsoid"):
         from_mjcf(path)
-    path.write_text('<mujoco><worldbody><geom name="block" type="box" size="1 1 0.1"/>\n'
-                    '<body><freejoint/><geom name="c" type="cylinder" size="0.1 0.2"/></body></worldbody></mujoco>')
-    with pytest.raises(MJCFError, match=r"'block' and 'c' \(line 2\) can collide, and rbody does not compute "
-                                        r"box-cylinder contacts yet \(it computes plane with sphere"):
-        from_mjcf(path)
 
 
 def test_torsional_and_rolling_friction_read_as_mujoco_combines_them(tmp_path):

@@ -116,6 +116,27 @@ def mujoco_free_velocity(p, y, h, mode, M, f, vfree, L):
 
 
 @njit(cache=True)
+def cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
+    """The step's problem with contacts' cones (rbody.engine.constraints.cone) from lam (a start, solved in place):
+    CONE_ROUND Gauss-Seidel sweeps at a time, each round finished exactly (every contact sticking; the states read
+    from lam; some sticking contacts made to slide), until the residual is 1e-3 of `tolerance` or `sweeps` are spent.
+    Returns the residual."""
+    done = 0
+    residual = np.inf
+    while done < sweeps:
+        spent, residual = cone_pgs(W, b, lo, hi, role, mu, lam, tolerance, min(CONE_ROUND, sweeps - done))
+        done += max(spent, 1)
+        residual = min(stick_polish(W, b, lo, hi, role, mu, lam, 8), residual)
+        if residual > 1e-3 * tolerance:
+            residual = cone_polish(W, b, lo, hi, role, mu, lam, 4)
+        if residual > 1e-3 * tolerance:  # no stick state holds: some contacts slide
+            residual = slide_polish(W, b, lo, hi, role, mu, lam, 4)
+        if residual <= 1e-3 * tolerance:
+            break
+    return residual
+
+
+@njit(cache=True)
 def smooth_rows(p):
     """(rows,) 1 on the rows of every unit but contacts (limits, friction, equalities: computed at every step)."""
     flags = np.zeros(row_count(p))
@@ -281,19 +302,10 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
             scale = max(scale, abs(bb[c]))
         if cones:  # Gauss-Seidel by blocks, each round finished exactly (rbody.engine.constraints.cone)
             roles, mus = role[:m].copy(), mu[:m].copy()
-            done = 0
-            residual = np.inf
-            while done < sweeps:
-                spent, residual = cone_pgs(W, bb, ll, hh, roles, mus, lam, tolerance * scale, min(CONE_ROUND,
-                                                                                                   sweeps - done))
-                done += max(spent, 1)
-                residual = min(stick_polish(W, bb, ll, hh, roles, mus, lam, 8), residual)
-                if residual > 1e-3 * tolerance * scale:
-                    residual = cone_polish(W, bb, ll, hh, roles, mus, lam, 4)
-                if residual > 1e-3 * tolerance * scale:  # no stick state holds: some contacts slide
-                    residual = slide_polish(W, bb, ll, hh, roles, mus, lam, 4)
-                if residual <= 1e-3 * tolerance * scale:
-                    break
+            residual = cone_solve(W, bb, ll, hh, roles, mus, lam, tolerance * scale, sweeps)
+            if residual > tolerance * scale:  # the warm start led Gauss-Seidel astray: once more from rest
+                lam[:] = 0.0
+                residual = cone_solve(W, bb, ll, hh, roles, mus, lam, tolerance * scale, sweeps)
             status = 0 if residual <= tolerance * scale else 1
         elif m <= exact_rows:
             status, _steps = mlcp_exact_from(W, bb, ll, hh, lam)  # warm: the last step's impulses

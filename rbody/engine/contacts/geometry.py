@@ -51,7 +51,16 @@ parallel stretch. A plane and a cylinder: 8, each cap's rim at its point lowest 
 and 270 degrees from it (the rim's points along the plane's normal projected onto the caps, which is smooth in
 rolling: a drum on its side touches at its two lowest rim points, and 4 more points of each rim lie a radius or a
 diameter above). Standing upright (the axis within UPRIGHT of the normal) the four points of the lower cap, along
-the cylinder's own axes, hold it. These pairs run by the time-stepping only (TIME_STEPPED): their contact points
+the cylinder's own axes, hold it. A cylinder and a box: 17 candidates, each an exact distance of a point of one
+surface from the other geom: each cap's rim at its point closest to the box and at 90, 180 and 270 degrees from it
+(slots 0-7; the closest rim point by RIM_SAMPLES samples around the rim, then the zero of the distance's slope by
+false position to the last bit: the distance along a circle need not be convex), the box's 8 corners against the
+cylinder (8-15), and the point of the box's edges closest to the cylinder (16: exact, segment_cylinder_closest on
+each edge), APART where another slot holds the same contact to 1e-12 m. Two cylinders: 17, each one's rim
+candidates against the other (0-7, 8-15) and the closest points of their sides (16: the axes' closest points, as
+two capsules, APART unless both lie within the sides, or where a rim slot holds it). Every candidate being a point
+of one surface, the least distance is never below the true distance, and reaches it (tested against MuJoCo's
+mj_geomDistance on random poses). These pairs run by the time-stepping only (TIME_STEPPED): their contact points
 move along a rim, a curve the event-driven scheme's curvature terms do not cover.
 """
 
@@ -65,16 +74,18 @@ TYPE_CODES = {"plane": PLANE, "sphere": SPHERE, "capsule": CAPSULE, "cylinder": 
 # candidates per pair of type codes (type_a <= type_b): the pairs rbody computes
 SLOTS = {(PLANE, SPHERE): 1, (PLANE, CAPSULE): 2, (PLANE, CYLINDER): 8, (PLANE, BOX): 8, (SPHERE, SPHERE): 1,
          (SPHERE, CAPSULE): 1, (SPHERE, CYLINDER): 1, (SPHERE, BOX): 1, (CAPSULE, CAPSULE): 1,
-         (CAPSULE, CYLINDER): 3, (CAPSULE, BOX): 3, (BOX, BOX): 16}
+         (CAPSULE, CYLINDER): 3, (CAPSULE, BOX): 3, (CYLINDER, CYLINDER): 17, (CYLINDER, BOX): 17, (BOX, BOX): 16}
 APART = np.inf  # the distance of a candidate that is not a contact point in this configuration (a capsule's end slots)
 # pairs the event-driven scheme, which holds a contact's candidate from event to event with closed-form curvature
 # terms (contacts.kinematics), does not run: candidates that are contact points in some configurations only, or
 # points that move along a curve of a cylinder's rim; the time-stepping runs them
-TIME_STEPPED = {(CAPSULE, BOX), (PLANE, CYLINDER), (SPHERE, CYLINDER), (CAPSULE, CYLINDER)}
+TIME_STEPPED = {(CAPSULE, BOX), (PLANE, CYLINDER), (SPHERE, CYLINDER), (CAPSULE, CYLINDER), (CYLINDER, CYLINDER),
+                (CYLINDER, BOX)}
 LYING_SPAN = 1e-2  # a capsule's closest points spanning more than this fraction of its half-length: it lies along a face
 UPRIGHT = 1e-12  # a cylinder whose axis is within this angle [rad] of a plane's normal stands on it
 SLOPE_TOLERANCE = 1e-12  # the rate of distance along a segment [m/m] below which it runs parallel to a surface
-MAX_SLOTS = 16
+MAX_SLOTS = 17
+RIM_SAMPLES = 16  # points around a rim before its closest point to a box or a cylinder is refined
 
 
 @njit(cache=True, inline="always")
@@ -338,6 +349,218 @@ def segment_cylinder_closest(p, u, half_length, pc, Rc, radius, half):
     return 0.5 * (lo + hi), lo, hi
 
 
+@njit(cache=True, inline="always")
+def rim_frame(Rc, n, w, v):
+    """w, v (3,): the directions in a cylinder's caps (axis Rc[:, 2]) of its rim candidates: w the unit direction n
+    (from the other geom towards the cylinder) projected onto the caps, v = axis x w; with n within UPRIGHT of the
+    axis (standing on a face), the cylinder's own x and y axes."""
+    along = n[0] * Rc[0, 2] + n[1] * Rc[1, 2] + n[2] * Rc[2, 2]
+    for a in range(3):
+        w[a] = n[a] - along * Rc[a, 2]
+    length = np.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+    if length > UPRIGHT:
+        for a in range(3):
+            w[a] /= length
+    else:
+        for a in range(3):
+            w[a] = Rc[a, 0]
+    v[0] = Rc[1, 2] * w[2] - Rc[2, 2] * w[1]
+    v[1] = Rc[2, 2] * w[0] - Rc[0, 2] * w[2]
+    v[2] = Rc[0, 2] * w[1] - Rc[1, 2] * w[0]
+
+
+@njit(cache=True, inline="always")
+def rim_point(pc, Rc, sc, w, v, k, turn, out):
+    """out (3,): rim candidate k of the cylinder (centre pc, axes Rc, radius sc[0], half-length sc[1]): k = 0-3 on
+    the cap at +half, 4-7 at -half, at the angle 90 (k % 4) degrees + turn [rad] from -w (the point lowest towards
+    the other geom, rim_frame) towards -v."""
+    cap = sc[1] if k < 4 else -sc[1]
+    angle = turn + 0.5 * np.pi * (k % 4)
+    cw, cv = -sc[0] * np.cos(angle), -sc[0] * np.sin(angle)
+    if turn == 0.0:  # the quarter turns exactly
+        j = k % 4
+        cw = -sc[0] if j == 0 else (sc[0] if j == 2 else 0.0)
+        cv = -sc[0] if j == 1 else (sc[0] if j == 3 else 0.0)
+    for a in range(3):
+        out[a] = pc[a] + cap * Rc[a, 2] + cw * w[a] + cv * v[a]
+
+
+@njit(cache=True)
+def box_distance(x, pb, Rb, sb, grad):
+    """The signed distance [m] of the point x (3,) from the box (centre pb, axes Rb, half sizes sb) and its gradient
+    grad (3,): outside, along the offset from the box's nearest point; inside, the outward normal of the face of
+    least depth (as _point_box)."""
+    l0 = Rb[0, 0] * (x[0] - pb[0]) + Rb[1, 0] * (x[1] - pb[1]) + Rb[2, 0] * (x[2] - pb[2])
+    l1 = Rb[0, 1] * (x[0] - pb[0]) + Rb[1, 1] * (x[1] - pb[1]) + Rb[2, 1] * (x[2] - pb[2])
+    l2 = Rb[0, 2] * (x[0] - pb[0]) + Rb[1, 2] * (x[1] - pb[1]) + Rb[2, 2] * (x[2] - pb[2])
+    o0 = l0 - min(max(l0, -sb[0]), sb[0])
+    o1 = l1 - min(max(l1, -sb[1]), sb[1])
+    o2 = l2 - min(max(l2, -sb[2]), sb[2])
+    outside = o0 * o0 + o1 * o1 + o2 * o2
+    if outside > 0.0:
+        length = np.sqrt(outside)
+        for a in range(3):
+            grad[a] = (Rb[a, 0] * o0 + Rb[a, 1] * o1 + Rb[a, 2] * o2) / length
+        return length
+    face, depth, along = 0, sb[0] - abs(l0), l0
+    if sb[1] - abs(l1) < depth:
+        face, depth, along = 1, sb[1] - abs(l1), l1
+    if sb[2] - abs(l2) < depth:
+        face, depth, along = 2, sb[2] - abs(l2), l2
+    side = 1.0 if along >= 0.0 else -1.0
+    for a in range(3):
+        grad[a] = side * Rb[a, face]
+    return -depth
+
+
+@njit(cache=True, inline="always")
+def convex_distance(kind, x, pc, Rc, sc, grad):
+    """The signed distance [m] of the point x (3,) from a box or a cylinder (kind, centre pc, axes Rc, size sc),
+    grad (3,) its gradient (the outward normal at the nearest surface point)."""
+    if kind == CYLINDER:
+        return cylinder_distance(x, pc, Rc, sc[0], sc[1], grad)
+    return box_distance(x, pc, Rc, sc, grad)
+
+
+@njit(cache=True)
+def _rim_slope(pc, Rc, sc, w, v, cap, turn, kind, po, Ro, so, x, grad):
+    """d/d(turn) of the distance from the other geom (kind, po, Ro, so) of the rim point of cap `cap` (0: +half,
+    4: -half) turned by `turn` from the lowest."""
+    rim_point(pc, Rc, sc, w, v, cap, turn, x)
+    convex_distance(kind, x, po, Ro, so, grad)
+    s, c = np.sin(turn), np.cos(turn)  # d rim / d turn = r (sin w - cos v)
+    slope = 0.0
+    for a in range(3):
+        slope += grad[a] * sc[0] * (s * w[a] - c * v[a])
+    return slope
+
+
+@njit(cache=True)
+def rim_lowest_turn(pc, Rc, sc, w, v, cap, kind, po, Ro, so):
+    """The turn [rad] from -w at which the rim of cap `cap` (0 or 4) comes closest to the other geom (a box or a
+    cylinder; the distance along a circle need not be convex): the least of RIM_SAMPLES points around the rim (-w
+    first, kept unless another is nearer by more than 1e-12 m: a rim lying on a face stays put), then the zero of
+    the distance's slope within one sample's spacing of it, to the last bit (false position, Illinois)."""
+    x, grad = np.empty(3), np.empty(3)
+    best, at = np.inf, 0.0
+    for i in range(RIM_SAMPLES):
+        turn = 2.0 * np.pi * i / RIM_SAMPLES
+        if turn > np.pi:
+            turn -= 2.0 * np.pi
+        rim_point(pc, Rc, sc, w, v, cap, turn, x)
+        d = convex_distance(kind, x, po, Ro, so, grad)
+        if d < best - 1e-12:
+            best, at = d, turn
+    spacing = 2.0 * np.pi / RIM_SAMPLES
+    a, b = at - spacing, at + spacing
+    fa = _rim_slope(pc, Rc, sc, w, v, cap, a, kind, po, Ro, so, x, grad)
+    fb = _rim_slope(pc, Rc, sc, w, v, cap, b, kind, po, Ro, so, x, grad)
+    if not (fa < -SLOPE_TOLERANCE and fb > SLOPE_TOLERANCE):
+        return at  # no minimum within the spacing (a rim lying on a face: the slope is 0 all along)
+    # the slope's zero by false position with the Illinois step (superlinear), the bracket kept
+    side = 0
+    for _ in range(100):
+        m = (a * fb - b * fa) / (fb - fa)
+        if not (a < m < b):
+            m = 0.5 * (a + b)
+        if m <= a or m >= b:
+            break
+        fm = _rim_slope(pc, Rc, sc, w, v, cap, m, kind, po, Ro, so, x, grad)
+        if fm == 0.0:
+            return m
+        if fm < 0.0:
+            a, fa = m, fm
+            if side == -1:
+                fb *= 0.5
+            side = -1
+        else:
+            b, fb = m, fm
+            if side == 1:
+                fa *= 0.5
+            side = 1
+        if b - a <= 4e-16 * max(abs(a), abs(b), 1.0):
+            break
+    return 0.5 * (a + b) if b - a <= 4e-16 * max(abs(a), abs(b), 1.0) else m
+
+
+@njit(cache=True)
+def _rim_candidates(pc, Rc, sc, kind, po, Ro, so, first, flip, only, dist, normal, point, scratch):
+    """Slots first to first + 7: a cylinder's (pc, Rc, sc) rim candidates against a box or a cylinder (kind, po, Ro,
+    so): each cap's rim point closest to the other geom (rim_lowest_turn, from the direction of the other geom's
+    distance gradient at the cylinder's centre) and those at 90, 180 and 270 degrees from it, each point's exact
+    distance from the other geom. flip: the cylinder is geom b (normals turned to point from a to b)."""
+    n, w, v, x = scratch[0:3], scratch[3:6], scratch[6:9], scratch[9:12]
+    convex_distance(kind, pc, po, Ro, so, n)
+    rim_frame(Rc, n, w, v)
+    for cap in (0, 4):
+        if only >= 0 and not (first + cap <= only < first + cap + 4):
+            continue
+        turn = rim_lowest_turn(pc, Rc, sc, w, v, cap, kind, po, Ro, so)
+        for j in range(4):
+            k = first + cap + j
+            if only >= 0 and k != only:
+                continue
+            rim_point(pc, Rc, sc, w, v, cap + j, turn, x)
+            if kind == BOX:
+                _point_box(x, 0.0, po, Ro, so, k, dist, normal, point)
+            else:
+                _point_cylinder(x, 0.0, po, Ro, so, k, dist, normal, point)
+            if flip:
+                for a in range(3):
+                    normal[k, a] = -normal[k, a]
+
+
+@njit(cache=True, inline="always")
+def _box_corner(pb, Rb, sb, c, out):
+    """out (3,): corner c (0-7; bits: +x, +y, +z) of the box (centre pb, axes Rb, half sizes sb)."""
+    x = sb[0] if c & 1 else -sb[0]
+    y = sb[1] if c & 2 else -sb[1]
+    z = sb[2] if c & 4 else -sb[2]
+    for a in range(3):
+        out[a] = pb[a] + Rb[a, 0] * x + Rb[a, 1] * y + Rb[a, 2] * z
+
+
+@njit(cache=True)
+def _box_edge_candidate(pc, Rc, sc, pb, Rb, sb, k, dist, normal, point, work):
+    """Slot k of a cylinder (pc, Rc, sc: geom a) and a box (pb, Rb, sb: geom b): the point of the box's edges closest
+    to the cylinder (each edge's by segment_cylinder_closest, exact), the normal from a to b."""
+    centre, u, x, grad = work[0:3], work[3:6], work[6:9], work[9:12]
+    best, best_t = np.inf, 0.0
+    best_centre, best_u = np.empty(3), np.empty(3)
+    for axis in range(3):  # the 4 edges along each box axis
+        o1, o2 = (axis + 1) % 3, (axis + 2) % 3
+        for corner in range(4):
+            s1 = sb[o1] if corner & 1 else -sb[o1]
+            s2 = sb[o2] if corner & 2 else -sb[o2]
+            for a in range(3):
+                centre[a] = pb[a] + Rb[a, o1] * s1 + Rb[a, o2] * s2
+                u[a] = Rb[a, axis]
+            t, _lo, _hi = segment_cylinder_closest(centre, u, sb[axis], pc, Rc, sc[0], sc[1])
+            for a in range(3):
+                x[a] = centre[a] + t * u[a]
+            d = cylinder_distance(x, pc, Rc, sc[0], sc[1], grad)
+            if d < best:
+                best, best_t = d, t
+                best_centre[:] = centre
+                best_u[:] = u
+    for a in range(3):
+        x[a] = best_centre[a] + best_t * best_u[a]
+    _point_cylinder(x, 0.0, pc, Rc, sc, k, dist, normal, point)
+    for a in range(3):  # from the edge (b) towards the cylinder: turned to point from a to b
+        normal[k, a] = -normal[k, a]
+
+
+@njit(cache=True, inline="always")
+def _unless_held(dist, k):
+    """Slot k APART where one of the slots before it comes within 1e-12 m of its distance: that slot holds the same
+    contact (a box's edge closest to a cylinder at a corner, or at the rim point a rim slot found), and two
+    candidates of one contact would make the step's problem singular."""
+    for j in range(k):
+        if dist[j] <= dist[k] + 1e-12:
+            dist[k] = APART
+            return
+
+
 @njit(cache=True)
 def collide(ta, pa, Ra, sa, tb, pb, Rb, sb, dist, normal, point, only=-1):
     """The candidate contacts of geom a (type ta <= tb, centre pa (3,) [m], axes Ra (3, 3), size sa (3,) [m]) and
@@ -363,31 +586,12 @@ def collide(ta, pa, Ra, sa, tb, pb, Rb, sb, dist, normal, point, only=-1):
                 _plane_point(pa, n, end, sb[0], k, dist, normal, point)
             return 2
         if tb == CYLINDER:  # each cap's rim at its lowest point towards the plane and at 90, 180, 270 degrees
-            along = n[0] * Rb[0, 2] + n[1] * Rb[1, 2] + n[2] * Rb[2, 2]
-            w = scratch[3:6]  # the plane's normal projected onto the caps' plane, made unit
-            for a in range(3):
-                w[a] = n[a] - along * Rb[a, 2]
-            length = np.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
-            if length > UPRIGHT:
-                for a in range(3):
-                    w[a] /= length
-            else:  # standing upright: the rim's points along the cylinder's own x and y axes
-                for a in range(3):
-                    w[a] = Rb[a, 0]
-            v = scratch[6:9]  # axis x w
-            v[0] = Rb[1, 2] * w[2] - Rb[2, 2] * w[1]
-            v[1] = Rb[2, 2] * w[0] - Rb[0, 2] * w[2]
-            v[2] = Rb[0, 2] * w[1] - Rb[1, 2] * w[0]
-            rim = scratch[9:12]
+            w, v, rim = scratch[3:6], scratch[6:9], scratch[9:12]
+            rim_frame(Rb, n, w, v)
             for k in range(8):
                 if only >= 0 and k != only:
                     continue
-                cap = sb[1] if k < 4 else -sb[1]
-                j = k % 4
-                cw = -sb[0] if j == 0 else (sb[0] if j == 2 else 0.0)
-                cv = -sb[0] if j == 1 else (sb[0] if j == 3 else 0.0)
-                for a in range(3):
-                    rim[a] = pb[a] + cap * Rb[a, 2] + cw * w[a] + cv * v[a]
+                rim_point(pb, Rb, sb, w, v, k, 0.0, rim)
                 _plane_point(pa, n, rim, 0.0, k, dist, normal, point)
             return 8
         if tb == BOX:
@@ -472,6 +676,42 @@ def collide(ta, pa, Ra, sa, tb, pb, Rb, sb, dist, normal, point, only=-1):
             if k < 2 and abs(t - closest) < LYING_SPAN * sa[1]:  # that end is the closest point
                 dist[k] = APART
         return 3
+    if ta == CYLINDER and tb == BOX:  # the cylinder's rims (0-7), the box's corners (8-15), its nearest edge (16)
+        if only == 16:
+            only = -1  # whether another slot holds the edge's contact: every slot
+        work = np.empty(12)
+        _rim_candidates(pa, Ra, sa, BOX, pb, Rb, sb, 0, False, only, dist, normal, point, work)
+        corner = scratch[0:3]
+        for k in range(8, 16):
+            if only >= 0 and k != only:
+                continue
+            _box_corner(pb, Rb, sb, k - 8, corner)
+            _point_cylinder(corner, 0.0, pa, Ra, sa, k, dist, normal, point)
+            for a in range(3):  # from the corner (b) towards the cylinder: turned to point from a to b
+                normal[k, a] = -normal[k, a]
+        if only < 0:
+            _box_edge_candidate(pa, Ra, sa, pb, Rb, sb, 16, dist, normal, point, work)
+            _unless_held(dist, 16)
+        return 17
+    if ta == CYLINDER and tb == CYLINDER:  # each one's rims against the other (0-7, 8-15), the sides' (16)
+        if only == 16:
+            only = -1  # whether another slot holds the sides' contact: every slot
+        work = np.empty(12)
+        _rim_candidates(pa, Ra, sa, CYLINDER, pb, Rb, sb, 0, False, only, dist, normal, point, work)
+        _rim_candidates(pb, Rb, sb, CYLINDER, pa, Ra, sa, 8, True, only, dist, normal, point, work)
+        if only < 0:
+            ua, ub, ca, cb = scratch[0:3], scratch[3:6], scratch[6:9], scratch[9:12]
+            for a in range(3):
+                ua[a], ub[a] = Ra[a, 2], Rb[a, 2]
+            s, t = segment_closest(pa, ua, sa[1], pb, ub, sb[1])
+            for a in range(3):
+                ca[a], cb[a] = pa[a] + s * ua[a], pb[a] + t * ub[a]
+            _sphere_sphere(ca, sa[0], cb, sb[0], 16, dist, normal, point)
+            if not (abs(s) < sa[1] and abs(t) < sb[1]):  # not two sides: a rim is nearer, the rims' slots hold it
+                dist[16] = APART
+            else:
+                _unless_held(dist, 16)
+        return 17
     if ta == CAPSULE and tb == CAPSULE:
         ua = scratch[0:3]
         ub = scratch[3:6]
@@ -520,7 +760,7 @@ def pairs_text() -> str:
 
 def collide_pair(kind_a: str, pos_a, mat_a, size_a, kind_b: str, pos_b, mat_b, size_b):
     """The candidate contacts of two geoms in any order, for Python callers: (dist (k,) [m], normal (k, 3) from geom
-    a to geom b, point (k, 3) [m]). kind: "plane", "sphere", "capsule", "box"; pos (3,) [m]; mat (3, 3) the geom's
+    a to geom b, point (k, 3) [m]). kind: "plane", "sphere", "capsule", "cylinder", "box"; pos (3,) [m]; mat (3, 3) the geom's
     axes as columns; size (3,) or shorter [m]. Raises ValueError for a pair rbody does not compute."""
     codes = []
     for kind in (kind_a, kind_b):

@@ -64,15 +64,26 @@ def contact_frames(p, y, units, dist, point, normal):
 
 def contact_observables(table, params: np.ndarray, out: np.ndarray, forces: np.ndarray, units: list[int]) -> dict:
     """The observables of the module docstring from the saved states out (S, B, n) and the rows' forces
-    (S, B, rows) of a run."""
+    (S, B, rows) of a run. The geometric ones (contact_distance, contact_point, contact_normal: every candidate's
+    distance at every sample, the cost of a long run of a model with many pairs) are computed on first access, all
+    three at once; the forces now."""
     S, B = out.shape[:2]
     k = len(units)
     index = np.array(units, dtype=np.int64)
-    dist, point, normal = np.empty((S, B, k)), np.empty((S, B, k, 3)), np.empty((S, B, k, 3))
-    for b in range(B):
-        p = np.array(params[b], dtype=np.float64)
-        for s in range(S):
-            contact_frames(p, out[s, b], index, dist[s, b], point[s, b], normal[s, b])
+    frames: dict = {}
+
+    def geometry(name: str):
+        def value():
+            if not frames:
+                dist, point, normal = np.empty((S, B, k)), np.empty((S, B, k, 3)), np.empty((S, B, k, 3))
+                for b in range(B):
+                    p = np.array(params[b], dtype=np.float64)
+                    for s in range(S):
+                        contact_frames(p, out[s, b], index, dist[s, b], point[s, b], normal[s, b])
+                frames.update(contact_distance=dist, contact_point=point, contact_normal=normal)
+            return frames[name]
+        return value
+
     first = np.array([table.units[u].row0 for u in units])
     friction, spin, rolling = np.zeros((S, B, k, 2)), np.zeros((S, B, k)), np.zeros((S, B, k, 2))
     for i, u in enumerate(units):
@@ -84,8 +95,9 @@ def contact_observables(table, params: np.ndarray, out: np.ndarray, forces: np.n
         if rows == 6:
             rolling[:, :, i] = forces[:, :, first[i] + 4:first[i] + 6]
     normal_force = forces[:, :, first]
-    return {"contacts": (normal_force > 0).sum(axis=-1), "contact_distance": dist, "contact_point": point,
-            "contact_normal": normal, "contact_normal_force": normal_force, "contact_friction_force": friction,
+    return {"contacts": (normal_force > 0).sum(axis=-1), "contact_distance": geometry("contact_distance"),
+            "contact_point": geometry("contact_point"), "contact_normal": geometry("contact_normal"),
+            "contact_normal_force": normal_force, "contact_friction_force": friction,
             "contact_spin_torque": spin, "contact_rolling_torque": rolling}
 
 

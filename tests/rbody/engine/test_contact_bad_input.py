@@ -24,10 +24,10 @@ def test_layout_contacts_refused(contact, shape, match):
 
 
 def test_pair_rbody_does_not_compute_refused():
-    fixed = (Shape("block", "box", (1.0, 1.0, 0.1)),)
-    with pytest.raises(ValueError, match=r"contact 'block'/'c': rbody computes contacts of plane with sphere.*"
-                                         r"not cylinder-box"):
-        Scene.from_layout(layout_with(Contact("block", "c"), Shape("c", "cylinder", (0.1, 0.2)), fixed), t_end=1.0)
+    """Two planes (a plane on a body: a Layout allows it, MuJoCo does not) have no contact function."""
+    with pytest.raises(ValueError, match=r"contact 'floor'/'p': rbody computes contacts of plane with sphere.*"
+                                         r"not plane-plane"):
+        Scene.from_layout(layout_with(Contact("floor", "p"), Shape("p", "plane", (1.0, 1.0))), t_end=1.0)
 
 
 def test_two_world_shapes_refused():

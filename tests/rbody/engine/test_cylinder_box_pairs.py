@@ -1,0 +1,158 @@
+"""Box-cylinder and cylinder-cylinder contacts (rbody.engine.contacts.geometry): 17 candidates each, every one an
+exact distance of a point from the other geom (a rim's closest point found by sampling and bisection on the slope,
+a box's corner, a box's edge's closest point, two sides' closest points); their least against MuJoCo's distance on
+random separated poses, and closed forms in the rigid limit: a cylinder standing and a drum lying on a box, a drum
+thrown sliding on a box's top (rolls at 2/3 v0 from t* = v0 / (3 mu g)), a box resting on a cylinder's cap, coins
+stacked, a cylinder dropped tilted onto a box."""
+
+import numpy as np
+import pytest
+
+import rbody
+from rbody import Body, Contact, Joint, Layout, Scene, Shape
+from rbody.engine.contacts.geometry import SLOTS, CYLINDER, BOX, collide_pair
+from rbody.inertia import Inertia
+from rbody.motion import quat_to_matrix
+
+G = 9.81
+I3 = np.eye(3)
+LYING = (np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0)  # a cylinder's axis along -y
+
+
+def random_rotation(rng):
+    q = rng.normal(size=4)
+    return quat_to_matrix(q / np.linalg.norm(q))
+
+
+def test_slots():
+    assert SLOTS[(CYLINDER, BOX)] == 17 and SLOTS[(CYLINDER, CYLINDER)] == 17
+
+
+def test_closed_form_distances():
+    """A cylinder (r 0.1, half 0.2) upright above a box's top face, lying above it, and tilted over its edge."""
+    top = 0.3  # the box [-1, 1] x [-1, 1] x [-0.3, 0.3]
+    box = ("box", np.zeros(3), I3, (1.0, 1.0, top))
+    dist, normal, _ = collide_pair("cylinder", [0.2, 0.1, top + 0.2 + 0.05], I3, (0.1, 0.2), *box)
+    assert dist.min() == pytest.approx(0.05, abs=1e-15)
+    np.testing.assert_allclose(np.sort(dist)[:4], 0.05, atol=1e-15)  # the lower cap's four rim points
+    np.testing.assert_allclose(normal[np.argmin(dist)], [0, 0, -1], atol=1e-15)
+    dist, _, _ = collide_pair("cylinder", [0.0, 0.0, top + 0.1 + 0.02], quat_to_matrix(np.array(LYING)),
+                              (0.1, 0.2), *box)
+    np.testing.assert_allclose(np.sort(dist)[:2], 0.02, atol=1e-15)  # a rim point at each end
+    # upright beside the box's edge x = 1, its side 0.03 from the edge's line: the edge's closest point
+    dist, normal, _ = collide_pair("cylinder", [1.13, 0.0, top + 0.1], I3, (0.1, 0.2), *box)
+    assert dist.min() == pytest.approx(0.03, abs=1e-15)
+    np.testing.assert_allclose(normal[np.argmin(dist)], [-1, 0, 0], atol=1e-15)
+    # two drums crossed, sides 0.04 apart; a coin above another's cap
+    dist, normal, _ = collide_pair("cylinder", np.zeros(3), quat_to_matrix(np.array(LYING)), (0.1, 0.3),
+                                   "cylinder", [0, 0, 0.25 + 0.04], quat_to_matrix(np.array([0.5, 0.5, 0.5, 0.5])),
+                                   (0.15, 0.3))
+    assert dist.min() == pytest.approx(0.04, abs=1e-15)
+    np.testing.assert_allclose(normal[np.argmin(dist)], [0, 0, 1], atol=1e-15)
+    dist, _, _ = collide_pair("cylinder", np.zeros(3), I3, (0.2, 0.05), "cylinder", [0.05, 0, 0.1 + 0.01], I3,
+                              (0.1, 0.05))
+    np.testing.assert_allclose(np.sort(dist)[:4], 0.01, atol=1e-15)
+
+
+@pytest.mark.parametrize("kind_a,size_a,kind_b,size_b", [("cylinder", (0.1, 0.2), "box", (0.15, 0.1, 0.3)),
+                                                         ("box", (0.1, 0.2, 0.05), "cylinder", (0.15, 0.1)),
+                                                         ("cylinder", (0.1, 0.2), "cylinder", (0.15, 0.1))])
+def test_least_distance_against_mujoco_on_random_separated_poses(kind_a, size_a, kind_b, size_b):
+    """Every candidate's distance is that of a point of one surface from the other geom, so the least is never
+    below the true distance; it must reach it (MuJoCo's mj_geomDistance, its convex solver, to its own
+    tolerance)."""
+    mujoco = pytest.importorskip("mujoco")
+    text = " ".join
+    xml = (f'<mujoco><worldbody><body mocap="true"><geom name="a" type="{kind_a}" size="{text(map(str, size_a))}"/>'
+           f'</body><body mocap="true"><geom name="b" type="{kind_b}" size="{text(map(str, size_b))}"/></body>'
+           '</worldbody></mujoco>')
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    rng = np.random.default_rng(11)
+    checked, worst = 0, 0.0
+    fromto = np.zeros(6)
+    for _ in range(300):
+        qa, qb = (rng.normal(size=4) for _ in range(2))
+        data.mocap_quat[0], data.mocap_quat[1] = qa / np.linalg.norm(qa), qb / np.linalg.norm(qb)
+        offset = rng.normal(size=3)
+        data.mocap_pos[1] = offset * rng.uniform(0.3, 0.8) / np.linalg.norm(offset)
+        mujoco.mj_forward(model, data)
+        reference = mujoco.mj_geomDistance(model, data, 0, 1, 10.0, fromto)
+        if reference <= 1e-6:
+            continue
+        dist, normal, _ = collide_pair(kind_a, data.geom_xpos[0], data.geom_xmat[0].reshape(3, 3), size_a,
+                                       kind_b, data.geom_xpos[1], data.geom_xmat[1].reshape(3, 3), size_b)
+        worst = max(worst, abs(dist.min() - reference))
+        k = int(np.argmin(dist))
+        direction = (fromto[3:] - fromto[:3]) / np.linalg.norm(fromto[3:] - fromto[:3])
+        np.testing.assert_allclose(normal[k], direction, atol=1e-4)  # MuJoCo's witness points: to its tolerance
+        checked += 1
+    assert checked > 200
+    assert worst <= 1e-9, worst
+
+
+def on_box(shape, quat=(1.0, 0.0, 0.0, 0.0), height=None, friction=0.5, mass=1.0, inertia=None, qvel=None,
+           t_end=1.0, dt=2e-3):
+    """A body with one shape resting on the top face (z = 0) of a fixed box 2 x 2 x 0.6 m."""
+    body = Body("body", inertia or Inertia.solid_sphere(mass, 0.1), shapes=(shape,), pos=(0.0, 0.0, height),
+                quat=quat)
+    layout = Layout(bodies=(body,), joints=(Joint("free", "free", "body"),),
+                    fixed=(Shape("table", "box", (1.0, 1.0, 0.3), pos=(0.0, 0.0, -0.3)),),
+                    contacts=(Contact("table", shape.name, friction=friction),))
+    return rbody.simulate(Scene.from_layout(layout, t_end=t_end, qvel0=qvel), dt=dt)
+
+
+def test_cylinder_standing_and_lying_on_a_box_stays_put():
+    inertia = Inertia.solid_cylinder(1.0, 0.1, 0.4)
+    for quat, height, touching in (((1.0, 0.0, 0.0, 0.0), 0.2, 4), (LYING, 0.1, 2)):
+        run = on_box(Shape("c", "cylinder", (0.1, 0.2)), quat, height, inertia=inertia)
+        assert np.abs(run["body.com"] - run["body.com"][0]).max() <= 1e-13
+        assert run["contacts"][-1] >= touching
+        np.testing.assert_allclose(run["contact_normal_force"][-1].sum(), G, rtol=1e-12)
+
+
+def test_drum_thrown_sliding_on_a_box_rolls_at_two_thirds():
+    r, mu, v0, dt = 0.1, 0.3, 1.0, 1e-3
+    run = on_box(Shape("c", "cylinder", (r, 0.2)), LYING, r, friction=mu, inertia=Inertia.solid_cylinder(1.0, r, 0.4),
+                 qvel=[v0, 0, 0, 0, 0, 0], t_end=0.5, dt=dt)
+    v, spin, z = run["body.velocity"][:, 0], run["body.omega"][:, 1], run["body.com"][:, 2]
+    t_star = v0 / (3 * mu * G)
+    rolling = np.abs(v - r * spin) <= 1e-12
+    start = run.t[np.argmax(rolling)]
+    assert t_star <= start <= t_star + dt
+    assert np.all(rolling[run.t >= start])
+    np.testing.assert_allclose(v[run.t >= start], 2 / 3 * v0, rtol=0, atol=1e-12)
+    assert np.abs(z - r).max() <= 1e-14
+
+
+def test_box_resting_on_a_cylinders_cap_and_coins_stacked():
+    half = (0.15, 0.1, 0.05)
+    for name, shape in (("box", Shape("top", "box", half)), ("coin", Shape("top", "cylinder", (0.1, 0.05)))):
+        inertia = Inertia.box(1.0, 2 * np.array(half)) if name == "box" else Inertia.solid_cylinder(1.0, 0.1, 0.1)
+        body = Body("top", inertia, shapes=(shape,), pos=(0.03, -0.02, 0.2 + 0.05))
+        layout = Layout(bodies=(body,), joints=(Joint("free", "free", "top"),),
+                        fixed=(Shape("pillar", "cylinder", (0.2, 0.1), pos=(0.0, 0.0, 0.1)),),
+                        contacts=(Contact("pillar", "top", friction=0.5),))
+        run = rbody.simulate(Scene.from_layout(layout, t_end=1.0), dt=2e-3)
+        assert np.abs(run["top.com"] - run["top.com"][0]).max() <= 1e-13, name
+        np.testing.assert_allclose(run["contact_normal_force"][-1].sum(), G, rtol=1e-12)
+
+
+@pytest.mark.parametrize("tilt", [0.3, 1.2])
+def test_cylinder_dropped_tilted_onto_a_box_lands_and_rests(tilt):
+    quat = (np.cos(tilt / 2), np.sin(tilt / 2) * 0.6, np.sin(tilt / 2) * 0.8, 0.0)
+    run = on_box(Shape("c", "cylinder", (0.1, 0.2)), quat, 0.45, friction=0.8,
+                 inertia=Inertia.solid_cylinder(1.0, 0.1, 0.4), t_end=2.0, dt=1e-3)
+    distance = run["contact_distance"]
+    assert distance[np.isfinite(distance)].min() >= -1e-13          # no overlap beyond round-off
+    assert np.abs(run["body.velocity"][-1]).max() <= 1e-9            # at rest on the face
+    np.testing.assert_allclose(run["contact_normal_force"][-1].sum(), G, rtol=1e-9)
+
+
+def test_event_driven_scheme_refuses_them():
+    run_scene = Scene.from_layout(
+        Layout(bodies=(Body("b", Inertia.solid_cylinder(1.0, 0.1, 0.4), shapes=(Shape("c", "cylinder", (0.1, 0.2)),),
+                            pos=(0, 0, 0.5)),), joints=(Joint("free", "free", "b"),),
+               fixed=(Shape("table", "box", (1, 1, 0.3)),), contacts=(Contact("table", "c"),)), t_end=0.1)
+    with pytest.raises(rbody.MethodNotApplicable, match="'table'/'c'"):
+        rbody.simulate(run_scene, dt=1e-3, method="rk4")
