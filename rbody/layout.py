@@ -298,8 +298,10 @@ class Contact:
     (frictionless), 4 (and torsional friction: the torque about the normal |T_s| <= torsion N, torsion [m]) or 6 (and
     rolling friction: the torque about the tangents |T_r| <= rolling N, rolling [m]); MuJoCo's friction="friction
     torsion rolling" and condim. Each law is Coulomb's, against its own velocity, sharing the normal force N
-    (rbody.engine.constraints.cone). Pairs not listed never collide. In a tree (Scene.from_layout) the constraint
-    layer holds them rigidly (rbody.engine.constraints; the pairs rbody.engine.contacts.geometry computes).
+    (rbody.engine.constraints.cone). margin [m] >= 0: the surfaces are held this far apart, each pair's distance
+    >= margin (MuJoCo's margin since 3.9, the geometric inflation of the surfaces; 0 by default: they touch). Pairs
+    not listed never collide. In a tree (Scene.from_layout) the constraint layer holds them rigidly
+    (rbody.engine.constraints; the pairs rbody.engine.contacts.geometry computes).
     """
 
     shape_a: str
@@ -309,11 +311,13 @@ class Contact:
     condim: int = 3
     torsion: float = 0.0
     rolling: float = 0.0
+    margin: float = 0.0
 
     def __post_init__(self) -> None:
         _name(self.shape_a, "contact", "shape_a")
         _name(self.shape_b, "contact", "shape_b")
         nonnegative(self.friction, "friction")
+        nonnegative(self.margin, "margin")
         nonnegative(self.torsion, "torsion")
         nonnegative(self.rolling, "rolling")
         in_interval(self.restitution, "restitution", 0.0, 1.0, closed=True)

@@ -15,8 +15,13 @@ kept, as MuJoCo's mj_contactParam combines them:
   ``<custom><numeric name="rbody.contact_restitution.GEOM" data="e"/>`` on either geom (the larger of the two when
   both have one), else ``<numeric name="rbody.contact_restitution" data="e"/>`` for every pair, else 0 (plastic:
   the rigid limit of MuJoCo's critically damped default);
-- solref, solimp, margin, gap, solmix (MuJoCo's softness and activation distance) have no counterpart in the rigid
-  limit: a contact acts at distance 0 and holds to round-off.
+- margin: the two geoms' margins summed (a <pair>'s own, default 0; <option o_margin> for every pair under
+  <flag override="enable">), MuJoCo's inflation of the surfaces since 3.9: a contact holds the geoms that far apart
+  (Contact.margin), where MuJoCo's soft contact pushes towards it;
+- gap (since MuJoCo 3.9 a band beyond the margin where contacts are reported but push nothing), solref, solimp,
+  solmix (MuJoCo's softness) have no counterpart in the rigid limit: a contact holds at its margin to round-off.
+  (Before MuJoCo 3.9 a contact pushed from margin - gap: a file written for it that sets gap > 0 needs its margins
+  lowered by its gaps, as MuJoCo's changelog for 3.9.0 says.)
 
 Geom kinds rbody computes: plane, sphere, capsule, cylinder, box, the pairs of rbody.engine.contacts.geometry.SLOTS.
 """
@@ -24,7 +29,7 @@ Geom kinds rbody computes: plane, sphere, capsule, cylinder, box, the pairs of r
 from __future__ import annotations
 
 from rbody.layout import Contact
-from rbody.mjcf.document import MJCFError, integer, numbers
+from rbody.mjcf.document import MJCFError, integer, number, numbers
 
 CONTACT_RESTITUTION = "rbody.contact_restitution"
 
@@ -62,6 +67,16 @@ def _combined_friction(g1, g2) -> tuple[float, float, float]:
     return tuple(max(a, b) for a, b in zip(f1, f2))
 
 
+def _margin(element, attrib) -> float:
+    """An element's margin [m] (default 0). Raises MJCFError for a negative one (rbody's contacts hold the
+    surfaces at least that far apart: a negative margin would let them overlap)."""
+    margin = number(element, "margin", attrib, 0.0)
+    if margin < 0:
+        raise element.error(f"margin={attrib['margin']!r}: rbody needs a contact margin >= 0 [m] (the distance at "
+                            "which a contact holds the surfaces)")
+    return margin
+
+
 def _condim(geom) -> int:
     return integer(geom.element, "condim", geom.attrib, 3)
 
@@ -88,7 +103,7 @@ def explicit_pairs(pairs, named: dict) -> list:
         condim = integer(element, "condim", attrib, 3)
         if condim not in (1, 3, 4, 6):
             raise element.error(f"condim={attrib['condim']!r}: MuJoCo allows 1, 3, 4 or 6 (invalid condim)")
-        out.append((geoms[0], geoms[1], {"friction": friction, "condim": condim}))
+        out.append((geoms[0], geoms[1], {"friction": friction, "condim": condim, "margin": _margin(element, attrib)}))
     return out
 
 
@@ -107,9 +122,11 @@ def unsupported_pair(g1, g2, spec: dict | None = None) -> str:
     return ""
 
 
-def contacts_of(pairs, numerics: dict, source: str) -> tuple[Contact, ...]:
-    """The rbody Contact of every geom pair (g1, g2, spec) kept by the broad phase or listed (spec: explicit_pairs), with MuJoCo's friction and condim and
-    rbody's restitution (module docstring). Raises MJCFError for a restitution numeric naming no geom."""
+def contacts_of(pairs, numerics: dict, source: str, override_margin: float | None = None) -> tuple[Contact, ...]:
+    """The rbody Contact of every geom pair (g1, g2, spec) kept by the broad phase or listed (spec: explicit_pairs),
+    with MuJoCo's friction, condim and margin (override_margin [m]: <option o_margin> under <flag override>, for
+    every pair) and rbody's restitution (module docstring). Raises MJCFError for a restitution numeric naming no
+    geom, or a negative margin."""
     names = {g.name for g1, g2, _spec in pairs for g in (g1, g2)}
     prefix = CONTACT_RESTITUTION + "."
     stray = sorted(n for n in numerics if n.startswith(prefix) and n[len(prefix):] not in names)
@@ -129,12 +146,19 @@ def contacts_of(pairs, numerics: dict, source: str) -> tuple[Contact, ...]:
         else:
             restitution = 0.0
         if spec:
-            friction, condim = spec["friction"], spec["condim"]
+            friction, condim, margin = spec["friction"], spec["condim"], spec["margin"]
         else:
             friction, condim = _combined_friction(g1, g2), _combined(g1, g2, "condim", _condim)
+            margin = _margin(g1.element, g1.attrib) + _margin(g2.element, g2.attrib)
+        if override_margin is not None:
+            if override_margin < 0:
+                raise MJCFError(f"{source}: <option o_margin={override_margin!r}>: rbody needs a contact margin >= 0 "
+                                "[m] (the distance at which a contact holds the surfaces)")
+            margin = override_margin
         slide, torsion, rolling = friction
         out.append(Contact(g1.name, g2.name, friction=slide, restitution=restitution, condim=condim,
-                           torsion=torsion if condim >= 4 else 0.0, rolling=rolling if condim == 6 else 0.0))
+                           torsion=torsion if condim >= 4 else 0.0, rolling=rolling if condim == 6 else 0.0,
+                           margin=margin))
     return tuple(out)
 
 

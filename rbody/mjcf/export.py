@@ -779,9 +779,10 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
     if pairs:
         out.append("  <contact>")
         for contact, p in pairs:
+            margin = {"margin": _num(contact.margin)} if contact.margin else {}
             out.append("    <pair " + _attrs(geom1=contact.shape_a, geom2=contact.shape_b, condim=str(p["condim"]),
                                              friction=_vec(p["friction"]), solref=_vec(p["solref"]),
-                                             solimp=_vec(p["solimp"])) + "/>")
+                                             solimp=_vec(p["solimp"]), **margin) + "/>")
         out.append("  </contact>")
     if layout.tendons:
         springs = _spring_lengths(scene)

@@ -517,6 +517,8 @@ class _Reader:
 
         self.constraints_on = on("constraint")
         self.contacts_on = self.constraints_on and on("contact")
+        # <flag override="enable">: o_margin replaces every contact's margin (MuJoCo's mj_assignMargin)
+        self.override_margin = number(where, "o_margin", attrib, 0.0) if on("override", False) else None
         self.equality_on = self.constraints_on and on("equality")
         self.limits_on = self.constraints_on and on("limit")
         self.frictionloss_on = self.constraints_on and on("frictionloss")
@@ -1360,7 +1362,7 @@ class _Reader:
             from rbody.mjcf.contacts import contacts_of
 
             layout = dataclasses.replace(layout, contacts=contacts_of(self.contact_pairs, self.numerics,
-                                                                      self.root.file))
+                                                                      self.root.file, self.override_margin))
         na = sum(a.stateful for a in layout.actuators)
         state_act, state_ctrl = np.zeros(na), np.zeros(len(layout.actuators))
         if keyframe is not None:

@@ -113,6 +113,7 @@ UNIT = Record("constraint unit", [
     ("tendon2", 1, INT, "a tendon equality's second tendon (-1: none)"),
     ("spin", 1, FLOAT, "a contact's torsional friction coefficient [m] (condim 4 and 6)"),
     ("roll", 1, FLOAT, "a contact's rolling friction coefficient [m] (condim 6)"),
+    ("margin", 1, FLOAT, "a contact's margin [m]: its gap is the geoms' distance less this"),
 ])
 (U_KIND, U_ROWS, U_ROW0, U_DOF, U_QADR, U_BOUND, U_RESTITUTION, U_BODY1, U_BODY2, U_A1, U_A2, U_QUAT, U_DOF2,
  U_QADR2, U_REF1, U_REF2, U_POLY) = UNIT.offsets(
@@ -125,7 +126,7 @@ U_GTYPE_A, U_GPOS_A, U_GMAT_A, U_GSIZE_A = UNIT.offsets("gtype_a", "gpos_a", "gm
 U_GTYPE_B, U_GPOS_B, U_GMAT_B, U_GSIZE_B = UNIT.offsets("gtype_b", "gpos_b", "gmat_b", "gsize_b")
 (U_SLIP,) = UNIT.offsets("slip")
 U_TENDON, U_TENDON2 = UNIT.offsets("tendon", "tendon2")
-U_SPIN, U_ROLL = UNIT.offsets("spin", "roll")
+U_SPIN, U_ROLL, U_MARGIN = UNIT.offsets("spin", "roll", "margin")
 UNIT_SIZE = UNIT.size
 
 
@@ -453,7 +454,7 @@ def _contact_units(layout: Layout, contact, body_index: dict[str, int]) -> list[
     if (ta, tb) not in SLOTS:
         raise ValueError(f"{what}: rbody computes contacts of {pairs_text()}, not {shape_a.kind}-{shape_b.kind}")
     fields = dict(U_BOUND=contact.friction, U_RESTITUTION=contact.restitution, U_BODY1=body_index[body_a],
-                  U_BODY2=body_index[body_b], U_SPIN=contact.torsion, U_ROLL=contact.rolling)
+                  U_BODY2=body_index[body_b], U_SPIN=contact.torsion, U_ROLL=contact.rolling, U_MARGIN=contact.margin)
     for suffix, code, shape in (("A", ta, shape_a), ("B", tb, shape_b)):
         size = np.zeros(3)
         size[:len(shape.size)] = shape.size[:3]

@@ -43,7 +43,7 @@ from rbody.engine.contacts.geometry import (BOX, CAPSULE, CYLINDER, PLANE, SPHER
 from rbody.engine.contacts.rows import geom_pose
 from rbody.engine.multibody import _views
 from rbody.engine.constraints.table import (U_BODY1, U_BODY2, U_DOF, U_GMAT_A, U_GMAT_B, U_GPOS_A, U_GPOS_B,
-                                            U_GSIZE_A, U_GSIZE_B, U_GTYPE_A, U_GTYPE_B)
+                                            U_GSIZE_A, U_GSIZE_B, U_GTYPE_A, U_GTYPE_B, U_MARGIN)
 
 SHAPE_PLANE, SHAPE_CORES = 0, 1
 
@@ -298,7 +298,7 @@ def clearance(p, w, u, h, work):
     less h times a bound on the speed at which any point of one approaches any point of the other, |v_b - v_a| at
     the centres plus |omega| times each radius (the workspace's body velocities; h = 0: the gap bound alone). Where
     that does not part them and one is a box, the gap along its faces' normals, if larger (axes_gap: a long box's
-    bounding sphere reaches far beyond it).
+    bounding sphere reaches far beyond it). Less the pair's margin, as its gaps are.
     > TOUCH_TOLERANCE: no candidate of the pair touches or closes within h, and its distance need not be computed.
     work: scratch of GEOMETRY_WORK floats (contact_geometry's)."""
     pa, pb = work[0:3], work[3:6]
@@ -334,7 +334,7 @@ def clearance(p, w, u, h, work):
         geom_pose(p, w, body_b, u + U_GPOS_B, u + U_GMAT_B, pb, Rb)
         apart = max(apart, axes_gap(ta, pa, Ra, p[u + U_GSIZE_A:u + U_GSIZE_A + 3], tb, pb, Rb,
                                     p[u + U_GSIZE_B:u + U_GSIZE_B + 3]))
-    return apart - motion
+    return apart - motion - p[u + U_MARGIN]
 
 
 @njit(cache=True)
@@ -362,9 +362,10 @@ def body_motion(p, w, acc, body, x, velocity, acceleration, omega, alpha):
 @njit(cache=True)
 def contact_bias(p, w, acc, uo, g, frame, r, jdot, row):
     """jdot[row:row + r] = J' v of the contact unit at uo (module docstring): the gap's second derivative without
-    qacc on the normal row, and on the tangent rows (frame[1], frame[2]) the rolling point's term; g [m] its gap,
-    frame (3, 3) its normal and tangents (rows), after the tree's kinematics and velocities (workspace w) and
-    acc (nb, 6) its bias accelerations."""
+    qacc on the normal row, and on the tangent rows (frame[1], frame[2]) the rolling point's term; g [m] its gap
+    (the distance less the pair's margin), frame (3, 3) its normal and tangents (rows), after the tree's kinematics
+    and velocities (workspace w) and acc (nb, 6) its bias accelerations."""
+    g = g + p[uo + U_MARGIN]  # the surfaces' distance: the curvature terms are the geometry's
     pa, pb = np.empty(3), np.empty(3)
     Ra, Rb = np.empty((3, 3)), np.empty((3, 3))
     bodies = (int(p[uo + U_BODY1]), int(p[uo + U_BODY2]))

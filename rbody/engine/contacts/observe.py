@@ -4,7 +4,8 @@ Columns: one per candidate contact of the constraint table (meta["contacts"]: "<
 candidate's slot, e.g. "floor/box[3]" for a box's fourth corner), geoms in MuJoCo's order (type codes ascending).
 
     contacts (T, *batch)                       the number of candidates whose normal force is > 0
-    contact_distance (T, *batch, k) [m]        signed distance (< 0: overlap; round-off in the rigid limit);
+    contact_distance (T, *batch, k) [m]        signed distance less the pair's margin (Contact.margin; < 0:
+                                               overlap, round-off in the rigid limit);
                                                +inf where the candidate is not a contact point in that
                                                configuration (geometry.APART: a capsule's end at its closest point)
     contact_point (T, *batch, k, 3) [m]        the candidate's point, world frame: on the face where the nearest

@@ -4,7 +4,8 @@ A contact unit of the constraint table (rbody.engine.constraints.table: CONTACT,
 their type codes, their bodies (-1: the world) and their poses in their bodies' frames; after the tree's
 kinematics (rbody.engine.multibody: xorigin, xpos, xmat) each geom's world pose is its body's pose composed with
 its own, and the unit's candidate (its slot among the pair's candidates, rbody.engine.contacts.geometry) gives
-the gap function g (the signed distance), the normal n (from geom a to geom b) and the contact point.
+the gap function g (the signed distance less the pair's margin, U_MARGIN: MuJoCo's inflation of the surfaces), the
+normal n (from geom a to geom b) and the contact point.
 """
 
 from __future__ import annotations
@@ -15,7 +16,7 @@ from numba import njit
 from rbody.engine.contacts.geometry import MAX_SLOTS, collide
 from rbody.engine.multibody import _views
 from rbody.engine.constraints.table import (U_BODY1, U_BODY2, U_DOF, U_GMAT_A, U_GMAT_B, U_GPOS_A, U_GPOS_B,
-                                            U_GSIZE_A, U_GSIZE_B, U_GTYPE_A, U_GTYPE_B)
+                                            U_GSIZE_A, U_GSIZE_B, U_GTYPE_A, U_GTYPE_B, U_MARGIN)
 
 
 @njit(cache=True)
@@ -48,7 +49,8 @@ GEOMETRY_WORK = 24 + 7 * MAX_SLOTS  # the floats contact_geometry's scratch hold
 @njit(cache=True)
 def _candidates(p, w, u, work, only):
     """collide on the contact unit at u's pair of geoms, posed after the tree's kinematics, into work (GEOMETRY_WORK
-    floats: the poses, then distances work[24:24 + MAX_SLOTS], normals and points); only: one slot, or -1 for all."""
+    floats: the poses, then gaps work[24:24 + MAX_SLOTS] (the distances less the pair's margin), normals and
+    points); only: one slot, or -1 for all."""
     pa, pb = work[0:3], work[3:6]
     Ra, Rb = work[6:15].reshape((3, 3)), work[15:24].reshape((3, 3))
     geom_pose(p, w, int(p[u + U_BODY1]), u + U_GPOS_A, u + U_GMAT_A, pa, Ra)
@@ -56,8 +58,14 @@ def _candidates(p, w, u, work, only):
     dist = work[24:24 + MAX_SLOTS]
     normals = work[24 + MAX_SLOTS:24 + 4 * MAX_SLOTS].reshape((MAX_SLOTS, 3))
     points = work[24 + 4 * MAX_SLOTS:24 + 7 * MAX_SLOTS].reshape((MAX_SLOTS, 3))
-    return collide(int(p[u + U_GTYPE_A]), pa, Ra, p[u + U_GSIZE_A:u + U_GSIZE_A + 3], int(p[u + U_GTYPE_B]), pb, Rb,
-                   p[u + U_GSIZE_B:u + U_GSIZE_B + 3], dist, normals, points, only)
+    count = collide(int(p[u + U_GTYPE_A]), pa, Ra, p[u + U_GSIZE_A:u + U_GSIZE_A + 3], int(p[u + U_GTYPE_B]), pb,
+                    Rb, p[u + U_GSIZE_B:u + U_GSIZE_B + 3], dist, normals, points, only)
+    margin = p[u + U_MARGIN]
+    if margin != 0.0:
+        for k in range(count):
+            if only < 0 or k == only:
+                dist[k] -= margin  # APART (+inf) stays APART
+    return count
 
 
 @njit(cache=True)
@@ -70,7 +78,7 @@ def pair_candidates(p, w, u, work):
 
 @njit(cache=True, inline="always")
 def candidate(work, k, normal, point):
-    """Slot k's distance [m] (returned), normal (3,) and point (3,) from work as _candidates lays them out."""
+    """Slot k's gap [m] (returned), normal (3,) and point (3,) from work as _candidates lays them out."""
     for a in range(3):
         normal[a] = work[24 + MAX_SLOTS + 3 * k + a]
         point[a] = work[24 + 4 * MAX_SLOTS + 3 * k + a]
