@@ -171,13 +171,18 @@ def _plane(half_x: float, half_y: float, thickness: float) -> Polygons:
     return Polygons.join([top, Polygons(slab.points[below], slab.normals[below], np.full(int(below.sum()), 0.85))])
 
 
-def _mesh(path: str) -> Polygons:
+def _mesh(path: str | None, vertices=()) -> Polygons:
+    """A mesh file's triangles, or, with no file, the convex hull of `vertices` (V, 3) [m] (a collision mesh)."""
     import trimesh
 
-    try:
-        mesh = trimesh.load_mesh(path, force="mesh")
-    except Exception as error:  # trimesh raises many types for unreadable files
-        raise ValueError(f"mesh {path!r}: trimesh could not load it to draw it ({error})") from None
+    if path is None:
+        mesh = trimesh.Trimesh(np.asarray(vertices, dtype=float)).convex_hull
+        path = "<the convex hull of its vertices>"
+    else:
+        try:
+            mesh = trimesh.load_mesh(path, force="mesh")
+        except Exception as error:  # trimesh raises many types for unreadable files
+            raise ValueError(f"mesh {path!r}: trimesh could not load it to draw it ({error})") from None
     vertices = np.asarray(mesh.vertices, dtype=float)
     faces = np.asarray(mesh.faces)
     if faces.ndim != 2 or len(faces) == 0:
@@ -188,11 +193,12 @@ def _mesh(path: str) -> Polygons:
 
 
 def shape_polygons(kind: str, size: Sequence[float], *, mesh: str | None = None, plane_extent: float = 1.0,
-                   plane_thickness: float = 0.0) -> Polygons:
+                   plane_thickness: float = 0.0, vertices=()) -> Polygons:
     """The faces of one shape in its own frame: kind one of DRAWN_KINDS; size as rbody.Shape gives it (sphere
     (r,), cylinder and capsule (r, half length) along local z, box (half sizes), ellipsoid (half axes), plane
     (half x, half y; 0 or absent: infinite, drawn `plane_extent` [m] each way) on a slab `plane_thickness` [m]
-    deep); mesh: the file's path. ValueError for an unknown kind or a mesh trimesh cannot read."""
+    deep); mesh: the file's path, or vertices (V, 3) [m] whose convex hull is drawn. ValueError for an unknown kind
+    or a mesh trimesh cannot read."""
     size = [float(s) for s in np.atleast_1d(size)] if np.size(size) else []
     if kind == "sphere":
         return _ellipsoid([size[0]] * 3)
@@ -209,15 +215,15 @@ def shape_polygons(kind: str, size: Sequence[float], *, mesh: str | None = None,
         half_y = size[1] if len(size) > 1 and size[1] > 0 else plane_extent
         return _plane(half_x, half_y, plane_thickness)
     if kind == "mesh":
-        if mesh is None:
-            raise ValueError("a mesh shape needs the path of its file (Shape.mesh)")
-        return _mesh(mesh)
+        if mesh is None and len(vertices) < 4:
+            raise ValueError("a mesh shape needs the path of its file (Shape.mesh) or its vertices (Shape.vertices)")
+        return _mesh(mesh, vertices)
     raise ValueError(f"shape kind {kind!r}: cannot draw it; expected one of {DRAWN_KINDS}")
 
 
 def placed(shape, **options) -> Polygons:
     """shape_polygons of an rbody.Shape, moved to its pos and quat in the frame that carries it."""
-    local = shape_polygons(shape.kind, shape.size, mesh=shape.mesh, **options)
+    local = shape_polygons(shape.kind, shape.size, mesh=shape.mesh, vertices=shape.vertices, **options)
     return local.moved(quat_to_matrix(np.asarray(shape.quat, dtype=float)), np.asarray(shape.pos, dtype=float))
 
 

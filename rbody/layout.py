@@ -25,7 +25,7 @@ from rbody.inertia import Inertia, unit_axis
 
 WORLD = "world"
 
-SHAPE_KINDS = ("sphere", "cylinder", "box", "capsule", "plane", "mesh")
+SHAPE_KINDS = ("sphere", "cylinder", "box", "capsule", "plane", "ellipsoid", "mesh")
 
 
 def _check_dry_friction(element, what: str) -> None:
@@ -44,9 +44,13 @@ class Shape:
 
     kind:   one of SHAPE_KINDS
     size:   sphere (radius,); cylinder and capsule (radius, half_length) along the local z;
-            box (half sizes x, y, z); plane (half sizes x, y, or 0 for infinite); mesh: ()
+            box (half sizes x, y, z); plane (half sizes x, y, or 0 for infinite); ellipsoid (semi-axes x, y,
+            z); mesh: ()
     pos:    (3,) centre of the shape [m]; quat: (4,) its orientation (w, x, y, z)
-    mesh:   path of the mesh file for kind="mesh" (vertices in the body frame)
+    mesh:   path of the mesh file for kind="mesh" (drawing; vertices in the shape's frame)
+    vertices: (V, 3) points in the shape's frame [m] whose convex hull is a mesh shape's collision geometry (as
+            MuJoCo collides a mesh by its convex hull; from_mjcf gives the hull's vertices, scaled as the file
+            says); () for other kinds. A mesh shape in a Contact needs them.
     """
 
     name: str
@@ -55,11 +59,21 @@ class Shape:
     pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
     quat: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
     mesh: str | None = None
+    vertices: tuple[tuple[float, float, float], ...] = ()
 
     def __post_init__(self) -> None:
         _name(self.name, "shape", "name")
         if self.kind not in SHAPE_KINDS:
             raise ValueError(f"shape {self.name!r}: kind={self.kind!r}, expected one of {SHAPE_KINDS}")
+        if len(self.vertices):
+            if self.kind != "mesh":
+                raise ValueError(f"shape {self.name!r}: vertices are given for a {self.kind}: only a mesh shape has "
+                                 "them")
+            points = finite_array(self.vertices, f"shape {self.name!r}: vertices")
+            if points.ndim != 2 or points.shape[1] != 3 or len(points) < 4:
+                raise ValueError(f"shape {self.name!r}: vertices have shape {points.shape}: expected (V, 3) points "
+                                 "[m], V >= 4 (a solid's convex hull)")
+            object.__setattr__(self, "vertices", tuple(map(tuple, points.tolist())))
         object.__setattr__(self, "size", tuple(float(s) for s in nonnegative(np.atleast_1d(self.size), "size")))
         object.__setattr__(self, "pos", tuple(finite_array(self.pos, "pos", shape=(3,)).tolist()))
         quat = finite_array(self.quat, "quat", shape=(4,))

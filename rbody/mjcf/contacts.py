@@ -23,7 +23,8 @@ kept, as MuJoCo's mj_contactParam combines them:
   (Before MuJoCo 3.9 a contact pushed from margin - gap: a file written for it that sets gap > 0 needs its margins
   lowered by its gaps, as MuJoCo's changelog for 3.9.0 says.)
 
-Geom kinds rbody computes: plane, sphere, capsule, cylinder, box, the pairs of rbody.engine.contacts.geometry.SLOTS.
+Geom kinds rbody computes: plane, sphere, capsule, ellipsoid, cylinder, box and mesh (by its convex hull, as MuJoCo
+collides it), the pairs of rbody.engine.contacts.geometry.SLOTS.
 """
 
 from __future__ import annotations
@@ -115,8 +116,8 @@ def unsupported_pair(g1, g2, spec: dict | None = None) -> str:
     codes = [_kind_code(g) for g in (g1, g2)]
     if None in codes:
         kind = g1.kind if codes[0] is None else g2.kind
-        return (f"rbody computes contacts of plane, sphere, capsule, cylinder and box geoms, not {kind} (ellipsoid, "
-                "mesh and height-field contacts are to come)")
+        return (f"rbody computes contacts of plane, sphere, capsule, ellipsoid, cylinder, box and mesh geoms, not "
+                f"{kind} (height-field contacts are to come)")
     if tuple(sorted(codes)) not in SLOTS:
         return f"rbody does not compute {g1.kind}-{g2.kind} contacts yet (it computes {pairs_text()})"
     return ""

@@ -109,7 +109,7 @@ CONES = ("pyramidal", "elliptic")
 CONDIMS = (1, 3, 4, 6)
 INITIAL_KEY = "initial"
 
-_SIZE_COUNT = {"sphere": 1, "cylinder": 2, "capsule": 2, "box": 3, "plane": 2, "mesh": 0}
+_SIZE_COUNT = {"sphere": 1, "cylinder": 2, "capsule": 2, "box": 3, "plane": 2, "ellipsoid": 3, "mesh": 0}
 _MJCF_JOINT = {"hinge": "hinge", "slide": "slide", "ball": "ball", "free": "free", "roll": "hinge"}
 _JOINT_ATTRIBUTES = ("damping", "stiffness", "springref", "armature", "ref")  # written only when non-zero
 
@@ -147,6 +147,13 @@ def shape_inertia(shape: Shape, mass: float) -> Inertia | None:
         local = Inertia(mass, np.zeros(3), _capsule_tensor(mass, size[0], size[1]))
     elif shape.kind == "box":
         local = Inertia.box(mass, 2 * np.asarray(size))
+    elif shape.kind == "ellipsoid":  # m (b^2 + c^2) / 5, ...
+        a, b, c = (float(s) ** 2 for s in size[:3])
+        local = Inertia(mass, np.zeros(3), np.diag([b + c, a + c, a + b]) * mass / 5)
+    elif shape.vertices and not shape.mesh:  # a mesh given by its points: their convex hull as a uniform solid
+        import trimesh
+
+        local = Inertia.from_mesh(trimesh.Trimesh(np.asarray(shape.vertices)).convex_hull, mass=mass)
     else:  # mesh: vertices in the body frame already
         return Inertia.from_mesh(shape.mesh, mass=mass)
     return local.rotated(np.asarray(shape.quat))
@@ -441,8 +448,9 @@ def _check_shape(shape: Shape) -> None:
     if any(s <= 0 for s in shape.size):
         raise ValueError(f"shape {shape.name!r}: size={shape.size!r}: MuJoCo needs every size of a {shape.kind} "
                          "> 0 [m]")
-    if shape.kind == "mesh" and not shape.mesh:
-        raise ValueError(f"shape {shape.name!r}: a mesh shape needs its file (Shape.mesh)")
+    if shape.kind == "mesh" and not shape.mesh and not shape.vertices:
+        raise ValueError(f"shape {shape.name!r}: a mesh shape needs its file (Shape.mesh) or its vertices "
+                         "(Shape.vertices)")
 
 
 # ----- writing ------------------------------------------------------------------------------------------
@@ -736,6 +744,9 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
     if meshes:
         out.append("  <asset>")
         for shape in meshes:
+            if shape.vertices:  # the points whose convex hull collides, as MuJoCo collides a mesh: written out
+                out.append(f"    <mesh {_attrs(name=shape.name, vertex=_vec(np.ravel(shape.vertices)))}/>")
+                continue
             # an absolute path: the model compiles from any folder (the mesh file stays where it is)
             mode = mesh_inertia_mode(shape.mesh)
             out.append(f"    <mesh {_attrs(name=shape.name, file=os.path.abspath(shape.mesh), inertia=mode)}/>")

@@ -272,6 +272,8 @@ class _Reader:
         self.class_parent: dict[str, str | None] = {}
         self.meshes: dict[str, tuple[Element, dict]] = {}
         self.mesh_cache: dict[str, MeshMass] = {}
+        self.hull_cache: dict[str, tuple] = {}                 # mesh name -> its convex hull's vertices
+        self.colliding: set[str] = set()                       # the names of geoms in some contact pair
         self.bodies: list[_Body] = []
         self.world: _Body | None = None
         self.excluded: set[frozenset] = set()
@@ -885,14 +887,17 @@ class _Reader:
 
     # ----- mass properties -----
 
-    def mesh_path(self, name: str) -> str:
-        """The absolute path of mesh asset `name`'s file (checked to exist); no file is read here, so that a mesh
-        whose mass an explicit <inertial> makes unused costs nothing to load."""
+    def mesh_path(self, name: str) -> str | None:
+        """The absolute path of mesh asset `name`'s file (checked to exist; None for a mesh given by its vertices in
+        the XML); no file is read here, so that a mesh whose mass an explicit <inertial> makes unused costs nothing
+        to load."""
         if name in self.mesh_paths:
             return self.mesh_paths[name]
         element, attrib = self.meshes[name]
+        if "file" not in attrib and "vertex" in attrib:
+            return None  # given by its vertices in the XML: no file
         if "file" not in attrib:
-            raise element.error("meshes given by vertices in the XML are not supported: save them in a file")
+            raise element.error("a <mesh> needs a file or its vertices (vertex)")
         if "builtin" in attrib:
             raise element.error("builtin meshes are not supported")
         file = attrib["file"]
@@ -908,15 +913,27 @@ class _Reader:
         name = geom.mesh
         if name in self.mesh_cache:
             return self.mesh_cache[name]
-        path = Path(self.mesh_path(name))
+        file = self.mesh_path(name)
         element, attrib = self.meshes[name]
         mode = choice(element, "inertia", attrib, MESH_INERTIA_MODES, "legacy")
         import trimesh
 
-        try:
-            loaded = trimesh.load(str(path), force="mesh", process=False)
-        except Exception as error:  # trimesh raises many types for unreadable files
-            raise element.error(f"mesh file {str(path)!r} could not be read ({error})") from None
+        if file is None:  # vertex (and face) in the XML; without faces MuJoCo takes the convex hull
+            points = numbers(element, "vertex", attrib)
+            if points.size % 3 or points.size < 12:
+                raise element.error(f"vertex has {points.size} numbers: expected 3 per vertex, at least 4 vertices")
+            indices = numbers(element, "face", attrib) if "face" in attrib else np.zeros(0)
+            if indices.size % 3 or np.any(indices != np.round(indices)) or np.any(indices < 0) \
+                    or np.any(indices >= points.size // 3):
+                raise element.error("face: expected 3 vertex indices per face, each below the vertex count")
+            loaded = trimesh.Trimesh(points.reshape(-1, 3), indices.reshape(-1, 3).astype(np.int64), process=False)
+            path = Path(f"<mesh {name!r} given by its vertices>")
+        else:
+            path = Path(file)
+            try:
+                loaded = trimesh.load(str(path), force="mesh", process=False)
+            except Exception as error:  # trimesh raises many types for unreadable files
+                raise element.error(f"mesh file {str(path)!r} could not be read ({error})") from None
         scale = numbers(element, "scale", attrib, 3) if "scale" in attrib else np.ones(3)
         refpos = numbers(element, "refpos", attrib, 3) if "refpos" in attrib else np.zeros(3)
         refquat = numbers(element, "refquat", attrib, 4) if "refquat" in attrib else np.array([1.0, 0, 0, 0])
@@ -930,6 +947,28 @@ class _Reader:
             raise element.error(f"mesh {name!r} ({str(path)!r}): {error}") from None
         self.mesh_cache[name] = result
         return result
+
+    def hull_vertices(self, geom: _Geom) -> tuple:
+        """The vertices of the convex hull of a mesh geom's vertices (scaled, refpos and refquat applied, in the
+        geom's frame as the file gives it: MuJoCo's move of the mesh to its centre of mass moves the geom frame with
+        it), by which it collides."""
+        name = geom.mesh
+        if name not in self.hull_cache:
+            from scipy.spatial import ConvexHull, QhullError
+
+            vert = np.asarray(self.mesh_of(geom).vertices, dtype=np.float64)
+            element, attrib = self.meshes[name]
+            try:
+                points = vert[ConvexHull(vert).vertices]
+            except QhullError:
+                raise element.error(f"mesh {name!r} is flat (its vertices span no volume): it has no convex hull "
+                                    "to collide by") from None
+            if "maxhullvert" in attrib and int(attrib["maxhullvert"]) > 0:
+                self.note(f"maxhullvert {name}", f"mesh {name!r}: maxhullvert ignored: rbody collides the mesh's "
+                                                 f"whole convex hull ({len(points)} vertices), MuJoCo one of at most "
+                                                 f"{attrib['maxhullvert']}")
+            self.hull_cache[name] = tuple(map(tuple, points.tolist()))
+        return self.hull_cache[name]
 
     def geom_mass(self, geom: _Geom) -> GeomMass | None:
         """The geom's mass properties as MuJoCo's compiler forms them; None when it has no mass."""
@@ -1151,6 +1190,7 @@ class _Reader:
                     "contype=\"0\" conaffinity=\"0\" on the geoms that must not collide, or disable contacts with "
                     "<option><flag contact=\"disable\"/></option>")
         self.contact_pairs = candidates
+        self.colliding = {g.name for g1, g2, _spec in candidates for g in (g1, g2)}
 
     def gravcomp_of(self, body: _Body) -> float:
         """The body's gravcomp as MuJoCo applies it: none where gravity is off, or where <flag spring> and <flag
@@ -1591,14 +1631,12 @@ class _Reader:
         gpos = pos + quat_matrix(quat) @ geom.pos
         gquat = quat_product(quat, geom.quat)
         common = dict(pos=tuple(gpos.tolist()), quat=tuple(gquat.tolist()))
-        if geom.kind == "ellipsoid":
-            self.note("ellipsoid", "ellipsoid geoms are not drawn (rbody Shapes have no ellipsoid); their mass counts")
-            return []
         if geom.kind == "hfield":
             return []
-        if geom.kind == "mesh":
-            return [Shape(geom.name, "mesh", (), mesh=self.mesh_path(geom.mesh), **common)]
-        count = {"sphere": 1, "capsule": 2, "cylinder": 2, "box": 3, "plane": 3}[geom.kind]
+        if geom.kind == "mesh":  # a mesh that can collide carries its convex hull's vertices
+            vertices = self.hull_vertices(geom) if geom.name in self.colliding else ()
+            return [Shape(geom.name, "mesh", (), mesh=self.mesh_path(geom.mesh), vertices=vertices, **common)]
+        count = {"sphere": 1, "capsule": 2, "cylinder": 2, "box": 3, "plane": 3, "ellipsoid": 3}[geom.kind]
         size = tuple(float(s) for s in geom.size[:count])
         if geom.kind == "plane":
             size = size[:2]

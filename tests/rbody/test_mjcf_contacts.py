@@ -60,9 +60,10 @@ def test_contact_rules_friction_max_and_filters(tmp_path):
 
 def test_unsupported_pair_refused_with_its_line(tmp_path):
     path = tmp_path / "cyl.xml"
-    path.write_text('<mujoco><worldbody><geom name="floor" type="plane" size="0 0 1"/>\n'
+    path.write_text('<mujoco><asset><hfield name="h" nrow="2" ncol="2" size="1 1 0.1 0.1"/></asset><worldbody>'
+                    '<geom name="floor" type="hfield" hfield="h"/>\n'
                     '<body><freejoint/><geom name="c" type="ellipsoid" size="0.1 0.2 0.3"/></body></worldbody></mujoco>')
-    with pytest.raises(MJCFError, match=r"cyl.xml, line 1.*'floor' and 'c' \(line 2\) can collide.*not ellipsoid"):
+    with pytest.raises(MJCFError, match=r"cyl.xml, line 1.*'floor' and 'c' \(line 2\) can collide.*not hfield"):
         from_mjcf(path)
 
 

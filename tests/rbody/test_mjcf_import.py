@@ -103,7 +103,7 @@ def test_features_compile_to_mujocos_bodies_joints_and_options():
     np.testing.assert_allclose([lo, hi], model.jnt_range[0], rtol=1e-15)
     assert set(read.limits) == {"h"}
     notes = " ".join(read.notes)
-    for word in ("light", "camera", "site", "sensor", "rgba", "ellipsoid"):
+    for word in ("light", "camera", "site", "sensor", "rgba"):
         assert word in notes, word
     (motor,) = read.layout.actuators  # actuators are modelled (tests/rbody/engine/test_actuation.py)
     assert (motor.target, motor.gain, motor.bias, motor.gainprm[0]) == ("h", "fixed", "none", 1.0)
@@ -333,8 +333,10 @@ BODY = '<body name="b"><joint/><geom size="0.1"/></body>'
      "</worldbody></mujoco>", r"line 2, <body>: orientation given twice \(quat and euler\)"),
     (f"<mujoco>{OFF}<worldbody><body><joint/><geom type='capsule' fromto='0 0 0 1 0 0' euler='0 0 1' size='0.1'/>"
      "</body></worldbody></mujoco>", "orientation given twice"),
-    ("<mujoco><worldbody><geom name='floor' type='plane' size='1 1 1'/>\n" + BODY.replace('size="0.1"', 'type="ellipsoid" size="0.1 0.2 0.3"') + "</worldbody></mujoco>",
-     r"line 1, <geom name='floor'>.*'floor' and 'b_geom0'.*can collide, and rbody computes contacts of plane, sphere.*contype"),
+    ("<mujoco><asset><hfield name='h' nrow='2' ncol='2' size='1 1 0.1 0.1'/></asset><worldbody>"
+     "<geom name='floor' type='hfield' hfield='h'/>\n" + BODY + "</worldbody></mujoco>",
+     r"line 1, <geom name='floor'>.*'floor' and 'b_geom0'.*can collide, and rbody computes contacts of plane, sphere"
+     r".*not hfield.*contype"),
     (f"<mujoco>{OFF}<worldbody>{BODY}</worldbody><equality>\n<tendon tendon1='t'/></equality></mujoco>",
      r"line 2, <tendon>: tendon 't' is not a tendon of the model"),
     (f"<mujoco>{OFF}<worldbody>{BODY}</worldbody><equality>\n<weld body1='nobody'/></equality></mujoco>",

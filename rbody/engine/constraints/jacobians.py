@@ -181,6 +181,8 @@ def _contact_rows(p, w, acc, u, r, J, jdot, g, row, with_bias):
     (the time-stepping reads no J' v; the spin and rolling rows, run by the time-stepping only, have none)."""
     normal, point = np.empty(3), np.empty(3)
     g[row] = contact_geometry(p, w, u, normal, point)
+    if g[row] == np.inf:  # APART: not a contact point in this configuration, no rows (its normal and point unset)
+        return
     frame = np.empty((3, 3))
     frame[0] = normal
     tangents(normal, frame[1], frame[2])

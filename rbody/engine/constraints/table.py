@@ -114,6 +114,8 @@ UNIT = Record("constraint unit", [
     ("spin", 1, FLOAT, "a contact's torsional friction coefficient [m] (condim 4 and 6)"),
     ("roll", 1, FLOAT, "a contact's rolling friction coefficient [m] (condim 6)"),
     ("margin", 1, FLOAT, "a contact's margin [m]: its gap is the geoms' distance less this"),
+    ("hull_a", 1, INT, "a contact's geom a, a mesh: where its convex hull's record starts (absolute; -1: not a mesh)"),
+    ("hull_b", 1, INT, "geom b's (-1: not a mesh)"),
 ])
 (U_KIND, U_ROWS, U_ROW0, U_DOF, U_QADR, U_BOUND, U_RESTITUTION, U_BODY1, U_BODY2, U_A1, U_A2, U_QUAT, U_DOF2,
  U_QADR2, U_REF1, U_REF2, U_POLY) = UNIT.offsets(
@@ -127,6 +129,7 @@ U_GTYPE_B, U_GPOS_B, U_GMAT_B, U_GSIZE_B = UNIT.offsets("gtype_b", "gpos_b", "gm
 (U_SLIP,) = UNIT.offsets("slip")
 U_TENDON, U_TENDON2 = UNIT.offsets("tendon", "tendon2")
 U_SPIN, U_ROLL, U_MARGIN = UNIT.offsets("spin", "roll", "margin")
+U_HULL_A, U_HULL_B = UNIT.offsets("hull_a", "hull_b")
 UNIT_SIZE = UNIT.size
 
 
@@ -148,8 +151,9 @@ class Unit:
 class ConstraintTable:
     """The compiled constraints of a tree (module docstring).
 
-    units: the Unit of every record, in order; block (C_HEADER + UNIT_SIZE units + units,) the floats appended to
-    the tree's row and its force-element section (offsets absolute: valid after a row of length `offset`); mode0
+    units: the Unit of every record, in order; block (C_HEADER + UNIT_SIZE units + units + hulls,) the floats
+    appended to the tree's row and its force-element section (the header, the unit records, the modes, then the
+    packed convex hull of every mesh geom in a contact, rbody.engine.contacts.convex.pack_hull) (offsets absolute: valid after a row of length `offset`); mode0
     (units,) the mode every run starts from before its first consistent mode is found; methods: the methods a
     constrained run takes; tree_size the tree's row length, section the force-element section a tree row without
     one is given (row())."""
@@ -248,14 +252,19 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
     records: list[np.ndarray] = []
     units: list[Unit] = []
     rows = 0
+    hull_of: list[tuple[int, int, tuple]] = []  # (record, field, (shape name, packed hull)) of mesh geoms
 
     def add(code: int, name: str, count: int | None = None, **fields) -> None:
         nonlocal rows
         count = KIND_ROWS[code] if count is None else count  # a contact's rows: its condim
         record = np.zeros(UNIT_SIZE)
         record[[U_KIND, U_ROWS, U_ROW0]] = code, count, rows
-        record[[U_BODY1, U_BODY2, U_DOF2, U_QADR2, U_TENDON, U_TENDON2]] = -1, -1, -1, -1, -1, -1
+        record[[U_BODY1, U_BODY2, U_DOF2, U_QADR2, U_TENDON, U_TENDON2, U_HULL_A, U_HULL_B]] = -1, -1, -1, -1, -1, -1, \
+            -1, -1
         for key, value in fields.items():
+            if key in ("HULL_A", "HULL_B"):  # a mesh's hull (rbody.engine.contacts.convex.pack_hull): placed below
+                hull_of.append((len(records), globals()["U_" + key], value))
+                continue
             start = globals()[key]
             values = np.atleast_1d(np.asarray(value, dtype=float))
             record[start:start + values.size] = values
@@ -393,11 +402,21 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
     section.setflags(write=False)
     offset = tree_size + int(section.size)
     count = len(units)
-    block = np.zeros(C_HEADER + UNIT_SIZE * count + count)
+    # the convex hulls of mesh geoms after the modes, one record per shape, each unit pointing at its geoms'
+    hulls, placed, end = [], {}, C_HEADER + UNIT_SIZE * count + count
+    for index, field_at, (shape_name, packed) in hull_of:
+        if shape_name not in placed:
+            placed[shape_name] = end
+            hulls.append(packed)
+            end += packed.size
+        records[index][field_at] = offset + placed[shape_name]
+    block = np.zeros(end)
     block[[C_UNITS, C_ROWS, C_UNIT, C_MODE]] = count, rows, offset + C_HEADER, offset + C_HEADER + UNIT_SIZE * count
     block[C_HEADER:C_HEADER + UNIT_SIZE * count] = np.concatenate(records)
+    if hulls:
+        block[C_HEADER + UNIT_SIZE * count + count:] = np.concatenate(hulls)
     mode0 = np.array([1.0 if unit.code in EQUALITY_KINDS else 0.0 for unit in units])
-    block[C_HEADER + UNIT_SIZE * count:] = mode0
+    block[C_HEADER + UNIT_SIZE * count:C_HEADER + UNIT_SIZE * count + count] = mode0
     CONSTRAINT_HEADER.check(block, 0, 1)
     UNIT.check(block, C_HEADER, count)
     block.setflags(write=False)
@@ -423,6 +442,25 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
                            methods=methods, tree_size=tree_size, section=section, events_refused=events_refused)
 
 
+_HULLS: dict = {}  # Shape.vertices -> its packed hull (a model's meshes are packed once per process)
+
+
+def _packed_hull(shape) -> np.ndarray:
+    """The packed convex hull of a mesh shape's vertices (rbody.engine.contacts.convex.pack_hull), cached. Raises
+    ValueError naming the shape for vertices with no volume."""
+    from rbody.engine.contacts.convex import pack_hull
+
+    key = shape.vertices
+    if key not in _HULLS:
+        try:
+            _HULLS[key] = pack_hull(np.asarray(key, dtype=np.float64))
+        except ValueError as error:
+            raise ValueError(f"mesh shape {shape.name!r}: {error}") from None
+        if len(_HULLS) > 256:  # a bound on what a long session keeps
+            _HULLS.pop(next(iter(_HULLS)))
+    return _HULLS[key]
+
+
 def _contact_units(layout: Layout, contact, body_index: dict[str, int]) -> list[tuple[dict, str]]:
     """The unit records (fields for build_table's add) and names of a Contact's candidates: one per slot of its
     pair of geoms (rbody.engine.contacts.geometry.SLOTS), the geoms in MuJoCo's order (type codes ascending).
@@ -445,6 +483,9 @@ def _contact_units(layout: Layout, contact, body_index: dict[str, int]) -> list[
         if shape.kind not in TYPE_CODES:
             raise ValueError(f"{what}: shape {name!r} is a {shape.kind}: rbody computes contacts of "
                              f"{tuple(TYPE_CODES)} shapes")
+        if shape.kind == "mesh" and not shape.vertices:
+            raise ValueError(f"{what}: mesh shape {name!r} has no vertices: a mesh collides by the convex hull of "
+                             "Shape.vertices (from_mjcf gives them)")
         geoms.append((TYPE_CODES[shape.kind], body, shape))
     if geoms[0][1] == geoms[1][1]:
         raise ValueError(f"{what}: both shapes are on {geoms[0][1]!r}: a contact needs two bodies (or a body and "
@@ -458,6 +499,10 @@ def _contact_units(layout: Layout, contact, body_index: dict[str, int]) -> list[
     for suffix, code, shape in (("A", ta, shape_a), ("B", tb, shape_b)):
         size = np.zeros(3)
         size[:len(shape.size)] = shape.size[:3]
+        if shape.kind == "mesh":  # its size: the radius of the sphere about its origin that holds the hull
+            packed = _packed_hull(shape)
+            size[0] = float(np.sqrt((np.asarray(shape.vertices) ** 2).sum(axis=1).max()))
+            fields[f"HULL_{suffix}"] = (shape.name, packed)
         fields.update({f"U_GTYPE_{suffix}": code, f"U_GPOS_{suffix}": shape.pos,
                        f"U_GMAT_{suffix}": quat_to_matrix(np.asarray(shape.quat)).reshape(-1),
                        f"U_GSIZE_{suffix}": size})

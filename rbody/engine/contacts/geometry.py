@@ -1,14 +1,17 @@
 """The narrow phase of rbody's contacts: signed distance, normal and contact points of two primitive geoms, compiled.
 
 Geoms are given as MuJoCo gives them to its collision functions (engine_collision_primitive.c): a type code (the
-values of MuJoCo's mjtGeom: PLANE 0, SPHERE 2, CAPSULE 3, CYLINDER 5, BOX 6), the world position pos (3,) [m] of the geom's
-centre, its world orientation mat (3, 3) (columns: the geom's axes) and its size (3,) [m]:
+values of MuJoCo's mjtGeom: PLANE 0, SPHERE 2, CAPSULE 3, ELLIPSOID 4, CYLINDER 5, BOX 6, MESH 7), the world position
+pos (3,) [m] of the geom's centre, its world orientation mat (3, 3) (columns: the geom's axes), its size (3,) [m] and,
+for a mesh, its packed convex hull (rbody.engine.contacts.convex.pack_hull; an empty array for the others):
 
-    plane    infinite, through pos, its normal the geom's z axis (mat[:, 2]); size unused
-    sphere   radius size[0]
-    capsule  radius size[0], half-length size[1] of its segment along the geom's z axis
-    cylinder radius size[0], half-length size[1] along the geom's z axis
-    box      half sizes size[0:3] along the geom's axes
+    plane     infinite, through pos, its normal the geom's z axis (mat[:, 2]); size unused
+    sphere    radius size[0]
+    capsule   radius size[0], half-length size[1] of its segment along the geom's z axis
+    ellipsoid semi-axes size[0:3] along the geom's axes
+    cylinder  radius size[0], half-length size[1] along the geom's z axis
+    box       half sizes size[0:3] along the geom's axes
+    mesh      the convex hull of its vertices (as MuJoCo collides a mesh); size[0] its bounding radius about pos
 
 `collide` takes the pair in MuJoCo's order (type_a <= type_b; the caller swaps) and writes each candidate contact:
 dist [m] (the signed distance between the surfaces along the normal, < 0 when they overlap), normal (3,) the unit
@@ -26,9 +29,11 @@ the constraint layer decides from the distance and its rate which candidates tou
 Each distance is exact (closed form, no iteration): the surfaces of these primitives are offsets of points,
 segments and boxes, so the distance is the distance between the cores minus the radii, with the normal along the
 line of closest approach; where the cores overlap (a sphere's centre inside a box), the normal is that of the face
-of least penetration. Two boxes give 16 candidates, each corner of one against the other box (vertex-face
-contacts: a box resting on a box, a stack); edge-edge contacts of two boxes crossing each other are not among
-them (a known limit: such boxes can pass through each other's edges). The closest points of two segments follow
+of least penetration. Two boxes give 17 candidates, each corner of one against the other box (vertex-face
+contacts: a box resting on a box, a stack), and the closest points of their closest pair of edges (slot 16, of
+the 144 pairs whose closest points lie inside both edges, not parallel: signed along their common perpendicular, negative
+where the edges crossed), APART where none cross or a corner is as
+close (it holds that contact): boxes crossing edge on edge touch there. The closest points of two segments follow
 Ericson's clamped solution (Real-Time Collision Detection, 5.1.9); parallel segments take the midpoint of their
 overlap, so the normal is unique there too.
 
@@ -62,6 +67,20 @@ two capsules, APART unless both lie within the sides, or where a rim slot holds 
 of one surface, the least distance is never below the true distance, and reaches it (tested against MuJoCo's
 mj_geomDistance on random poses). These pairs run by the time-stepping only (TIME_STEPPED): their contact points
 move along a rim, a curve the event-driven scheme's curvature terms do not cover.
+
+Ellipsoids (strictly convex: one point of contact with any convex geom): with a plane, its lowest point in closed
+form (plane_ellipsoid); with a sphere, the centre's exact distance (Eberly's root, rbody.engine.contacts.ellipsoid);
+with a capsule, 3 as for a cylinder (the segment's closest point by bisection on the slope, its ends); with an
+ellipsoid, a cylinder, a box or a mesh, their closest points (GJK, or EPA where they overlap:
+rbody.engine.contacts.convex). Meshes collide by their convex hull, as MuJoCo's do: with a plane, 9 candidates, the
+hull's vertex lowest towards it and its supports along -n tilted by TILT at 45 degree steps (a face lying on the
+plane: its extreme vertices; exact heights); with a sphere, the centre's exact distance from the hull (its face
+planes inside, its nearest point outside); with a capsule, 3 (the closest points of segment and hull, and the
+ends); with a cylinder, a box or a mesh, 17 (_patch): their closest points (slot 16) and, around that normal n,
+each geom's supports tilted towards the other (slots 0-7 geom b's along -n, 8-15 geom a's along +n), each point's
+exact signed distance from the other geom, so that a face lying on a face rests on the extreme vertices of both; a
+point found twice is APART, and slot 16 where a vertex slot holds it. All of these run by the time-stepping only:
+their candidates change identity with the configuration.
 """
 
 from __future__ import annotations
@@ -69,23 +88,38 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-PLANE, SPHERE, CAPSULE, ELLIPSOID, CYLINDER, BOX = 0, 2, 3, 4, 5, 6
-TYPE_CODES = {"plane": PLANE, "sphere": SPHERE, "capsule": CAPSULE, "cylinder": CYLINDER, "box": BOX}
+from rbody.engine.contacts.convex import point_signed_distance, signed_distance, support
+from rbody.engine.contacts.ellipsoid import ellipsoid_distance, plane_ellipsoid, segment_ellipsoid_closest
+
+PLANE, SPHERE, CAPSULE, ELLIPSOID, CYLINDER, BOX, MESH = 0, 2, 3, 4, 5, 6, 7
+TYPE_CODES = {"plane": PLANE, "sphere": SPHERE, "capsule": CAPSULE, "ellipsoid": ELLIPSOID, "cylinder": CYLINDER,
+              "box": BOX, "mesh": MESH}
 # candidates per pair of type codes (type_a <= type_b): the pairs rbody computes
 SLOTS = {(PLANE, SPHERE): 1, (PLANE, CAPSULE): 2, (PLANE, CYLINDER): 8, (PLANE, BOX): 8, (SPHERE, SPHERE): 1,
          (SPHERE, CAPSULE): 1, (SPHERE, CYLINDER): 1, (SPHERE, BOX): 1, (CAPSULE, CAPSULE): 1,
-         (CAPSULE, CYLINDER): 3, (CAPSULE, BOX): 3, (CYLINDER, CYLINDER): 17, (CYLINDER, BOX): 17, (BOX, BOX): 16}
+         (CAPSULE, CYLINDER): 3, (CAPSULE, BOX): 3, (CYLINDER, CYLINDER): 17, (CYLINDER, BOX): 17, (BOX, BOX): 17,
+         # ellipsoids: strictly convex, one point of contact with any convex geom
+         (PLANE, ELLIPSOID): 1, (SPHERE, ELLIPSOID): 1, (CAPSULE, ELLIPSOID): 3, (ELLIPSOID, ELLIPSOID): 1,
+         (ELLIPSOID, CYLINDER): 1, (ELLIPSOID, BOX): 1, (ELLIPSOID, MESH): 1,
+         # meshes (their convex hulls): a plane's lowest vertices, a patch of tilted supports against a polytope
+         (PLANE, MESH): 9, (SPHERE, MESH): 1, (CAPSULE, MESH): 3, (CYLINDER, MESH): 17,
+         (BOX, MESH): 17, (MESH, MESH): 17}
 APART = np.inf  # the distance of a candidate that is not a contact point in this configuration (a capsule's end slots)
 # pairs the event-driven scheme, which holds a contact's candidate from event to event with closed-form curvature
 # terms (contacts.kinematics), does not run: candidates that are contact points in some configurations only, or
 # points that move along a curve of a cylinder's rim; the time-stepping runs them
 TIME_STEPPED = {(CAPSULE, BOX), (PLANE, CYLINDER), (SPHERE, CYLINDER), (CAPSULE, CYLINDER), (CYLINDER, CYLINDER),
-                (CYLINDER, BOX)}
+                (CYLINDER, BOX)} | {pair for pair in SLOTS if ELLIPSOID in pair or MESH in pair}
 LYING_SPAN = 1e-2  # a capsule's closest points spanning more than this fraction of its half-length: it lies along a face
 UPRIGHT = 1e-12  # a cylinder whose axis is within this angle [rad] of a plane's normal stands on it
 SLOPE_TOLERANCE = 1e-12  # the rate of distance along a segment [m/m] below which it runs parallel to a surface
 MAX_SLOTS = 17
 RIM_SAMPLES = 16  # points around a rim before its closest point to a box or a cylinder is refined
+PATCH = 8        # support directions tilted around a contact's normal: the corners of a face lying on another
+TILT = 0.1       # their tilt's tangent: a face's extreme vertices win over vertices off it (any tilt does on a
+                 # polytope's face; a small one keeps them to the face's neighbourhood on a tessellated curve)
+PATCH_COS = np.cos(np.arange(PATCH) * 2.0 * np.pi / PATCH)
+PATCH_SIN = np.sin(np.arange(PATCH) * 2.0 * np.pi / PATCH)
 
 
 @njit(cache=True, inline="always")
@@ -561,12 +595,310 @@ def _unless_held(dist, k):
             return
 
 
+@njit(cache=True, inline="always")
+def _box_edge(p, R, s, e, centre, u, m1, m2):
+    """Edge e (0-11) of the box (centre p, axes R, half sizes s): along axis e // 4, at the signs of bits 0 and 1 of
+    e % 4 on the two other axes; centre (3,), unit direction u (3,) and the outward normals m1, m2 (3,) of its two
+    faces written, its half-length returned."""
+    axis = e // 4
+    o1, o2 = (axis + 1) % 3, (axis + 2) % 3
+    g1 = 1.0 if e & 1 else -1.0
+    g2 = 1.0 if e & 2 else -1.0
+    for a in range(3):
+        centre[a] = p[a] + R[a, o1] * g1 * s[o1] + R[a, o2] * g2 * s[o2]
+        u[a] = R[a, axis]
+        m1[a], m2[a] = g1 * R[a, o1], g2 * R[a, o2]
+    return s[axis]
+
+
+CONE_SLACK = 1e-12  # a common perpendicular within this (a cosine) of an edge's face normals lies in its cone
+
+
 @njit(cache=True)
-def collide(ta, pa, Ra, sa, tb, pb, Rb, sb, dist, normal, point, only=-1):
-    """The candidate contacts of geom a (type ta <= tb, centre pa (3,) [m], axes Ra (3, 3), size sa (3,) [m]) and
-    geom b, into dist (MAX_SLOTS,) [m], normal (MAX_SLOTS, 3) from a to b and point (MAX_SLOTS, 3) [m]; returns
-    their count (SLOTS of the pair), or -1 for a pair of types it does not compute. only >= 0: that candidate's
-    entries alone are written (a contact unit is one candidate: a box pair's other 15 corners cost nothing)."""
+def box_edges_closest(pa, Ra, sa, pb, Rb, sb, ca, ua, cb, ub):
+    """The crossing of two boxes' edges nearest to contact: of the 144 pairs of edges, one of each box, those that
+    can touch edge on edge (their closest points, Ericson's, inside both edges; their common perpendicular n =
+    ua x ub, oriented outward from box a at its edge, within the cone of a's two face normals there, and -n within
+    b's: the separating-axis test's condition for an edge-edge axis; the others touch at a corner or a face, which
+    the corner candidates hold), the one of greatest signed distance along n: the separating-axis test's
+    separation along each such axis is at most the boxes' distance (and at most minus their overlap), so the
+    greatest is the edges that touch first (other pairs, a far edge of one against a far edge of the other, project
+    overlapping). ca, ua (3,) and cb, ub (3,) their centres and directions written; returns (s, t, distance), the
+    closest points ca + s ua and cb + t ub; distance +inf where no pair can."""
+    best, bs, bt = -np.inf, 0.0, 0.0
+    c1, u1, c2, u2 = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    m1, m2, k1, k2 = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    for ea in range(12):
+        ha = _box_edge(pa, Ra, sa, ea, c1, u1, m1, m2)
+        for eb in range(12):
+            hb = _box_edge(pb, Rb, sb, eb, c2, u2, k1, k2)
+            n0, n1, n2 = u1[1] * u2[2] - u1[2] * u2[1], u1[2] * u2[0] - u1[0] * u2[2], u1[0] * u2[1] - u1[1] * u2[0]
+            length = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+            if length < 1e-9:  # parallel: an edge along an edge, held by the corners
+                continue
+            n0, n1, n2 = n0 / length, n1 / length, n2 / length
+            if n0 * (m1[0] + m2[0]) + n1 * (m1[1] + m2[1]) + n2 * (m1[2] + m2[2]) < 0.0:
+                n0, n1, n2 = -n0, -n1, -n2  # outward from a: towards its two faces' normals
+            if (n0 * m1[0] + n1 * m1[1] + n2 * m1[2] < -CONE_SLACK or n0 * m2[0] + n1 * m2[1] + n2 * m2[2] < -CONE_SLACK
+                    or n0 * k1[0] + n1 * k1[1] + n2 * k1[2] > CONE_SLACK
+                    or n0 * k2[0] + n1 * k2[1] + n2 * k2[2] > CONE_SLACK):
+                continue  # not an edge-edge axis: a face or a corner touches first
+            s, t = segment_closest(c1, u1, ha, c2, u2, hb)
+            if not (abs(s) < ha and abs(t) < hb):  # beyond an edge's end: a corner's contact
+                continue
+            d = (n0 * (c2[0] + t * u2[0] - c1[0] - s * u1[0]) + n1 * (c2[1] + t * u2[1] - c1[1] - s * u1[1])
+                 + n2 * (c2[2] + t * u2[2] - c1[2] - s * u1[2]))
+            if d > best:
+                best, bs, bt = d, s, t
+                for a in range(3):
+                    ca[a], ua[a], cb[a], ub[a] = c1[a], u1[a], c2[a], u2[a]
+    return bs, bt, (best if best > -np.inf else np.inf)
+
+
+@njit(cache=True)
+def _face_separation(pa, Ra, sa, pb, Rb, sb):
+    """The greatest separation [m] of two boxes along their 6 face normals (the separating-axis test's face axes:
+    |l . (pb - pa)| less each box's half extent along l)."""
+    best = -np.inf
+    for which in range(2):
+        R = Ra if which == 0 else Rb
+        for i in range(3):
+            l0, l1, l2 = R[0, i], R[1, i], R[2, i]
+            gap = abs(l0 * (pb[0] - pa[0]) + l1 * (pb[1] - pa[1]) + l2 * (pb[2] - pa[2]))
+            for j in range(3):
+                gap -= (abs(l0 * Ra[0, j] + l1 * Ra[1, j] + l2 * Ra[2, j]) * sa[j]
+                        + abs(l0 * Rb[0, j] + l1 * Rb[1, j] + l2 * Rb[2, j]) * sb[j])
+            best = max(best, gap)
+    return best
+
+
+@njit(cache=True)
+def _box_edge_pair(pa, Ra, sa, pb, Rb, sb, k, dist, normal, point):
+    """Slot k of two boxes: the crossing of their edges nearest to contact (box_edges_closest), its signed distance
+    (< 0: the edges crossed, an overlap of that depth), the normal from a to b along the edges' common
+    perpendicular, the point midway; APART where no two edges cross, or where a face's axis separates the boxes
+    more than the edges' does (the separating-axis test: the contact is a face's)."""
+    ca, ua, cb, ub = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    s, t, d = box_edges_closest(pa, Ra, sa, pb, Rb, sb, ca, ua, cb, ub)
+    if d < _face_separation(pa, Ra, sa, pb, Rb, sb) - 1e-12:
+        d = APART  # a face's axis separates them more: they touch face first (a face's corners hold that)
+    dist[k] = d
+    if d == APART:
+        return
+    n0, n1, n2 = ua[1] * ub[2] - ua[2] * ub[1], ua[2] * ub[0] - ua[0] * ub[2], ua[0] * ub[1] - ua[1] * ub[0]
+    length = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+    if n0 * (ca[0] + s * ua[0] - pa[0]) + n1 * (ca[1] + s * ua[1] - pa[1]) + n2 * (ca[2] + s * ua[2] - pa[2]) < 0:
+        length = -length  # outward from a (its centre behind its edge)
+    normal[k, 0], normal[k, 1], normal[k, 2] = n0 / length, n1 / length, n2 / length
+    for a in range(3):
+        point[k, a] = 0.5 * (ca[a] + s * ua[a] + cb[a] + t * ub[a])
+
+
+@njit(cache=True)
+def point_distance(kind, pos, mat, size, hull, x, grad):
+    """The signed distance [m] of the point x (3,) from a geom (kind, centre pos, axes mat, size; hull: a mesh's
+    packed convex hull) and grad (3,) its gradient, the outward normal at the nearest surface point: closed form
+    for spheres, capsules, boxes and cylinders, Eberly's root for an ellipsoid, exact for a mesh's hull (its face
+    planes inside, the hull's nearest point outside)."""
+    if kind == SPHERE or kind == CAPSULE:
+        c0, c1, c2 = pos[0], pos[1], pos[2]
+        if kind == CAPSULE:  # the segment's nearest point, then as a sphere
+            s = (x[0] - pos[0]) * mat[0, 2] + (x[1] - pos[1]) * mat[1, 2] + (x[2] - pos[2]) * mat[2, 2]
+            s = min(max(s, -size[1]), size[1])
+            c0, c1, c2 = pos[0] + s * mat[0, 2], pos[1] + s * mat[1, 2], pos[2] + s * mat[2, 2]
+        d0, d1, d2 = x[0] - c0, x[1] - c1, x[2] - c2
+        length = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+        if length > 0.0:
+            grad[0], grad[1], grad[2] = d0 / length, d1 / length, d2 / length
+        else:
+            grad[0], grad[1], grad[2] = 0.0, 0.0, 1.0
+        return length - size[0]
+    if kind == ELLIPSOID:
+        return ellipsoid_distance(x, pos, mat, size, grad)
+    if kind == CYLINDER:
+        return cylinder_distance(x, pos, mat, size[0], size[1], grad)
+    if kind == BOX:
+        return box_distance(x, pos, mat, size, grad)
+    return point_signed_distance(kind, pos, mat, size, hull, x, grad)
+
+
+@njit(cache=True)
+def _point_against(x, kind, pos, mat, size, hull, own_is_b, k, dist, normal, point, grad):
+    """Slot k: the point x (3,) of one geom's surface against the other geom (kind, pos, mat, size, hull): its
+    exact signed distance, the normal from geom a to geom b (own_is_b: x is on geom b, so the normal is the other
+    geom's outward gradient; else against it) and the point on the other geom's surface nearest to x, where x,
+    closing, will touch."""
+    d = point_distance(kind, pos, mat, size, hull, x, grad)
+    dist[k] = d
+    sign = 1.0 if own_is_b else -1.0
+    for a in range(3):
+        normal[k, a] = sign * grad[a]
+        point[k, a] = x[a] - d * grad[a]
+
+
+@njit(cache=True, inline="always")
+def _same_point(point, k, first):
+    """True when slot k's point repeats one of slots first..k-1 (the same vertex found by two directions)."""
+    for j in range(first, k):
+        if (abs(point[j, 0] - point[k, 0]) <= 1e-12 and abs(point[j, 1] - point[k, 1]) <= 1e-12
+                and abs(point[j, 2] - point[k, 2]) <= 1e-12):
+            return True
+    return False
+
+
+@njit(cache=True)
+def _plane_hull(pa, Ra, pb, Rb, sb, hb, dist, normal, point):
+    """A plane (pa, normal Ra[:, 2]) and a mesh's hull (pb, Rb, sb, hb): slot 0 its vertex lowest towards the plane
+    (the support along -n), slots 1-8 its supports along -n tilted by TILT towards the plane's own axes at 45
+    degree steps (a face lying on the plane: its extreme vertices in those directions); each vertex's height above
+    the plane, exact; a vertex found twice APART. Returns 9."""
+    direction, x = np.empty(3), np.empty(3)
+    for k in range(1 + PATCH):
+        for a in range(3):
+            direction[a] = -Ra[a, 2]
+            if k > 0:
+                direction[a] += TILT * (PATCH_COS[k - 1] * Ra[a, 0] + PATCH_SIN[k - 1] * Ra[a, 1])
+        support(MESH, pb, Rb, sb, hb, direction, x)
+        d = Ra[0, 2] * (x[0] - pa[0]) + Ra[1, 2] * (x[1] - pa[1]) + Ra[2, 2] * (x[2] - pa[2])
+        dist[k] = d
+        for a in range(3):
+            normal[k, a] = Ra[a, 2]
+            point[k, a] = x[a] - d * Ra[a, 2]  # on the plane (one vertex, one foot: supports along -n + tilt)
+        if _same_point(point, k, 0):
+            dist[k] = APART
+    return 1 + PATCH
+
+
+@njit(cache=True)
+def _closest_pair(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, k, dist, normal, point, n, xa, xb):
+    """Slot k: the two geoms' closest points (their signed distance by GJK, or EPA where they overlap:
+    rbody.engine.contacts.convex), the normal n (3,) from a to b, the point midway; xa, xb (3,) the witnesses."""
+    guess = np.empty(3)
+    for a in range(3):
+        guess[a] = pb[a] - pa[a]
+    d = signed_distance(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, guess, n, xa, xb)
+    dist[k] = d
+    for a in range(3):
+        normal[k, a] = n[a]
+        point[k, a] = 0.5 * (xa[a] + xb[a])
+    return d
+
+
+@njit(cache=True)
+def _patch(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point):
+    """Two convex geoms of which one at least is a polytope (a mesh's hull; a box, a cylinder): 17 candidates, every
+    one the exact signed distance of a point of one surface from the other geom. Slot 16 their closest points
+    (GJK/EPA), its normal n from a to b; slots 0-7 geom b's supports along -n tilted by TILT around n at 45 degree
+    steps against geom a, slots 8-15 geom a's along +n against geom b: a face lying on a face rests on both faces'
+    extreme vertices (the patch), an edge on a face on its ends. A point found twice is APART, and slot 16 where a
+    vertex slot holds it (as close to 1e-12 m). Returns 17."""
+    n, xa, xb, t1, t2 = np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    direction, x, grad = np.empty(3), np.empty(3), np.empty(3)
+    _closest_pair(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, 16, dist, normal, point, n, xa, xb)
+    tangents(n, t1, t2)
+    for k in range(16):
+        own_is_b = k < PATCH
+        sign = -1.0 if own_is_b else 1.0  # b faces a along -n, a faces b along +n
+        j = k % PATCH
+        for a in range(3):
+            direction[a] = sign * n[a] + TILT * (PATCH_COS[j] * t1[a] + PATCH_SIN[j] * t2[a])
+        if own_is_b:
+            support(tb, pb, Rb, sb, hb, direction, x)
+            _point_against(x, ta, pa, Ra, sa, ha, True, k, dist, normal, point, grad)
+        else:
+            support(ta, pa, Ra, sa, ha, direction, x)
+            _point_against(x, tb, pb, Rb, sb, hb, False, k, dist, normal, point, grad)
+        # the vertex itself, for the repeat test: the point stored is on the other surface, x - d grad
+        if _same_support(point, dist, normal, k, 0 if own_is_b else PATCH, own_is_b):
+            dist[k] = APART
+    _unless_held(dist, 16)
+    return 17
+
+
+@njit(cache=True, inline="always")
+def _same_support(point, dist, normal, k, first, own_is_b):
+    """True when slot k's support point (its stored point moved back by its distance along its normal) repeats one
+    of slots first..k-1 of its group."""
+    sign = 1.0 if own_is_b else -1.0  # x = point + d * (sign * normal)
+    for j in range(first, k):
+        if dist[j] == APART:
+            continue
+        same = True
+        for a in range(3):
+            xj = point[j, a] + dist[j] * sign * normal[j, a]
+            xk = point[k, a] + dist[k] * sign * normal[k, a]
+            if abs(xj - xk) > 1e-12:
+                same = False
+        if same:
+            return True
+    return False
+
+
+@njit(cache=True)
+def _general(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point):
+    """The pairs with an ellipsoid or a mesh (SLOTS). Returns their count, or -1 for a pair not computed."""
+    n, xa, xb, grad = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    if ta == PLANE:
+        if tb == ELLIPSOID:  # the ellipsoid's lowest point, closed form
+            for a in range(3):
+                n[a] = Ra[a, 2]
+            d = plane_ellipsoid(pa, n, pb, Rb, sb, xb)
+            dist[0] = d
+            for a in range(3):
+                normal[0, a] = n[a]
+                point[0, a] = xb[a] - d * n[a]  # on the plane
+            return 1
+        if tb == MESH:
+            return _plane_hull(pa, Ra, pb, Rb, sb, hb, dist, normal, point)
+        return -1
+    if ta == SPHERE:  # the centre's distance from the other geom, less the radius
+        d = point_distance(tb, pb, Rb, sb, hb, pa, grad)
+        dist[0] = d - sa[0]
+        for a in range(3):
+            normal[0, a] = -grad[a]
+            point[0, a] = pa[a] - grad[a] * (sa[0] + 0.5 * dist[0])  # midway
+        return 1
+    if ta == CAPSULE:  # the segment's closest point (2), its ends (0, 1) APART within LYING_SPAN of it
+        u = Ra[:, 2]
+        if tb == ELLIPSOID:
+            closest, _lo, _hi = segment_ellipsoid_closest(pa, u, sa[1], pb, Rb, sb)
+        else:  # a mesh: the closest points of the capsule's segment and the hull
+            _closest_pair(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, 2, dist, normal, point, n, xa, xb)
+            closest = 0.0
+            for a in range(3):
+                closest += (xa[a] - sa[0] * n[a] - pa[a]) * u[a]  # the segment's point: the witness less r n
+            closest = min(max(closest, -sa[1]), sa[1])
+        centre = np.empty(3)
+        for k in range(3):
+            t = closest if k == 2 else (-sa[1] if k == 0 else sa[1])
+            for a in range(3):
+                centre[a] = pa[a] + t * u[a]
+            d = point_distance(tb, pb, Rb, sb, hb, centre, grad)
+            dist[k] = d - sa[0]
+            for a in range(3):
+                normal[k, a] = -grad[a]
+                point[k, a] = centre[a] - grad[a] * (sa[0] + 0.5 * dist[k])
+            if k < 2 and abs(t - closest) < LYING_SPAN * sa[1]:
+                dist[k] = APART
+        return 3
+    if ta == ELLIPSOID:  # strictly convex: one point of contact
+        _closest_pair(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, 0, dist, normal, point, n, xa, xb)
+        return 1
+    if tb == MESH:  # a cylinder, a box or a mesh with a mesh
+        return _patch(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point)
+    return -1
+
+
+@njit(cache=True)
+def collide(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point, only=-1):
+    """The candidate contacts of geom a (type ta <= tb, centre pa (3,) [m], axes Ra (3, 3), size sa (3,) [m]; ha a
+    mesh's packed convex hull, rbody.engine.contacts.convex.pack_hull, else empty) and geom b, into dist
+    (MAX_SLOTS,) [m], normal (MAX_SLOTS, 3) from a to b and point (MAX_SLOTS, 3) [m]; returns their count (SLOTS of
+    the pair), or -1 for a pair of types it does not compute. only >= 0: that candidate's entries alone are written
+    (a contact unit is one candidate: a box pair's other 15 corners cost nothing; the pairs of an ellipsoid or a
+    mesh write all of theirs)."""
+    if tb == MESH or tb == ELLIPSOID or ta == ELLIPSOID:
+        return _general(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point)
     scratch = np.empty(12)  # the small vectors below, one allocation
     if ta == PLANE:
         n = scratch[0:3]
@@ -628,7 +960,9 @@ def collide(ta, pa, Ra, sa, tb, pb, Rb, sb, dist, normal, point, only=-1):
             _point_cylinder(pa, sa[0], pb, Rb, sb, 0, dist, normal, point)
             return 1
         return -1
-    if ta == BOX and tb == BOX:  # each box's corners against the other box (vertex-face contacts)
+    if ta == BOX and tb == BOX:  # each box's corners against the other box (vertex-face contacts), the edges (16)
+        if only == 16:
+            only = -1  # whether a corner holds the edges' contact: every slot
         corner = scratch[0:3]
         for k in range(16):
             if only >= 0 and k != only:
@@ -645,7 +979,10 @@ def collide(ta, pa, Ra, sa, tb, pb, Rb, sb, dist, normal, point, only=-1):
             if k < 8:  # a corner of b: its normal points from b to a
                 for a in range(3):
                     normal[k, a] = -normal[k, a]
-        return 16
+        if only < 0:  # edges crossing: their closest points, unless a corner holds the contact
+            _box_edge_pair(pa, Ra, sa, pb, Rb, sb, 16, dist, normal, point)
+            _unless_held(dist, 16)
+        return 17
     if ta == CAPSULE and tb == BOX:  # the segment's closest point (2) and its ends, or a lying span's (0, 1)
         c, u = scratch[3:6], scratch[6:9]  # the segment in the box's axes
         segment_in_box(pa, Ra, pb, Rb, c, u)
@@ -758,10 +1095,12 @@ def pairs_text() -> str:
     return "; ".join(parts)
 
 
-def collide_pair(kind_a: str, pos_a, mat_a, size_a, kind_b: str, pos_b, mat_b, size_b):
+def collide_pair(kind_a: str, pos_a, mat_a, size_a, kind_b: str, pos_b, mat_b, size_b, *, vertices_a=None,
+                 vertices_b=None):
     """The candidate contacts of two geoms in any order, for Python callers: (dist (k,) [m], normal (k, 3) from geom
-    a to geom b, point (k, 3) [m]). kind: "plane", "sphere", "capsule", "cylinder", "box"; pos (3,) [m]; mat (3, 3) the geom's
-    axes as columns; size (3,) or shorter [m]. Raises ValueError for a pair rbody does not compute."""
+    a to geom b, point (k, 3) [m]). kind: one of TYPE_CODES; pos (3,) [m]; mat (3, 3) the geom's axes as columns;
+    size (3,) or shorter [m] (a mesh: ignored); vertices_a, vertices_b (V, 3) [m]: a mesh's points in its frame
+    (their convex hull collides). Raises ValueError for a pair rbody does not compute or a mesh without vertices."""
     codes = []
     for kind in (kind_a, kind_b):
         if kind not in TYPE_CODES:
@@ -769,28 +1108,47 @@ def collide_pair(kind_a: str, pos_a, mat_a, size_a, kind_b: str, pos_b, mat_b, s
         codes.append(TYPE_CODES[kind])
     ta, tb = codes
     swap = ta > tb
-    args = [(ta, pos_a, mat_a, size_a), (tb, pos_b, mat_b, size_b)]
+    hulls = []
+    for kind, vertices in ((kind_a, vertices_a), (kind_b, vertices_b)):
+        if kind == "mesh":
+            if vertices is None:
+                raise ValueError("a mesh geom needs its vertices (vertices_a or vertices_b)")
+            from rbody.engine.contacts.convex import pack_hull
+
+            hulls.append(pack_hull(np.asarray(vertices, dtype=float)))
+        else:
+            hulls.append(np.empty(0))
+    args = [(ta, pos_a, mat_a, size_a, hulls[0]), (tb, pos_b, mat_b, size_b, hulls[1])]
     if swap:
         args.reverse()
-    (t1, p1, R1, s1), (t2, p2, R2, s2) = args
+    (t1, p1, R1, s1, h1), (t2, p2, R2, s2, h2) = args
     if (t1, t2) not in SLOTS:
         raise ValueError(f"geoms {kind_a!r} and {kind_b!r}: rbody computes contacts of {pairs_text()}, not this "
                          "pair")
     sizes = []
-    for s in (s1, s2):
+    for s, t, h in ((s1, t1, h1), (s2, t2, h2)):
         full = np.zeros(3)
-        s = np.atleast_1d(np.asarray(s, dtype=float))
-        full[:s.size] = s
+        if t == MESH:  # a mesh's size: its bounding radius about its origin (as the constraint table writes it)
+            full[0] = float(np.sqrt((hull_points(h) ** 2).sum(axis=1).max()))
+        else:
+            s = np.atleast_1d(np.asarray(s, dtype=float))
+            full[:s.size] = s
         sizes.append(full)
     dist, normal, point = np.empty(MAX_SLOTS), np.empty((MAX_SLOTS, 3)), np.empty((MAX_SLOTS, 3))
-    count = collide(t1, np.asarray(p1, dtype=float), np.asarray(R1, dtype=float), sizes[0], t2,
-                    np.asarray(p2, dtype=float), np.asarray(R2, dtype=float), sizes[1], dist, normal, point)
+    count = collide(t1, np.asarray(p1, dtype=float), np.asarray(R1, dtype=float), sizes[0], h1, t2,
+                    np.asarray(p2, dtype=float), np.asarray(R2, dtype=float), sizes[1], h2, dist, normal, point)
     dist, normal, point = dist[:count].copy(), normal[:count].copy(), point[:count].copy()
     if swap:
         normal = -normal
     return dist, normal, point
 
 
-__all__ = ["collide", "collide_pair", "tangents", "segment_closest", "segment_box_closest", "capsule_box_slot", "segment_in_box", "APART", "TIME_STEPPED", "LYING_SPAN", "cylinder_distance", "segment_cylinder_closest",
+def hull_points(hull: np.ndarray) -> np.ndarray:
+    """(V, 3) the vertices of a packed hull (rbody.engine.contacts.convex.pack_hull), in the geom's frame [m]."""
+    count = int(hull[0])
+    return hull[3:3 + 3 * count].reshape(count, 3)
+
+
+__all__ = ["collide", "collide_pair", "point_distance", "hull_points", "MESH", "ELLIPSOID", "tangents", "segment_closest", "segment_box_closest", "capsule_box_slot", "segment_in_box", "APART", "TIME_STEPPED", "LYING_SPAN", "cylinder_distance", "segment_cylinder_closest",
            "pairs_text", "CYLINDER", "SLOTS", "MAX_SLOTS", "TYPE_CODES", "PLANE",
            "SPHERE", "CAPSULE", "BOX"]

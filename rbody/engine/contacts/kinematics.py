@@ -38,8 +38,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from rbody.engine.contacts.geometry import (BOX, CAPSULE, CYLINDER, PLANE, SPHERE, capsule_box_slot, segment_closest,
-                                            segment_in_box)
+from rbody.engine.contacts.geometry import (BOX, CAPSULE, CYLINDER, ELLIPSOID, MESH, PLANE, SPHERE, box_edges_closest,
+                                            capsule_box_slot, segment_closest, segment_in_box)
 from rbody.engine.contacts.rows import geom_pose
 from rbody.engine.multibody import _views
 from rbody.engine.constraints.table import (U_BODY1, U_BODY2, U_DOF, U_GMAT_A, U_GMAT_B, U_GPOS_A, U_GPOS_B,
@@ -156,6 +156,15 @@ def contact_shape(ta, pa, Ra, sa, tb, pb, Rb, sb, k, x, u, slide, m, radius):
             u[0, a], u[1, a] = ua[a], ub[a]
         radius[0], radius[1] = sa[0], sb[0]
         return SHAPE_CORES, 0
+    if ta == BOX and tb == BOX and k == 16:  # two edges crossing: two core segments of radius 0
+        ea, eb = np.empty(3), np.empty(3)
+        s, t, _d = box_edges_closest(pa, Ra, sa, pb, Rb, sb, x[0], ea, x[1], eb)
+        slide[0], slide[1] = 1.0, 1.0  # inside both edges (box_edges_closest)
+        for a in range(3):
+            x[0, a] += s * ea[a]
+            x[1, a] += t * eb[a]
+            u[0, a], u[1, a] = ea[a], eb[a]
+        return SHAPE_CORES, 0
     # a point (sphere centre, capsule's end or closest point, box corner) against a box: the point on geom a
     # (sphere, capsule; box-box k >= 8) or b
     xs, us, ss = np.empty((2, 3)), np.zeros((2, 3)), np.zeros(2)
@@ -242,6 +251,10 @@ def bounding_radius(kind, p, size_at):
         return np.sqrt(p[size_at] ** 2 + p[size_at + 1] ** 2 + p[size_at + 2] ** 2)
     if kind == CYLINDER:
         return np.sqrt(p[size_at] ** 2 + p[size_at + 1] ** 2)
+    if kind == ELLIPSOID:
+        return max(p[size_at], p[size_at + 1], p[size_at + 2])
+    if kind == MESH:  # the table writes a mesh's bounding radius about its origin as its size
+        return p[size_at]
     return np.inf
 
 
@@ -269,6 +282,12 @@ def _support_radius(kind, R, size, l0, l1, l2):
         return along * size[1] + size[0]
     if kind == CYLINDER:
         return along * size[1] + size[0] * np.sqrt(max(0.0, 1.0 - along * along))
+    if kind == ELLIPSOID:  # |S R^T l|
+        e0 = (l0 * R[0, 0] + l1 * R[1, 0] + l2 * R[2, 0]) * size[0]
+        e1 = (l0 * R[0, 1] + l1 * R[1, 1] + l2 * R[2, 1]) * size[1]
+        return np.sqrt(e0 * e0 + e1 * e1 + (along * size[2]) ** 2)
+    if kind == MESH:  # its bounding radius (the hull is not at hand here): a lower bound of the gap still
+        return size[0]
     return (abs(l0 * R[0, 0] + l1 * R[1, 0] + l2 * R[2, 0]) * size[0]
             + abs(l0 * R[0, 1] + l1 * R[1, 1] + l2 * R[2, 1]) * size[1] + along * size[2])
 

@@ -16,7 +16,8 @@ from numba import njit
 from rbody.engine.contacts.geometry import MAX_SLOTS, collide
 from rbody.engine.multibody import _views
 from rbody.engine.constraints.table import (U_BODY1, U_BODY2, U_DOF, U_GMAT_A, U_GMAT_B, U_GPOS_A, U_GPOS_B,
-                                            U_GSIZE_A, U_GSIZE_B, U_GTYPE_A, U_GTYPE_B, U_MARGIN)
+                                            U_GSIZE_A, U_GSIZE_B, U_GTYPE_A, U_GTYPE_B, U_HULL_A, U_HULL_B,
+                                            U_MARGIN)
 
 
 @njit(cache=True)
@@ -46,6 +47,16 @@ def geom_pose(p, w, body, pos_at, mat_at, pos, mat):
 GEOMETRY_WORK = 24 + 7 * MAX_SLOTS  # the floats contact_geometry's scratch holds
 
 
+@njit(cache=True, inline="always")
+def hull_at(p, at):
+    """The packed convex hull (rbody.engine.contacts.convex.pack_hull) whose record starts at `at` in the params row
+    p, a view; at < 0 (not a mesh): an empty view. Its length: 3 + 3 V + 4 F + (V + 1) + A."""
+    if at < 0:
+        return p[0:0]
+    V, F, A = int(p[at]), int(p[at + 1]), int(p[at + 2])
+    return p[at:at + 3 + 3 * V + 4 * F + V + 1 + A]
+
+
 @njit(cache=True)
 def _candidates(p, w, u, work, only):
     """collide on the contact unit at u's pair of geoms, posed after the tree's kinematics, into work (GEOMETRY_WORK
@@ -58,8 +69,9 @@ def _candidates(p, w, u, work, only):
     dist = work[24:24 + MAX_SLOTS]
     normals = work[24 + MAX_SLOTS:24 + 4 * MAX_SLOTS].reshape((MAX_SLOTS, 3))
     points = work[24 + 4 * MAX_SLOTS:24 + 7 * MAX_SLOTS].reshape((MAX_SLOTS, 3))
-    count = collide(int(p[u + U_GTYPE_A]), pa, Ra, p[u + U_GSIZE_A:u + U_GSIZE_A + 3], int(p[u + U_GTYPE_B]), pb,
-                    Rb, p[u + U_GSIZE_B:u + U_GSIZE_B + 3], dist, normals, points, only)
+    count = collide(int(p[u + U_GTYPE_A]), pa, Ra, p[u + U_GSIZE_A:u + U_GSIZE_A + 3], hull_at(p, int(p[u + U_HULL_A])),
+                    int(p[u + U_GTYPE_B]), pb, Rb, p[u + U_GSIZE_B:u + U_GSIZE_B + 3], hull_at(p, int(p[u + U_HULL_B])),
+                    dist, normals, points, only)
     margin = p[u + U_MARGIN]
     if margin != 0.0:
         for k in range(count):
@@ -97,4 +109,4 @@ def contact_geometry(p, w, u, normal, point, work=None):
     return candidate(work, k, normal, point)
 
 
-__all__ = ["geom_pose", "contact_geometry", "pair_candidates", "candidate", "GEOMETRY_WORK"]
+__all__ = ["geom_pose", "contact_geometry", "pair_candidates", "candidate", "hull_at", "GEOMETRY_WORK"]

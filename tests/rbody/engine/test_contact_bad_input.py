@@ -16,7 +16,8 @@ def layout_with(contact, shape=Shape("s", "sphere", (0.1,)), fixed=(Shape("floor
 
 @pytest.mark.parametrize("contact, shape, match", [
     (Contact("floor", "nothing"), Shape("s", "sphere", (0.1,)), r"shape_b='nothing' is not a shape of the layout"),
-    (Contact("floor", "c"), Shape("c", "mesh", ()), r"shape 'c' is a mesh"),
+    (Contact("floor", "c"), Shape("c", "mesh", ()), r"mesh shape 'c' has no vertices: a mesh collides by the convex "
+                                                    r"hull of Shape.vertices"),
 ])
 def test_layout_contacts_refused(contact, shape, match):
     with pytest.raises(ValueError, match=match):

@@ -132,8 +132,9 @@ def test_box_on_box_corners():
     # a 0.2-wide box centred on a 0.4-wide one, 0.01 above its top face: its 4 lower corners at 0.01, normal +z
     dist, normal, point = collide_pair("box", [0, 0, 0], I3, [0.2, 0.2, 0.1], "box", [0.05, 0, 0.16], I3,
                                        [0.1, 0.1, 0.05])
-    assert len(dist) == 16
+    assert len(dist) == 17  # 8 + 8 corners and the edges' crossing
     lower = dist[:8][[0, 1, 2, 3]]                            # corners of b with z = -half
     np.testing.assert_allclose(lower, 0.01, atol=1e-15)
     np.testing.assert_allclose(normal[[0, 1, 2, 3]], np.tile([0, 0, 1.0], (4, 1)), atol=1e-15)
-    assert np.all(dist[4:8] > 0.1) and np.all(dist[8:] > 0.01)  # the rest are farther away
+    assert np.all(dist[4:8] > 0.1) and np.all(dist[8:16] > 0.01)  # the rest are farther away
+    assert dist[16] == np.inf  # no edges cross: a face on a face
