@@ -540,10 +540,12 @@ def guards(p, y, out):
 
 
 @njit(cache=True)
-def state_gaps(p, y, g):
+def state_gaps(p, y, g, beyond=np.inf):
     """g (rows,) every row's residual at the state y (phi folded in) as state_rows gives it, from the tree's
     kinematics alone: a contact by its candidate's signed distance (no Jacobian; a pair whose bounding spheres are
-    apart by the gap between them, a positive lower bound), the other units by their rows."""
+    apart by the gap between them, a positive lower bound), the other units by their rows. beyond [m]: a caller
+    that reads no contact gap above it (the projection's flags, the errors' min(g, 0)) lets a pair whose least gap
+    is above it give that (rows.pair_candidates)."""
     nq, nv, _n = sizes(p)
     rows = row_count(p)
     q = np.empty(nq)
@@ -565,9 +567,9 @@ def state_gaps(p, y, g):
                 g[a] = 0.0
             slot = int(p[u + U_DOF])
             if slot == 0:  # bounding spheres apart: a lower bound will do (one per pair); else every candidate of
-                reach = clearance(p, w, u, 0.0, work)  # the pair at once, its geoms posed once
+                reach, _motion = clearance(p, w, u, 0.0, work)  # the pair at once, its geoms posed once
                 if reach <= 0.0:
-                    pair_candidates(p, w, u, work)
+                    pair_candidates(p, w, u, work, beyond)
             g[row] = reach if reach > 0.0 else candidate(work, slot, normal, point)
         else:
             unit_rows(p, k, q, y[nq:nq + nv], w, acc, J, jdot, g, row, False)

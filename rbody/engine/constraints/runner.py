@@ -53,7 +53,7 @@ def sample_rows(table: ConstraintTable, params: np.ndarray, samples: np.ndarray,
                 p[start:start + 3] = slips[s, k]
         if forces_known:
             forces[s] = 0.0
-            dyn.state_gaps(p, samples[s], errors[s])
+            dyn.state_gaps(p, samples[s], errors[s], 0.0)  # errors read min(g, 0) only
             continue
         _effective_qpos(p, samples[s], q, 0)
         dyn.mode_accel(p, q, samples[s, nq:nq + nv], samples[s, a0:a0 + na], qacc, forces[s], errors[s])

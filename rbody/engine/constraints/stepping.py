@@ -74,6 +74,7 @@ STEP_TOLERANCE = 1e-10   # natural residual of PGS, relative to max(|b|, 1) [m/s
 PGS_SWEEPS = 2000
 CONE_ROUND = 50          # Gauss-Seidel sweeps between two exact finishes of a problem with contacts' cones
 TOUCH_TOLERANCE = 1e-10  # [m or rad]
+FLAGGED_GAP = TOUCH_TOLERANCE * 1e-3  # a stop or contact within this after a step (and pushing) is projected onto
 PROJECTION_ROUNDS = 6    # projections after a step, each with the stops the last one pushed past
 MOREAU = -1              # mode of moreau_step: Moreau-Jean's own free motion, v + h M^-1 f
 MODES = {"moreau": MOREAU, "mujoco_euler": EULER, "implicitfast": IMPLICITFAST, "implicit": IMPLICIT}
@@ -149,13 +150,14 @@ def smooth_rows(p):
 
 
 @njit(cache=True)
-def near_contacts(p, q, w, acc, vfree, h, J, jdot, g):
+def near_contacts(p, q, w, acc, vfree, h, J, jdot, g, formed):
     """Every contact's gap into g, and the rows J of the contacts a step can involve: touching (g <= TOUCH_TOLERANCE)
     or closing within it (g + h n . (v_b - v_a) < 0 at the contact point, the bodies moving with the free velocities
-    vfree (nv,)). The others keep J = 0: a model's far candidates (a humanoid's limbs against the floor in the air)
-    cost a distance each, not a row of nv numbers, and a pair whose bounding spheres cannot meet within the step
-    (contacts.kinematics.clearance) not even that: its g is then that lower bound (> TOUCH_TOLERANCE). After the
-    step's kinematics in the workspace w (its velocities are then vfree's)."""
+    vfree (nv,)), each such unit flagged 1 in formed (units,). The others keep J = 0: a model's far candidates (a
+    humanoid's limbs against the floor in the air) cost a distance each, not a row of nv numbers, and a pair whose
+    bounding spheres cannot meet within the step (contacts.kinematics.clearance) not even that: its g is then that
+    lower bound (> TOUCH_TOLERANCE). After the step's kinematics in the workspace w (its velocities are then
+    vfree's)."""
     mb.velocities(p, vfree, w)
     normal, point, v_a, v_b = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
     work = np.empty(GEOMETRY_WORK)
@@ -168,9 +170,9 @@ def near_contacts(p, q, w, acc, vfree, h, J, jdot, g):
         row = int(p[u + U_ROW0])
         slot = int(p[u + U_DOF])
         if slot == 0:  # a pair's first candidate (the others follow it, the same two geoms)
-            reach = clearance(p, w, u, h, work)
-            if reach <= TOUCH_TOLERANCE:  # every candidate of the pair at once, its geoms posed once
-                pair_candidates(p, w, u, work)
+            reach, motion = clearance(p, w, u, h, work)
+            if reach <= TOUCH_TOLERANCE:  # every candidate of the pair at once, its geoms posed once; those whose
+                pair_candidates(p, w, u, work, TOUCH_TOLERANCE + motion)  # least gap is beyond reach: that bound
         if reach > TOUCH_TOLERANCE:  # the broad phase: the pair can neither touch nor close within the step
             g[row] = reach
             continue
@@ -182,6 +184,17 @@ def near_contacts(p, q, w, acc, vfree, h, J, jdot, g):
                    + normal[2] * (v_b[2] - v_a[2]))
         if gap <= TOUCH_TOLERANCE or gap + h * closing < 0.0:
             unit_rows(p, k, q, vfree, w, acc, J, jdot, g, row, False)
+            formed[k] = 1
+
+
+@njit(cache=True, inline="always")
+def _row_dot(J, a, x):
+    """J[a] . x: one row's rate (the step reads the rates of the rows it uses, not of every row: a model with many
+    far contact candidates has many zero rows)."""
+    total = 0.0
+    for d in range(x.size):
+        total += J[a, d] * x[d]
+    return total
 
 
 @njit(cache=True)
@@ -233,8 +246,9 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
     else:
         L = np.empty((nv, nv))
         mujoco_free_velocity(p, y, h, mode, M, f, vfree, L)
-    near_contacts(p, q, w, acc, vfree, h, J, jdot, g)
-    jfree = J @ vfree
+    formed = np.zeros(unit_count(p), dtype=np.int64)
+    near_contacts(p, q, w, acc, vfree, h, J, jdot, g, formed)
+    jfree = np.zeros(rows)  # the rates at the free velocities of the rows that can enter the problem
     index = np.empty(rows, dtype=np.int64)
     lo, hi, b = np.empty(rows), np.empty(rows), np.empty(rows)
     role, mu = np.zeros(rows, dtype=np.int64), np.zeros(rows)
@@ -244,6 +258,10 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
         u = unit_at(p, k)
         kind = int(p[u + U_KIND])
         r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])
+        if (kind == CONTACT or kind == CONTACT1) and formed[k] == 0:
+            continue  # neither touching nor closing within the step (near_contacts): its rows are 0
+        for a in range(r0, r0 + r):
+            jfree[a] = _row_dot(J, a, vfree)
         if kind == CONNECT or kind == WELD or kind == COUPLING or kind == TENDON_EQUALITY:
             for a in range(r0, r0 + r):
                 index[m], lo[m], hi[m], b[m] = a, -np.inf, np.inf, jfree[a]
@@ -318,20 +336,22 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
         if status != 0:
             return status, residual, m
         x = dyn.upper_solve(L, A @ lam)
-        jnow = J @ v
+        jnow = np.empty(m)  # the problem's rows' rates before the step
+        for c in range(m):
+            jnow[c] = _row_dot(J, index[c], v)
         loss = 0.0
         for c in range(m):
             P[index[c]] = lam[c]
         for d in range(nv):
             v[d] = vfree[d] + x[d]
-        jafter = J @ v
         for c in range(m):
+            after = _row_dot(J, index[c], v)
             if role[c] != ROW:  # contacts: the work of the impulse at the mean of the velocities before and after
                 # the step (Kelvin's theorem; before it, not after the free motion, so that a contact that holds a
                 # body at rest does no work against the velocity gravity gave it within the step)
-                loss -= 0.5 * lam[c] * (jafter[index[c]] + jnow[index[c]])
+                loss -= 0.5 * lam[c] * (after + jnow[c])
             elif lo[c] > -np.inf:  # limits and friction: the kinetic energy their impulse took
-                loss -= 0.5 * lam[c] * (jafter[index[c]] + jfree[index[c]])
+                loss -= 0.5 * lam[c] * (after + jfree[index[c]])
         y[n - 1] += loss
     else:
         for d in range(nv):
@@ -356,7 +376,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
     velocity_rows = np.zeros(rows)
     worst = 0.0
     for _round in range(PROJECTION_ROUNDS):
-        dyn.state_gaps(p, y, g)
+        dyn.state_gaps(p, y, g, FLAGGED_GAP)
         grown = False  # a row newly flagged (nothing flagged at all: no projection, the step stands as it is)
         for k in range(unit_count(p)):
             u = unit_at(p, k)
@@ -369,7 +389,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
                     velocity_rows[a] = 1.0
             elif (kind == LOWER or kind == UPPER or kind == CONE or kind == CONTACT or kind == CONTACT1
                   or kind == TENDON_LOWER or kind == TENDON_UPPER) \
-                    and g[r0] <= TOUCH_TOLERANCE * 1e-3 \
+                    and g[r0] <= FLAGGED_GAP \
                     and position_rows[r0] == 0.0 and (g[r0] < 0.0 or P[r0] > 0.0):
                 position_rows[r0] = 1.0
                 grown = True

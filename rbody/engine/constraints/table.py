@@ -445,15 +445,20 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
 _HULLS: dict = {}  # Shape.vertices -> its packed hull (a model's meshes are packed once per process)
 
 
-def _packed_hull(shape) -> np.ndarray:
-    """The packed convex hull of a mesh shape's vertices (rbody.engine.contacts.convex.pack_hull), cached. Raises
-    ValueError naming the shape for vertices with no volume."""
+def _packed_hull(shape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(centre (3,), half (3,), hull): a mesh shape's vertices' bounding box (centre and half sizes in the shape's
+    frame [m]) and the packed convex hull of the vertices about that centre (rbody.engine.contacts.convex.pack_hull:
+    the broad phase's sphere and box about the geom's origin are then tight), cached. Raises ValueError naming the
+    shape for vertices with no volume."""
     from rbody.engine.contacts.convex import pack_hull
 
     key = shape.vertices
     if key not in _HULLS:
+        points = np.asarray(key, dtype=np.float64)
+        low, high = points.min(axis=0), points.max(axis=0)
+        centre = 0.5 * (low + high)
         try:
-            _HULLS[key] = pack_hull(np.asarray(key, dtype=np.float64))
+            _HULLS[key] = (centre, 0.5 * (high - low), pack_hull(points - centre))
         except ValueError as error:
             raise ValueError(f"mesh shape {shape.name!r}: {error}") from None
         if len(_HULLS) > 256:  # a bound on what a long session keeps
@@ -499,12 +504,14 @@ def _contact_units(layout: Layout, contact, body_index: dict[str, int]) -> list[
     for suffix, code, shape in (("A", ta, shape_a), ("B", tb, shape_b)):
         size = np.zeros(3)
         size[:len(shape.size)] = shape.size[:3]
-        if shape.kind == "mesh":  # its size: the radius of the sphere about its origin that holds the hull
-            packed = _packed_hull(shape)
-            size[0] = float(np.sqrt((np.asarray(shape.vertices) ** 2).sum(axis=1).max()))
+        axes = quat_to_matrix(np.asarray(shape.quat))
+        pos = np.asarray(shape.pos, dtype=float)
+        if shape.kind == "mesh":  # its frame moved to the centre of its bounding box, its size that box's half sizes
+            centre, half, packed = _packed_hull(shape)
+            pos = pos + axes @ centre
+            size[:] = half
             fields[f"HULL_{suffix}"] = (shape.name, packed)
-        fields.update({f"U_GTYPE_{suffix}": code, f"U_GPOS_{suffix}": shape.pos,
-                       f"U_GMAT_{suffix}": quat_to_matrix(np.asarray(shape.quat)).reshape(-1),
+        fields.update({f"U_GTYPE_{suffix}": code, f"U_GPOS_{suffix}": pos, f"U_GMAT_{suffix}": axes.reshape(-1),
                        f"U_GSIZE_{suffix}": size})
     count = SLOTS[(ta, tb)]
     name = f"{shape_a.name}/{shape_b.name}"

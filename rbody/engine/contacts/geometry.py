@@ -11,7 +11,8 @@ for a mesh, its packed convex hull (rbody.engine.contacts.convex.pack_hull; an e
     ellipsoid semi-axes size[0:3] along the geom's axes
     cylinder  radius size[0], half-length size[1] along the geom's z axis
     box       half sizes size[0:3] along the geom's axes
-    mesh      the convex hull of its vertices (as MuJoCo collides a mesh); size[0] its bounding radius about pos
+    mesh      the convex hull of its vertices (as MuJoCo collides a mesh); size: the half sizes of a box about pos,
+              along the geom's axes, that holds it (the broad phase's; the constraint table centres it)
 
 `collide` takes the pair in MuJoCo's order (type_a <= type_b; the caller swaps) and writes each candidate contact:
 dist [m] (the signed distance between the surfaces along the normal, < 0 when they overlap), normal (3,) the unit
@@ -746,12 +747,24 @@ def _same_point(point, k, first):
     return False
 
 
+@njit(cache=True, inline="always")
+def _fill(dist, normal, point, k, count):
+    """Every slot of count given slot k's distance, normal and point (the pair's least distance: a lower bound of
+    each slot's own)."""
+    for j in range(count):
+        if j != k:
+            dist[j] = dist[k]
+            for a in range(3):
+                normal[j, a], point[j, a] = normal[k, a], point[k, a]
+
+
 @njit(cache=True)
-def _plane_hull(pa, Ra, pb, Rb, sb, hb, dist, normal, point):
+def _plane_hull(pa, Ra, pb, Rb, sb, hb, dist, normal, point, beyond):
     """A plane (pa, normal Ra[:, 2]) and a mesh's hull (pb, Rb, sb, hb): slot 0 its vertex lowest towards the plane
     (the support along -n), slots 1-8 its supports along -n tilted by TILT towards the plane's own axes at 45
     degree steps (a face lying on the plane: its extreme vertices in those directions); each vertex's height above
-    the plane, exact; a vertex found twice APART. Returns 9."""
+    the plane, exact; a vertex found twice APART. Returns 9 (the lowest vertex's height beyond `beyond`: every slot
+    that)."""
     direction, x = np.empty(3), np.empty(3)
     for k in range(1 + PATCH):
         for a in range(3):
@@ -766,6 +779,9 @@ def _plane_hull(pa, Ra, pb, Rb, sb, hb, dist, normal, point):
             point[k, a] = x[a] - d * Ra[a, 2]  # on the plane (one vertex, one foot: supports along -n + tilt)
         if _same_point(point, k, 0):
             dist[k] = APART
+        if k == 0 and d > beyond:
+            _fill(dist, normal, point, 0, 1 + PATCH)
+            return 1 + PATCH
     return 1 + PATCH
 
 
@@ -785,16 +801,19 @@ def _closest_pair(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, k, dist, normal, point
 
 
 @njit(cache=True)
-def _patch(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point):
+def _patch(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point, beyond):
     """Two convex geoms of which one at least is a polytope (a mesh's hull; a box, a cylinder): 17 candidates, every
     one the exact signed distance of a point of one surface from the other geom. Slot 16 their closest points
     (GJK/EPA), its normal n from a to b; slots 0-7 geom b's supports along -n tilted by TILT around n at 45 degree
     steps against geom a, slots 8-15 geom a's along +n against geom b: a face lying on a face rests on both faces'
     extreme vertices (the patch), an edge on a face on its ends. A point found twice is APART, and slot 16 where a
-    vertex slot holds it (as close to 1e-12 m). Returns 17."""
+    vertex slot holds it (as close to 1e-12 m). Returns 17. Closest points beyond `beyond`: every slot those.
+    """
     n, xa, xb, t1, t2 = np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty(3)
     direction, x, grad = np.empty(3), np.empty(3), np.empty(3)
-    _closest_pair(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, 16, dist, normal, point, n, xa, xb)
+    if _closest_pair(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, 16, dist, normal, point, n, xa, xb) > beyond:
+        _fill(dist, normal, point, 16, 17)
+        return 17
     tangents(n, t1, t2)
     for k in range(16):
         own_is_b = k < PATCH
@@ -835,8 +854,9 @@ def _same_support(point, dist, normal, k, first, own_is_b):
 
 
 @njit(cache=True)
-def _general(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point):
-    """The pairs with an ellipsoid or a mesh (SLOTS). Returns their count, or -1 for a pair not computed."""
+def _general(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point, beyond):
+    """The pairs with an ellipsoid or a mesh (SLOTS). Returns their count, or -1 for a pair not computed. beyond:
+    collide's."""
     n, xa, xb, grad = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
     if ta == PLANE:
         if tb == ELLIPSOID:  # the ellipsoid's lowest point, closed form
@@ -849,7 +869,7 @@ def _general(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point):
                 point[0, a] = xb[a] - d * n[a]  # on the plane
             return 1
         if tb == MESH:
-            return _plane_hull(pa, Ra, pb, Rb, sb, hb, dist, normal, point)
+            return _plane_hull(pa, Ra, pb, Rb, sb, hb, dist, normal, point, beyond)
         return -1
     if ta == SPHERE:  # the centre's distance from the other geom, less the radius
         d = point_distance(tb, pb, Rb, sb, hb, pa, grad)
@@ -863,7 +883,9 @@ def _general(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point):
         if tb == ELLIPSOID:
             closest, _lo, _hi = segment_ellipsoid_closest(pa, u, sa[1], pb, Rb, sb)
         else:  # a mesh: the closest points of the capsule's segment and the hull
-            _closest_pair(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, 2, dist, normal, point, n, xa, xb)
+            if _closest_pair(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, 2, dist, normal, point, n, xa, xb) > beyond:
+                _fill(dist, normal, point, 2, 3)
+                return 3
             closest = 0.0
             for a in range(3):
                 closest += (xa[a] - sa[0] * n[a] - pa[a]) * u[a]  # the segment's point: the witness less r n
@@ -885,20 +907,22 @@ def _general(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point):
         _closest_pair(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, 0, dist, normal, point, n, xa, xb)
         return 1
     if tb == MESH:  # a cylinder, a box or a mesh with a mesh
-        return _patch(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point)
+        return _patch(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point, beyond)
     return -1
 
 
 @njit(cache=True)
-def collide(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point, only=-1):
+def collide(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point, only=-1, beyond=np.inf):
     """The candidate contacts of geom a (type ta <= tb, centre pa (3,) [m], axes Ra (3, 3), size sa (3,) [m]; ha a
     mesh's packed convex hull, rbody.engine.contacts.convex.pack_hull, else empty) and geom b, into dist
     (MAX_SLOTS,) [m], normal (MAX_SLOTS, 3) from a to b and point (MAX_SLOTS, 3) [m]; returns their count (SLOTS of
     the pair), or -1 for a pair of types it does not compute. only >= 0: that candidate's entries alone are written
     (a contact unit is one candidate: a box pair's other 15 corners cost nothing; the pairs of an ellipsoid or a
-    mesh write all of theirs)."""
+    mesh write all of theirs). beyond [m]: a mesh's pair whose least distance is above it gives that least distance,
+    normal and point for every slot (each slot's distance is at least the least: a caller asking which candidates
+    come within `beyond` learns it from one distance, not 17)."""
     if tb == MESH or tb == ELLIPSOID or ta == ELLIPSOID:
-        return _general(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point)
+        return _general(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point, beyond)
     scratch = np.empty(12)  # the small vectors below, one allocation
     if ta == PLANE:
         n = scratch[0:3]
@@ -1128,8 +1152,8 @@ def collide_pair(kind_a: str, pos_a, mat_a, size_a, kind_b: str, pos_b, mat_b, s
     sizes = []
     for s, t, h in ((s1, t1, h1), (s2, t2, h2)):
         full = np.zeros(3)
-        if t == MESH:  # a mesh's size: its bounding radius about its origin (as the constraint table writes it)
-            full[0] = float(np.sqrt((hull_points(h) ** 2).sum(axis=1).max()))
+        if t == MESH:  # a mesh's size: the half sizes of a box about its origin holding it (the table's is tight)
+            full[:] = np.abs(hull_points(h)).max(axis=0)
         else:
             s = np.atleast_1d(np.asarray(s, dtype=float))
             full[:s.size] = s

@@ -253,8 +253,8 @@ def bounding_radius(kind, p, size_at):
         return np.sqrt(p[size_at] ** 2 + p[size_at + 1] ** 2)
     if kind == ELLIPSOID:
         return max(p[size_at], p[size_at + 1], p[size_at + 2])
-    if kind == MESH:  # the table writes a mesh's bounding radius about its origin as its size
-        return p[size_at]
+    if kind == MESH:  # the table writes the half sizes of a mesh's bounding box about its origin as its size
+        return np.sqrt(p[size_at] ** 2 + p[size_at + 1] ** 2 + p[size_at + 2] ** 2)
     return np.inf
 
 
@@ -286,8 +286,7 @@ def _support_radius(kind, R, size, l0, l1, l2):
         e0 = (l0 * R[0, 0] + l1 * R[1, 0] + l2 * R[2, 0]) * size[0]
         e1 = (l0 * R[0, 1] + l1 * R[1, 1] + l2 * R[2, 1]) * size[1]
         return np.sqrt(e0 * e0 + e1 * e1 + (along * size[2]) ** 2)
-    if kind == MESH:  # its bounding radius (the hull is not at hand here): a lower bound of the gap still
-        return size[0]
+    # a box, or a mesh by its bounding box (the table's size: its half sizes about the geom's origin)
     return (abs(l0 * R[0, 0] + l1 * R[1, 0] + l2 * R[2, 0]) * size[0]
             + abs(l0 * R[0, 1] + l1 * R[1, 1] + l2 * R[2, 1]) * size[1] + along * size[2])
 
@@ -295,12 +294,13 @@ def _support_radius(kind, R, size, l0, l1, l2):
 @njit(cache=True)
 def axes_gap(ta, pa, Ra, sa, tb, pb, Rb, sb):
     """A lower bound [m] on the distance of two geoms (not planes) from their projections onto the face normals of
-    whichever is a box: along a unit axis the two project onto intervals, and the gap between them is at most
-    their distance (the separating-axis test's gap). -inf when neither is a box."""
+    whichever is a box (or a mesh, by the bounding box its size gives): along a unit axis the two project onto
+    intervals, and the gap between them is at most their distance (the separating-axis test's gap). -inf when
+    neither is a box nor a mesh."""
     best = -np.inf
     for which in range(2):
         kind, R = (ta, Ra) if which == 0 else (tb, Rb)
-        if kind != BOX:
+        if kind != BOX and kind != MESH:  # a mesh's bounding box (its size) holds it: its axes serve as a box's
             continue
         for i in range(3):
             l0, l1, l2 = R[0, i], R[1, i], R[2, i]
@@ -319,7 +319,8 @@ def clearance(p, w, u, h, work):
     that does not part them and one is a box, the gap along its faces' normals, if larger (axes_gap: a long box's
     bounding sphere reaches far beyond it). Less the pair's margin, as its gaps are.
     > TOUCH_TOLERANCE: no candidate of the pair touches or closes within h, and its distance need not be computed.
-    work: scratch of GEOMETRY_WORK floats (contact_geometry's)."""
+    Returns (that bound, motion): motion [m] h times the bound on the approach speed. work: scratch of
+    GEOMETRY_WORK floats (contact_geometry's)."""
     pa, pb = work[0:3], work[3:6]
     body_a, body_b = int(p[u + U_BODY1]), int(p[u + U_BODY2])
     ta, tb = int(p[u + U_GTYPE_A]), int(p[u + U_GTYPE_B])
@@ -347,13 +348,13 @@ def clearance(p, w, u, h, work):
                 omega = ws.vel[body]
                 speed += np.sqrt(omega[0] ** 2 + omega[1] ** 2 + omega[2] ** 2) * radius
         motion = h * speed
-    if apart - motion <= 1e-9 and ta != PLANE and (ta == BOX or tb == BOX):  # a box's spheres are loose (a long
+    if apart - motion <= 1e-9 and ta != PLANE and (ta == BOX or tb == BOX or tb == MESH):  # a box's spheres are loose (a long
         Ra, Rb = work[6:15].reshape((3, 3)), work[15:24].reshape((3, 3))   # box beside another): its faces' axes
         geom_pose(p, w, body_a, u + U_GPOS_A, u + U_GMAT_A, pa, Ra)
         geom_pose(p, w, body_b, u + U_GPOS_B, u + U_GMAT_B, pb, Rb)
         apart = max(apart, axes_gap(ta, pa, Ra, p[u + U_GSIZE_A:u + U_GSIZE_A + 3], tb, pb, Rb,
                                     p[u + U_GSIZE_B:u + U_GSIZE_B + 3]))
-    return apart - motion - p[u + U_MARGIN]
+    return apart - motion - p[u + U_MARGIN], motion
 
 
 @njit(cache=True)

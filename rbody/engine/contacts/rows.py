@@ -58,10 +58,11 @@ def hull_at(p, at):
 
 
 @njit(cache=True)
-def _candidates(p, w, u, work, only):
+def _candidates(p, w, u, work, only, beyond=np.inf):
     """collide on the contact unit at u's pair of geoms, posed after the tree's kinematics, into work (GEOMETRY_WORK
     floats: the poses, then gaps work[24:24 + MAX_SLOTS] (the distances less the pair's margin), normals and
-    points); only: one slot, or -1 for all."""
+    points); only: one slot, or -1 for all; beyond [m]: a pair whose least gap exceeds it may give that least gap
+    for every slot (collide)."""
     pa, pb = work[0:3], work[3:6]
     Ra, Rb = work[6:15].reshape((3, 3)), work[15:24].reshape((3, 3))
     geom_pose(p, w, int(p[u + U_BODY1]), u + U_GPOS_A, u + U_GMAT_A, pa, Ra)
@@ -71,7 +72,7 @@ def _candidates(p, w, u, work, only):
     points = work[24 + 4 * MAX_SLOTS:24 + 7 * MAX_SLOTS].reshape((MAX_SLOTS, 3))
     count = collide(int(p[u + U_GTYPE_A]), pa, Ra, p[u + U_GSIZE_A:u + U_GSIZE_A + 3], hull_at(p, int(p[u + U_HULL_A])),
                     int(p[u + U_GTYPE_B]), pb, Rb, p[u + U_GSIZE_B:u + U_GSIZE_B + 3], hull_at(p, int(p[u + U_HULL_B])),
-                    dist, normals, points, only)
+                    dist, normals, points, only, beyond + p[u + U_MARGIN])
     margin = p[u + U_MARGIN]
     if margin != 0.0:
         for k in range(count):
@@ -81,11 +82,14 @@ def _candidates(p, w, u, work, only):
 
 
 @njit(cache=True)
-def pair_candidates(p, w, u, work):
+def pair_candidates(p, w, u, work, beyond=np.inf):
     """Every candidate of the contact unit at u's pair of geoms at once (the unit's slot aside) into work (GEOMETRY_WORK
     floats): distances work[24:24 + MAX_SLOTS], normals and points after them (as contact_geometry lays them out);
-    returns their count. For a caller that reads all of a pair's candidates: the geoms' poses once."""
-    return _candidates(p, w, u, work, -1)
+    returns their count. For a caller that reads all of a pair's candidates: the geoms' poses once. beyond [m]:
+    where the pair's least gap is above it, every slot may hold that least gap (a lower bound of its own) instead
+    of its own, the pairs whose candidates cost most (a mesh's) then computing one distance: for a caller that
+    only asks which candidates come within `beyond`."""
+    return _candidates(p, w, u, work, -1, beyond)
 
 
 @njit(cache=True, inline="always")
