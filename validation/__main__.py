@@ -51,7 +51,7 @@ def _parser() -> argparse.ArgumentParser:
         help="numerical stability on hard cases (validation/hard/): DIR/hard.md")
     hard.add_argument("--quick", action="store_true", help="short runs, under 2 minutes")
     hard.add_argument("--out", type=Path, default=Path("report"), help="report folder (default: report/)")
-    hard.add_argument("--case", action="append", type=int, metavar="N", help="only case N of 1..9 (repeatable)")
+    hard.add_argument("--case", action="append", type=int, metavar="N", help="only case N of 1..10 (repeatable)")
     compare = commands.add_parser(
         "compare", prog="python -m validation compare", usage="%(prog)s MODEL [options]",
         help="one model in every engine that can express it: where they diverge (validation/comparison.py)")

@@ -218,6 +218,29 @@ TOLERANCES: dict[tuple[str, str, str], Tolerance] = {
         5e-3, "as pymunk's: the O(dt) height offset (a finding: 0.52 of the energy, largest during the contacts)"),
     ("scattering", "bullet", "max_abs_error"): Tolerance(1e-2, "impact at the step after contact (measured 4.2e-3 m)"),
     ("scattering", "bullet", "energy_error"): Tolerance(2e-2, "restitution per body (measured 1.2e-2)"),
+    # Hard case 10, contacts in the rigid limit (validation/hard/rigid_contacts.py). A row is "exact" (the closed form
+    # met) within the round-off bound of its unit; beyond it, a finding with its value. rbody must meet these where
+    # its scheme is exact (everything in the event-driven scheme; rolling, sticking, resting, heights and its own
+    # discrete slide in the time-stepping).
+    ("rigid_contacts", "*", "roundoff_position"): Tolerance(
+        1e-12, "coordinates of order 1 m after up to 5e4 steps: roundings of eps ~ 1e-16 m a step add up to "
+               "~1e-14 m (measured in rbody: the stack's drift 1.4e-14 m over 100 s, the 2.9 m slide on its discrete "
+               "closed form to 5.3e-14 m after 1e4 steps, the event-driven bounce 6e-16 m); 1e-12 m leaves a factor "
+               "20 and is still 180 times below the smallest soft-contact sink measured (MuJoCo to_mjcf at 0.2 ms: "
+               "1.8e-7 m)"),
+    ("rigid_contacts", "*", "roundoff_speed"): Tolerance(
+        1e-12, "speeds of order 1 m/s: the rolling speed after 5000 steps at 0.2 ms is 5/7 v0 to 4.9e-14 m/s "
+               "(measured, rbody and pymunk); the closed-form tests' bound"),
+    ("rigid_contacts", "*", "roundoff_time"): Tolerance(
+        1e-12, "event times root-found to the last bits (measured 1.3e-15 s, the dropped ball's three impacts) and "
+               "the transition read off exact sliding samples (3.6e-15 s): 1e-12 s leaves a factor 300"),
+    ("rigid_contacts", "*", "rolling_slip"): Tolerance(
+        1e-6, "a contact counts as rolling below this slip [m/s] (notes only): 5e-7 of v0, far above round-off "
+              "(1e-14 m/s) and far below the slip one step before t* ((7/2) mu g dt = 2.1e-3 m/s at 0.2 ms)"),
+    ("rigid_contacts", "*", "sliding_slip"): Tolerance(
+        1e-3, "samples slipping faster [m/s] are taken as sliding when the transition is read off the slip's "
+              "sliding line: above MuJoCo's residual creep after rolling (1.5e-4 m/s at its defaults, measured), "
+              "where its slip no longer falls linearly; any two samples of an exact sliding phase give t* exactly"),
 }
 
 

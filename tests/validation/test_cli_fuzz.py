@@ -55,7 +55,7 @@ def test_unknown_bench_scene_and_hard_case_are_input_problems(stubbed, capsys):
     assert cli.main(["bench", "--scene", "nope"]) == cli.INPUT_PROBLEM
     assert "--scene nope: expected one of" in capsys.readouterr().err
     assert cli.main(["hard", "--case", "99"]) == cli.INPUT_PROBLEM
-    assert "--case 99: expected case numbers 1..9" in capsys.readouterr().err
+    assert "--case 99: expected case numbers 1..10" in capsys.readouterr().err
 
 
 def test_out_with_a_name_too_long_is_refused_before_any_work(stubbed, capsys, monkeypatch):

@@ -10,7 +10,7 @@ from pathlib import Path
 from typing import Callable
 
 from rbody.files import replaced_folder, write_atomic
-from validation.hard import chains, contact, motion, shapes, steps
+from validation.hard import chains, contact, motion, rigid_contacts, shapes, steps
 from validation.hard.rows import CaseResult, HardRow, timed
 
 # ----- the cases --------------------------------------------------------------------------------------
@@ -18,19 +18,20 @@ from validation.hard.rows import CaseResult, HardRow, timed
 # case number -> function(quick, out) -> CaseResult
 _CASES = {1: contact.case_pi, 2: motion.case_near_top, 3: motion.case_intermediate_axis,
           4: shapes.case_extreme_shapes, 5: contact.case_friction_limit, 6: steps.case_large_steps,
-          7: shapes.case_bad_meshes, 8: chains.case_long_chains, 9: steps.case_time_reversal}
+          7: shapes.case_bad_meshes, 8: chains.case_long_chains, 9: steps.case_time_reversal,
+          10: rigid_contacts.case_rigid_contacts}
 CASES = tuple(_CASES)
 
 
 def case_function(number: int) -> Callable[[bool, Path], CaseResult]:
-    """The function that runs hard case `number` (1..9)."""
+    """The function that runs hard case `number` (one of CASES: 1..10)."""
     if number not in _CASES:
         raise ValueError(f"case={number!r}: the hard cases are numbered {CASES[0]}..{CASES[-1]}")
     return _CASES[number]
 
 
 def run_cases(out: Path, *, quick: bool, cases: tuple[int, ...] = CASES, client=None) -> list[CaseResult]:
-    """Run the chosen cases (numbers 1..9), then write their figures into out; progress on stderr.
+    """Run the chosen cases (numbers of CASES), then write their figures into out; progress on stderr.
 
     Each case is one task (validation.cluster.run_tasks): here in order (client None) or on the Dask cluster
     of `client`. A case draws its figures in a folder of its own (a worker need not share a file system with
