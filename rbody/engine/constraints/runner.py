@@ -31,12 +31,12 @@ def sample_rows(table: ConstraintTable, params: np.ndarray, samples: np.ndarray,
     """(forces (S, rows), errors (S, rows)) at each saved state (S, n) in its mode (S, units): every row's force
     (runner docstring) and its error: an equality's residual [m or rad], a limit's overshoot past its stop min(g, 0),
     0 for friction rows. slips (S, units, 3): the sliding contacts' directions at each state (event-driven runs).
-    forces_known: the run has its own forces (time-stepping: impulse / dt); forces are then left 0 here and the
+    forces_known: the run has its own forces (time-stepping: impulse / dt); forces are then None here and the
     errors come from the gaps alone (dynamics.state_gaps: no mass matrix, no Jacobian)."""
     p = np.array(params, dtype=np.float64)
     nq, nv, _n = dyn.sizes(p)
     a0, na = dyn.act_range(p)
-    forces = np.empty((samples.shape[0], table.rows))
+    forces = None if forces_known else np.empty((samples.shape[0], table.rows))
     errors = np.empty((samples.shape[0], table.rows))
     qacc = np.empty(nv)
     q = np.empty(nq)
@@ -52,7 +52,6 @@ def sample_rows(table: ConstraintTable, params: np.ndarray, samples: np.ndarray,
                 start = table.offset + C_HEADER + UNIT_SIZE * k + U_SLIP
                 p[start:start + 3] = slips[s, k]
         if forces_known:
-            forces[s] = 0.0
             dyn.state_gaps(p, samples[s], errors[s], 0.0)  # errors read min(g, 0) only
             continue
         _effective_qpos(p, samples[s], q, 0)
@@ -81,9 +80,11 @@ def run_constrained(description: str, model, method: str, dt: float, nsteps: int
     batch = y0.shape[0]
     count = nsteps // save_every + 1
     out = np.empty((count, batch, y0.shape[1]))
-    modes = np.empty((count, batch, len(table.units)))
-    forces = np.empty((count, batch, table.rows))
-    errors = np.empty((count, batch, table.rows))
+    modes = np.empty((count, batch, len(table.units)), dtype=np.int8)  # small integers: free, held, sliding...
+    stepped = method in MODES  # time-stepping: its forces kept as nonzeros, (S, rows) built on first access
+    forces = None if stepped else np.empty((count, batch, table.rows))
+    errors = None if stepped else np.empty((count, batch, table.rows))
+    recorded = []  # the time-stepping's StepForces, per element
     events = {"time": [], "element": [], "what": [], "constraints": [], "energy_lost": []}
     impacts = changes = 0
     for b in range(batch):
@@ -99,11 +100,10 @@ def run_constrained(description: str, model, method: str, dt: float, nsteps: int
                 value = control(k, b, t, y)
                 p[at:at + value.shape[0]] = value
         out[:, b], modes[:, b] = run.run(y0[b], dt, nsteps, save_every, hook)
-        stepped = getattr(run, "forces", None) is not None  # time-stepping: the mean force of the step (impulse / dt)
-        forces[:, b], errors[:, b] = sample_rows(table, params[b], out[:, b], modes[:, b], getattr(run, "slips", None),
-                                                 forces_known=stepped)
-        if stepped:
-            forces[:, b] = run.forces
+        if stepped:  # the mean force of each step (impulse / dt); the errors on first access
+            recorded.append(run.forces)
+        else:
+            forces[:, b], errors[:, b] = sample_rows(table, params[b], out[:, b], modes[:, b], run.slips)
         impacts += run.log.impacts
         changes += run.log.mode_changes
         for event in run.log.events:
@@ -116,8 +116,30 @@ def run_constrained(description: str, model, method: str, dt: float, nsteps: int
     data = dict(model.observe(t, out))
     limits = [k for k, unit in enumerate(table.units) if unit.code in UNILATERAL]
     frictions = [k for k, unit in enumerate(table.units) if unit.code in FRICTION_KINDS]
-    data["constraint_force"] = forces
-    data["constraint_error"] = errors
+    if stepped:
+        def all_forces():
+            return np.stack([record.dense() for record in recorded], axis=1)
+
+        def all_errors():
+            return np.stack([sample_rows(table, params[b], out[:, b], modes[:, b], forces_known=True)[1]
+                             for b in range(batch)], axis=1)
+
+        def rows_force(which):
+            return np.stack([record.columns(which) for record in recorded], axis=1)
+
+        def pushing(which):
+            return np.stack([record.pushing(which) for record in recorded], axis=1)
+
+        data["constraint_force"] = all_forces
+        data["constraint_error"] = all_errors
+    else:
+        data["constraint_force"] = forces
+        data["constraint_error"] = errors
+
+        def rows_force(which):
+            return forces[:, :, which]
+
+        pushing = None
     data["active_limits"] = modes[:, :, limits] == 1.0
     data["sticking"] = modes[:, :, frictions] == 0.0
     data["dissipated"] = out[:, :, -1]
@@ -125,7 +147,7 @@ def run_constrained(description: str, model, method: str, dt: float, nsteps: int
     if contact_units:
         from rbody.engine.contacts.observe import contact_observables
 
-        data.update(contact_observables(table, params, out, forces, contact_units))
+        data.update(contact_observables(table, params, out, rows_force, contact_units, pushing))
     meta = {"events": len(events["time"]), "impacts": impacts, "mode_changes": changes,
             "constraint_rows": table.labels(), "limits": [table.units[k].name for k in limits],
             "frictions": [table.units[k].name for k in frictions],

@@ -402,31 +402,85 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
 
 
 @njit(cache=True)
-def moreau_loop(p, y0, h, nsteps, save_every, out, impulses, exact_rows, sweeps, tolerance, included, mode):
-    """nsteps steps from y0 (n,); out (S, n) every save_every-th state (out[0] = y0), impulses (S, rows) the impulses
-    of the step that ended at each saved state. Returns (failed step or -1, its status, its residual, its rows)."""
+def _record(P, s, starts, rows, values, used):
+    """The nonzero impulses of P (rows,) as saved sample s: appended to rows and values (grown by doubling when
+    full), starts[s + 1] their end. Returns (rows, values, used)."""
+    for a in range(P.size):
+        if P[a] != 0.0:
+            if used == rows.size:
+                grown_rows, grown_values = np.empty(2 * rows.size, dtype=np.int64), np.empty(2 * rows.size)
+                grown_rows[:used], grown_values[:used] = rows[:used], values[:used]
+                rows, values = grown_rows, grown_values
+            rows[used], values[used] = a, P[a]
+            used += 1
+    starts[s + 1] = used
+    return rows, values, used
+
+
+@njit(cache=True)
+def moreau_loop(p, y0, h, nsteps, save_every, out, exact_rows, sweeps, tolerance, included, mode):
+    """nsteps steps from y0 (n,); out (S, n) every save_every-th state (out[0] = y0). Returns (failed step or -1, its
+    status, its residual, its rows, starts (S + 1,), rows, values): the impulses of the step that ended at each saved
+    state as nonzeros (sample s's: rows[starts[s]:starts[s + 1]] and values there; a model's far contact candidates
+    push nothing, and a dense (S, rows) record of a hand's 11,718 rows over 10 s held gigabytes)."""
     y = y0.copy()
     rows = row_count(p)
     P = np.zeros(rows)
     out[0] = y
-    impulses[0] = 0.0
+    starts = np.zeros(out.shape[0] + 1, dtype=np.int64)
+    kept, values, used = np.empty(max(64, 4 * out.shape[0]), dtype=np.int64), np.empty(max(64, 4 * out.shape[0])), 0
     for k in range(1, nsteps + 1):
         status, residual, m = moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode)
         if status != 0:
-            return k, status, residual, m
+            return k, status, residual, m, starts, kept[:used], values[:used]
         for a in range(y.shape[0]):
             if not np.isfinite(y[a]):
-                return k, 3, 0.0, m
+                return k, 3, 0.0, m, starts, kept[:used], values[:used]
         if k % save_every == 0:
+            kept, values, used = _record(P, k // save_every, starts, kept, values, used)
             out[k // save_every] = y
-            impulses[k // save_every] = P
-    return -1, 0, 0.0, 0
+    return -1, 0, 0.0, 0, starts, kept[:used], values[:used]
+
+
+class StepForces:
+    """The mean forces (impulse / dt [N or N m]) of the steps ending at each saved state of one time-stepping run,
+    kept as nonzeros: sample s's rows rows[starts[s]:starts[s + 1]], values there. dense() (S, rows) every row's;
+    columns(which) (S, len(which)) those rows' alone."""
+
+    def __init__(self, starts: np.ndarray, rows: np.ndarray, impulses: np.ndarray, row_count: int, dt: float) -> None:
+        self.starts, self.rows, self.impulses, self.dt = starts, rows, impulses, dt
+        self.row_count = row_count
+        self.samples = starts.size - 1
+        self.sample_of = np.repeat(np.arange(self.samples), np.diff(starts))
+
+    def pushing(self, which) -> np.ndarray:
+        """(S,) how many of rows `which` have a positive impulse at each sample (distinct rows)."""
+        chosen = np.zeros(self.row_count, dtype=bool)
+        chosen[np.asarray(which, dtype=np.int64)] = True
+        kept = chosen[self.rows] & (self.impulses > 0)
+        return np.bincount(self.sample_of[kept], minlength=self.samples)
+
+    def dense(self) -> np.ndarray:
+        out = np.zeros((self.samples, self.row_count))
+        out[self.sample_of, self.rows] = self.impulses / self.dt
+        return out
+
+    def columns(self, which, impulses: bool = False) -> np.ndarray:
+        """(S, len(which)) the forces of rows `which` (impulses: their impulses [N s or N m s] instead)."""
+        unique, inverse = np.unique(np.asarray(which, dtype=np.int64), return_inverse=True)
+        column = np.full(self.row_count, -1, dtype=np.int64)
+        column[unique] = np.arange(unique.size)
+        out = np.zeros((self.samples, unique.size))
+        kept = column[self.rows] >= 0
+        out[self.sample_of[kept], column[self.rows[kept]]] = self.impulses[kept] if impulses else \
+            self.impulses[kept] / self.dt
+        return out[:, inverse.ravel()]
 
 
 class MoreauRun:
     """The time-stepping run of one batch element, with the EventRun's interface (rbody.engine.constraints.runner):
-    run(y0, dt, nsteps, save_every) -> (samples (S, n), modes (S, units)); forces (S, rows) the impulses of the step
-    ending at each sample divided by dt (its mean force); log: impacts and mode changes are not events here."""
+    run(y0, dt, nsteps, save_every) -> (samples (S, n), modes (S, units)); forces (StepForces) the impulses of the
+    step ending at each sample divided by dt (its mean force); log: impacts and mode changes are not events here."""
 
     def __init__(self, table: ConstraintTable, params: np.ndarray, description: str, method: str = "moreau") -> None:
         from rbody.engine.constraints.events import EventLog
@@ -446,15 +500,14 @@ class MoreauRun:
         None (one compiled loop); with it the steps are taken one by one, each as moreau_loop takes it."""
         count = nsteps // save_every + 1
         out = np.empty((count, len(y0)))
-        impulses = np.empty((count, self.table.rows))
         included = np.zeros(self.table.rows)
         if before_step is None:
-            failed, status, residual, m = moreau_loop(self.p, np.array(y0, dtype=np.float64), dt, nsteps, save_every,
-                                                      out, impulses, EXACT_ROWS, PGS_SWEEPS, STEP_TOLERANCE, included,
-                                                      self.mode)
+            failed, status, residual, m, starts, rows, values = moreau_loop(
+                self.p, np.array(y0, dtype=np.float64), dt, nsteps, save_every, out, EXACT_ROWS, PGS_SWEEPS,
+                STEP_TOLERANCE, included, self.mode)
         else:
-            failed, status, residual, m = self._stepwise(np.array(y0, dtype=np.float64), dt, nsteps, save_every, out,
-                                                         impulses, included, before_step)
+            failed, status, residual, m, starts, rows, values = self._stepwise(
+                np.array(y0, dtype=np.float64), dt, nsteps, save_every, out, included, before_step)
         if failed >= 0:
             what = {1: f"the step's complementarity problem ({m} rows) was left with a residual above "
                        f"{STEP_TOLERANCE:g} of its scale (solver budget: exact up to {EXACT_ROWS} rows, else "
@@ -467,43 +520,51 @@ class MoreauRun:
             names = ", ".join(repr(u.name) for u in named)
             raise SimulationError(f"scene {self.description}: method {self.method!r} with dt={dt}: at t={failed * dt:.9g} s, "
                                   f"constraints {names}: {what}; residual {residual:.3g}")
-        self.forces = impulses / dt
-        modes = np.empty((count, len(self.table.units)))
-        for k, unit in enumerate(self.table.units):
-            value = impulses[:, unit.row0]
-            if unit.code in FRICTION_KINDS:
+        self.forces = StepForces(starts, rows, values, self.table.rows, dt)
+        units = self.table.units
+        modes = np.zeros((count, len(units)), dtype=np.int8)  # small integers (a hand's 3,954 units over 10 s)
+        # stops and contacts: held (1) where their first row pushes, read from the nonzeros alone
+        first_of = np.full(self.table.rows, -1, dtype=np.int64)
+        first_of[[unit.row0 for unit in units]] = np.arange(len(units))
+        unit_of = first_of[rows]
+        codes = np.array([unit.code for unit in units])
+        pushes = (unit_of >= 0) & (values > 0)
+        pushes[pushes] = np.isin(codes[unit_of[pushes]], UNILATERAL + CONTACT_KINDS)
+        modes[self.forces.sample_of[pushes], unit_of[pushes]] = 1
+        for k, unit in enumerate(units):
+            if unit.code in FRICTION_KINDS:  # sticking (0) inside the bound, else sliding against the impulse
+                value = self.forces.columns([unit.row0], impulses=True)[:, 0]
                 bound = unit_bound(self.p, self.table, k) * dt
                 modes[:, k] = np.where(np.abs(value) < bound * (1 - 1e-9), 0.0, -np.sign(value))
-            elif unit.code in UNILATERAL or unit.code in CONTACT_KINDS:
-                modes[:, k] = (value > 0).astype(float)
-            else:
-                modes[:, k] = 1.0
+            elif unit.code not in UNILATERAL and unit.code not in CONTACT_KINDS:
+                modes[:, k] = 1
         return out, modes
 
 
-    def _stepwise(self, y, dt, nsteps, save_every, out, impulses, included, before_step):
-        """moreau_loop's steps one by one, before_step called before each (the same steps, the impulses carried as
-        the loop carries them)."""
+    def _stepwise(self, y, dt, nsteps, save_every, out, included, before_step):
+        """moreau_loop's steps one by one, before_step called before each (the same steps, the impulses carried and
+        recorded as the loop carries and records them)."""
         P = np.zeros(self.table.rows)
         out[0] = y
-        impulses[0] = 0.0
+        starts = np.zeros(out.shape[0] + 1, dtype=np.int64)
+        kept, values, used = np.empty(max(64, 4 * out.shape[0]), dtype=np.int64), np.empty(max(64, 4 * out.shape[0])), 0
         for k in range(1, nsteps + 1):
             before_step(k - 1, (k - 1) * dt, y, self.p)
             status, residual, m = moreau_step(self.p, y, dt, P, EXACT_ROWS, PGS_SWEEPS, STEP_TOLERANCE, included,
                                               self.mode)
             if status != 0:
-                return k, status, residual, m
+                return k, status, residual, m, starts, kept[:used], values[:used]
             if not np.all(np.isfinite(y)):
-                return k, 3, 0.0, m
+                return k, 3, 0.0, m, starts, kept[:used], values[:used]
             if k % save_every == 0:
+                kept, values, used = _record(P, k // save_every, starts, kept, values, used)
                 out[k // save_every] = y
-                impulses[k // save_every] = P
-        return -1, 0, 0.0, 0
+        return -1, 0, 0.0, 0, starts, kept[:used], values[:used]
 
 
 def unit_bound(p: np.ndarray, table: ConstraintTable, k: int) -> float:
     return float(p[table.offset + C_HEADER + UNIT_SIZE * k + U_BOUND])
 
 
-__all__ = ["moreau_step", "moreau_loop", "MoreauRun", "EXACT_ROWS", "STEP_TOLERANCE", "PGS_SWEEPS", "MODES", "SCHEMES",
+__all__ = ["moreau_step", "moreau_loop", "MoreauRun", "StepForces", "EXACT_ROWS", "STEP_TOLERANCE", "PGS_SWEEPS", "MODES", "SCHEMES",
            "mujoco_free_velocity", "next_activations"]

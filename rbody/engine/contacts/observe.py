@@ -63,11 +63,14 @@ def contact_frames(p, y, units, dist, point, normal):
         dist[i] = candidate(work, k, normal[i], point[i])
 
 
-def contact_observables(table, params: np.ndarray, out: np.ndarray, forces: np.ndarray, units: list[int]) -> dict:
-    """The observables of the module docstring from the saved states out (S, B, n) and the rows' forces
-    (S, B, rows) of a run. The geometric ones (contact_distance, contact_point, contact_normal: every candidate's
-    distance at every sample, the cost of a long run of a model with many pairs) are computed on first access, all
-    three at once; the forces now."""
+def contact_observables(table, params: np.ndarray, out: np.ndarray, rows_force, units: list[int],
+                        pushing=None) -> dict:
+    """The observables of the module docstring from the saved states out (S, B, n) and rows_force(which) -> (S, B,
+    len(which)) the forces of rows `which` of a run; pushing(which) -> (S, B) how many of rows `which` push (> 0) at
+    each sample, or None (from rows_force). Every per-candidate one (S, B, candidates, ...) is computed on first
+    access (a hand's 3,954 candidates over 10 s at 2 ms: gigabytes, where a user may read none): the geometric ones
+    (contact_distance, contact_point, contact_normal) all three at once, the forces all four at once; `contacts`
+    now."""
     S, B = out.shape[:2]
     k = len(units)
     index = np.array(units, dtype=np.int64)
@@ -85,21 +88,27 @@ def contact_observables(table, params: np.ndarray, out: np.ndarray, forces: np.n
             return frames[name]
         return value
 
-    first = np.array([table.units[u].row0 for u in units])
-    friction, spin, rolling = np.zeros((S, B, k, 2)), np.zeros((S, B, k)), np.zeros((S, B, k, 2))
-    for i, u in enumerate(units):
-        rows = table.units[u].rows  # the contact's condim: normal, tangents, spin, rolling
-        if rows >= 3:
-            friction[:, :, i] = forces[:, :, first[i] + 1:first[i] + 3]
-        if rows >= 4:
-            spin[:, :, i] = forces[:, :, first[i] + 3]
-        if rows == 6:
-            rolling[:, :, i] = forces[:, :, first[i] + 4:first[i] + 6]
-    normal_force = forces[:, :, first]
-    return {"contacts": (normal_force > 0).sum(axis=-1), "contact_distance": geometry("contact_distance"),
+    first = np.array([table.units[u].row0 for u in units], dtype=np.int64)
+    counts = np.array([table.units[u].rows for u in units], dtype=np.int64)  # condim: normal, tangents, spin, rolling
+    loads: dict = {}
+
+    def load(name: str):
+        def value():
+            if not loads:
+                # each contact's rows padded to 6 (a row past its condim: the normal's again, zeroed below)
+                which = first[:, None] + np.where(np.arange(6)[None, :] < counts[:, None], np.arange(6)[None, :], 0)
+                forces = rows_force(which.ravel()).reshape(S, B, k, 6)
+                forces = np.where((np.arange(6)[None, :] < counts[:, None])[None, None], forces, 0.0)
+                loads.update(contact_normal_force=forces[..., 0], contact_friction_force=forces[..., 1:3],
+                             contact_spin_torque=forces[..., 3], contact_rolling_torque=forces[..., 4:6])
+            return loads[name]
+        return value
+
+    touching = pushing(first) if pushing is not None else (rows_force(first) > 0).sum(axis=-1)
+    return {"contacts": touching, "contact_distance": geometry("contact_distance"),
             "contact_point": geometry("contact_point"), "contact_normal": geometry("contact_normal"),
-            "contact_normal_force": normal_force, "contact_friction_force": friction,
-            "contact_spin_torque": spin, "contact_rolling_torque": rolling}
+            **{name: load(name) for name in ("contact_normal_force", "contact_friction_force", "contact_spin_torque",
+                                             "contact_rolling_torque")}}
 
 
 __all__ = ["contact_observables", "contact_frames"]
