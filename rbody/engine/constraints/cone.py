@@ -292,6 +292,92 @@ def _polish(W, b, lo, hi, role, mu, lam, rounds, forced):
 
 
 @njit(cache=True)
+def sticking_qp(W, b, lo, hi, role, mu, lam):
+    """Finish with every contact sticking: minimise q(lam) = lam.W.lam / 2 + b.lam within the rows' own bounds lo, hi
+    (ordinary rows' boxes, normals >= 0; the friction rows free), by a primal active-set method (Nocedal and Wright,
+    16.5: from a feasible point, step to the minimiser on the face of the bounds held, stopping at the first bound
+    met, which joins the set; at a face's minimiser release the held bound whose multiplier w has the wrong sign).
+    W is only semidefinite where rows are dependent (a robot standing on four feet with dry friction in its
+    joints: 24 rows of rank 18): on such a face the minimiser is the least-norm solution plus, where the gradient
+    has a part along the face's null space, a descent along it to the next bound; Gauss-Seidel crawls along those
+    directions (200,000 sweeps), the state-reading finishes jump between the same few states. Where the result keeps
+    every contact's friction within its cone it solves the whole problem (stationarity is w = 0 on every free row,
+    the sticking contacts' law). lam (m,): the start (clipped to the bounds), the answer if better. Returns the
+    residual kept."""
+    m = b.shape[0]
+    best = cone_residual(W, b, lo, hi, role, mu, lam)
+    x = lam.copy()
+    for i in range(m):
+        x[i] = min(max(x[i], lo[i]), hi[i])
+    held = np.zeros(m, dtype=np.bool_)  # a row held at one of its bounds
+    for i in range(m):
+        held[i] = x[i] == lo[i] or x[i] == hi[i]
+    free = np.empty(m, dtype=np.int64)
+    for _iteration in range(6 * m + 10):
+        g = b + W @ x  # the gradient: the rows' velocities w
+        k = 0
+        for i in range(m):
+            if not held[i]:
+                free[k] = i
+                k += 1
+        step = np.zeros(m)
+        moving = False
+        along, scale = 0.0, 1.0
+        if k > 0:
+            A = np.empty((k, k))
+            r = np.empty(k)
+            for a in range(k):
+                r[a] = -g[free[a]]
+                for c in range(k):
+                    A[a, c] = W[free[a], free[c]]
+            d = np.linalg.lstsq(A, r, 1e-12)[0]  # the face's least-norm Newton step
+            rest = r - A @ d  # the gradient's part along the face's null space: q falls linearly along it
+            for a in range(k):
+                scale = max(scale, abs(r[a]))
+                along = max(along, abs(rest[a]))
+            if along > 1e-10 * scale:
+                for a in range(k):
+                    d[a] = rest[a] * 1e6  # a long step down the null space: the ratio test stops it at a bound
+            for a in range(k):
+                step[free[a]] = d[a]
+                moving = moving or abs(d[a]) > 1e-15 * max(1.0, abs(x[free[a]]))
+        if not moving:  # the face's minimiser: release a held bound that pulls the wrong way, else done
+            worst, release = 0.0, -1
+            for i in range(m):
+                if held[i]:
+                    pull = -g[i] if x[i] == lo[i] else g[i]  # > 0: q falls moving inward
+                    if pull > worst:
+                        worst, release = pull, i
+            if release < 0:
+                break
+            held[release] = False
+            continue
+        alpha, blocking = 1.0, -1  # the ratio test: the first bound met along the step
+        for i in range(m):
+            if step[i] > 0.0 and hi[i] < np.inf and x[i] + step[i] > hi[i]:
+                t = (hi[i] - x[i]) / step[i]
+                if t < alpha:
+                    alpha, blocking = t, i
+            elif step[i] < 0.0 and lo[i] > -np.inf and x[i] + step[i] < lo[i]:
+                t = (lo[i] - x[i]) / step[i]
+                if t < alpha:
+                    alpha, blocking = t, i
+        if blocking < 0 and along > 1e-10 * scale:
+            break  # unbounded along the null space (no bound stops it): no sticking solution
+        for i in range(m):
+            x[i] += alpha * step[i]
+        if blocking >= 0:
+            x[blocking] = lo[blocking] if step[blocking] < 0.0 else hi[blocking]
+            held[blocking] = True
+    residual = cone_residual(W, b, lo, hi, role, mu, x)
+    if residual < best:
+        best = residual
+        for i in range(m):
+            lam[i] = x[i]
+    return best
+
+
+@njit(cache=True)
 def _least_norm(A, r, weights):
     """x = the solution of A x = r (least squares where inconsistent) of least sum x_i^2 / weights_i."""
     k = weights.shape[0]

@@ -58,7 +58,7 @@ from rbody.engine.contacts.kinematics import clearance, point_velocity
 from rbody.engine.contacts.rows import GEOMETRY_WORK, candidate, pair_candidates
 from rbody.engine.multibody import _effective_qpos
 from rbody.engine.constraints.cone import (NORMAL, ROLL, ROW, SPIN, TANGENT, cone_pgs, cone_polish, slide_polish,
-                                           stick_polish)
+                                           stick_polish, sticking_qp)
 from rbody.engine.constraints.solver import mlcp_exact_from, mlcp_pgs, natural_residual
 from rbody.engine.constraints.table import (C_HEADER, CONE, CONNECT, CONTACT, CONTACT1, CONTACT_KINDS, COUPLING,
                                             FRICTION, FRICTION_KINDS, LOWER, TENDON_EQUALITY, TENDON_FRICTION,
@@ -130,6 +130,8 @@ def cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
         residual = min(stick_polish(W, b, lo, hi, role, mu, lam, 8), residual)
         if residual > 1e-3 * tolerance:
             residual = cone_polish(W, b, lo, hi, role, mu, lam, 4)
+        if residual > 1e-3 * tolerance:  # every contact sticking, dependent rows: the box QP by active sets
+            residual = sticking_qp(W, b, lo, hi, role, mu, lam)
         if residual > 1e-3 * tolerance:  # no stick state holds: some contacts slide
             residual = slide_polish(W, b, lo, hi, role, mu, lam, 4)
         if residual <= 1e-3 * tolerance:
