@@ -854,9 +854,9 @@ def _sphere_closed_form(c, r, kind, p, R, s, flip, normal, xa, xb):
     The normal from the sphere to the geom is -g (+g when flip: the geom is a); the witnesses c - phi g on the geom,
     c - r g on the sphere."""
     if kind == BOX:
-        phi = _box_point(c, p, R, s, normal)
+        phi = box_distance(c, p, R, s, normal)
     else:
-        phi = _cylinder_point(c, p, R, s[0], s[1], normal)
+        phi = cylinder_distance(c, p, R, s[0], s[1], normal)
     for a in range(3):
         g = normal[a]
         on_geom, on_sphere = c[a] - phi * g, c[a] - r * g
@@ -1142,9 +1142,10 @@ def signed_distance(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, guess, normal, xa, x
 # ------------------------------------------------------------------------------------------------ a point
 
 @njit(cache=True, **LEAF)
-def _box_point(x, pb, Rb, sb, grad):
-    """The signed distance [m] of x from the box and its gradient: outside, along the offset from the box's nearest
-    point; inside, the outward normal of the face of least depth."""
+def box_distance(x, pb, Rb, sb, grad):
+    """The signed distance [m] of the point x (3,) from the box (centre pb, axes Rb, half sizes sb) and its gradient
+    grad (3,): outside, along the offset from the box's nearest point; inside, the outward normal of the face of
+    least depth."""
     l0 = Rb[0, 0] * (x[0] - pb[0]) + Rb[1, 0] * (x[1] - pb[1]) + Rb[2, 0] * (x[2] - pb[2])
     l1 = Rb[0, 1] * (x[0] - pb[0]) + Rb[1, 1] * (x[1] - pb[1]) + Rb[2, 1] * (x[2] - pb[2])
     l2 = Rb[0, 2] * (x[0] - pb[0]) + Rb[1, 2] * (x[1] - pb[1]) + Rb[2, 2] * (x[2] - pb[2])
@@ -1169,9 +1170,11 @@ def _box_point(x, pb, Rb, sb, grad):
 
 
 @njit(cache=True, **LEAF)
-def _cylinder_point(x, pc, Rc, radius, half, grad):
-    """The signed distance [m] of x from the cylinder: max(d_r, d_z) inside, |(d_r, d_z)_+| outside, d_r = rho -
-    radius, d_z = |z| - half; grad the outward normal at the nearest surface point."""
+def cylinder_distance(x, pc, Rc, radius, half, grad):
+    """The signed distance [m] of the point x (3,) from the cylinder of centre pc (3,), axis Rc[:, 2], radius and
+    half-length half [m], and its gradient grad (3,): the outward normal at the nearest point of the surface (the
+    rim's, a cap's or the side's; inside: the nearer of cap and side). Convex in x: max(d_r, d_z) inside,
+    |(d_r, d_z)_+| outside, d_r = rho - radius, d_z = |z| - half."""
     d0, d1, d2 = x[0] - pc[0], x[1] - pc[1], x[2] - pc[2]
     z = d0 * Rc[0, 2] + d1 * Rc[1, 2] + d2 * Rc[2, 2]
     r0, r1, r2 = d0 - z * Rc[0, 2], d1 - z * Rc[1, 2], d2 - z * Rc[2, 2]
@@ -1217,9 +1220,9 @@ def point_signed_distance(kind, pos, mat, size, hull, x, grad):
             grad[0], grad[1], grad[2] = mat[0, 0], mat[1, 0], mat[2, 0]
         return length - size[0]
     if kind == BOX:
-        return _box_point(x, pos, mat, size, grad)
+        return box_distance(x, pos, mat, size, grad)
     if kind == CYLINDER:
-        return _cylinder_point(x, pos, mat, size[0], size[1], grad)
+        return cylinder_distance(x, pos, mat, size[0], size[1], grad)
     if kind == MESH:
         if hull.size < 3 or hull[0] < 4:
             grad[0], grad[1], grad[2] = np.nan, np.nan, np.nan

@@ -89,7 +89,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from rbody.engine.contacts.convex import point_signed_distance, signed_distance, support
+from rbody.engine.contacts.convex import (box_distance, cylinder_distance, point_signed_distance, signed_distance,
+                                         support)
 from rbody.engine.contacts.ellipsoid import ellipsoid_distance, plane_ellipsoid, segment_ellipsoid_closest
 
 PLANE, SPHERE, CAPSULE, ELLIPSOID, CYLINDER, BOX, MESH = 0, 2, 3, 4, 5, 6, 7
@@ -292,36 +293,6 @@ def capsule_box_slot(c, u, half_length, h, k):
     return end, abs(end - closest) < LYING_SPAN * half_length  # an end: not where the closest point is
 
 
-@njit(cache=True, inline="always")
-def cylinder_distance(x, pc, Rc, radius, half, grad):
-    """The signed distance [m] of the point x (3,) from the cylinder of centre pc (3,), axis Rc[:, 2], radius and
-    half-length half [m], and its gradient grad (3,): the outward normal at the nearest point of the surface (the
-    rim's, a cap's or the side's; inside: the nearer of cap and side). Convex in x: max(d_r, d_z) inside,
-    |(d_r, d_z)_+| outside, d_r = rho - radius, d_z = |z| - half."""
-    d0, d1, d2 = x[0] - pc[0], x[1] - pc[1], x[2] - pc[2]
-    z = d0 * Rc[0, 2] + d1 * Rc[1, 2] + d2 * Rc[2, 2]
-    r0, r1, r2 = d0 - z * Rc[0, 2], d1 - z * Rc[1, 2], d2 - z * Rc[2, 2]
-    rho = np.sqrt(r0 * r0 + r1 * r1 + r2 * r2)
-    if rho > 0.0:
-        e0, e1, e2 = r0 / rho, r1 / rho, r2 / rho
-    else:  # on the axis: any radial direction
-        e0, e1, e2 = Rc[0, 0], Rc[1, 0], Rc[2, 0]
-    side = 1.0 if z >= 0.0 else -1.0
-    dr, dz = rho - radius, abs(z) - half
-    if dr > 0.0 and dz > 0.0:  # beyond the rim
-        length = np.sqrt(dr * dr + dz * dz)
-        grad[0] = (dr * e0 + dz * side * Rc[0, 2]) / length
-        grad[1] = (dr * e1 + dz * side * Rc[1, 2]) / length
-        grad[2] = (dr * e2 + dz * side * Rc[2, 2]) / length
-        return length
-    if dz > dr:  # a cap's
-        for a in range(3):
-            grad[a] = side * Rc[a, 2]
-        return dz
-    grad[0], grad[1], grad[2] = e0, e1, e2  # the side's
-    return dr
-
-
 @njit(cache=True)
 def _point_cylinder(c, r, pc, Rc, sc, k, dist, normal, point):
     """Contact k of a sphere (centre c, radius r) and a cylinder (centre pc, axes Rc, radius sc[0], half-length
@@ -418,34 +389,6 @@ def rim_point(pc, Rc, sc, w, v, k, turn, out):
         cv = -sc[0] if j == 1 else (sc[0] if j == 3 else 0.0)
     for a in range(3):
         out[a] = pc[a] + cap * Rc[a, 2] + cw * w[a] + cv * v[a]
-
-
-@njit(cache=True)
-def box_distance(x, pb, Rb, sb, grad):
-    """The signed distance [m] of the point x (3,) from the box (centre pb, axes Rb, half sizes sb) and its gradient
-    grad (3,): outside, along the offset from the box's nearest point; inside, the outward normal of the face of
-    least depth (as _point_box)."""
-    l0 = Rb[0, 0] * (x[0] - pb[0]) + Rb[1, 0] * (x[1] - pb[1]) + Rb[2, 0] * (x[2] - pb[2])
-    l1 = Rb[0, 1] * (x[0] - pb[0]) + Rb[1, 1] * (x[1] - pb[1]) + Rb[2, 1] * (x[2] - pb[2])
-    l2 = Rb[0, 2] * (x[0] - pb[0]) + Rb[1, 2] * (x[1] - pb[1]) + Rb[2, 2] * (x[2] - pb[2])
-    o0 = l0 - min(max(l0, -sb[0]), sb[0])
-    o1 = l1 - min(max(l1, -sb[1]), sb[1])
-    o2 = l2 - min(max(l2, -sb[2]), sb[2])
-    outside = o0 * o0 + o1 * o1 + o2 * o2
-    if outside > 0.0:
-        length = np.sqrt(outside)
-        for a in range(3):
-            grad[a] = (Rb[a, 0] * o0 + Rb[a, 1] * o1 + Rb[a, 2] * o2) / length
-        return length
-    face, depth, along = 0, sb[0] - abs(l0), l0
-    if sb[1] - abs(l1) < depth:
-        face, depth, along = 1, sb[1] - abs(l1), l1
-    if sb[2] - abs(l2) < depth:
-        face, depth, along = 2, sb[2] - abs(l2), l2
-    side = 1.0 if along >= 0.0 else -1.0
-    for a in range(3):
-        grad[a] = side * Rb[a, face]
-    return -depth
 
 
 @njit(cache=True, inline="always")
@@ -699,27 +642,10 @@ def _box_edge_pair(pa, Ra, sa, pb, Rb, sb, k, dist, normal, point):
 def point_distance(kind, pos, mat, size, hull, x, grad):
     """The signed distance [m] of the point x (3,) from a geom (kind, centre pos, axes mat, size; hull: a mesh's
     packed convex hull) and grad (3,) its gradient, the outward normal at the nearest surface point: closed form
-    for spheres, capsules, boxes and cylinders, Eberly's root for an ellipsoid, exact for a mesh's hull (its face
-    planes inside, the hull's nearest point outside)."""
-    if kind == SPHERE or kind == CAPSULE:
-        c0, c1, c2 = pos[0], pos[1], pos[2]
-        if kind == CAPSULE:  # the segment's nearest point, then as a sphere
-            s = (x[0] - pos[0]) * mat[0, 2] + (x[1] - pos[1]) * mat[1, 2] + (x[2] - pos[2]) * mat[2, 2]
-            s = min(max(s, -size[1]), size[1])
-            c0, c1, c2 = pos[0] + s * mat[0, 2], pos[1] + s * mat[1, 2], pos[2] + s * mat[2, 2]
-        d0, d1, d2 = x[0] - c0, x[1] - c1, x[2] - c2
-        length = np.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
-        if length > 0.0:
-            grad[0], grad[1], grad[2] = d0 / length, d1 / length, d2 / length
-        else:
-            grad[0], grad[1], grad[2] = 0.0, 0.0, 1.0
-        return length - size[0]
+    for spheres, capsules, boxes and cylinders, exact for a mesh's hull (its face planes inside, the hull's nearest
+    point outside: rbody.engine.contacts.convex.point_signed_distance), Eberly's root for an ellipsoid."""
     if kind == ELLIPSOID:
         return ellipsoid_distance(x, pos, mat, size, grad)
-    if kind == CYLINDER:
-        return cylinder_distance(x, pos, mat, size[0], size[1], grad)
-    if kind == BOX:
-        return box_distance(x, pos, mat, size, grad)
     return point_signed_distance(kind, pos, mat, size, hull, x, grad)
 
 
