@@ -32,7 +32,7 @@ PATTERN_TONE = 0.8            # brightness of a round shape's darker sectors (1:
 PLANE_TILES = 10              # tiles along the longer side of a plane
 AMBIENT, DIFFUSE = 0.5, 0.5   # Lambert shading: ambient + diffuse max(0, n . light)
 
-DRAWN_KINDS = ("sphere", "cylinder", "box", "capsule", "plane", "mesh", "ellipsoid")
+DRAWN_KINDS = ("sphere", "cylinder", "box", "capsule", "plane", "mesh", "ellipsoid", "hfield")
 
 
 @dataclass(frozen=True)
@@ -193,12 +193,13 @@ def _mesh(path: str | None, vertices=()) -> Polygons:
 
 
 def shape_polygons(kind: str, size: Sequence[float], *, mesh: str | None = None, plane_extent: float = 1.0,
-                   plane_thickness: float = 0.0, vertices=()) -> Polygons:
+                   plane_thickness: float = 0.0, vertices=(), heights=()) -> Polygons:
     """The faces of one shape in its own frame: kind one of DRAWN_KINDS; size as rbody.Shape gives it (sphere
     (r,), cylinder and capsule (r, half length) along local z, box (half sizes), ellipsoid (half axes), plane
     (half x, half y; 0 or absent: infinite, drawn `plane_extent` [m] each way) on a slab `plane_thickness` [m]
-    deep); mesh: the file's path, or vertices (V, 3) [m] whose convex hull is drawn. ValueError for an unknown kind
-    or a mesh trimesh cannot read."""
+    deep); mesh: the file's path, or vertices (V, 3) [m] whose convex hull is drawn; hfield: size (sx, sy, sz,
+    base) and heights (nrow, ncol) in [0, 1], its top surface. ValueError for an unknown kind or a mesh trimesh
+    cannot read."""
     size = [float(s) for s in np.atleast_1d(size)] if np.size(size) else []
     if kind == "sphere":
         return _ellipsoid([size[0]] * 3)
@@ -218,12 +219,34 @@ def shape_polygons(kind: str, size: Sequence[float], *, mesh: str | None = None,
         if mesh is None and len(vertices) < 4:
             raise ValueError("a mesh shape needs the path of its file (Shape.mesh) or its vertices (Shape.vertices)")
         return _mesh(mesh, vertices)
+    if kind == "hfield":
+        return _terrain(size, heights)
     raise ValueError(f"shape kind {kind!r}: cannot draw it; expected one of {DRAWN_KINDS}")
+
+
+def _terrain(size: Sequence[float], heights) -> Polygons:
+    """A height field's top surface (rbody.Shape's hfield: size (sx, sy, sz, base), heights (nrow, ncol) in [0, 1]),
+    its cells' two triangles each as the terrain's contacts see them (rbody.engine.contacts.terrain)."""
+    heights = np.asarray(heights, dtype=float)
+    if heights.ndim != 2 or min(heights.shape) < 2:
+        raise ValueError(f"a hfield shape needs heights (nrow, ncol), each >= 2, got shape {heights.shape}")
+    nrow, ncol = heights.shape
+    x = np.linspace(-size[0], size[0], ncol)
+    y = np.linspace(-size[1], size[1], nrow)
+    grid = np.stack(np.broadcast_arrays(x[None, :], y[:, None], size[2] * heights), axis=-1)  # (nrow, ncol, 3)
+    a, b, c, d = grid[:-1, :-1], grid[:-1, 1:], grid[1:, :-1], grid[1:, 1:]  # (r, c), (r, c+1), (r+1, c), (r+1, c+1)
+    first = np.stack([c, a, d, d], axis=-2).reshape(-1, 4, 3)  # T0 and T1 of every cell
+    second = np.stack([a, d, b, b], axis=-2).reshape(-1, 4, 3)
+    points = np.concatenate([first, second])
+    normals = _newell(points)
+    normals *= np.where(normals[:, 2:3] < 0, -1.0, 1.0)  # up
+    return Polygons(points, normals, np.ones(len(points)), closed=False)
 
 
 def placed(shape, **options) -> Polygons:
     """shape_polygons of an rbody.Shape, moved to its pos and quat in the frame that carries it."""
-    local = shape_polygons(shape.kind, shape.size, mesh=shape.mesh, vertices=shape.vertices, **options)
+    local = shape_polygons(shape.kind, shape.size, mesh=shape.mesh, vertices=shape.vertices,
+                           heights=getattr(shape, "heights", ()), **options)
     return local.moved(quat_to_matrix(np.asarray(shape.quat, dtype=float)), np.asarray(shape.pos, dtype=float))
 
 

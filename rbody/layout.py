@@ -25,7 +25,7 @@ from rbody.inertia import Inertia, unit_axis
 
 WORLD = "world"
 
-SHAPE_KINDS = ("sphere", "cylinder", "box", "capsule", "plane", "ellipsoid", "mesh")
+SHAPE_KINDS = ("sphere", "cylinder", "box", "capsule", "plane", "ellipsoid", "mesh", "hfield")
 
 
 def _check_dry_friction(element, what: str) -> None:
@@ -45,12 +45,16 @@ class Shape:
     kind:   one of SHAPE_KINDS
     size:   sphere (radius,); cylinder and capsule (radius, half_length) along the local z;
             box (half sizes x, y, z); plane (half sizes x, y, or 0 for infinite); ellipsoid (semi-axes x, y,
-            z); mesh: ()
+            z); mesh: (); hfield (sx, sy, sz, base): MuJoCo's height field over [-sx, sx] x [-sy, sy], its
+            elevations scaled by sz, its base sz below 0 (a world-fixed shape only: Layout.fixed)
     pos:    (3,) centre of the shape [m]; quat: (4,) its orientation (w, x, y, z)
     mesh:   path of the mesh file for kind="mesh" (drawing; vertices in the shape's frame)
     vertices: (V, 3) points in the shape's frame [m] whose convex hull is a mesh shape's collision geometry (as
             MuJoCo collides a mesh by its convex hull; from_mjcf gives the hull's vertices, scaled as the file
             says); () for other kinds. A mesh shape in a Contact needs them.
+    heights: (nrow, ncol) a height field's elevations in [0, 1] (MuJoCo's normalised data: vertex (r, c) at x =
+            -sx + 2 sx c / (ncol - 1), y = -sy + 2 sy r / (nrow - 1), z = sz heights[r][c]), nrow, ncol >= 2;
+            () for other kinds (rbody.engine.contacts.terrain collides it)
     """
 
     name: str
@@ -60,6 +64,7 @@ class Shape:
     quat: tuple[float, float, float, float] = (1.0, 0.0, 0.0, 0.0)
     mesh: str | None = None
     vertices: tuple[tuple[float, float, float], ...] = ()
+    heights: tuple[tuple[float, ...], ...] = ()
 
     def __post_init__(self) -> None:
         _name(self.name, "shape", "name")
@@ -74,12 +79,32 @@ class Shape:
                 raise ValueError(f"shape {self.name!r}: vertices have shape {points.shape}: expected (V, 3) points "
                                  "[m], V >= 4 (a solid's convex hull)")
             object.__setattr__(self, "vertices", tuple(map(tuple, points.tolist())))
+        if self.kind == "hfield" or len(self.heights):
+            self._check_field()
         object.__setattr__(self, "size", tuple(float(s) for s in nonnegative(np.atleast_1d(self.size), "size")))
         object.__setattr__(self, "pos", tuple(finite_array(self.pos, "pos", shape=(3,)).tolist()))
         quat = finite_array(self.quat, "quat", shape=(4,))
         if np.linalg.norm(quat) == 0:
             raise ValueError(f"shape {self.name!r}: quat={quat.tolist()} must be non-zero")
         object.__setattr__(self, "quat", tuple((quat if already_unit(quat) else quat / np.linalg.norm(quat)).tolist()))
+
+
+    def _check_field(self) -> None:
+        """A height field's size (4 positive numbers) and heights ((nrow, ncol) >= 2 each, in [0, 1])."""
+        if self.kind != "hfield":
+            raise ValueError(f"shape {self.name!r}: heights are given for a {self.kind}: only a hfield shape has them")
+        size = finite_array(self.size, f"shape {self.name!r}: size")
+        if size.shape != (4,) or not np.all(size > 0):
+            raise ValueError(f"shape {self.name!r}: a hfield's size={tuple(np.atleast_1d(size).tolist())!r}: expected "
+                             "4 positive numbers (sx, sy, sz, base) [m]")
+        heights = finite_array(self.heights, f"shape {self.name!r}: heights")
+        if heights.ndim != 2 or heights.shape[0] < 2 or heights.shape[1] < 2:
+            raise ValueError(f"shape {self.name!r}: heights of shape {heights.shape}: expected (nrow, ncol), each "
+                             ">= 2")
+        if heights.min() < 0.0 or heights.max() > 1.0:
+            raise ValueError(f"shape {self.name!r}: heights span [{heights.min():g}, {heights.max():g}]: expected "
+                             "values in [0, 1] (scaled by size[2], as MuJoCo's normalised elevation)")
+        object.__setattr__(self, "heights", tuple(map(tuple, heights.tolist())))
 
 
 @dataclass(frozen=True)
@@ -110,6 +135,10 @@ class Body:
             raise ValueError(f"{what}: inertia={_short(self.inertia)} is a {type(self.inertia).__name__}: expected an "
                              "rbody.Inertia (mass, centre of mass and tensor, e.g. Inertia.rod(1.0, 0.5, 'z'))")
         object.__setattr__(self, "shapes", _items(self.shapes, Shape, f"{what}: shapes"))
+        for shape in self.shapes:
+            if shape.kind == "hfield":
+                raise ValueError(f"{what}: shape {shape.name!r} is a hfield: a height field is world-fixed terrain "
+                                 "(Layout.fixed), not a moving body's shape")
         _name(self.parent, what, "parent")
         object.__setattr__(self, "pos", tuple(finite_array(self.pos, f"{what}: pos", shape=(3,)).tolist()))
         quat = finite_array(self.quat, f"{what}: quat", shape=(4,))

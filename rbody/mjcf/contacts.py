@@ -113,11 +113,16 @@ def unsupported_pair(g1, g2, spec: dict | None = None) -> str:
     and condim, which rbody models whatever they are), or "" when it can."""
     from rbody.engine.contacts.geometry import SLOTS, pairs_text
 
+    if "hfield" in (g1.kind, g2.kind):
+        other = g2 if g1.kind == "hfield" else g1
+        if other.kind in ("plane", "hfield"):
+            return f"rbody does not compute hfield-{other.kind} contacts (MuJoCo has none)"
+        return ""
     codes = [_kind_code(g) for g in (g1, g2)]
     if None in codes:
         kind = g1.kind if codes[0] is None else g2.kind
-        return (f"rbody computes contacts of plane, sphere, capsule, ellipsoid, cylinder, box and mesh geoms, not "
-                f"{kind} (height-field contacts are to come)")
+        return (f"rbody computes contacts of plane, sphere, capsule, ellipsoid, cylinder, box, mesh and hfield "
+                f"geoms, not {kind}")
     if tuple(sorted(codes)) not in SLOTS:
         return f"rbody does not compute {g1.kind}-{g2.kind} contacts yet (it computes {pairs_text()})"
     return ""

@@ -109,7 +109,8 @@ CONES = ("pyramidal", "elliptic")
 CONDIMS = (1, 3, 4, 6)
 INITIAL_KEY = "initial"
 
-_SIZE_COUNT = {"sphere": 1, "cylinder": 2, "capsule": 2, "box": 3, "plane": 2, "ellipsoid": 3, "mesh": 0}
+_SIZE_COUNT = {"sphere": 1, "cylinder": 2, "capsule": 2, "box": 3, "plane": 2, "ellipsoid": 3, "mesh": 0,
+               "hfield": 4}
 _MJCF_JOINT = {"hinge": "hinge", "slide": "slide", "ball": "ball", "free": "free", "roll": "hinge"}
 _JOINT_ATTRIBUTES = ("damping", "stiffness", "springref", "armature", "ref")  # written only when non-zero
 
@@ -480,10 +481,27 @@ def _geom(shape: Shape, indent: str) -> str:
         attrs["size"] = _vec((hx, hy, shape.size[2] if len(shape.size) == 3 else spacing))
     elif shape.kind == "mesh":
         attrs["mesh"] = shape.name
+    elif shape.kind == "hfield":  # its asset, of the shape's name
+        attrs["hfield"] = shape.name
     else:
         attrs["size"] = _vec(shape.size)
-    attrs.update(pos=_vec(shape.pos), quat=_vec(shape.quat), contype="0", conaffinity="0")
+    pos = _hfield_as_mujoco(shape)[2] if shape.kind == "hfield" else shape.pos
+    attrs.update(pos=_vec(pos), quat=_vec(shape.quat), contype="0", conaffinity="0")
     return f"{indent}<geom {_attrs(**attrs)}/>"
+
+
+def _hfield_as_mujoco(shape: Shape) -> tuple[np.ndarray, tuple, np.ndarray]:
+    """(elevation (nrow, ncol), size (4,), pos (3,)): a hfield shape as MuJoCo's compiler keeps it, which shifts its
+    elevations to a least of 0 and scales them to a greatest of 1: the shape's least height moved into the geom's
+    position along its z axis (its base with it), the range into size[2] (a flat field: elevations 0 at its
+    height). MuJoCo holds elevations in single precision: its surface is within 6e-8 of size[2] of rbody's."""
+    heights = np.asarray(shape.heights, dtype=float)
+    sx, sy, sz, base = shape.size
+    low, span = heights.min(), heights.max() - heights.min()
+    elevation = (heights - low) / span if span > 1e-14 else np.zeros_like(heights)
+    axis = quat_to_matrix(np.asarray(shape.quat))[:, 2]
+    pos = np.asarray(shape.pos) + axis * (low * sz)
+    return elevation, (sx, sy, sz * span if span > 1e-14 else sz, base + low * sz), pos
 
 
 def _inertial(exported: ExportedInertia, indent: str) -> str:
@@ -740,10 +758,16 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
         out.append("  <custom>")
         out.extend(f"    <numeric {_attrs(name=f'rbody.restitution.{name}', data=_num(e))}/>" for name, e in restitutions)
         out.append("  </custom>")
-    meshes = [s for s in list(layout.fixed) + [s for b in order for s in b.shapes] if s.kind == "mesh"]
+    meshes = [s for s in list(layout.fixed) + [s for b in order for s in b.shapes] if s.kind in ("mesh", "hfield")]
     if meshes:
         out.append("  <asset>")
         for shape in meshes:
+            if shape.kind == "hfield":
+                elevation, size, _pos = _hfield_as_mujoco(shape)
+                attrs = _attrs(name=shape.name, nrow=elevation.shape[0], ncol=elevation.shape[1], size=_vec(size),
+                               elevation=_vec(elevation.ravel()))
+                out.append(f"    <hfield {attrs}/>")
+                continue
             if shape.vertices:  # the points whose convex hull collides, as MuJoCo collides a mesh: written out
                 out.append(f"    <mesh {_attrs(name=shape.name, vertex=_vec(np.ravel(shape.vertices)))}/>")
                 continue

@@ -48,7 +48,8 @@ equal MuJoCo's body_mass, body_ipos and body_inertia/body_iquat to round-off):
   (disable: g = 0), spring and damper (disable: the joints' and tendons' stiffness or damping become 0),
   actuation (disable: actuators apply no force), clampctrl (disable: controls are not clamped), each noted;
 - ``<keyframe>``: qpos, qvel, act and ctrl of a key chosen by name or index (``keyframe=``);
-- a world-fixed height field, read as static terrain (noted);
+- a world-fixed height field (<hfield> with nrow, ncol, size and elevation; not from a file), as a "hfield" Shape
+  that collides (rbody.engine.contacts.terrain);
 - one rbody Body per MJCF body, with its name (an unnamed body is called ``body<id>``, id as MuJoCo's;
   unnamed joints ``<body>_joint<i>``, geoms ``<body>_geom<i>``), except that a body with neither mass
   nor joints (a pure frame) is folded into its parent, its children and shapes moved there (noted).
@@ -67,13 +68,13 @@ MuJoCo's friction and condim combination and rbody's restitution numerics (rbody
 rigidly by the constraint layer (condim 4 and 6: torsional and rolling friction, each its own Coulomb law). Explicit
 <pair>s too, with their own friction and condim, in place of the dynamic pair of their geoms.
 
-Refused (MJCFError, naming the element, its file and line): contacts rbody does not compute (a pair with an
-ellipsoid, mesh or height field) while the contact flag is on (set
+Refused (MJCFError, naming the element, its file and line): contacts rbody does not compute (an sdf geom; a
+height field on a body) while the contact flag is on (set
 contype="0" conaffinity="0" on the geoms, or <flag contact="disable"/>); flex equalities; tendon armature, wrapping
 tendons (geoms, pulleys); actuators that rbody does not model (muscle, cylinder, adhesion, pid, dcmotor,
 orientation; user dynamics, gains or biases; actuator damping or armature; body, slider-crank or refsite
 transmissions; see rbody.mjcf.actuators); springdamper on a ball or free joint; fluidshape="ellipsoid" on a mesh
-or plane geom; a height field on a moving body, flexes, composites, plugins, <replicate>, <attach>; gravity not
+or plane geom; a height field on a moving body or from a file, flexes, composites, plugins, <replicate>, <attach>; gravity not
 along -z; stiffness on a ball joint; boundmass, boundinertia, fusestatic, alignfree; a body with a joint but no
 mass; an orientation given twice; unknown elements or attributes; geoms of one moving body that overlap, which
 MuJoCo would count twice (``overlapping_geoms="sum"`` sums them as MuJoCo does).
@@ -162,6 +163,7 @@ _GEOM_ATTRS = {"name", "class", "type", "contype", "conaffinity", "condim", "gro
                "friction", "mass", "density", "shellinertia", "solmix", "solref", "solimp", "margin", "gap",
                "surfacevel", "adhesion", "fromto", "pos", "quat", "axisangle", "xyaxes", "zaxis", "euler", "hfield",
                "mesh", "fitscale", "rgba", "fluidshape", "fluidcoef", "user"}
+_HFIELD_ATTRS = {"name", "content_type", "file", "nrow", "ncol", "size", "elevation"}
 _MESH_ATTRS = {"name", "class", "content_type", "file", "vertex", "normal", "texcoord", "face", "refpos", "refquat",
                "scale", "smoothnormal", "maxhullvert", "inertia", "builtin", "params", "material"}
 _COMPILER_ATTRS = {"autolimits", "boundmass", "boundinertia", "settotalmass", "balanceinertia", "strippath",
@@ -271,6 +273,7 @@ class _Reader:
         self.classes: dict[str, dict[str, dict]] = {}
         self.class_parent: dict[str, str | None] = {}
         self.meshes: dict[str, tuple[Element, dict]] = {}
+        self.hfields: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # name -> (heights (nrow, ncol) in [0, 1], size)
         self.mesh_cache: dict[str, MeshMass] = {}
         self.hull_cache: dict[str, tuple] = {}                 # mesh name -> its convex hull's vertices
         self.colliding: set[str] = set()                       # the names of geoms in some contact pair
@@ -577,6 +580,42 @@ class _Reader:
                 child, parent_name = self._nested_defaults.pop()
                 self.read_default(child, parent_name)
 
+    def read_hfield(self, element: Element) -> None:
+        """A <hfield> asset: nrow x ncol elevations (elevation, row 0 at y = -size[1]; none given: all 0) normalised
+        to [0, 1] as MuJoCo's compiler does (less the least, over the range where it exceeds 1e-14), and its size
+        (sx, sy, sz, base) [m], all > 0. A height field from a file (PNG or MuJoCo's binary) is refused."""
+        self.check_attrs(element, _HFIELD_ATTRS)
+        attrib = element.attrib
+        if "file" in attrib:
+            raise element.error(f"file={attrib['file']!r}: height fields from files are not read; give nrow, ncol "
+                                "and elevation")
+        name = attrib.get("name")
+        if not name:
+            raise element.error("a <hfield> needs a name")
+        if name in self.hfields:
+            raise element.error(f"two height fields are called {name!r}")
+        nrow, ncol = integer(element, "nrow", attrib, 0), integer(element, "ncol", attrib, 0)
+        if nrow < 2 or ncol < 2:
+            raise element.error(f"nrow={nrow}, ncol={ncol}: a height field needs at least 2 of each")
+        size = numbers(element, "size", attrib, 4) if "size" in attrib else np.zeros(4)
+        if not np.all(size > 0):
+            raise element.error(f"size={attrib.get('size', '')!r}: a height field needs 4 sizes > 0 (MuJoCo: size "
+                                "parameter is not positive in hfield)")
+        if "elevation" in attrib:
+            data = numbers(element, "elevation", attrib)
+            if data.size != nrow * ncol:
+                raise element.error(f"elevation has {data.size} numbers: nrow x ncol = {nrow * ncol} expected "
+                                    "(MuJoCo: elevation data length must match nrow*ncol)")
+            data = data.astype(np.float32).astype(float)  # MuJoCo keeps them as floats
+        else:
+            data = np.zeros(nrow * ncol)
+        data = data - data.min()
+        if data.max() > 1e-14:
+            data = data / data.max()
+        self.hfields[name] = (data.reshape(nrow, ncol), size)
+        self.note("hfield", "height fields: world-fixed terrain, collided by its triangles' faces and convex edges "
+                            "(rbody.engine.contacts.terrain)")
+
     def read_assets(self, element: Element) -> None:
         self.check_attrs(element, set())
         for child in element.children:
@@ -594,7 +633,7 @@ class _Reader:
             elif child.tag in ("texture", "material", "skin"):
                 self.note(child.tag, f"<{child.tag}> assets ignored (appearance only)")
             elif child.tag == "hfield":
-                self.note("hfield", "<hfield> assets: a geom using one is read only as world-fixed terrain")
+                self.read_hfield(child)
             elif child.tag == "model":
                 raise child.error("<model> assets (model composition) are not supported")
             else:
@@ -764,12 +803,20 @@ class _Reader:
             raise element.error(f"{kind} geoms are not supported" + (" on a body (only a world-fixed height field, "
                                                                     "which moves nothing, is read)" if kind == "hfield"
                                                                     else ""))
-        if kind == "hfield":  # on the world: static terrain, massless; the contact check still sees it
-            self.note("hfield geom", "a world-fixed height field read as static terrain (no rbody Shape draws it)")
-            body.geoms.append(_Geom(element, attrib, attrib.get("name", ""), kind, np.zeros(3), np.zeros(3),
-                                    np.array([1.0, 0.0, 0.0, 0.0]), int(number(element, "contype", attrib, 1)),
-                                    int(number(element, "conaffinity", attrib, 1)),
-                                    int(number(element, "group", attrib, 0))))
+        if kind == "hfield":  # on the world: static terrain, massless
+            field = attrib.get("hfield")
+            if field not in self.hfields:
+                raise element.error(f"hfield={field!r}: a hfield geom needs hfield=\"name of a <hfield> asset\"")
+            pos = numbers(element, "pos", attrib, 3) if "pos" in attrib else np.zeros(3)
+            quat = self.orientation(element, attrib)
+            if frame is not None:
+                pos, quat = frame[0] + quat_matrix(frame[1]) @ pos, quat_product(frame[1], quat)
+            if integer(element, "condim", attrib, 3) not in (1, 3, 4, 6):
+                raise element.error(f"condim={attrib['condim']!r}: MuJoCo allows 1, 3, 4 or 6 (invalid condim)")
+            body.geoms.append(_Geom(element, attrib, attrib.get("name", ""), kind, self.hfields[field][1].copy(), pos,
+                                    quat, integer(element, "contype", attrib, 1),
+                                    integer(element, "conaffinity", attrib, 1), integer(element, "group", attrib, 0),
+                                    mesh=field))
             return
         fluidshape = choice(element, "fluidshape", attrib, ("none", "ellipsoid"), "none")
         if fluidshape == "ellipsoid" and kind in ("mesh", "plane"):
@@ -1631,8 +1678,9 @@ class _Reader:
         gpos = pos + quat_matrix(quat) @ geom.pos
         gquat = quat_product(quat, geom.quat)
         common = dict(pos=tuple(gpos.tolist()), quat=tuple(gquat.tolist()))
-        if geom.kind == "hfield":
-            return []
+        if geom.kind == "hfield":  # the asset's name rides in the geom's mesh field
+            heights, size = self.hfields[geom.mesh]
+            return [Shape(geom.name, "hfield", tuple(size.tolist()), heights=heights, **common)]
         if geom.kind == "mesh":  # a mesh that can collide carries its convex hull's vertices
             vertices = self.hull_vertices(geom) if geom.name in self.colliding else ()
             return [Shape(geom.name, "mesh", (), mesh=self.mesh_path(geom.mesh), vertices=vertices, **common)]

@@ -60,10 +60,14 @@ def test_contact_rules_friction_max_and_filters(tmp_path):
 
 def test_unsupported_pair_refused_with_its_line(tmp_path):
     path = tmp_path / "cyl.xml"
-    path.write_text('<mujoco><asset><hfield name="h" nrow="2" ncol="2" size="1 1 0.1 0.1"/></asset><worldbody>'
-                    '<geom name="floor" type="hfield" hfield="h"/>\n'
-                    '<body><freejoint/><geom name="c" type="ellipsoid" size="0.1 0.2 0.3"/></body></worldbody></mujoco>')
-    with pytest.raises(MJCFError, match=r"cyl.xml, line 1.*'floor' and 'c' \(line 2\) can collide.*not hfield"):
+    text = ('<mujoco><asset><hfield name="h" nrow="2" ncol="2" size="1 1 0.1 0.1"/></asset><worldbody>'
+            '<geom name="floor" type="hfield" hfield="h"/>\n<geom name="plane" type="plane" size="1 1 1"/>\n'
+            '<body><freejoint/><geom name="c" type="ellipsoid" size="0.1 0.2 0.3"/></body></worldbody>{}</mujoco>')
+    path.write_text(text.format(""))
+    assert len(from_mjcf(path).layout.contacts) == 2  # a height field and an ellipsoid: computed
+    path.write_text(text.format('<contact><pair geom1="floor" geom2="plane"/></contact>'))
+    with pytest.raises(MJCFError, match=r"cyl.xml, line 1.*'floor' and 'plane' \(line 2\) can collide.*"
+                                        r"hfield-plane contacts"):
         from_mjcf(path)
 
 

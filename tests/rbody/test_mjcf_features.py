@@ -174,11 +174,13 @@ def test_a_world_fixed_height_field_is_static_terrain_and_one_on_a_body_is_refus
     asset = '<asset><hfield name="h" nrow="3" ncol="3" size="1 1 0.1 0.1" elevation="0 1 0 1 0 1 0 1 0"/></asset>'
     xml = f"""<mujoco>{asset}{OFF}<worldbody><geom type="hfield" hfield="h"/>
       <body pos="0 0 1"><joint/><geom size="0.1"/></body></worldbody></mujoco>"""
-    mujoco.MjModel.from_xml_string(xml)
+    model = mujoco.MjModel.from_xml_string(xml)
     read = layout_from_mjcf(xml)
-    assert any("height field" in note for note in read.notes) and read.layout.fixed == ()
-    with pytest.raises(ValueError, match="can collide"):  # the contact check still sees the terrain
-        layout_from_mjcf(xml.replace(OFF, ""))
+    assert any("height field" in note for note in read.notes)
+    (terrain,) = read.layout.fixed
+    assert terrain.kind == "hfield" and terrain.size == (1.0, 1.0, 0.1, 0.1)
+    np.testing.assert_array_equal(np.ravel(terrain.heights), model.hfield_data)  # MuJoCo's normalised data
+    assert len(layout_from_mjcf(xml.replace(OFF, "")).layout.contacts) == 1  # the terrain and the body's sphere
     with pytest.raises(ValueError, match=r"line 2, <geom>: hfield geoms are not supported on a body"):
         layout_from_mjcf(f"""<mujoco>{asset}{OFF}<worldbody><body><joint/><geom size="0.1"/>
           <geom type="hfield" hfield="h"/></body></worldbody></mujoco>""")

@@ -116,6 +116,8 @@ UNIT = Record("constraint unit", [
     ("margin", 1, FLOAT, "a contact's margin [m]: its gap is the geoms' distance less this"),
     ("hull_a", 1, INT, "a contact's geom a, a mesh: where its convex hull's record starts (absolute; -1: not a mesh)"),
     ("hull_b", 1, INT, "geom b's (-1: not a mesh)"),
+    ("window", 3, FLOAT, "a height field's contact (geom a the field, hull_a its record): the window's cells along x "
+                         "and y and geom b's bounding radius [m] (rbody.engine.contacts.terrain)"),
 ])
 (U_KIND, U_ROWS, U_ROW0, U_DOF, U_QADR, U_BOUND, U_RESTITUTION, U_BODY1, U_BODY2, U_A1, U_A2, U_QUAT, U_DOF2,
  U_QADR2, U_REF1, U_REF2, U_POLY) = UNIT.offsets(
@@ -130,6 +132,7 @@ U_GTYPE_B, U_GPOS_B, U_GMAT_B, U_GSIZE_B = UNIT.offsets("gtype_b", "gpos_b", "gm
 U_TENDON, U_TENDON2 = UNIT.offsets("tendon", "tendon2")
 U_SPIN, U_ROLL, U_MARGIN = UNIT.offsets("spin", "roll", "margin")
 U_HULL_A, U_HULL_B = UNIT.offsets("hull_a", "hull_b")
+(U_WINDOW,) = UNIT.offsets("window")
 UNIT_SIZE = UNIT.size
 
 
@@ -262,7 +265,8 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
         record[[U_BODY1, U_BODY2, U_DOF2, U_QADR2, U_TENDON, U_TENDON2, U_HULL_A, U_HULL_B]] = -1, -1, -1, -1, -1, -1, \
             -1, -1
         for key, value in fields.items():
-            if key in ("HULL_A", "HULL_B"):  # a mesh's hull (rbody.engine.contacts.convex.pack_hull): placed below
+            if key in ("HULL_A", "HULL_B"):  # a mesh's hull (rbody.engine.contacts.convex.pack_hull) or a height
+                # field's record (rbody.engine.contacts.terrain.pack_field): placed below
                 hull_of.append((len(records), globals()["U_" + key], value))
                 continue
             start = globals()[key]
@@ -377,6 +381,7 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
                 add(WELD, equality.name, U_BODY1=b1, U_BODY2=b2, U_A1=relpos, U_A2=anchor, U_QUAT=relquat)
             resolved.append(dataclasses.replace(equality, relpose=tuple(np.concatenate([relpos, relquat]).tolist())))
     from rbody.engine.contacts.geometry import TIME_STEPPED
+    from rbody.engine.contacts.terrain import HFIELD
 
     time_stepped = []  # contacts the event-driven scheme does not run (geometry.TIME_STEPPED)
     spinning = []  # and those with torsional or rolling friction (condim 4, 6)
@@ -387,7 +392,7 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
                 add(CONTACT, name, count=contact.condim, **record_fields)
             else:
                 add(CONTACT1, name, **record_fields)
-        if (record_fields["U_GTYPE_A"], record_fields["U_GTYPE_B"]) in TIME_STEPPED:
+        if (record_fields["U_GTYPE_A"], record_fields["U_GTYPE_B"]) in TIME_STEPPED or record_fields["U_GTYPE_A"] == HFIELD:
             time_stepped.append(f"{contact.shape_a!r}/{contact.shape_b!r}")
         if with_friction and contact.condim > 3:
             spinning.append(f"{contact.shape_a!r}/{contact.shape_b!r}")
@@ -430,7 +435,8 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
         methods = tuple(name for name in methods if name != "rk4")
         events_refused = (f"the event-driven scheme (rk4) holds a contact's candidate from event to event with "
                           f"closed-form curvature terms, which the contact {time_stepped[0]}{more} does not have (a "
-                          "capsule against a box, or a cylinder: rbody.engine.contacts.geometry.TIME_STEPPED): the "
+                          "capsule against a box, a cylinder, an ellipsoid, a mesh or a height field: "
+                          "rbody.engine.contacts.geometry.TIME_STEPPED): the "
                           "time-stepping runs it")
     elif spinning:
         more = f" (and {len(spinning) - 1} more)" if len(spinning) > 1 else ""
@@ -471,7 +477,8 @@ def _contact_units(layout: Layout, contact, body_index: dict[str, int]) -> list[
     pair of geoms (rbody.engine.contacts.geometry.SLOTS), the geoms in MuJoCo's order (type codes ascending).
     Raises ValueError naming the contact for a shape that is not in the layout, two shapes of one body, or a pair
     of kinds rbody does not compute."""
-    from rbody.engine.contacts.geometry import SLOTS, TYPE_CODES, pairs_text
+    from rbody.engine.contacts.geometry import MAX_SLOTS, SLOTS, TYPE_CODES, pairs_text
+    from rbody.engine.contacts.terrain import FACE_SLOTS, HFIELD, bounding_radius_of, field_slots, pack_field
     from rbody.motion import quat_to_matrix
 
     where = {shape.name: (WORLD, shape) for shape in layout.fixed}
@@ -485,19 +492,23 @@ def _contact_units(layout: Layout, contact, body_index: dict[str, int]) -> list[
         if name not in where:
             raise ValueError(f"{what}: {field_name}={name!r} is not a shape of the layout (a body's or a fixed one)")
         body, shape = where[name]
-        if shape.kind not in TYPE_CODES:
+        if shape.kind not in TYPE_CODES and shape.kind != "hfield":
             raise ValueError(f"{what}: shape {name!r} is a {shape.kind}: rbody computes contacts of "
-                             f"{tuple(TYPE_CODES)} shapes")
+                             f"{tuple(TYPE_CODES) + ('hfield',)} shapes")
         if shape.kind == "mesh" and not shape.vertices:
             raise ValueError(f"{what}: mesh shape {name!r} has no vertices: a mesh collides by the convex hull of "
                              "Shape.vertices (from_mjcf gives them)")
-        geoms.append((TYPE_CODES[shape.kind], body, shape))
+        geoms.append((HFIELD if shape.kind == "hfield" else TYPE_CODES[shape.kind], body, shape))
     if geoms[0][1] == geoms[1][1]:
         raise ValueError(f"{what}: both shapes are on {geoms[0][1]!r}: a contact needs two bodies (or a body and "
                          "the world)")
     geoms.sort(key=lambda geom: geom[0])
     (ta, body_a, shape_a), (tb, body_b, shape_b) = geoms
-    if (ta, tb) not in SLOTS:
+    if ta == HFIELD:
+        if tb not in FACE_SLOTS:
+            raise ValueError(f"{what}: a height field collides with spheres, capsules, ellipsoids, cylinders, boxes "
+                             f"and meshes, not a {shape_b.kind}")
+    elif (ta, tb) not in SLOTS:
         raise ValueError(f"{what}: rbody computes contacts of {pairs_text()}, not {shape_a.kind}-{shape_b.kind}")
     fields = dict(U_BOUND=contact.friction, U_RESTITUTION=contact.restitution, U_BODY1=body_index[body_a],
                   U_BODY2=body_index[body_b], U_SPIN=contact.torsion, U_ROLL=contact.rolling, U_MARGIN=contact.margin)
@@ -511,8 +522,26 @@ def _contact_units(layout: Layout, contact, body_index: dict[str, int]) -> list[
             pos = pos + axes @ centre
             size[:] = half
             fields[f"HULL_{suffix}"] = (shape.name, packed)
+        if shape.kind == "hfield":  # its record (elevations and sizes) placed once, like a mesh's hull
+            fields[f"HULL_{suffix}"] = (shape.name, pack_field(np.asarray(shape.heights), shape.size))
         fields.update({f"U_GTYPE_{suffix}": code, f"U_GPOS_{suffix}": pos, f"U_GMAT_{suffix}": axes.reshape(-1),
                        f"U_GSIZE_{suffix}": size})
-    count = SLOTS[(ta, tb)]
+    if ta == HFIELD:  # the window of cells under geom b (rbody.engine.contacts.terrain)
+        if body_a != WORLD:
+            raise ValueError(f"{what}: height field {shape_a.name!r} is on {body_a!r}: a height field is world-fixed "
+                             "terrain (Layout.fixed)")
+        radius = bounding_radius_of(tb, fields["U_GSIZE_B"])
+        heights = np.asarray(shape_a.heights)
+        dx = 2.0 * shape_a.size[0] / (heights.shape[1] - 1)
+        dy = 2.0 * shape_a.size[1] / (heights.shape[0] - 1)
+        mx, my, count = field_slots(tb, radius, dx, dy)
+        if count > MAX_SLOTS:
+            raise ValueError(f"{what}: geom {shape_b.name!r} (bounding radius {radius:.4g} m) spans up to {mx} x {my} "
+                             f"cells of height field {shape_a.name!r} (cells {dx:.4g} x {dy:.4g} m): {count} "
+                             f"candidates, more than rbody's {MAX_SLOTS} for one pair; a coarser field, or smaller "
+                             "geoms against it, are computed")
+        fields["U_WINDOW"] = (mx, my, radius)
+    else:
+        count = SLOTS[(ta, tb)]
     name = f"{shape_a.name}/{shape_b.name}"
     return [(dict(fields, U_DOF=slot), name if count == 1 else f"{name}[{slot}]") for slot in range(count)]

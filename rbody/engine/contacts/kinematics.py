@@ -40,10 +40,11 @@ from numba import njit
 
 from rbody.engine.contacts.geometry import (BOX, CAPSULE, CYLINDER, ELLIPSOID, MESH, PLANE, SPHERE, box_edges_closest,
                                             capsule_box_slot, segment_closest, segment_in_box)
-from rbody.engine.contacts.rows import geom_pose
+from rbody.engine.contacts.rows import field_at, geom_pose
+from rbody.engine.contacts.terrain import HFIELD, field_reach
 from rbody.engine.multibody import _views
 from rbody.engine.constraints.table import (U_BODY1, U_BODY2, U_DOF, U_GMAT_A, U_GMAT_B, U_GPOS_A, U_GPOS_B,
-                                            U_GSIZE_A, U_GSIZE_B, U_GTYPE_A, U_GTYPE_B, U_MARGIN)
+                                            U_GSIZE_A, U_GSIZE_B, U_GTYPE_A, U_GTYPE_B, U_HULL_A, U_MARGIN)
 
 SHAPE_PLANE, SHAPE_CORES = 0, 1
 
@@ -325,6 +326,20 @@ def clearance(p, w, u, h, work):
     body_a, body_b = int(p[u + U_BODY1]), int(p[u + U_BODY2])
     ta, tb = int(p[u + U_GTYPE_A]), int(p[u + U_GTYPE_B])
     radius_b = bounding_radius(tb, p, u + U_GSIZE_B)
+    if ta == HFIELD:  # world-fixed: geom b's height above the highest vertex under its footprint, widened by the
+        Ra = work[6:15].reshape((3, 3))  # step's motion (its lowest point falls and moves sideways at most that)
+        geom_pose(p, w, body_a, u + U_GPOS_A, u + U_GMAT_A, pa, Ra)
+        _geom_centre(p, w, body_b, u + U_GPOS_B, pb)
+        motion = 0.0
+        if h > 0.0:
+            vb = work[27:30]
+            point_velocity(p, w, body_b, pb, vb)
+            ws = _views(p, w)
+            omega = ws.vel[body_b]
+            motion = h * (np.sqrt(vb[0] ** 2 + vb[1] ** 2 + vb[2] ** 2)
+                          + np.sqrt(omega[0] ** 2 + omega[1] ** 2 + omega[2] ** 2) * radius_b)
+        reach = field_reach(field_at(p, int(p[u + U_HULL_A])), pa, Ra, pb, radius_b + motion)
+        return reach - p[u + U_MARGIN], motion
     if ta == PLANE:
         Ra = work[6:15].reshape((3, 3))
         geom_pose(p, w, body_a, u + U_GPOS_A, u + U_GMAT_A, pa, Ra)

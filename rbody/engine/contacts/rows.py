@@ -14,10 +14,11 @@ import numpy as np
 from numba import njit
 
 from rbody.engine.contacts.geometry import MAX_SLOTS, collide
+from rbody.engine.contacts.terrain import FIELD_HEADER, HFIELD, collide_field
 from rbody.engine.multibody import _views
 from rbody.engine.constraints.table import (U_BODY1, U_BODY2, U_DOF, U_GMAT_A, U_GMAT_B, U_GPOS_A, U_GPOS_B,
                                             U_GSIZE_A, U_GSIZE_B, U_GTYPE_A, U_GTYPE_B, U_HULL_A, U_HULL_B,
-                                            U_MARGIN)
+                                            U_MARGIN, U_WINDOW)
 
 
 @njit(cache=True)
@@ -57,6 +58,13 @@ def hull_at(p, at):
     return p[at:at + 3 + 3 * V + 4 * F + V + 1 + A]
 
 
+@njit(cache=True, inline="always")
+def field_at(p, at):
+    """The height field record (rbody.engine.contacts.terrain.pack_field) whose record starts at `at` in the params
+    row p, a view."""
+    return p[at:at + FIELD_HEADER + int(p[at]) * int(p[at + 1])]
+
+
 @njit(cache=True)
 def _candidates(p, w, u, work, only, beyond=np.inf):
     """collide on the contact unit at u's pair of geoms, posed after the tree's kinematics, into work (GEOMETRY_WORK
@@ -70,9 +78,16 @@ def _candidates(p, w, u, work, only, beyond=np.inf):
     dist = work[24:24 + MAX_SLOTS]
     normals = work[24 + MAX_SLOTS:24 + 4 * MAX_SLOTS].reshape((MAX_SLOTS, 3))
     points = work[24 + 4 * MAX_SLOTS:24 + 7 * MAX_SLOTS].reshape((MAX_SLOTS, 3))
-    count = collide(int(p[u + U_GTYPE_A]), pa, Ra, p[u + U_GSIZE_A:u + U_GSIZE_A + 3], hull_at(p, int(p[u + U_HULL_A])),
-                    int(p[u + U_GTYPE_B]), pb, Rb, p[u + U_GSIZE_B:u + U_GSIZE_B + 3], hull_at(p, int(p[u + U_HULL_B])),
-                    dist, normals, points, only, beyond + p[u + U_MARGIN])
+    if int(p[u + U_GTYPE_A]) == HFIELD:  # a height field's window (every slot at once)
+        count = collide_field(pa, Ra, field_at(p, int(p[u + U_HULL_A])), int(p[u + U_GTYPE_B]), pb, Rb,
+                              p[u + U_GSIZE_B:u + U_GSIZE_B + 3], hull_at(p, int(p[u + U_HULL_B])),
+                              p[u + U_WINDOW + 2], int(p[u + U_WINDOW]), int(p[u + U_WINDOW + 1]), dist, normals,
+                              points, beyond + p[u + U_MARGIN])
+    else:
+        count = collide(int(p[u + U_GTYPE_A]), pa, Ra, p[u + U_GSIZE_A:u + U_GSIZE_A + 3],
+                        hull_at(p, int(p[u + U_HULL_A])), int(p[u + U_GTYPE_B]), pb, Rb,
+                        p[u + U_GSIZE_B:u + U_GSIZE_B + 3], hull_at(p, int(p[u + U_HULL_B])), dist, normals, points,
+                        only, beyond + p[u + U_MARGIN])
     margin = p[u + U_MARGIN]
     if margin != 0.0:
         for k in range(count):
@@ -113,4 +128,4 @@ def contact_geometry(p, w, u, normal, point, work=None):
     return candidate(work, k, normal, point)
 
 
-__all__ = ["geom_pose", "contact_geometry", "pair_candidates", "candidate", "hull_at", "GEOMETRY_WORK"]
+__all__ = ["geom_pose", "contact_geometry", "pair_candidates", "candidate", "hull_at", "field_at", "GEOMETRY_WORK"]

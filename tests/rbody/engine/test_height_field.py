@@ -1,0 +1,260 @@
+"""Height fields in the rigid limit (rbody.engine.contacts.terrain): a geom's candidates are exact distances from the
+triangulated surface's faces and convex edges (against a brute-force distance on a random field), no internal
+walls between cells (a box on a planar ramp of many cells sees only the ramp's normal), and closed forms through
+the whole engine: a sphere thrown sliding on a flat field rolls from t* = 2 v0 / (7 mu g) at 5/7 v0 (the chapter's
+slide-to-roll transition), a sphere rests in a V valley at r / cos(alpha) above its floor, a block on a ramp of
+many cells sticks at mu = tan(alpha) (1 + 1e-6) and slides across the cells' edges and diagonals as the
+time-stepping's closed form at mu = tan(alpha) / 2, a sphere rolls down it at 5/7 g sin(alpha); MJCF height fields
+load, export to MuJoCo with the same surface, and bad input is refused."""
+
+import numpy as np
+import pytest
+
+import rbody
+from rbody import Body, Contact, Joint, Layout, Scene, Shape
+from rbody.engine.contacts.terrain import field_candidates
+from rbody.inertia import Inertia
+from rbody.motion import quat_to_matrix
+
+G = 9.81
+I3 = np.eye(3)
+
+
+def field(heights, size, pos=(0.0, 0.0, 0.0), quat=(1.0, 0.0, 0.0, 0.0)):
+    return Shape("ground", "hfield", size, pos=pos, quat=quat, heights=np.asarray(heights))
+
+
+def ramp(alpha, n=21, half=3.0):
+    """A plane rising along +x at angle alpha, as a field of n x n vertices over [-half, half]^2."""
+    rise = 2 * half * np.tan(alpha)
+    return field(np.tile(np.linspace(0.0, 1.0, n), (n, 1)), (half, half, rise, 0.1))
+
+
+def surface_distance(point, shape):
+    """Brute force: the distance [m] of point (3,) from the field's triangulated surface (every triangle's closest
+    point, Ericson's region tests), signed by the side (below the surface: negative)."""
+    heights = np.asarray(shape.heights)
+    nrow, ncol = heights.shape
+    sx, sy, sz, _ = shape.size
+    x, y = np.linspace(-sx, sx, ncol), np.linspace(-sy, sy, nrow)
+    V = lambda r, c: np.array([x[c], y[r], sz * heights[r, c]])  # noqa: E731
+    best = np.inf
+    for r in range(nrow - 1):
+        for c in range(ncol - 1):
+            for tri in ((V(r + 1, c), V(r, c), V(r + 1, c + 1)), (V(r, c), V(r + 1, c + 1), V(r, c + 1))):
+                best = min(best, np.linalg.norm(point - closest_on_triangle(point, *tri)))
+    # the surface's height under the point: its cell's triangle (T0 above the diagonal, T1 below), interpolated
+    c = min(int((point[0] + sx) / (x[1] - x[0])), ncol - 2)
+    r = min(int((point[1] + sy) / (y[1] - y[0])), nrow - 2)
+    u, v = (point[0] - x[c]) / (x[1] - x[0]), (point[1] - y[r]) / (y[1] - y[0])
+    z00, z01, z10, z11 = sz * heights[r, c], sz * heights[r, c + 1], sz * heights[r + 1, c], sz * heights[r + 1, c + 1]
+    height = z00 + u * (z11 - z10) + v * (z10 - z00) if v >= u else z00 + u * (z01 - z00) + v * (z11 - z01)
+    return -best if point[2] < height else best
+
+
+def closest_on_triangle(p, a, b, c):
+    ab, ac, ap = b - a, c - a, p - a
+    d1, d2 = ab @ ap, ac @ ap
+    if d1 <= 0 and d2 <= 0:
+        return a
+    bp = p - b
+    d3, d4 = ab @ bp, ac @ bp
+    if d3 >= 0 and d4 <= d3:
+        return b
+    vc = d1 * d4 - d3 * d2
+    if vc <= 0 and d1 >= 0 and d3 <= 0:
+        return a + d1 / (d1 - d3) * ab
+    cp = p - c
+    d5, d6 = ab @ cp, ac @ cp
+    if d6 >= 0 and d5 <= d6:
+        return c
+    vb = d5 * d2 - d1 * d6
+    if vb <= 0 and d2 >= 0 and d6 <= 0:
+        return a + d2 / (d2 - d6) * ac
+    va = d3 * d6 - d5 * d4
+    if va <= 0 and d4 - d3 >= 0 and d5 - d6 >= 0:
+        return b + (d4 - d3) / ((d4 - d3) + (d5 - d6)) * (c - b)
+    denom = 1.0 / (va + vb + vc)
+    return a + ab * vb * denom + ac * vc * denom
+
+
+def test_a_sphere_over_a_random_field_is_its_exact_distance_from_the_surface():
+    rng = np.random.default_rng(3)
+    shape = field(rng.uniform(0, 1, size=(9, 9)), (1.0, 1.0, 0.3, 0.1))
+    checked = 0
+    for _ in range(200):
+        centre = np.array([*rng.uniform(-0.8, 0.8, 2), 0.0])
+        r = rng.uniform(0.02, 0.12)
+        centre[2] = 0.3 + rng.uniform(-0.25, 0.1)
+        truth = surface_distance(centre, shape)
+        if truth <= r * 0.01:  # keep to spheres above the surface
+            continue
+        dist, normal, point = field_candidates(shape, "sphere", centre, I3, (r,))
+        assert np.all(dist >= truth - r - 1e-14)  # never below the true distance
+        np.testing.assert_allclose(np.linalg.norm(normal, axis=1), 1.0, atol=1e-14)
+        if truth <= r:  # touching or overlapping: the nearest surface point is under the sphere, in its window
+            assert dist.min() == pytest.approx(truth - r, abs=1e-14)
+            checked += 1
+    assert checked > 30
+
+
+def test_a_sphere_in_a_valley_touches_both_faces_and_on_a_ridge_its_edge():
+    xs = np.linspace(-3, 3, 21)
+    valley = field(np.tile(np.abs(xs) / 3, (21, 1)), (3.0, 3.0, 3.0, 0.1))  # faces at 45 degrees
+    r = 0.1
+    dist, normal, _ = field_candidates(valley, "sphere", [0.0, 0.05, r * np.sqrt(2)], I3, (r,))
+    np.testing.assert_allclose(dist, 0.0, atol=1e-15)
+    np.testing.assert_allclose(np.sort(normal[:, 0]), [-np.sqrt(0.5), np.sqrt(0.5)], atol=1e-15)
+    ridge = field(np.tile(1 - np.abs(xs) / 3, (21, 1)), (3.0, 3.0, 3.0, 0.1))
+    dist, normal, _ = field_candidates(ridge, "sphere", [0.0, 0.05, 3.0 + r + 0.01], I3, (r,))
+    assert dist.min() == pytest.approx(0.01, abs=1e-15)
+    np.testing.assert_allclose(normal[np.argmin(dist)], [0, 0, 1], atol=1e-15)
+    # a box lying across the ridge rests on the ridge line: the span's ends and middle, normals up
+    dist, normal, point = field_candidates(ridge, "box", [0.0, 0.05, 3.11], I3, (0.1, 0.1, 0.1))
+    touching = dist <= 0.01 + 1e-15
+    assert touching.sum() >= 3 and dist.min() == pytest.approx(0.01, abs=1e-15)
+    np.testing.assert_allclose(normal[touching], np.tile([0, 0, 1], (touching.sum(), 1)), atol=1e-14)
+    assert np.ptp(point[touching, 1]) == pytest.approx(0.2, abs=1e-12)  # from one end of the box to the other
+
+
+def test_no_wall_between_cells_a_box_on_a_ramp_sees_only_the_ramp():
+    alpha = 0.3
+    shape = ramp(alpha)
+    tilt = quat_to_matrix(np.array([np.cos(alpha / 2), 0.0, -np.sin(alpha / 2), 0.0]))
+    n = tilt[:, 2]
+    for x0 in (0.0, 0.15, 0.3, 0.449, 1.0):  # over cell edges, diagonals and interiors (cells 0.3 m)
+        surface = np.array([x0, 0.3 * x0, 3.0 * np.tan(alpha) + x0 * np.tan(alpha)])
+        dist, normal, _ = field_candidates(shape, "box", surface + (0.1 + 1e-3) * n, tilt, (0.1, 0.1, 0.1))
+        close = dist < 0.05
+        assert close.sum() == 4  # the four lower corners, each once
+        np.testing.assert_allclose(dist[close], 1e-3, atol=1e-14)
+        np.testing.assert_allclose(normal[close], np.tile(n, (4, 1)), atol=1e-14)
+
+
+def simulate_on(shape_field, body_shape, inertia, pos, quat=(1.0, 0.0, 0.0, 0.0), friction=0.5, qvel=None,
+                t_end=1.0, dt=2e-3):
+    body = Body("body", inertia, shapes=(body_shape,), pos=tuple(pos), quat=tuple(quat))
+    layout = Layout(bodies=(body,), joints=(Joint("free", "free", "body"),), fixed=(shape_field,),
+                    contacts=(Contact(shape_field.name, body_shape.name, friction=friction),))
+    return rbody.simulate(Scene.from_layout(layout, t_end=t_end, qvel0=qvel), dt=dt)
+
+
+def test_a_sphere_thrown_sliding_on_a_field_rolls_at_five_sevenths():
+    r, mu, v0, dt = 0.1, 0.5, 2.0, 2e-3
+    flat = field(np.full((21, 21), 0.5), (3.0, 3.0, 1.0, 0.1))
+    run = simulate_on(flat, Shape("s", "sphere", (r,)), Inertia.solid_sphere(1.0, r), (0.0, 0.0, 0.5 + r),
+                      friction=mu, qvel=[v0, 0, 0, 0, 0, 0], t_end=0.6, dt=dt)
+    v, spin, z = run["body.velocity"][:, 0], run["body.omega"][:, 1], run["body.com"][:, 2]
+    t_star = 2 * v0 / (7 * mu * G)
+    start = run.t[np.argmax(np.abs(v - r * spin) <= 1e-12)]
+    assert t_star <= start <= t_star + dt
+    np.testing.assert_allclose(v[run.t >= start], 5 / 7 * v0, rtol=0, atol=1e-12)
+    assert np.abs(z - (0.5 + r)).max() <= 1e-14  # across cells' edges and diagonals: no bump
+
+
+def test_a_sphere_rests_in_a_valley_at_the_closed_form_height():
+    xs = np.linspace(-3, 3, 21)
+    valley = field(np.tile(np.abs(xs) / 3, (21, 1)), (3.0, 3.0, 3.0, 0.1))
+    r = 0.1
+    run = simulate_on(valley, Shape("s", "sphere", (r,)), Inertia.solid_sphere(1.0, r), (0.0, 0.05, r * np.sqrt(2) + 0.05),
+                      t_end=1.0)
+    end = run["body.com"][-1]
+    assert end[2] == pytest.approx(r * np.sqrt(2), abs=1e-13)  # r / cos(45 degrees) above the valley's floor
+    assert abs(end[0]) <= 1e-13
+
+
+@pytest.mark.parametrize("ratio", [1 + 1e-6, 0.5])
+def test_a_block_on_a_ramp_of_many_cells_sticks_or_slides_exactly(ratio):
+    alpha, dt, t_end = 0.3, 1e-2, 1.5
+    mu = np.tan(alpha) * ratio
+    tilt = (np.cos(alpha / 2), 0.0, -np.sin(alpha / 2), 0.0)
+    n = quat_to_matrix(np.array(tilt))[:, 2]
+    surface = np.array([1.0, 0.1, 3.0 * np.tan(alpha) + np.tan(alpha)])
+    run = simulate_on(ramp(alpha), Shape("b", "box", (0.1, 0.1, 0.1)), Inertia.box(1.0, (0.2, 0.2, 0.2)),
+                      surface + 0.1 * n, quat=tilt, friction=mu, t_end=t_end, dt=dt)
+    moved = np.linalg.norm(run["body.com"] - run["body.com"][0], axis=1)
+    if ratio > 1:
+        assert moved.max() <= 1e-13
+    else:  # down the ramp across 5 cells' edges and diagonals, as on a plane
+        a = G * (np.sin(alpha) - mu * np.cos(alpha))
+        assert moved[-1] > 1.5
+        np.testing.assert_allclose(moved, a * run.t * (run.t + dt) / 2, rtol=0, atol=1e-12)
+
+
+def test_a_sphere_rolls_down_a_ramp_of_many_cells_at_five_sevenths_g_sin_alpha():
+    alpha, r, dt = 0.2, 0.1, 2e-3
+    n = np.array([-np.sin(alpha), 0.0, np.cos(alpha)])
+    surface = np.array([2.0, 0.0, 3.0 * np.tan(alpha) + 2.0 * np.tan(alpha)])
+    run = simulate_on(ramp(alpha), Shape("s", "sphere", (r,)), Inertia.solid_sphere(1.0, r), surface + r * n,
+                      friction=0.5, t_end=1.5, dt=dt)
+    moved = np.linalg.norm(run["body.com"] - run["body.com"][0], axis=1)
+    a = 5 / 7 * G * np.sin(alpha)
+    assert moved[-1] > 1.5
+    np.testing.assert_allclose(moved, a * run.t * (run.t + dt) / 2, rtol=0, atol=1e-12)
+    height = (run["body.com"] - surface) @ n  # its centre r above the ramp throughout
+    np.testing.assert_allclose(height, r, atol=1e-13)
+
+
+FIELD_MJCF = """<mujoco>
+  <asset>
+    <hfield name="bumps" nrow="3" ncol="4" size="1.5 1 0.4 0.1" elevation="2 3 2 1  3 5 3 1  2 3 2 1"/>
+  </asset>
+  <worldbody>
+    <geom name="ground" type="hfield" hfield="bumps" pos="0.1 0 -0.05"/>
+    <body name="ball" pos="0.2 0.1 0.8">
+      <freejoint/>
+      <geom name="ball" type="sphere" size="0.1" mass="1"/>
+    </body>
+  </worldbody>
+</mujoco>"""
+
+
+def test_an_mjcf_height_field_loads_runs_and_exports_to_mujoco(tmp_path):
+    mujoco = pytest.importorskip("mujoco")
+    path = tmp_path / "field.xml"
+    path.write_text(FIELD_MJCF)
+    scene = rbody.from_mjcf(path)
+    ground = next(s for s in scene.layout.fixed if s.name == "ground")
+    heights = np.asarray(ground.heights)
+    np.testing.assert_allclose(heights, (np.array([[2, 3, 2, 1], [3, 5, 3, 1], [2, 3, 2, 1]]) - 1) / 4, atol=0)
+    assert ground.pos == (0.1, 0.0, -0.05)
+    run = rbody.simulate(scene, dt=2e-3, t_end=0.6, progress=False)
+    # it lands on the bump and rolls off it: never into the surface, on it from the landing
+    gaps = np.array([field_candidates(ground, "sphere", centre, I3, (0.1,))[0].min()
+                     for centre in run["ball.com"][::10]])
+    assert gaps.min() >= -1e-12
+    landed = np.argmax(gaps <= 1e-12)
+    assert 0 < landed and np.abs(gaps[landed:]).max() <= 1e-12
+    exported = rbody.to_mjcf(scene)
+    model = mujoco.MjModel.from_xml_string(exported)
+    data = np.asarray(model.hfield_data).reshape(3, 4)
+    low = heights.min()
+    np.testing.assert_allclose(low * ground.size[2] + data * model.hfield_size[0, 2], heights * ground.size[2],
+                               atol=1e-7)  # MuJoCo's single precision
+
+
+def test_bad_height_fields_are_refused(tmp_path):
+    with pytest.raises(ValueError, match="expected 4 positive numbers"):
+        Shape("g", "hfield", (1.0, 1.0, 0.5), heights=np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="in \\[0, 1\\]"):
+        Shape("g", "hfield", (1.0, 1.0, 0.5, 0.1), heights=np.full((3, 3), 2.0))
+    with pytest.raises(ValueError, match="each >= 2"):
+        Shape("g", "hfield", (1.0, 1.0, 0.5, 0.1), heights=np.zeros((1, 3)))
+    with pytest.raises(ValueError, match="only a hfield shape"):
+        Shape("g", "box", (1.0, 1.0, 0.5), heights=np.zeros((3, 3)))
+    with pytest.raises(ValueError, match="world-fixed terrain"):
+        Body("b", Inertia.solid_sphere(1.0, 0.1), shapes=(field(np.zeros((3, 3)), (1, 1, 1, 1)),))
+    fine = field(np.zeros((201, 201)), (1.0, 1.0, 0.1, 0.1))  # cells of 1 cm under a 0.5 m box: too many slots
+    body = Body("body", Inertia.box(1.0, (1, 1, 1)), shapes=(Shape("b", "box", (0.5, 0.5, 0.5)),), pos=(0, 0, 1))
+    layout = Layout(bodies=(body,), joints=(Joint("free", "free", "body"),), fixed=(fine,),
+                    contacts=(Contact("ground", "b"),))
+    with pytest.raises(ValueError, match="spans up to .* cells of height field 'ground'"):
+        rbody.simulate(Scene.from_layout(layout, t_end=0.01), dt=1e-3)
+    for text, match in (('file="terrain.png"', "from files are not read"),
+                        ('nrow="3" ncol="3" size="1 1 1 1" elevation="1 2"', "must match nrow\\*ncol"),
+                        ('nrow="3" ncol="3" size="1 1 0 1"', "4 sizes > 0")):
+        path = tmp_path / "bad.xml"
+        path.write_text(f'<mujoco><asset><hfield name="f" {text}/></asset><worldbody>'
+                        '<geom type="hfield" hfield="f"/></worldbody></mujoco>')
+        with pytest.raises(rbody.mjcf.MJCFError, match=match):
+            rbody.from_mjcf(path)
