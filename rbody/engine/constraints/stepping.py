@@ -73,6 +73,7 @@ EXACT_ROWS = 64          # a step's problem with at most this many rows is solve
 STEP_TOLERANCE = 1e-10   # natural residual of PGS, relative to max(|b|, 1) [m/s or rad/s]
 PGS_SWEEPS = 2000
 CONE_ROUND = 50          # Gauss-Seidel sweeps between two exact finishes of a problem with contacts' cones
+ROUND_OFF = 64 * np.finfo(np.float64).eps  # a residual this small relative to the velocities' terms: solved
 TOUCH_TOLERANCE = 1e-10  # [m or rad]
 FLAGGED_GAP = TOUCH_TOLERANCE * 1e-3  # a stop or contact within this after a step (and pushing) is projected onto
 PROJECTION_ROUNDS = 6    # projections after a step, each with the stops the last one pushed past
@@ -117,16 +118,53 @@ def mujoco_free_velocity(p, y, h, mode, M, f, vfree, L):
 
 
 @njit(cache=True)
+def _inside_cones(role, mu, lam):
+    """True when every contact's friction impulses lie strictly inside their bounds (a relative 1e-9 within)."""
+    for i in range(lam.shape[0]):
+        if role[i] == TANGENT or role[i] == ROLL:
+            size = np.sqrt(lam[i] * lam[i] + lam[i + 1] * lam[i + 1])
+        elif role[i] == SPIN:
+            size = abs(lam[i])
+        else:
+            continue
+        if size > 0.0 and size >= (1.0 - 1e-9) * mu[i] * lam[i - (role[i] - NORMAL)]:
+            return False
+    return True
+
+
+@njit(cache=True)
+def _magnitude(W, b, lam):
+    """max(|b|_inf, |W lam|_inf): the size of the terms whose sum is a row's velocity w = b + W lam."""
+    big = 0.0
+    for i in range(b.shape[0]):
+        acc = 0.0
+        for j in range(b.shape[0]):
+            acc += W[i, j] * lam[j]
+        big = max(big, abs(b[i]), abs(acc))
+    return big
+
+
+@njit(cache=True)
 def cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
     """The step's problem with contacts' cones (rbody.engine.constraints.cone) from lam (a start, solved in place):
     CONE_ROUND Gauss-Seidel sweeps at a time, each round finished exactly (every contact sticking; the states read
-    from lam; some sticking contacts made to slide), until the residual is 1e-3 of `tolerance` or `sweeps` are spent.
-    Returns the residual."""
+    from lam; some sticking contacts made to slide), until the residual is 1e-3 of `tolerance` or `sweeps` are spent;
+    a start that already solves it (the last step's impulses, themselves finished) is kept, after one sweep. Returns
+    the residual."""
     done = 0
     residual = np.inf
     while done < sweeps:
         spent, residual = cone_pgs(W, b, lo, hi, role, mu, lam, tolerance, min(CONE_ROUND, sweeps - done))
         done += max(spent, 1)
+        if spent == 0 and residual <= 1e-3 * tolerance:  # the start (the last step's finished impulses: a body at
+            trial = lam.copy()  # rest, a ball rolling) may solve it: one sweep takes up the round-off its
+            _spent, swept = cone_pgs(W, b, lo, hi, role, mu, trial, 0.0, 1)  # velocities gathered since; kept
+            if swept <= ROUND_OFF * _magnitude(W, b, trial) and _inside_cones(role, mu, trial):  # where that is
+                # round-off and no contact is at its cone's edge (there sliding at any speed is Coulomb's too: the
+                # finishes below choose sticking), else finished below
+                lam[:] = trial
+                residual = swept
+                break
         residual = min(stick_polish(W, b, lo, hi, role, mu, lam, 8), residual)
         if residual > 1e-3 * tolerance:
             residual = cone_polish(W, b, lo, hi, role, mu, lam, 4)
@@ -396,6 +434,13 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
                 position_rows[r0] = 1.0
                 grown = True
         if not grown:
+            break
+        worst, needed = 0.0, False  # every flagged row already within the projection's tolerance, no velocity row
+        for a in range(rows):       # (no equality): the projection would change nothing
+            if position_rows[a] != 0.0:
+                worst = max(worst, abs(g[a]))
+            needed = needed or velocity_rows[a] != 0.0
+        if not needed and worst <= dyn.PROJECTION_TOLERANCE:
             break
         worst, _speed = dyn.project(p, y, position_rows, velocity_rows)
     if worst > 1e3 * dyn.PROJECTION_TOLERANCE:
