@@ -33,6 +33,8 @@ from rbody.engine.constraints.solver import clamp
 
 ROW, NORMAL, TANGENT, TANGENT2, SPIN, ROLL, ROLL2 = range(7)
 INNER_STEPS = 50
+ROUND_OFF = 64 * np.finfo(np.float64).eps  # a residual this small relative to the velocities' terms (magnitude):
+                                           # solved to round-off
 
 
 @njit(cache=True, inline="always")
@@ -148,7 +150,7 @@ def cone_pgs(W, b, lo, hi, role, mu, lam, tolerance, max_sweeps):
     return max_sweeps, residual
 
 
-__all__ = ["cone_pgs", "cone_residual", "slide_polish", "ROW", "NORMAL", "TANGENT", "TANGENT2", "SPIN", "ROLL",
+__all__ = ["cone_pgs", "cone_residual", "slide_polish", "stick_polish", "magnitude", "ROUND_OFF", "ROW", "NORMAL", "TANGENT", "TANGENT2", "SPIN", "ROLL",
            "ROLL2"]
 
 
@@ -393,6 +395,18 @@ def _least_norm(A, r, weights):
 
 
 @njit(cache=True)
+def magnitude(W, b, lam):
+    """max(|b|_inf, |W lam|_inf): the size of the terms whose sum is a row's velocity w = b + W lam."""
+    big = 0.0
+    for i in range(b.shape[0]):
+        acc = 0.0
+        for j in range(b.shape[0]):
+            acc += W[i, j] * lam[j]
+        big = max(big, abs(b[i]), abs(acc))
+    return big
+
+
+@njit(cache=True)
 def stick_polish(W, b, lo, hi, role, mu, lam, rounds):
     """The exact solution in which every pushing contact sticks, if there is one near lam: the impulses of the
     rows that must have w = 0 (pushing normals and their tangents, free ordinary rows) solved together, of least
@@ -400,7 +414,8 @@ def stick_polish(W, b, lo, hi, role, mu, lam, rounds):
     `rounds` times). Among the many solutions of a redundant set (four corners of a box on a face) this one is
     lambda_j = lambda_n (J_j u) for one generalised velocity u: the tangential load follows the normal load, so
     that every corner stays inside its cone wherever the face as a whole can hold (a block on an incline at
-    mu = tan(alpha) (1 + 1e-6)). lam is replaced when the natural residual falls; returns the residual kept."""
+    mu = tan(alpha) (1 + 1e-6)). lam is replaced when the natural residual falls; the rounds end early where one
+    gives the last one's impulses again (every later one would too); returns the residual kept."""
     m = b.shape[0]
     best = cone_residual(W, b, lo, hi, role, mu, lam)
     rows = np.empty(m, dtype=np.int64)
@@ -442,12 +457,16 @@ def stick_polish(W, b, lo, hi, role, mu, lam, rounds):
             for c in range(k):
                 A[a, c] = W[rows[a], rows[c]]
         x = _least_norm(A, r, weights)
+        settled = True  # the same impulses as the last round: its weights again, every later round the same
         for a in range(k):
+            settled = settled and trial[rows[a]] == x[a]
             trial[rows[a]] = x[a]
         residual = cone_residual(W, b, lo, hi, role, mu, trial)
         if residual < best:
             best = residual
             for i in range(m):
                 lam[i] = trial[i]
+        if settled:
+            break
     return best
 

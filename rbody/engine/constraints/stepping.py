@@ -57,8 +57,8 @@ from rbody.engine.constraints.jacobians import row_count, unit_at, unit_count, u
 from rbody.engine.contacts.kinematics import clearance, point_velocity
 from rbody.engine.contacts.rows import GEOMETRY_WORK, candidate, pair_candidates
 from rbody.engine.multibody import _effective_qpos
-from rbody.engine.constraints.cone import (NORMAL, ROLL, ROW, SPIN, TANGENT, cone_pgs, cone_polish, slide_polish,
-                                           stick_polish, sticking_qp)
+from rbody.engine.constraints.cone import (NORMAL, ROLL, ROUND_OFF, ROW, SPIN, TANGENT, cone_pgs, cone_polish,
+                                           magnitude, slide_polish, stick_polish, sticking_qp)
 from rbody.engine.constraints.solver import mlcp_exact_from, mlcp_pgs, natural_residual
 from rbody.engine.constraints.table import (C_HEADER, CONE, CONNECT, CONTACT, CONTACT1, CONTACT_KINDS, COUPLING,
                                             FRICTION, FRICTION_KINDS, LOWER, TENDON_EQUALITY, TENDON_FRICTION,
@@ -73,7 +73,6 @@ EXACT_ROWS = 64          # a step's problem with at most this many rows is solve
 STEP_TOLERANCE = 1e-10   # natural residual of PGS, relative to max(|b|, 1) [m/s or rad/s]
 PGS_SWEEPS = 2000
 CONE_ROUND = 50          # Gauss-Seidel sweeps between two exact finishes of a problem with contacts' cones
-ROUND_OFF = 64 * np.finfo(np.float64).eps  # a residual this small relative to the velocities' terms: solved
 TOUCH_TOLERANCE = 1e-10  # [m or rad]
 FLAGGED_GAP = TOUCH_TOLERANCE * 1e-3  # a stop or contact within this after a step (and pushing) is projected onto
 PROJECTION_ROUNDS = 6    # projections after a step, each with the stops the last one pushed past
@@ -133,18 +132,6 @@ def _inside_cones(role, mu, lam):
 
 
 @njit(cache=True)
-def _magnitude(W, b, lam):
-    """max(|b|_inf, |W lam|_inf): the size of the terms whose sum is a row's velocity w = b + W lam."""
-    big = 0.0
-    for i in range(b.shape[0]):
-        acc = 0.0
-        for j in range(b.shape[0]):
-            acc += W[i, j] * lam[j]
-        big = max(big, abs(b[i]), abs(acc))
-    return big
-
-
-@njit(cache=True)
 def cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
     """The step's problem with contacts' cones (rbody.engine.constraints.cone) from lam (a start, solved in place):
     CONE_ROUND Gauss-Seidel sweeps at a time, each round finished exactly (every contact sticking; the states read
@@ -159,7 +146,7 @@ def cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
         if spent == 0 and residual <= 1e-3 * tolerance:  # the start (the last step's finished impulses: a body at
             trial = lam.copy()  # rest, a ball rolling) may solve it: one sweep takes up the round-off its
             _spent, swept = cone_pgs(W, b, lo, hi, role, mu, trial, 0.0, 1)  # velocities gathered since; kept
-            if swept <= ROUND_OFF * _magnitude(W, b, trial) and _inside_cones(role, mu, trial):  # where that is
+            if swept <= ROUND_OFF * magnitude(W, b, trial) and _inside_cones(role, mu, trial):  # where that is
                 # round-off and no contact is at its cone's edge (there sliding at any speed is Coulomb's too: the
                 # finishes below choose sticking), else finished below
                 lam[:] = trial
