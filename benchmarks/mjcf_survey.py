@@ -482,8 +482,8 @@ def markdown(rows: list[dict], collections, command: str, notes: list[str], limi
     lines = ["# Published MJCF models in rbody", "",
              "Every MJCF file of the collections below tried as a user would, `rbody.from_mjcf(path)`, twice: as "
              "published, and with `<flag contact=\"disable\"/>` injected (contacts off: rbody computes contacts "
-             "between planes, spheres, capsules, ellipsoids, cylinders, boxes and meshes, and refuses a model whose "
-             "contacts need a height field). For a file that loads: its sizes, contact pairs and constraint units, "
+             "between planes, height fields, spheres, capsules, ellipsoids, cylinders, boxes and meshes). For a file "
+             "that loads: its sizes, contact pairs and constraint units, "
              "and a "
              f"{RUN_T_END:g} s run of rbody and of MuJoCo on the same file, at the file's own timestep, from its "
              f"reference pose or its first keyframe (with the key's ctrl held; else ctrl = 0), every velocity "
