@@ -478,7 +478,7 @@ def _contact_units(layout: Layout, contact, body_index: dict[str, int]) -> list[
     Raises ValueError naming the contact for a shape that is not in the layout, two shapes of one body, or a pair
     of kinds rbody does not compute."""
     from rbody.engine.contacts.geometry import MAX_SLOTS, SLOTS, TYPE_CODES, pairs_text
-    from rbody.engine.contacts.terrain import FACE_SLOTS, HFIELD, bounding_radius_of, field_slots, pack_field
+    from rbody.engine.contacts.terrain import FIELD_KINDS, HFIELD, bounding_radius_of, field_slots, pack_field
     from rbody.motion import quat_to_matrix
 
     where = {shape.name: (WORLD, shape) for shape in layout.fixed}
@@ -505,7 +505,7 @@ def _contact_units(layout: Layout, contact, body_index: dict[str, int]) -> list[
     geoms.sort(key=lambda geom: geom[0])
     (ta, body_a, shape_a), (tb, body_b, shape_b) = geoms
     if ta == HFIELD:
-        if tb not in FACE_SLOTS:
+        if tb not in FIELD_KINDS:
             raise ValueError(f"{what}: a height field collides with spheres, capsules, ellipsoids, cylinders, boxes "
                              f"and meshes, not a {shape_b.kind}")
     elif (ta, tb) not in SLOTS:

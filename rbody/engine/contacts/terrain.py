@@ -50,13 +50,26 @@ from rbody.engine.contacts.geometry import (APART, BOX, CAPSULE, CYLINDER, ELLIP
 
 HFIELD = 1  # MuJoCo's mjGEOM_HFIELD
 FIELD_HEADER = 6  # nrow, ncol, sx, sy, sz, base
-# a geom's candidates against one triangle's plane and one edge (the plane pairs' and the capsule pairs' counts)
-FACE_SLOTS = {SPHERE: 1, CAPSULE: 2, ELLIPSOID: 1, CYLINDER: 8, BOX: 8, MESH: 9}
-EDGE_SLOTS = {SPHERE: 1, CAPSULE: 1, ELLIPSOID: 3, CYLINDER: 3, BOX: 3, MESH: 3}
+FIELD_KINDS = (SPHERE, CAPSULE, ELLIPSOID, CYLINDER, BOX, MESH)  # the geoms a height field collides with
 CONVEX_TOLERANCE = 1e-12  # an edge folds (is convex) where the far vertex is below the plane by more than this
                           # fraction of the cell's scale; flat edges are not features
 WEDGE_TOLERANCE = 1e-12   # [rad]: a normal this far outside an edge's wedge still belongs to the edge
 SAME = 1e-12              # [m] and for unit normals: a candidate equal to an earlier one (a point found twice)
+
+
+@njit(cache=True, inline="always")
+def vertex_slots(kind_b):
+    """(F, E): a geom's candidates against one triangle's plane (the plane pairs' count) and against one edge (the
+    capsule pairs'), for a geom of type kind_b in FIELD_KINDS."""
+    if kind_b == SPHERE or kind_b == ELLIPSOID:
+        face = 1
+    elif kind_b == CAPSULE:
+        face = 2
+    elif kind_b == MESH:
+        face = 9
+    else:
+        face = 8
+    return face, (1 if (kind_b == SPHERE or kind_b == CAPSULE) else 3)
 
 
 def field_slots(kind_b: int, radius: float, dx: float, dy: float) -> tuple[int, int, int]:
@@ -64,7 +77,8 @@ def field_slots(kind_b: int, radius: float, dx: float, dy: float) -> tuple[int, 
     bounding sphere has this radius [m] on a field of cell sizes dx, dy [m], and its candidate count."""
     mx = int(np.floor(2.0 * radius / dx)) + 2
     my = int(np.floor(2.0 * radius / dy)) + 2
-    return mx, my, (mx + 1) * (my + 1) * (2 * FACE_SLOTS[kind_b] + 3 * EDGE_SLOTS[kind_b])
+    face, edge = vertex_slots(kind_b)
+    return mx, my, (mx + 1) * (my + 1) * (2 * face + 3 * edge)
 
 
 def bounding_radius_of(code: int, size) -> float:
@@ -97,8 +111,9 @@ def field_candidates(field, kind_b: str, pos_b, mat_b, size_b=(), *, vertices_b=
     if getattr(field, "kind", None) != "hfield":
         raise ValueError(f"field={field!r}: expected an rbody.Shape of kind 'hfield'")
     code = TYPE_CODES.get(kind_b, -1)
-    if code not in FACE_SLOTS:
-        raise ValueError(f"kind_b={kind_b!r}: a height field collides with {sorted(TYPE_CODES)[1:]}, not it")
+    if code not in FIELD_KINDS:
+        kinds = [kind for kind, c in TYPE_CODES.items() if c in FIELD_KINDS]
+        raise ValueError(f"kind_b={kind_b!r}: a height field collides with {kinds}, not it")
     size = np.zeros(3)
     hull = np.empty(0)
     pos, mat = np.asarray(pos_b, dtype=float), np.asarray(mat_b, dtype=float)
@@ -246,21 +261,32 @@ def _in_wedge(n, u, n1, n2):
     return first >= -WEDGE_TOLERANCE * scale and second >= -WEDGE_TOLERANCE * scale
 
 
-@njit(cache=True, inline="always")
-def _repeats(dist, normal, point, k, count):
-    """True when slot k repeats an earlier finite slot of the pair (its distance, point and normal within SAME)."""
-    for j in range(count):
-        if j == k:
-            return False
-        if dist[j] == APART or abs(dist[j] - dist[k]) > SAME:
+@njit(cache=True)
+def _drop_repeats(dist, normal, point, count):
+    """Every finite slot that repeats an earlier one (its distance, point and normal within SAME) made APART: a
+    point found twice counts once. Compares the finite slots only (a window's slots are mostly APART)."""
+    kept = np.empty(count, dtype=np.int64)
+    n = 0
+    for k in range(count):
+        if dist[k] == APART:
             continue
-        same = True
-        for a in range(3):
-            if abs(point[j, a] - point[k, a]) > SAME or abs(normal[j, a] - normal[k, a]) > SAME:
-                same = False
-        if same:
-            return True
-    return False
+        repeated = False
+        for i in range(n):
+            j = kept[i]
+            if abs(dist[j] - dist[k]) > SAME:
+                continue
+            same = True
+            for a in range(3):
+                if abs(point[j, a] - point[k, a]) > SAME or abs(normal[j, a] - normal[k, a]) > SAME:
+                    same = False
+            if same:
+                repeated = True
+                break
+        if repeated:
+            dist[k] = APART
+        else:
+            kept[n] = k
+            n += 1
 
 
 @njit(cache=True)
@@ -286,12 +312,18 @@ def field_reach(field, pf, Rf, pb, radius):
     """A lower bound [m] on the distance between the field's surface and a geom centred at pb (3,) [m] within the
     bounding radius [m]: its lowest height above the highest vertex under its footprint (window's cells), or its
     distance beside the field's footprint (the field's sides are not collided: +inf there)."""
+    r_lo, c_lo, lowest, lx, ly = field_window(field, pf, Rf, pb, radius)
+    return _reach(field, radius, r_lo, c_lo, lowest, lx, ly)
+
+
+@njit(cache=True)
+def _reach(field, radius, r_lo, c_lo, lowest, lx, ly):
+    """field_reach from the window field_window gave."""
+    if r_lo < 0:
+        return np.inf
     nrow, ncol = int(field[0]), int(field[1])
     sx, sy = field[2], field[3]
     dx, dy = 2.0 * sx / (ncol - 1), 2.0 * sy / (nrow - 1)
-    r_lo, c_lo, lowest, lx, ly = field_window(field, pf, Rf, pb, radius)
-    if r_lo < 0:
-        return np.inf
     c_hi = min(int(np.floor((lx + radius + sx) / dx)) + 1, ncol - 1)
     r_hi = min(int(np.floor((ly + radius + sy) / dy)) + 1, nrow - 1)
     highest = -np.inf
@@ -308,16 +340,7 @@ def collide_field(pf, Rf, field, tb, pb, Rb, sb, hb, radius, mx, my, dist, norma
     mx x my (module docstring) into dist, normal (from the field to the geom) and point; returns their count.
     beyond [m]: where the geom's lowest point is above the window's highest vertex by more, every slot holds that
     bound."""
-    F, E = 0, 0
-    if tb == SPHERE or tb == ELLIPSOID:
-        F = 1
-    elif tb == CAPSULE:
-        F = 2
-    elif tb == MESH:
-        F = 9
-    else:
-        F = 8
-    E = 1 if (tb == SPHERE or tb == CAPSULE) else 3
+    F, E = vertex_slots(tb)
     core = sb[0] if (tb == SPHERE or tb == CAPSULE) else 0.0  # the radius about a face candidate's core point
     per = 2 * F + 3 * E
     count = (mx + 1) * (my + 1) * per
@@ -328,10 +351,10 @@ def collide_field(pf, Rf, field, tb, pb, Rb, sb, hb, radius, mx, my, dist, norma
         for a in range(3):
             normal[k, a] = Rf[a, 2]
             point[k, a] = pb[a]
-    r_lo, c_lo, _lowest, _lx, _ly = field_window(field, pf, Rf, pb, radius)
+    r_lo, c_lo, lowest, lx, ly = field_window(field, pf, Rf, pb, radius)
     if r_lo < 0:  # beside the field: nothing (its sides are not collided)
         return count
-    bound = field_reach(field, pf, Rf, pb, radius)
+    bound = _reach(field, radius, r_lo, c_lo, lowest, lx, ly)
     if bound > beyond:
         for k in range(count):
             dist[k] = bound
@@ -418,11 +441,9 @@ def collide_field(pf, Rf, field, tb, pb, Rb, sb, hb, radius, mx, my, dist, norma
                     dist[k] = sub_d[j]
                     for a in range(3):
                         normal[k, a], point[k, a] = sub_n[j, a], sub_p[j, a]
-    for k in range(count):  # a point found twice (two coplanar faces' common edge, two edges' common end): once
-        if dist[k] != APART and _repeats(dist, normal, point, k, count):
-            dist[k] = APART
+    _drop_repeats(dist, normal, point, count)  # two coplanar faces' common edge, two edges' common end
     return count
 
 
-__all__ = ["HFIELD", "FIELD_HEADER", "FACE_SLOTS", "EDGE_SLOTS", "field_slots", "pack_field", "collide_field",
+__all__ = ["HFIELD", "FIELD_HEADER", "FIELD_KINDS", "vertex_slots", "field_slots", "pack_field", "collide_field",
            "field_reach", "field_candidates", "bounding_radius_of"]
