@@ -16,6 +16,10 @@ of the discrete flow, to a few ulp of t), the earliest root wins, and at the sta
    frictionloss suffices, else it slides with the acceleration's sign;
 3. the velocities are projected onto the held rows and the guards checked again (all >= 0 to round-off).
 
+Where step 2's problem has no consistent force because contacts slide (Painleve: friction against the slip can make
+a contact's normal acceleration fall as its normal force grows), the contacts at rest take a tangential impact
+(EventRun.tangential_impact: the impact law at zero normal velocity, which stops them) and the mode is chosen again.
+
 Zeno: a limit hit again and again with restitution under a steady load (a ball bouncing to rest) would need
 infinitely many impacts in a finite time; an impact whose approach speed is below ZENO_RATIO of the largest this
 unit met is taken as plastic (e = 0), and the joint stays at its stop. More than MAX_EVENTS_PER_STEP events in one
@@ -55,20 +59,32 @@ GUARD_SPEED = 1e-13       # [m/s or rad/s] a sliding dof's velocity past 0 by mo
 GUARD_FORCE_RTOL = 1e-10  # a held force past its bound by more than this fraction of the forces in play is an event
 CLOSING_MARGIN = 1e-3     # a step with open contacts ends this fraction past the earliest closing at present rates
 FACE_ALIGNED = 1e-12       # slip directions of a face's contacts within 1 - cos of this are one direction (~1.4e-6 rad)
+JAM_NUDGE = 1e-6          # a tangential impact solved at an approach of this fraction of its velocities, then finished
 CONE_ROUND = 50           # an event's problem with contacts' cones: Gauss-Seidel sweeps between exact finishes,
 CONE_SWEEPS = 2000        # and at most this many sweeps
 
 
 @dataclass
 class Event:
-    """One event of a run: time t [s], what happened ("start", "impact", "limit", "release", "stick", "slip"), the
-    units it concerns (names), and for impacts the impulses [N s or N m s] and the kinetic energy lost [J]."""
+    """One event of a run: time t [s], what happened ("start", "impact", "tangential impact", "limit", "release",
+    "stick", "slip"), the units it concerns (names), and for impacts the impulses [N s or N m s] and the kinetic
+    energy lost [J]."""
 
     t: float
     what: str
     units: tuple[str, ...]
     impulse: tuple[float, ...] = ()
     energy_lost: float = 0.0
+
+
+class Jammed(Exception):
+    """select_mode's problem has no consistent force while the contacts `units` slide (Painleve: with friction
+    against the slip in the force columns, W = J M^-1 F^T can lose its positive diagonal, and the normal force that
+    the sliding would need pulls); residual: the unmet complementarity [N or m/s^2]."""
+
+    def __init__(self, units: tuple, residual: float) -> None:
+        super().__init__(units, residual)
+        self.units, self.residual = units, residual
 
 
 @dataclass
@@ -335,31 +351,7 @@ class EventRun:
             v = y[nq:nq + nv]
             jv = J @ v
         # 3. the mode: complementarity at the acceleration level
-        resting = [k for k in touching if jv[self.units[k].row0] <= REST_SPEED
-                   and (jv[self.units[k].row0] >= -REST_SPEED or not self.is_contact[k])]  # (contacts made to
-        # approach by a sequential impact are not at rest: each is the next impact)
-        slips = np.zeros((len(self.units), 3))
-        if self.contact_units.size:
-            slip_velocities(self.p, y, slips)
-        slip_speed = np.linalg.norm(slips, axis=1)
-        for k in range(len(self.units)):
-            if self.codes[k] in UNILATERAL or self.is_contact[k]:
-                mode[k] = 0.0
-            elif self.is_friction[k]:  # the velocity along its row: a dof's, or a tendon's L'
-                speed = jv[self.units[k].row0]
-                mode[k] = 0.0 if abs(speed) <= REST_SPEED else math.copysign(1.0, speed)
-        self.set_mode(mode)
-        # the velocities of the resting rows exactly 0 (changes below REST_SPEED), so that a dof that starts to slide
-        # or a stop that is left moves away from rest in the direction its acceleration says
-        at_rest = np.zeros(self.rows)
-        for k, unit in enumerate(self.units):
-            if self.is_contact[k]:
-                if k in resting:  # its normal, and its tangents where it does not slip
-                    at_rest[unit.row0:unit.row0 + (unit.rows if slip_speed[k] <= REST_SPEED else 1)] = 1.0
-            elif self.codes[k] in EQUALITY_KINDS or k in resting or (self.is_friction[k] and mode[k] == 0.0):
-                at_rest[unit.row0:unit.row0 + unit.rows] = 1.0
-        dyn.project(self.p, y, np.zeros(self.rows), at_rest)
-        v = y[nq:nq + nv]
+        resting = self.come_to_rest(y, touching)
         breaking = [k for k in triggered if k < len(self.units) and self.is_friction[k] and before[k] == 0.0]
         releasing = [k for k in triggered if k < len(self.units) and self.codes[k] in UNILATERAL
                      and before[k] == 1.0]
@@ -368,7 +360,17 @@ class EventRun:
                      and before[self.guard_unit[i]] == 1.0]
         releasing += [int(self.guard_unit[i]) for i in triggered if len(self.units) <= i < first_b
                       and before[self.guard_unit[i]] != 0.0]
-        mode = self.select_mode(y, t, resting, breaking, releasing)
+        try:
+            mode = self.select_mode(y, t, resting, breaking, releasing)
+        except Jammed as jam:  # Painleve: no force is consistent while they slide; an impulse stops them
+            y = self.tangential_impact(y, t, touching, jam)
+            resting = self.come_to_rest(y, touching)
+            try:
+                mode = self.select_mode(y, t, resting, breaking, releasing)
+            except Jammed as again:
+                raise self.fail(t, "Painleve configuration: no consistent force while these contacts slide, and "
+                                   "none after the tangential impact that stops them:", again.units,
+                                again.residual) from None
         self.set_mode(mode)
         held = self.held()
         dyn.project(self.p, y, np.zeros(self.rows), held)
@@ -393,14 +395,73 @@ class EventRun:
                             float(-g_after.min()))
         return y
 
-    def impact(self, y, M, J, touching, jv, start: bool, t: float):
+    def come_to_rest(self, y: np.ndarray, touching) -> list:
+        """Step 3's start (settle): the touching units at rest (a contact's normal velocity within REST_SPEED of 0;
+        a contact made to approach by a sequential impact is not at rest: it is the next impact), every stop and
+        contact free and each dry-friction dof sliding with its velocity's sign (select_mode decides), and the
+        velocities of the resting rows made exactly 0 (y, in place: changes below REST_SPEED), so that a dof that
+        starts to slide or a stop that is left moves away from rest in the direction its acceleration says.
+        Returns the resting units."""
+        nq, nv = self.nq, self.nv
+        _M, _f, J, _jdot, _g = self.state_rows(y)
+        jv = J @ y[nq:nq + nv]
+        resting = [k for k in touching if jv[self.units[k].row0] <= REST_SPEED
+                   and (jv[self.units[k].row0] >= -REST_SPEED or not self.is_contact[k])]
+        slips = np.zeros((len(self.units), 3))
+        if self.contact_units.size:
+            slip_velocities(self.p, y, slips)
+        slip_speed = np.linalg.norm(slips, axis=1)
+        mode = self.mode.copy()
+        for k in range(len(self.units)):
+            if self.codes[k] in UNILATERAL or self.is_contact[k]:
+                mode[k] = 0.0
+            elif self.is_friction[k]:  # the velocity along its row: a dof's, or a tendon's L'
+                speed = jv[self.units[k].row0]
+                mode[k] = 0.0 if abs(speed) <= REST_SPEED else math.copysign(1.0, speed)
+        self.set_mode(mode)
+        at_rest = np.zeros(self.rows)
+        for k, unit in enumerate(self.units):
+            if self.is_contact[k]:
+                if k in resting:  # its normal, and its tangents where it does not slip
+                    at_rest[unit.row0:unit.row0 + (unit.rows if slip_speed[k] <= REST_SPEED else 1)] = 1.0
+            elif self.codes[k] in EQUALITY_KINDS or k in resting or (self.is_friction[k] and mode[k] == 0.0):
+                at_rest[unit.row0:unit.row0 + unit.rows] = 1.0
+        dyn.project(self.p, y, np.zeros(self.rows), at_rest)
+        return resting
+
+    def tangential_impact(self, y: np.ndarray, t: float, touching, jam: "Jammed") -> np.ndarray:
+        """The impulse that resolves a Painleve configuration (select_mode found no consistent force while the
+        contacts jam.units slide): Darboux-Keller's impact at zero normal velocity, as the time-stepping scheme
+        gives it in the limit dt -> 0. Every touching contact at rest takes part, plastic (e = 0), its friction
+        impulse in its Coulomb cone; the rod of Painleve's example stops sliding at once (its stick impulse lies in
+        the cone exactly where the sliding problem has no solution). Logged as the event "tangential impact";
+        returns y with v+. A SimulationError where the impulse leaves the contacts sliding as before."""
+        nq, nv = self.nq, self.nv
+        M, _f, J, _jdot, _g = self.state_rows(y)
+        jv = J @ y[nq:nq + nv]
+        at_rest = [k for k in touching if self.is_contact[k] and abs(jv[self.units[k].row0]) <= REST_SPEED]
+        slips = np.zeros((len(self.units), 3))
+        slip_velocities(self.p, y, slips)
+        before = np.linalg.norm(slips[list(jam.units)], axis=1)
+        after, lost, impulses = self.impact(y, M, J, touching, jv, False, t, jammed=at_rest)
+        slip_velocities(self.p, after, slips)
+        if not np.all(np.linalg.norm(slips[list(jam.units)], axis=1) < before):
+            raise self.fail(t, "Painleve configuration: no consistent force while these contacts slide, and the "
+                               "tangential impact does not stop them:", jam.units, jam.residual)
+        self.log.impacts += 1
+        self.log.events.append(Event(t, "tangential impact", self.names(jam.units), impulses, lost))
+        after[-1] += lost
+        return after
+
+    def impact(self, y, M, J, touching, jv, start: bool, t: float, jammed=()):
         """Impulses at an impact (Newton's law with each limit's and contact's restitution, equalities held, joint
         dry friction giving no impulse, a contact's friction impulse within its Coulomb cone: sticking, or sliding
         against the tangential velocity after the impact); returns (y with v+, kinetic energy lost [J], impulses on
         the approaching limits and contacts' normals). Touching limits all take part (simultaneous); contacts are
         sequential: only the approaching ones take part, and a touching contact that the impulse makes approach is
         the next event, at the same instant (the chapter's Newton's cradle and stacked balls: a simultaneous
-        Newton law would share the momentum among the balls instead)."""
+        Newton law would share the momentum among the balls instead). jammed: contacts at rest that take part too,
+        plastic (tangential_impact)."""
         nq, nv = self.nq, self.nv
         rows, lo, hi, b, role, mu = [], [], [], [], [], []
         impulses_of = []
@@ -409,13 +470,16 @@ class EventRun:
                 for a in range(unit.row0, unit.row0 + unit.rows):
                     rows.append(a), lo.append(-np.inf), hi.append(np.inf), b.append(jv[a]), role.append(ROW)
                     mu.append(0.0)
-            elif k in touching and (not self.is_contact[k] or start or jv[unit.row0] < -REST_SPEED):
+            elif k in touching and (not self.is_contact[k] or start or jv[unit.row0] < -REST_SPEED
+                                    or k in jammed):
                 # contacts: sequential impacts, the approaching ones only (a touching contact that the impulse
                 # makes approach is the next impact, at the same instant: Newton's cradle, the stacked balls)
                 a = unit.row0
                 speed = -jv[a]
-                e = 0.0 if start else self.restitution[k]
-                if speed > 0:
+                e = 0.0 if start or k in jammed else self.restitution[k]
+                if k in jammed:
+                    impulses_of.append(len(rows))
+                elif speed > 0:
                     if speed < ZENO_RATIO * self.fastest[k]:
                         e = 0.0
                     self.fastest[k] = max(self.fastest[k], speed)
@@ -435,7 +499,19 @@ class EventRun:
         W = A.T @ A
         lo, hi, b = np.array(lo), np.array(hi), np.array(b)
         role = np.array(role)
-        lam, status, residual = self.solve(W, b, lo, hi, role, np.array(mu))
+        mu = np.array(mu)
+        if len(jammed):  # at zero normal velocity P = 0 solves too: the impulse is the limit of an approach
+            # -delta as delta -> 0 (the time-stepping's, with -g dt), solved near it and finished exactly at delta = 0
+            nudge = np.zeros(len(b))
+            nudge[[i for i, a in enumerate(rows) if role[i] == NORMAL and self.row_unit[a] in jammed]] = \
+                JAM_NUDGE * max(float(np.abs(b).max()), 1e-300)
+            lam, status, residual = self.solve(W, b - nudge, lo, hi, role, mu)
+            residual = stick_polish(W, b, lo, hi, role.astype(np.int64), mu, lam, 8)
+            if residual > 1e-3 * MLCP_RTOL * max(1.0, float(np.abs(b).max())):
+                residual = cone_polish(W, b, lo, hi, role.astype(np.int64), mu, lam, 4)
+            status = 0 if residual <= MLCP_RTOL * max(1.0, float(np.abs(b).max())) else 1
+        else:
+            lam, status, residual = self.solve(W, b, lo, hi, role, mu)
         cones = bool(np.any(role != ROW))  # cones: solve's own tolerance, MLCP_RTOL of max(|b|, 1)
         if status != 0 or (not cones and residual > MLCP_RTOL * (np.abs(b).max() + 1e-300) + 1e-14):
             units = sorted({int(self.row_unit[a]) for a in rows})
@@ -536,6 +612,13 @@ class EventRun:
         role, mu = np.array(role), np.array(mu)
         lam, status, residual = self.solve(W, b, lo, hi, role, mu)
         scale = np.abs(b).max() + np.abs(W).max() * np.abs(lam).max(initial=0.0)
+        if slipping:  # W is not symmetric: the solvers' residuals assume a positive diagonal; complementarity read
+            # directly on the normal rows (lambda_n >= 0, w_n >= 0, one of them 0)
+            normal = role == NORMAL
+            w = W @ lam + b
+            unmet = np.abs(np.minimum(lam[normal], w[normal])).max(initial=0.0)
+            if status != 0 or max(residual, unmet) > MLCP_RTOL * scale + 1e-14:
+                raise Jammed(tuple(sorted(k for k in set(units) if k in slipping)), max(residual, unmet))
         if status != 0 or residual > MLCP_RTOL * scale + 1e-14:
             bad = sorted(set(units))
             what = ("no consistent force exists (the held rows' accelerations contradict each other):"
