@@ -12,6 +12,10 @@ Every run is measured against the closed form by the same function (never agains
   T0 = sqrt(2 H / g), bounce k reaching e^(2k) H; e = 0 rests on the plane from T0 on. Measures: the largest error
   of the first three impact times (e = 0: the one), the first bounce's height error (e = 0: the largest |z - r|
   after T0);
+- Painleve's rod: a thin rod tilted 0.8 rad, sliding at 1 m/s on its lower end (the end leading) with mu = 2 above
+  the rod's mu_P = 1.63, where sliding has no consistent contact force: a tangential impact stops the end at t = 0,
+  then the end's sphere rolls on the floor as the rod turns. Measures: how far the end slid beyond that rolling by
+  the end of the run, and its slip one step after t = 0;
 - a box resting on a floor, and a stack of five boxes: nothing moves. Measures: the largest horizontal drift and
   the largest height change (sinking) of any box over the run.
 
@@ -71,7 +75,9 @@ ALPHA = 0.3                      # [rad] the incline
 BLOCK_HALF = (0.1, 0.1, 0.05)    # [m] the block's half sizes (1 kg), its faces along the incline
 DROP_HEIGHT, DROP_MU = 1.0, 0.5  # [m] the dropped ball's lowest point above the plane; its friction [-]
 BOX_HALF, BOX_MASS, BOX_MU = (0.2, 0.1, 0.05), 2.0, 0.8  # [m], [kg], [-]
-DURATIONS = {"thrown": 1.0, "incline": 2.0, "drop": 1.5}  # [s]; the drop covers three impacts (1.13 s)
+ROD_HALF, ROD_RADIUS, ROD_TILT = 0.5, 1e-3, 0.8  # [m], [m], [rad] Painleve's rod (1 kg): half length, end radius, tilt
+ROD_MU, ROD_SPEED = 2.0, 1.0     # [-] above the rod's mu_P = 1.63; [m/s] its slide, the lower end leading
+DURATIONS = {"thrown": 1.0, "incline": 2.0, "drop": 1.5, "painleve": 0.2}  # [s]; the drop covers three impacts
 
 # MuJoCo: its documented defaults (a bare MJCF file's), and rbody.to_mjcf's rigid-limit settings (none given).
 MUJOCO_DEFAULTS = {"integrator": "Euler", "solref": (0.02, 1.0), "solimp": (0.9, 0.95, 0.001), "cone": "pyramidal",
@@ -159,6 +165,35 @@ def stack_scene(*, planar: bool, t_end: float) -> Scene:
     layout = Layout(bodies=tuple(bodies), joints=tuple(joints), fixed=(Shape("floor", "plane", (0, 0)),),
                     contacts=tuple(contacts))
     return Scene.from_layout(layout, t_end=t_end, name="stack")
+
+
+def rod_scene(*, planar: bool, t_end: float) -> Scene:
+    """Painleve's rod: a thin rod (1 kg, length 2 ROD_HALF [m]; its collision shape a capsule of radius ROD_RADIUS)
+    tilted ROD_TILT from the floor, its lower end's sphere on it, sliding at ROD_SPEED [m/s] towards -x (the lower
+    end leading) with friction ROD_MU. Planar in every engine (slides x, z and a hinge about y: its three
+    coordinates); `planar` is accepted for the variants' common signature."""
+    del planar
+    phi = math.pi / 2 - ROD_TILT
+    shape = Shape("end", "capsule", (ROD_RADIUS, ROD_HALF), quat=(math.cos(phi / 2), 0.0, math.sin(phi / 2), 0.0))
+    rod = Body("rod", Inertia.rod(1.0, 2 * ROD_HALF), shapes=(shape,),
+               pos=(0.0, 0.0, ROD_HALF * math.sin(ROD_TILT) + ROD_RADIUS))
+    layout = Layout(bodies=(rod,), joints=_joints("rod", True), fixed=(Shape("floor", "plane", (0, 0)),),
+                    contacts=(Contact("floor", "end", friction=ROD_MU),))
+    return Scene.from_layout(layout, t_end=t_end, qvel0=[-ROD_SPEED, 0.0, 0.0], name="rod")
+
+
+def rod_closed_form() -> dict[str, float]:
+    """The rod's tangential impact (tests/rbody/engine/test_painleve.py): d = A - c (A its contact point), W the
+    change of A's (tangential, normal) velocity per impulse, mu_P = (I/m + dx^2) / (dx dz) above which sliding has
+    no consistent force, the stick impulse P = -W^-1 (v, 0) (in the cone: Pt/Pn = mu_P), the angular velocity after
+    it [rad/s] and the kinetic energy it takes [J]."""
+    inertia = (2 * ROD_HALF) ** 2 / 12
+    dx, dz = -ROD_HALF * math.cos(ROD_TILT), -ROD_HALF * math.sin(ROD_TILT) - ROD_RADIUS
+    W = np.array([[1 + dz * dz / inertia, -dx * dz / inertia], [-dx * dz / inertia, 1 + dx * dx / inertia]])
+    P = np.linalg.solve(W, [ROD_SPEED, 0.0])
+    omega = (dz * P[0] - dx * P[1]) / inertia
+    return {"dx": dx, "dz": dz, "mu_P": (inertia + dx * dx) / (dx * dz), "Pt": P[0], "Pn": P[1], "omega": omega,
+            "energy lost": ROD_SPEED ** 2 / 2 - (inertia + dx * dx + dz * dz) * omega ** 2 / 2}
 
 
 # ----- the measures: one trajectory's observables against the closed form ----------------------------------------
@@ -282,6 +317,27 @@ def drop_measures(t: np.ndarray, com: np.ndarray, velocity: np.ndarray, restitut
     return Measured(values, notes, {"impact errors": errors})
 
 
+def painleve_measures(t: np.ndarray, qpos: np.ndarray, qvel: np.ndarray) -> Measured:
+    """Painleve's rod, from t (T,) [s] and its qpos, qvel (T, 3) (x [m], z [m], angle a about y [rad]): the rigid
+    closed form stops the lower end at t = 0 by a tangential impact; after it the end's sphere rolls on the floor
+    without slip (its centre E moves by r a). Measures: end slide |x_E(T) - x_E(0) - r a(T)| [m], how far the end
+    slid in all; slip one step after [m/s], the contact point's tangential velocity at the first sample after t = 0
+    (0 after the impact)."""
+    closed = rod_closed_form()
+    ex, ez = closed["dx"], closed["dz"] + ROD_RADIUS          # E - c at the start
+    x, z, a = qpos[:, 0], qpos[:, 1], qpos[:, 2]
+    x_e = x + ex * np.cos(a) + ez * np.sin(a)
+    z_e = z - ex * np.sin(a) + ez * np.cos(a) - ez
+    slide = x_e - ex - ROD_RADIUS * a
+    contact_z = -ex * np.sin(a[1]) + ez * np.cos(a[1]) - ROD_RADIUS   # the contact point P - c, z component
+    slip = qvel[1, 0] + qvel[1, 2] * contact_z
+    return Measured({"end slide [m]": abs(float(slide[-1])), "slip one step after [m/s]": abs(float(slip))},
+                    f"mu_P = {closed['mu_P']:.4g} < mu = {ROD_MU:g}: the tangential impact at t = 0 takes "
+                    f"{closed['energy lost']:.6g} J and turns the rod at {closed['omega']:.6g} rad/s; the end slid "
+                    f"{-slide[-1]:.3g} m by {t[-1]:g} s, at {float(qvel[1, 0] + qvel[1, 2] * contact_z):.3g} m/s one "
+                    f"step after t = 0; its sphere's height r from {np.min(z_e):.3g} to {np.max(z_e):.3g} m off")
+
+
 def rest_measures(t: np.ndarray, coms: list[np.ndarray]) -> Measured:
     """Boxes at rest, from t (T,) [s] and each box's com (T, 3) [m]: drift, the largest horizontal |com - com0| [m],
     and sinking, the largest |z - z0| [m], over the boxes and samples."""
@@ -302,6 +358,20 @@ def rbody_requirements(kind: str, measured: Measured, dt: float, method: str, t_
     """Per measure, (met, what was required) for an rbody run: round-off for the event-driven scheme and for what
     the time-stepping holds exactly; the time-stepping's order-1 bounds for what it locates within a step."""
     out = {m: (v <= roundoff(m), f"round-off, {roundoff(m):g}") for m, v in measured.values.items()}
+    if kind == "painleve":  # the end held at the velocity level: its position follows the scheme's integration
+        closed = rod_closed_form()
+        arm, turn = math.hypot(closed["dx"], closed["dz"]), abs(closed["omega"])  # |d| [m], the fastest turn [rad/s]
+        slide = measured.values["end slide [m]"]
+        if method == "moreau":  # J(q_k) v_k+1 = 0: the lever arm turns by omega h in a step
+            allowed = 0.5 * turn ** 2 * arm * dt * t_end + roundoff("end slide [m]")
+            out["end slide [m]"] = (slide <= allowed, f"order 1, omega^2 |d| h t_end / 2 = {allowed:.3g} m")
+            allowed = turn ** 2 * arm * dt + roundoff("slip one step after [m/s]")
+            out["slip one step after [m/s]"] = (measured.values["slip one step after [m/s]"] <= allowed,
+                                                f"order 1, omega^2 |d| h = {allowed:.3g} m/s")
+        else:  # RK4's local error of a turn at omega, (omega h)^5 |d| a step, ten times over
+            allowed = max(10 * arm * (turn * dt) ** 5 * t_end / dt, roundoff("end slide [m]"))
+            out["end slide [m]"] = (slide <= allowed, f"RK4's order 4, 10 |d| (omega h)^5 a step = {allowed:.3g} m")
+        return out
     if method != "moreau":
         return out
     if kind == "thrown":  # rolling begins in the step that holds t*
@@ -368,6 +438,9 @@ def variants(quick: bool) -> list[Variant]:
                            DURATIONS["drop"],
                            lambda tr, dt, e=e: drop_measures(tr.t, tr["ball.com"], tr["ball.velocity"], e),
                            DROP_MU, e))
+    out.append(Variant(f"Painleve's rod, mu = {ROD_MU:g}, sliding at {ROD_SPEED:g} m/s", "Painleve rod", "painleve",
+                       lambda planar, t_end: rod_scene(planar=planar, t_end=t_end), DURATIONS["painleve"],
+                       lambda tr, dt: painleve_measures(tr.t, tr["qpos"], tr["qvel"]), ROD_MU))
     out.append(Variant("box resting on a floor", "box", "rest",
                        lambda planar, t_end: box_scene(planar=planar, t_end=t_end), rest,
                        lambda tr, dt: rest_measures(tr.t, [tr["box0.com"]]), BOX_MU, events=False))
@@ -513,6 +586,12 @@ def findings(rows: list[HardRow], shorts: dict[str, str]) -> list[str]:
         "in its first steps and the stack sinks until the overlaps are corrected (a hundredth at the finer "
         "step). Its 10 iterations of sequential impulses leave the block's friction short of its load, so a "
         "block that should stick creeps; at 100 iterations (the incline's last pymunk rows) it holds.",
+        "Painleve's rod: sliding on its leading end with mu above mu_P it has no consistent contact force; the rigid "
+        "answer is a tangential impact that stops the end at t = 0. MuJoCo's soft friction stops it over its contact "
+        "time instead: at its defaults (time constant 0.02 s) the end slides about 13 mm and sinks 1.3 mm at either "
+        "step; to_mjcf's 2 dt time constant shortens the slide with the step (3 mm at 2 ms, 0.3 mm at 0.2 ms). pymunk's "
+        "iterations stop it within a few steps (2.4 mm, 0.4 mm). rbody's time-stepping takes the impulse within its "
+        "first step (the end's slide then comes from the step's lever arm turning, order 1).",
     ]
     return out
 
@@ -525,7 +604,7 @@ def case_rigid_contacts(quick: bool, out: Path) -> CaseResult:
         "from t* = 2 v0 / (7 mu g) at 5/7 v0 at height r; a block on an incline sticks exactly when tan(alpha) <= "
         "mu (mu = tan(alpha)(1 -+ 1e-6) included) and otherwise slides as g (sin alpha - mu cos alpha) t^2 / 2; a "
         "ball dropped with restitution e meets the floor at T0 (1 + 2e + ...) and bounces to e^(2k) H, e = 0 rests "
-        f"at once; a box and a stack of five boxes rest {rest:g} s (at the finer step {rest / 10:g} s) without drift "
+        "at once; Painleve's rod (mu above its mu_P) stops sliding at once by a tangential impact; a box and a stack of five boxes rest {rest:g} s (at the finer step {rest / 10:g} s) without drift "
         "or sinking. rbody's time-stepping (moreau, its default) holds each to round-off, the transition within the "
         "step holding t*, impact k within 2k steps, the bounce within 2 sqrt(2 g H) dt and a slide within a t dt / 2 "
         "(on its own a t (t + dt) / 2 to round-off); its event-driven scheme (rk4) holds each to round-off. "
@@ -544,5 +623,6 @@ def case_rigid_contacts(quick: bool, out: Path) -> CaseResult:
 
 __all__ = ["case_rigid_contacts", "variants", "runs", "run_variant", "findings", "rbody_requirements", "Measured",
            "thrown_measures", "incline_measures", "drop_measures", "rest_measures", "impacts_measured",
-           "impact_times_closed", "peak", "ball_scene", "incline_scene", "box_scene", "stack_scene", "STEP", "FINE",
+           "impact_times_closed", "peak", "ball_scene", "incline_scene", "box_scene", "stack_scene", "rod_scene",
+           "rod_closed_form", "painleve_measures", "STEP", "FINE",
            "MUJOCO_DEFAULTS"]
