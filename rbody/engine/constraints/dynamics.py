@@ -38,7 +38,7 @@ from rbody.engine.constraints.jacobians import (all_rows, bias_accelerations, so
                                                 unit_count, unit_rows)
 from rbody.engine.contacts.kinematics import clearance
 from rbody.engine.contacts.rows import GEOMETRY_WORK, candidate, pair_candidates
-from rbody.engine.constraints.solver import lower_solve, symmetric_solve, upper_solve
+from rbody.engine.constraints.solver import RANK_RTOL, lower_solve, symmetric_solve, upper_solve
 from rbody.engine.constraints.sliding import general_held_solve, sliding_columns
 from rbody.engine.constraints.table import (CONE, CONNECT, CONTACT, CONTACT1, COUPLING, FRICTION, LOWER,
                                             TENDON_EQUALITY, TENDON_FRICTION, TENDON_LOWER, TENDON_UPPER, U_BOUND,
@@ -179,9 +179,9 @@ def held_rows(p, rows_held):
 
 
 @njit(cache=True)
-def cholesky_factor(A, L, rtol):
+def cholesky_factor(A, L, rtol, atol=0.0):
     """L (m, m) <- the lower Cholesky factor of the symmetric A (m, m) when every pivot exceeds rtol times its diagonal
-    entry (rtol = 0: A positive definite), returning True; False (L partly written) otherwise."""
+    entry and atol (rtol = atol = 0: A positive definite), returning True; False (L partly written) otherwise."""
     m = A.shape[0]
     for i in range(m):
         for j in range(m):
@@ -192,7 +192,7 @@ def cholesky_factor(A, L, rtol):
             for k in range(j):
                 acc -= L[i, k] * L[j, k]
             if i == j:
-                if not acc > rtol * A[i, i]:
+                if not (acc > rtol * A[i, i] and acc > atol):
                     return False
                 L[i, i] = np.sqrt(acc)
             else:
@@ -203,11 +203,16 @@ def cholesky_factor(A, L, rtol):
 @njit(cache=True)
 def definite_solve(W, r, x):
     """x = W^-1 r by Cholesky when W (m, m) is positive definite beyond round-off (every pivot above 1e-10 of its
-    diagonal entry), returning True; False (x untouched) when it is not: the caller then takes the minimum-norm
-    solution (redundant rows)."""
+    diagonal entry and above RANK_RTOL of W's largest diagonal entry), returning True; False (x untouched) when it is
+    not: the caller then takes the minimum-norm solution (redundant rows). The second bound refuses a row whose whole
+    Jacobian is round-off (a connect's component across a planar loop: 1e-17 where the others are 0.05), whose pivot
+    is its own diagonal entry: solved, it would turn a residual of round-off into a step of order one."""
     m = r.shape[0]
     L = np.empty((m, m))
-    if not cholesky_factor(W, L, 1e-10):
+    top = 0.0
+    for i in range(m):
+        top = max(top, W[i, i])
+    if not cholesky_factor(W, L, 1e-10, RANK_RTOL * top):
         return False
     z = lower_solve(L, r)
     out = upper_solve(L, z)

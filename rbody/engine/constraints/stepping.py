@@ -59,7 +59,7 @@ from rbody.engine.contacts.rows import GEOMETRY_WORK, candidate, pair_candidates
 from rbody.engine.multibody import _effective_qpos
 from rbody.engine.constraints.cone import (NORMAL, ROLL, ROUND_OFF, ROW, SPIN, TANGENT, cone_pgs, cone_polish,
                                            magnitude, slide_polish, stick_polish, sticking_qp)
-from rbody.engine.constraints.solver import mlcp_exact_from, mlcp_pgs, natural_residual
+from rbody.engine.constraints.solver import RANK_RTOL, mlcp_exact_from, mlcp_pgs, natural_residual
 from rbody.engine.constraints.table import (C_HEADER, CONE, CONNECT, CONTACT, CONTACT1, CONTACT_KINDS, COUPLING,
                                             FRICTION, FRICTION_KINDS, LOWER, TENDON_EQUALITY, TENDON_FRICTION,
                                             TENDON_LOWER, TENDON_UPPER, U_BODY1, U_BODY2, U_BOUND, U_DOF, U_KIND,
@@ -107,8 +107,8 @@ def mujoco_free_velocity(p, y, h, mode, M, f, vfree, L):
     for a in range(nv):
         for c in range(nv):
             metric[a, c] = 0.5 * (H[a, c] + H[c, a])
-    if not dyn.cholesky_factor(metric, L, 0.0):
-        dyn.cholesky_factor(M, L, 0.0)
+    if not dyn.cholesky_factor(metric, L, 0.0, 0.0):
+        dyn.cholesky_factor(M, L, 0.0, 0.0)
     rhs = f.copy()
     qacc = np.empty(nv)
     solve_general(H, rhs, qacc, nv)
@@ -162,6 +162,33 @@ def cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
         if residual <= 1e-3 * tolerance:
             break
     return residual
+
+
+@njit(cache=True)
+def _drop_null_equalities(A, index, lo, hi, b, role, mu, m):
+    """The step's rows without the equality rows no impulse acts through: those whose column of A (M^-1/2 J^T) is
+    below RANK_RTOL of the largest in W's scale (|A_c|^2), the round-off of a zero row (a connect's component across
+    a planar loop: 1e-17 where the loop's rows are 0.05). Kept, Gauss-Seidel would divide their round-off residual
+    by their round-off diagonal and push the other rows by an impulse of order one through their round-off
+    coupling. The rows after them move up in place (A's columns, index, bounds, b, role, mu); returns the count."""
+    nv = A.shape[0]
+    top = 0.0
+    size = np.empty(m)
+    for c in range(m):
+        size[c] = 0.0
+        for d in range(nv):
+            size[c] += A[d, c] * A[d, c]
+        top = max(top, size[c])
+    kept = 0
+    for c in range(m):
+        if role[c] == ROW and lo[c] == -np.inf and hi[c] == np.inf and not size[c] > RANK_RTOL * top:
+            continue
+        if kept != c:
+            for d in range(nv):
+                A[d, kept] = A[d, c]
+            index[kept], lo[kept], hi[kept], b[kept], role[kept], mu[kept] = index[c], lo[c], hi[c], b[c], role[c], mu[c]
+        kept += 1
+    return kept
 
 
 @njit(cache=True)
@@ -329,14 +356,17 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
     for a in range(rows):
         P[a] = 0.0
         included[a] = 0.0
-    for c in range(m):
-        included[index[c]] = 1.0
     status = 0
     residual = 0.0
     if m > 0:
         A = np.empty((nv, m))
         for c in range(m):
             A[:, c] = dyn.lower_solve(L, J[index[c]])
+        m = _drop_null_equalities(A, index, lo, hi, b, role, mu, m)
+    for c in range(m):
+        included[index[c]] = 1.0
+    if m > 0:
+        A = np.ascontiguousarray(A[:, :m])
         W = A.T @ A
         bb, ll, hh = b[:m].copy(), lo[:m].copy(), hi[:m].copy()
         lam = np.empty(m)
