@@ -804,29 +804,44 @@ class _Reader:
                                                                     "which moves nothing, is read)" if kind == "hfield"
                                                                     else ""))
         if kind == "hfield":  # on the world: static terrain, massless
-            field = attrib.get("hfield")
-            if field not in self.hfields:
-                raise element.error(f"hfield={field!r}: a hfield geom needs hfield=\"name of a <hfield> asset\"")
-            pos = numbers(element, "pos", attrib, 3) if "pos" in attrib else np.zeros(3)
-            quat = self.orientation(element, attrib)
-            if frame is not None:
-                pos, quat = frame[0] + quat_matrix(frame[1]) @ pos, quat_product(frame[1], quat)
-            if integer(element, "condim", attrib, 3) not in (1, 3, 4, 6):
-                raise element.error(f"condim={attrib['condim']!r}: MuJoCo allows 1, 3, 4 or 6 (invalid condim)")
-            body.geoms.append(_Geom(element, attrib, attrib.get("name", ""), kind, self.hfields[field][1].copy(), pos,
-                                    quat, integer(element, "contype", attrib, 1),
-                                    integer(element, "conaffinity", attrib, 1), integer(element, "group", attrib, 0),
-                                    mesh=field))
-            return
+            size, pos, quat, mesh, fluidshape = self.field_shape(element, attrib)
+        else:
+            size, pos, quat, fluidshape = self.primitive_shape(element, attrib, kind)
+            mesh = attrib.get("mesh")
+        if any(key in attrib for key in ("rgba", "material")):
+            self.note("appearance", "geoms' appearance (rgba, material) ignored")
+        if frame is not None:
+            pos, quat = frame[0] + quat_matrix(frame[1]) @ pos, quat_product(frame[1], quat)
+        if kind == "plane" and body.index != 0:
+            self.plane_bodies.append((element, body))
+        if integer(element, "condim", attrib, 3) not in (1, 3, 4, 6):
+            raise element.error(f"condim={attrib['condim']!r}: MuJoCo allows 1, 3, 4 or 6 (invalid condim)")
+        geom = _Geom(element, attrib, attrib.get("name", ""), kind, size, pos, quat,
+                     integer(element, "contype", attrib, 1), integer(element, "conaffinity", attrib, 1),
+                     integer(element, "group", attrib, 0), mesh=mesh, ellipsoid=fluidshape == "ellipsoid")
+        if kind == "mesh" and geom.mesh is None:
+            raise element.error("a mesh geom needs mesh=\"name of a <mesh> asset\"")
+        if kind == "mesh" and geom.mesh not in self.meshes:
+            raise element.error(f"mesh={geom.mesh!r} is not a <mesh> asset of the model")
+        body.geoms.append(geom)
+
+    def field_shape(self, element: Element, attrib: dict) -> tuple:
+        """(size (4,) the <hfield>'s, pos (3,), quat (4,), its asset's name, fluidshape "none") of a hfield geom."""
+        field = attrib.get("hfield")
+        if field not in self.hfields:
+            raise element.error(f"hfield={field!r}: a hfield geom needs hfield=\"name of a <hfield> asset\"")
+        pos = numbers(element, "pos", attrib, 3) if "pos" in attrib else np.zeros(3)
+        return self.hfields[field][1].copy(), pos, self.orientation(element, attrib), field, "none"
+
+    def primitive_shape(self, element: Element, attrib: dict, kind: str) -> tuple:
+        """(size (3,) [m], pos (3,) [m], quat (4,), fluidshape) of a plane, primitive or mesh geom in its body's
+        frame: its sizes checked, fromto turned into a pose and a length."""
         fluidshape = choice(element, "fluidshape", attrib, ("none", "ellipsoid"), "none")
         if fluidshape == "ellipsoid" and kind in ("mesh", "plane"):
             raise element.error(f'fluidshape="ellipsoid" on a {kind} geom (MuJoCo sizes its ellipsoid from the '
                                 "geom's size, which rbody does not form for meshes and planes) is not modelled")
         if "mesh" in attrib and kind != "mesh":
             raise element.error(f"a {kind} fitted to a mesh is not supported: use type=\"mesh\" or give its size")
-        if any(key in attrib for key in ("rgba", "material")):
-            self.note("appearance", "geoms' appearance (rgba, material) ignored")
-        name = attrib.get("name", "")
         fromto = numbers(element, "fromto", attrib, 6) if "fromto" in attrib else None
         if kind == "mesh":
             size = np.zeros(3)
@@ -861,22 +876,9 @@ class _Reader:
             quat = z_to_quat(vector)
         else:
             quat = self.orientation(element, attrib)
-        if frame is not None:
-            pos, quat = frame[0] + quat_matrix(frame[1]) @ pos, quat_product(frame[1], quat)
         if kind != "plane" and kind != "mesh" and np.any(size[:_SIZES[kind]] <= 0):
             raise element.error(f"size={attrib.get('size', '')!r}: a {kind} needs sizes > 0")
-        if kind == "plane" and body.index != 0:
-            self.plane_bodies.append((element, body))
-        if integer(element, "condim", attrib, 3) not in (1, 3, 4, 6):
-            raise element.error(f"condim={attrib['condim']!r}: MuJoCo allows 1, 3, 4 or 6 (invalid condim)")
-        geom = _Geom(element, attrib, name, kind, size, pos, quat, integer(element, "contype", attrib, 1),
-                     integer(element, "conaffinity", attrib, 1), integer(element, "group", attrib, 0),
-                     mesh=attrib.get("mesh"), ellipsoid=fluidshape == "ellipsoid")
-        if kind == "mesh" and geom.mesh is None:
-            raise element.error("a mesh geom needs mesh=\"name of a <mesh> asset\"")
-        if kind == "mesh" and geom.mesh not in self.meshes:
-            raise element.error(f"mesh={geom.mesh!r} is not a <mesh> asset of the model")
-        body.geoms.append(geom)
+        return size, pos, quat, fluidshape
 
     # ----- other sections -----
 
