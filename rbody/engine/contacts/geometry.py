@@ -1099,6 +1099,26 @@ def hull_points(hull: np.ndarray) -> np.ndarray:
     return hull[3:3 + 3 * count].reshape(count, 3)
 
 
-__all__ = ["collide", "collide_pair", "point_distance", "hull_points", "MESH", "ELLIPSOID", "tangents", "segment_closest", "segment_box_closest", "capsule_box_slot", "segment_in_box", "APART", "TIME_STEPPED", "LYING_SPAN", "cylinder_distance", "segment_cylinder_closest",
+@njit(cache=True, inline="always")
+def bounding_radius(kind, p, size_at):
+    """The radius [m] of the sphere about a geom's centre that holds it, its size read at p[size_at:] (the constraint
+    table's record, or a size array at 0; a mesh: its bounding box's half sizes about its origin); +inf for a plane
+    or a height field."""
+    if kind == SPHERE:
+        return p[size_at]
+    if kind == CAPSULE:
+        return p[size_at] + p[size_at + 1]
+    if kind == BOX:
+        return np.sqrt(p[size_at] ** 2 + p[size_at + 1] ** 2 + p[size_at + 2] ** 2)
+    if kind == CYLINDER:
+        return np.sqrt(p[size_at] ** 2 + p[size_at + 1] ** 2)
+    if kind == ELLIPSOID:
+        return max(p[size_at], p[size_at + 1], p[size_at + 2])
+    if kind == MESH:  # the table writes the half sizes of a mesh's bounding box about its origin as its size
+        return np.sqrt(p[size_at] ** 2 + p[size_at + 1] ** 2 + p[size_at + 2] ** 2)
+    return np.inf
+
+
+__all__ = ["collide", "collide_pair", "bounding_radius", "point_distance", "hull_points", "MESH", "ELLIPSOID", "tangents", "segment_closest", "segment_box_closest", "capsule_box_slot", "segment_in_box", "APART", "TIME_STEPPED", "LYING_SPAN", "cylinder_distance", "segment_cylinder_closest",
            "pairs_text", "CYLINDER", "SLOTS", "MAX_SLOTS", "TYPE_CODES", "PLANE",
            "SPHERE", "CAPSULE", "BOX"]

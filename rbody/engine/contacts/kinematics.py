@@ -38,8 +38,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from rbody.engine.contacts.geometry import (BOX, CAPSULE, CYLINDER, ELLIPSOID, MESH, PLANE, SPHERE, box_edges_closest,
-                                            capsule_box_slot, segment_closest, segment_in_box)
+from rbody.engine.contacts.geometry import (BOX, CAPSULE, CYLINDER, ELLIPSOID, MESH, PLANE, SPHERE, bounding_radius,
+                                            box_edges_closest, capsule_box_slot, segment_closest, segment_in_box)
 from rbody.engine.contacts.rows import field_at, geom_pose
 from rbody.engine.contacts.terrain import HFIELD, field_reach
 from rbody.engine.multibody import _views
@@ -239,24 +239,6 @@ def point_velocity(p, w, body, x, velocity):
     velocity[0] = vel[3] + vel[1] * r2 - vel[2] * r1
     velocity[1] = vel[4] + vel[2] * r0 - vel[0] * r2
     velocity[2] = vel[5] + vel[0] * r1 - vel[1] * r0
-
-
-@njit(cache=True, inline="always")
-def bounding_radius(kind, p, size_at):
-    """The radius [m] of the sphere about a geom's centre that holds it (a plane: +inf)."""
-    if kind == SPHERE:
-        return p[size_at]
-    if kind == CAPSULE:
-        return p[size_at] + p[size_at + 1]
-    if kind == BOX:
-        return np.sqrt(p[size_at] ** 2 + p[size_at + 1] ** 2 + p[size_at + 2] ** 2)
-    if kind == CYLINDER:
-        return np.sqrt(p[size_at] ** 2 + p[size_at + 1] ** 2)
-    if kind == ELLIPSOID:
-        return max(p[size_at], p[size_at + 1], p[size_at + 2])
-    if kind == MESH:  # the table writes the half sizes of a mesh's bounding box about its origin as its size
-        return np.sqrt(p[size_at] ** 2 + p[size_at + 1] ** 2 + p[size_at + 2] ** 2)
-    return np.inf
 
 
 @njit(cache=True, inline="always")

@@ -45,8 +45,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from rbody.engine.contacts.geometry import (APART, BOX, CAPSULE, CYLINDER, ELLIPSOID, MESH, PLANE, SPHERE, collide,
-                                            tangents)
+from rbody.engine.contacts.geometry import (APART, BOX, CAPSULE, CYLINDER, ELLIPSOID, MESH, PLANE, SPHERE,
+                                            bounding_radius, collide, tangents)
 
 HFIELD = 1  # MuJoCo's mjGEOM_HFIELD
 FIELD_HEADER = 6  # nrow, ncol, sx, sy, sz, base
@@ -83,18 +83,11 @@ def field_slots(kind_b: int, radius: float, dx: float, dy: float) -> tuple[int, 
 
 def bounding_radius_of(code: int, size) -> float:
     """The radius [m] of the sphere about a geom's centre that holds it, from its type code and size (3,) [m] as
-    the constraint table holds it (a mesh: its bounding box's half sizes)."""
-    if code == SPHERE:
-        return float(size[0])
-    if code == CAPSULE:
-        return float(size[0] + size[1])
-    if code == BOX or code == MESH:
-        return float(np.linalg.norm(size[:3]))
-    if code == CYLINDER:
-        return float(np.hypot(size[0], size[1]))
-    if code == ELLIPSOID:
-        return float(max(size[:3]))
-    raise ValueError(f"geom type {code}: expected a sphere, capsule, ellipsoid, cylinder, box or mesh")
+    the constraint table holds it (geometry.bounding_radius; a mesh: its bounding box's half sizes)."""
+    radius = float(bounding_radius(code, np.asarray(size, dtype=np.float64), 0))
+    if not np.isfinite(radius):
+        raise ValueError(f"geom type {code}: expected a sphere, capsule, ellipsoid, cylinder, box or mesh")
+    return radius
 
 
 def field_candidates(field, kind_b: str, pos_b, mat_b, size_b=(), *, vertices_b=None):
