@@ -72,7 +72,9 @@ def sample_rows(table: ConstraintTable, params: np.ndarray, samples: np.ndarray,
 def run_constrained(description: str, model, method: str, dt: float, nsteps: int, save_every: int,
                     controls=None):
     """Run every batch element of `model` (a NativeModel with constraints) by `method`; returns (t (S,), data
-    (name -> (S, B, ...)), events (name -> (E,)), meta). controls: None (the controls are in the params rows, if
+    (name -> (S, B, ...)), events (name -> (E,): time [s], element, what, constraints (the units' names, joined),
+    energy_lost [J] and impulse [N s or N m s], the normal impulses of an impact summed over its units, 0 for mode
+    changes), meta). controls: None (the controls are in the params rows, if
     any), or (at, control) with control(k, b, t, y) -> (nu,) the controls of element b written at params[at:] before
     step k (held through the step, its events included; rbody.control.step_controls)."""
     table: ConstraintTable = model.constraints
@@ -85,7 +87,7 @@ def run_constrained(description: str, model, method: str, dt: float, nsteps: int
     forces = None if stepped else np.empty((count, batch, table.rows))
     errors = None if stepped else np.empty((count, batch, table.rows))
     recorded = []  # the time-stepping's StepForces, per element
-    events = {"time": [], "element": [], "what": [], "constraints": [], "energy_lost": []}
+    events = {"time": [], "element": [], "what": [], "constraints": [], "energy_lost": [], "impulse": []}
     impacts = changes = 0
     for b in range(batch):
         if method in MODES:  # time-stepping: Moreau-Jean's free motion, or MuJoCo's integrator's
@@ -112,6 +114,7 @@ def run_constrained(description: str, model, method: str, dt: float, nsteps: int
             events["what"].append(event.what)
             events["constraints"].append(", ".join(event.units))
             events["energy_lost"].append(event.energy_lost)
+            events["impulse"].append(float(sum(event.impulse)))
     t = np.arange(count) * (dt * save_every)
     data = dict(model.observe(t, out))
     limits = [k for k, unit in enumerate(table.units) if unit.code in UNILATERAL]
@@ -155,7 +158,8 @@ def run_constrained(description: str, model, method: str, dt: float, nsteps: int
             "scheme": SCHEMES.get(method, "event-driven (rk4 between events)")}
     arrays = {"time": np.array(events["time"], dtype=float), "element": np.array(events["element"], dtype=int),
               "what": np.array(events["what"], dtype=str), "constraints": np.array(events["constraints"], dtype=str),
-              "energy_lost": np.array(events["energy_lost"], dtype=float)}
+              "energy_lost": np.array(events["energy_lost"], dtype=float),
+              "impulse": np.array(events["impulse"], dtype=float)}
     return t, data, arrays, meta
 
 

@@ -126,6 +126,9 @@ def test_ball_bounces_at_the_exact_impact_times():
     assert count >= 8
     closed = T0 * (1 + 2 * np.cumsum(np.r_[0.0, e ** np.arange(1, count)]))
     np.testing.assert_allclose(impacts, closed, rtol=0, atol=1e-10)
+    # impact k's impulse (1 + e) m v_k, v_k = e^(k-1) sqrt(2 g H) (m = 1 kg), for the impacts Newton's law takes
+    impulses = run.events["impulse"][run.events["what"] == "impact"][:4]
+    np.testing.assert_allclose(impulses, (1 + e) * e ** np.arange(4) * np.sqrt(2 * G * H), rtol=1e-9)
     energy, t = run["energy"], run.t
     for k in range(4):
         between = (t > closed[k] + 1e-9) & (t < closed[k + 1] - 1e-9)

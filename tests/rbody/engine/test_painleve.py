@@ -80,6 +80,7 @@ def test_event_scheme_resolves_painleve_by_a_tangential_impact():
     I_A = I_C + M * (DX ** 2 + DZ ** 2)
     kinetic_plus = 0.5 * I_A * q_plus[2] ** 2
     np.testing.assert_allclose(run.events["energy_lost"][0], 0.5 * M * u ** 2 - kinetic_plus, rtol=1e-12)
+    np.testing.assert_allclose(run.events["impulse"][0], P[1], rtol=1e-12)  # its normal impulse Pn
     later = run.t > 0
     qpos, qvel = run["qpos"][later], run["qvel"][later]
     ex, ez = DX, DZ + R                                                    # E - c at the start
