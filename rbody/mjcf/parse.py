@@ -1226,7 +1226,13 @@ class _Reader:
         from rbody.mjcf.contacts import explicit_pairs, unsupported_pair
 
         named = {g.attrib["name"]: g for b in everyone for g in b.geoms if g.attrib.get("name")}
-        explicit = explicit_pairs(self.explicit_pairs, named)  # MuJoCo: an explicit pair replaces the dynamic one
+        carrier = {0: WORLD}  # the rbody body of each: a body with neither mass nor joints is folded into its parent
+        for b in self.bodies:
+            carrier[b.index] = carrier[b.parent.index] if b.mass <= MJ_EPS and not b.joints else b.name
+        body_of = {g.attrib["name"]: (carrier[b.index], b.name if b.index else WORLD) for b in everyone
+                   for g in b.geoms if g.attrib.get("name")}
+        explicit = explicit_pairs(self.explicit_pairs, named, body_of)  # MuJoCo: an explicit pair replaces the
+        # dynamic one
         listed = {frozenset((g1.name, g2.name)) for g1, g2, _spec in explicit}
         candidates = [(g1, g2, None) for g1, g2 in candidates if frozenset((g1.name, g2.name)) not in listed]
         candidates += explicit

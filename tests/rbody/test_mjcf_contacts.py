@@ -61,13 +61,22 @@ def test_contact_rules_friction_max_and_filters(tmp_path):
 def test_unsupported_pair_refused_with_its_line(tmp_path):
     path = tmp_path / "cyl.xml"
     text = ('<mujoco><asset><hfield name="h" nrow="2" ncol="2" size="1 1 0.1 0.1"/></asset><worldbody>'
-            '<geom name="floor" type="hfield" hfield="h"/>\n<geom name="plane" type="plane" size="1 1 1"/>\n'
+            '<geom name="floor" type="hfield" hfield="h"/>\n<body name="stand"><inertial pos="0 0 0" mass="1" '
+            'diaginertia="1 1 1"/><geom name="plane" type="plane" size="1 1 1"/></body>\n'
+            '<geom name="mark" type="sphere" size="0.1" pos="2 0 0"/><body name="frame"><geom name="tag" '
+            'type="sphere" size="0.05" pos="3 0 0" mass="0"/></body>'
             '<body><freejoint/><geom name="c" type="ellipsoid" size="0.1 0.2 0.3"/></body></worldbody>{}</mujoco>')
     path.write_text(text.format(""))
-    assert len(from_mjcf(path).layout.contacts) == 2  # a height field and an ellipsoid: computed
+    assert len(from_mjcf(path).layout.contacts) == 4  # the ellipsoid with the height field, the plane, the spheres
     path.write_text(text.format('<contact><pair geom1="floor" geom2="plane"/></contact>'))
     with pytest.raises(MJCFError, match=r"cyl.xml, line 1.*'floor' and 'plane' \(line 2\) can collide.*"
                                         r"hfield-plane contacts"):
+        from_mjcf(path)
+    path.write_text(text.format('<contact><pair geom1="floor" geom2="mark"/></contact>'))  # both on the world
+    with pytest.raises(MJCFError, match=r"cyl.xml, line 3.*are both on body 'world':"):
+        from_mjcf(path)
+    path.write_text(text.format('<contact><pair geom1="tag" geom2="mark"/></contact>'))  # 'frame' is the world's
+    with pytest.raises(MJCFError, match=r"both on body 'world' \(body 'frame' has neither mass nor joints"):
         from_mjcf(path)
 
 
@@ -194,6 +203,24 @@ def test_block_on_incline_from_mjcf_sticks_and_mujoco_creeps(tmp_path):
     creep = np.linalg.norm(d.qpos[:3] - start)
     print(f"block at mu = tan(alpha)(1 + 1e-6), {t_end} s: rbody moved {moved:.2g} m; MuJoCo (defaults) {creep:.3g} m")
     assert creep > 1e-6
+
+
+def test_pair_of_one_bodys_geoms_refused_with_its_line(tmp_path):
+    """A <pair> of two geoms of one body (fixed to each other) is an MJCFError naming the <pair>'s line and the body,
+    before the layout is built; a pair across a welded child body (no joint: still two bodies) loads."""
+    xml = """<mujoco><worldbody><body name="a"><freejoint/><geom name="g1" type="sphere" size="0.1"/>
+      <geom name="g2" type="sphere" size="0.1" pos="0.3 0 0"/>
+      <body name="b" pos="0 0.3 0"><geom name="g3" type="sphere" size="0.1"/></body></body></worldbody>
+      <contact>
+        <pair geom1="g1" geom2="g2"/>
+      </contact></mujoco>"""
+    path = tmp_path / "same_body.xml"
+    path.write_text(xml)
+    with pytest.raises(MJCFError, match=r"same_body.xml, line 5.*geom1='g1' and geom2='g2' are both on body 'a'"):
+        from_mjcf(path)
+    path.write_text(xml.replace('geom2="g2"', 'geom2="g3"'))
+    pairs = {frozenset((c.shape_a, c.shape_b)) for c in from_mjcf(path).tree.contacts}
+    assert frozenset(("g1", "g3")) in pairs
 
 
 def test_explicit_pair_replaces_the_dynamic_one(tmp_path):

@@ -336,8 +336,8 @@ BODY = '<body name="b"><joint/><geom size="0.1"/></body>'
     ("<mujoco><asset><hfield name='h' nrow='2' ncol='2' size='1 1 0.1 0.1'/></asset><worldbody>"
      "<geom name='floor' type='hfield' hfield='h'/>\n<geom name='wall' type='plane' size='1 1 1'/>" + BODY +
      "</worldbody><contact><pair geom1='floor' geom2='wall'/></contact></mujoco>",
-     r"line 1, <geom name='floor'>.*'floor' and 'wall'.*can collide, and rbody does not compute hfield-plane "
-     r"contacts.*contype"),
+     r"line 2, <pair>: geom1='floor' and geom2='wall' are both on body 'world': a contact needs geoms of two "
+     r"bodies"),
     (f"<mujoco>{OFF}<worldbody>{BODY}</worldbody><equality>\n<tendon tendon1='t'/></equality></mujoco>",
      r"line 2, <tendon>: tendon 't' is not a tendon of the model"),
     (f"<mujoco>{OFF}<worldbody>{BODY}</worldbody><equality>\n<weld body1='nobody'/></equality></mujoco>",
