@@ -82,14 +82,13 @@ def _condim(geom) -> int:
     return integer(geom.element, "condim", geom.attrib, 3)
 
 
-def explicit_pairs(pairs, named: dict, body_of: dict | None = None) -> list:
+def explicit_pairs(pairs, named: dict, body_of: dict) -> list:
     """(g1, g2, spec) of every <pair> (element, attributes with its class's defaults): the geoms it names (by the
     names the file gives them) and spec = {"friction": (sliding, torsional, rolling), the first, third and fourth
     of its five (default 1 1 0.005 0.0001 0.0001), "condim": its condim (default 3)}, MuJoCo's defaults for a pair
     (its own, not its geoms'). body_of: geom name -> (the rbody body that carries it, its own body's name). Raises
     MJCFError for a missing or unknown geom, a pair of one geom with itself, or of two geoms carried by one body
     (fixed to each other: nothing to collide)."""
-    body_of = body_of or {}
     out = []
     for element, attrib in pairs:
         geoms = []
@@ -101,7 +100,7 @@ def explicit_pairs(pairs, named: dict, body_of: dict | None = None) -> list:
             geoms.append(named[attrib[key]])
         if geoms[0] is geoms[1]:
             raise element.error(f"geom1 and geom2 are both {attrib['geom1']!r}")
-        (carrier1, own1), (carrier2, own2) = (body_of.get(attrib[k], (k, k)) for k in ("geom1", "geom2"))
+        (carrier1, own1), (carrier2, own2) = (body_of[attrib[k]] for k in ("geom1", "geom2"))
         if carrier1 == carrier2:
             folded = [own for own in dict.fromkeys((own1, own2)) if own != carrier1]
             why = (f" (body {folded[0]!r} has neither mass nor joints: it is part of {carrier1!r})" if folded else "")

@@ -334,7 +334,7 @@ def painleve_measures(t: np.ndarray, qpos: np.ndarray, qvel: np.ndarray) -> Meas
     return Measured({"end slide [m]": abs(float(slide[-1])), "slip one step after [m/s]": abs(float(slip))},
                     f"mu_P = {closed['mu_P']:.4g} < mu = {ROD_MU:g}: the tangential impact at t = 0 takes "
                     f"{closed['energy lost']:.6g} J and turns the rod at {closed['omega']:.6g} rad/s; the end slid "
-                    f"{-slide[-1]:.3g} m by {t[-1]:g} s, at {float(qvel[1, 0] + qvel[1, 2] * contact_z):.3g} m/s one "
+                    f"{-slide[-1]:.3g} m by {t[-1]:g} s, at {float(slip):.3g} m/s one "
                     f"step after t = 0; its sphere's height r from {np.min(z_e):.3g} to {np.max(z_e):.3g} m off")
 
 

@@ -506,10 +506,12 @@ class EventRun:
             nudge[[i for i, a in enumerate(rows) if role[i] == NORMAL and self.row_unit[a] in jammed]] = \
                 JAM_NUDGE * max(float(np.abs(b).max()), 1e-300)
             lam, status, residual = self.solve(W, b - nudge, lo, hi, role, mu)
-            residual = stick_polish(W, b, lo, hi, role.astype(np.int64), mu, lam, 8)
-            if residual > 1e-3 * MLCP_RTOL * max(1.0, float(np.abs(b).max())):
-                residual = cone_polish(W, b, lo, hi, role.astype(np.int64), mu, lam, 4)
-            status = 0 if residual <= MLCP_RTOL * max(1.0, float(np.abs(b).max())) else 1
+            tolerance = MLCP_RTOL * max(1.0, float(np.abs(b).max()))  # solve's own, for the true b
+            roles = role.astype(np.int64)
+            residual = stick_polish(W, b, lo, hi, roles, mu, lam, 8)
+            if residual > 1e-3 * tolerance:
+                residual = cone_polish(W, b, lo, hi, roles, mu, lam, 4)
+            status = 0 if residual <= tolerance else 1
         else:
             lam, status, residual = self.solve(W, b, lo, hi, role, mu)
         cones = bool(np.any(role != ROW))  # cones: solve's own tolerance, MLCP_RTOL of max(|b|, 1)

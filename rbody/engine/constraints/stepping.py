@@ -362,11 +362,13 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
         A = np.empty((nv, m))
         for c in range(m):
             A[:, c] = dyn.lower_solve(L, J[index[c]])
-        m = _drop_null_equalities(A, index, lo, hi, b, role, mu, m)
+        kept = _drop_null_equalities(A, index, lo, hi, b, role, mu, m)
+        if kept < m:  # (a copy only where a row went)
+            A = np.ascontiguousarray(A[:, :kept])
+        m = kept
     for c in range(m):
         included[index[c]] = 1.0
     if m > 0:
-        A = np.ascontiguousarray(A[:, :m])
         W = A.T @ A
         bb, ll, hh = b[:m].copy(), lo[:m].copy(), hi[:m].copy()
         lam = np.empty(m)
