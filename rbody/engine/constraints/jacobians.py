@@ -183,6 +183,29 @@ def _contact_rows(p, w, acc, u, r, J, jdot, g, row, with_bias):
     g[row] = contact_geometry(p, w, u, normal, point)
     if g[row] == np.inf:  # APART: not a contact point in this configuration, no rows (its normal and point unset)
         return
+    _contact_frame_rows(p, w, acc, u, r, J, jdot, g, row, with_bias, normal, point)
+
+
+@njit(cache=True)
+def contact_unit_rows(p, k, w, J, g, row, gap, normal, point):
+    """unit_rows of the contact unit k without J' v (the time-stepping's) from its candidate's gap [m], normal (3,)
+    and point (3,) [m] as a pass over its pair's candidates found them (rbody.engine.contacts.rows.pair_candidates),
+    not from its geometry again: J[row:row + r] (zeroed here), g[row] = gap."""
+    u = unit_at(p, k)
+    r = int(p[u + U_ROWS])
+    for a in range(r):
+        for c in range(J.shape[1]):
+            J[row + a, c] = 0.0
+        g[row + a] = 0.0
+    g[row] = gap
+    if gap == np.inf:
+        return
+    _contact_frame_rows(p, w, np.empty((0, 6)), u, r, J, np.empty(0), g, row, False, normal, point)
+
+
+@njit(cache=True)
+def _contact_frame_rows(p, w, acc, u, r, J, jdot, g, row, with_bias, normal, point):
+    """_contact_rows after its geometry: the rows in the frame of the normal (3,) at the point (3,)."""
     frame = np.empty((3, 3))
     frame[0] = normal
     tangents(normal, frame[1], frame[2])
@@ -201,7 +224,8 @@ def _contact_rows(p, w, acc, u, r, J, jdot, g, row, with_bias):
     for e in range(min(r, 3)):
         for c in range(nv):
             J[row + e, c] = frame[e, 0] * Jp[0, c] + frame[e, 1] * Jp[1, c] + frame[e, 2] * Jp[2, c]
-        jdot[row + e] = frame[e, 0] * bias[0] + frame[e, 1] * bias[1] + frame[e, 2] * bias[2]
+        if with_bias:
+            jdot[row + e] = frame[e, 0] * bias[0] + frame[e, 1] * bias[1] + frame[e, 2] * bias[2]
     if r > 3:  # spin (n) and rolling (t1, t2): (n; t1; t2) . (W_b - W_a), the relative angular velocity
         Jw = np.zeros((3, nv))
         for body, sign in ((int(p[u + U_BODY2]), 1.0), (int(p[u + U_BODY1]), -1.0)):
@@ -354,4 +378,5 @@ def some_rows(p, q, v, w, acc, J, jdot, g, rows_wanted, with_bias=True):
 
 
 __all__ = ["block_offset", "unit_count", "row_count", "unit_at", "mode_at", "bias_accelerations", "unit_rows",
+           "contact_unit_rows",
            "all_rows", "some_rows", "rotation_vector", "C_MODE"]

@@ -53,7 +53,7 @@ from rbody.engine.constraints import dynamics as dyn
 from rbody.engine.elements import A_ACTADR, ACT_SIZE, X_ACT, X_ACTIVE, X_NU, extension_start
 from rbody.engine.mujoco_steps import EULER, IMPLICIT, IMPLICITFAST, MUJOCO_METHODS, integrate_positions, \
     solve_general, step_matrices
-from rbody.engine.constraints.jacobians import row_count, unit_at, unit_count, unit_rows
+from rbody.engine.constraints.jacobians import contact_unit_rows, row_count, unit_at, unit_count
 from rbody.engine.contacts.kinematics import clearance, point_velocity
 from rbody.engine.contacts.rows import GEOMETRY_WORK, candidate, pair_candidates
 from rbody.engine.multibody import _effective_qpos
@@ -204,7 +204,7 @@ def smooth_rows(p):
 
 
 @njit(cache=True)
-def near_contacts(p, q, w, acc, vfree, h, J, jdot, g, formed):
+def near_contacts(p, w, vfree, h, J, g, formed):
     """Every contact's gap into g, and the rows J of the contacts a step can involve: touching (g <= TOUCH_TOLERANCE)
     or closing within it (g + h n . (v_b - v_a) < 0 at the contact point, the bodies moving with the free velocities
     vfree (nv,)), each such unit flagged 1 in formed (units,). The others keep J = 0: a model's far candidates (a
@@ -236,8 +236,8 @@ def near_contacts(p, q, w, acc, vfree, h, J, jdot, g, formed):
         point_velocity(p, w, int(p[u + U_BODY1]), point, v_a)
         closing = (normal[0] * (v_b[0] - v_a[0]) + normal[1] * (v_b[1] - v_a[1])   # n . (v_b - v_a) there
                    + normal[2] * (v_b[2] - v_a[2]))
-        if gap <= TOUCH_TOLERANCE or gap + h * closing < 0.0:
-            unit_rows(p, k, q, vfree, w, acc, J, jdot, g, row, False)
+        if gap <= TOUCH_TOLERANCE or gap + h * closing < 0.0:  # its rows from the geometry just found
+            contact_unit_rows(p, k, w, J, g, row, gap, normal, point)
             formed[k] = 1
 
 
@@ -301,7 +301,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
         L = np.empty((nv, nv))
         mujoco_free_velocity(p, y, h, mode, M, f, vfree, L)
     formed = np.zeros(unit_count(p), dtype=np.int64)
-    near_contacts(p, q, w, acc, vfree, h, J, jdot, g, formed)
+    near_contacts(p, w, vfree, h, J, g, formed)
     jfree = np.zeros(rows)  # the rates at the free velocities of the rows that can enter the problem
     index = np.empty(rows, dtype=np.int64)
     lo, hi, b = np.empty(rows), np.empty(rows), np.empty(rows)

@@ -360,10 +360,12 @@ def rim_frame(Rc, n, w, v):
     """w, v (3,): the directions in a cylinder's caps (axis Rc[:, 2]) of its rim candidates: w the unit direction n
     (from the other geom towards the cylinder) projected onto the caps, v = axis x w; with n within UPRIGHT of the
     axis (standing on a face), the cylinder's own x and y axes."""
-    along = n[0] * Rc[0, 2] + n[1] * Rc[1, 2] + n[2] * Rc[2, 2]
-    for a in range(3):
-        w[a] = n[a] - along * Rc[a, 2]
-    length = np.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])
+    a0, a1, a2 = Rc[0, 2], Rc[1, 2], Rc[2, 2]
+    c0, c1, c2 = n[1] * a2 - n[2] * a1, n[2] * a0 - n[0] * a2, n[0] * a1 - n[1] * a0  # n x axis
+    w[0], w[1], w[2] = a1 * c2 - a2 * c1, a2 * c0 - a0 * c2, a0 * c1 - a1 * c0  # axis x (n x axis) = n - (n.axis) axis,
+    length = np.sqrt(w[0] * w[0] + w[1] * w[1] + w[2] * w[2])  # without its cancellation: a cap tilted by t from a
+    # face has |w| = sin t, and n - (n.axis) axis carries an error of eps in each entry, which tilts w by eps / t and
+    # lifts the lowest rim point by r eps / t (4e-12 m at t = 3e-5 rad, a cylinder settling on its cap)
     if length > UPRIGHT:
         for a in range(3):
             w[a] /= length
@@ -570,32 +572,42 @@ def box_edges_closest(pa, Ra, sa, pb, Rb, sb, ca, ua, cb, ub):
     overlapping). ca, ua (3,) and cb, ub (3,) their centres and directions written; returns (s, t, distance), the
     closest points ca + s ua and cb + t ub; distance +inf where no pair can."""
     best, bs, bt = -np.inf, 0.0, 0.0
-    c1, u1, c2, u2 = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
-    m1, m2, k1, k2 = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    c1, u1, m1, m2 = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    c2, u2, k1, k2 = np.empty((12, 3)), np.empty((12, 3)), np.empty((12, 3)), np.empty((12, 3))
+    hb = np.empty(12)
+    for eb in range(12):  # b's edges once, not once per edge of a
+        hb[eb] = _box_edge(pb, Rb, sb, eb, c2[eb], u2[eb], k1[eb], k2[eb])
+    axes = np.empty((3, 3, 3))  # the common perpendicular of a's axis i and b's axis j, unit (0: parallel)
+    for i in range(3):
+        for j in range(3):
+            v1, v2 = Ra[:, i], Rb[:, j]
+            n0, n1, n2 = v1[1] * v2[2] - v1[2] * v2[1], v1[2] * v2[0] - v1[0] * v2[2], v1[0] * v2[1] - v1[1] * v2[0]
+            length = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+            if length < 1e-9:  # parallel: an edge along an edge, held by the corners
+                length = np.inf
+            axes[i, j, 0], axes[i, j, 1], axes[i, j, 2] = n0 / length, n1 / length, n2 / length
     for ea in range(12):
         ha = _box_edge(pa, Ra, sa, ea, c1, u1, m1, m2)
         for eb in range(12):
-            hb = _box_edge(pb, Rb, sb, eb, c2, u2, k1, k2)
-            n0, n1, n2 = u1[1] * u2[2] - u1[2] * u2[1], u1[2] * u2[0] - u1[0] * u2[2], u1[0] * u2[1] - u1[1] * u2[0]
-            length = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
-            if length < 1e-9:  # parallel: an edge along an edge, held by the corners
+            n0, n1, n2 = axes[ea // 4, eb // 4, 0], axes[ea // 4, eb // 4, 1], axes[ea // 4, eb // 4, 2]
+            if n0 == 0.0 and n1 == 0.0 and n2 == 0.0:
                 continue
-            n0, n1, n2 = n0 / length, n1 / length, n2 / length
             if n0 * (m1[0] + m2[0]) + n1 * (m1[1] + m2[1]) + n2 * (m1[2] + m2[2]) < 0.0:
                 n0, n1, n2 = -n0, -n1, -n2  # outward from a: towards its two faces' normals
             if (n0 * m1[0] + n1 * m1[1] + n2 * m1[2] < -CONE_SLACK or n0 * m2[0] + n1 * m2[1] + n2 * m2[2] < -CONE_SLACK
-                    or n0 * k1[0] + n1 * k1[1] + n2 * k1[2] > CONE_SLACK
-                    or n0 * k2[0] + n1 * k2[1] + n2 * k2[2] > CONE_SLACK):
+                    or n0 * k1[eb, 0] + n1 * k1[eb, 1] + n2 * k1[eb, 2] > CONE_SLACK
+                    or n0 * k2[eb, 0] + n1 * k2[eb, 1] + n2 * k2[eb, 2] > CONE_SLACK):
                 continue  # not an edge-edge axis: a face or a corner touches first
-            s, t = segment_closest(c1, u1, ha, c2, u2, hb)
-            if not (abs(s) < ha and abs(t) < hb):  # beyond an edge's end: a corner's contact
+            s, t = segment_closest(c1, u1, ha, c2[eb], u2[eb], hb[eb])
+            if not (abs(s) < ha and abs(t) < hb[eb]):  # beyond an edge's end: a corner's contact
                 continue
-            d = (n0 * (c2[0] + t * u2[0] - c1[0] - s * u1[0]) + n1 * (c2[1] + t * u2[1] - c1[1] - s * u1[1])
-                 + n2 * (c2[2] + t * u2[2] - c1[2] - s * u1[2]))
+            d = (n0 * (c2[eb, 0] + t * u2[eb, 0] - c1[0] - s * u1[0])
+                 + n1 * (c2[eb, 1] + t * u2[eb, 1] - c1[1] - s * u1[1])
+                 + n2 * (c2[eb, 2] + t * u2[eb, 2] - c1[2] - s * u1[2]))
             if d > best:
                 best, bs, bt = d, s, t
                 for a in range(3):
-                    ca[a], ua[a], cb[a], ub[a] = c1[a], u1[a], c2[a], u2[a]
+                    ca[a], ua[a], cb[a], ub[a] = c1[a], u1[a], c2[eb, a], u2[eb, a]
     return bs, bt, (best if best > -np.inf else np.inf)
 
 
@@ -616,15 +628,46 @@ def _face_separation(pa, Ra, sa, pb, Rb, sb):
     return best
 
 
+EDGE_BOUND_SLACK = 1e-9  # [m] above the round-off of _edge_axes_separation and of a crossing's distance
+
+
+@njit(cache=True)
+def _edge_axes_separation(pa, Ra, sa, pb, Rb, sb):
+    """The greatest separation [m] of two boxes along the 9 cross products of their axes (the separating-axis
+    test's edge axes), parallel axes left out: an upper bound on the signed distance of any crossing of their edges
+    (box_edges_closest: at a crossing each edge is its box's support along the axis, and the distance is the
+    separation along it)."""
+    best = -np.inf
+    for i in range(3):
+        for j in range(3):
+            l0 = Ra[1, i] * Rb[2, j] - Ra[2, i] * Rb[1, j]
+            l1 = Ra[2, i] * Rb[0, j] - Ra[0, i] * Rb[2, j]
+            l2 = Ra[0, i] * Rb[1, j] - Ra[1, i] * Rb[0, j]
+            length = np.sqrt(l0 * l0 + l1 * l1 + l2 * l2)
+            if length < 1e-9:
+                continue
+            l0, l1, l2 = l0 / length, l1 / length, l2 / length
+            gap = abs(l0 * (pb[0] - pa[0]) + l1 * (pb[1] - pa[1]) + l2 * (pb[2] - pa[2]))
+            for c in range(3):
+                gap -= (abs(l0 * Ra[0, c] + l1 * Ra[1, c] + l2 * Ra[2, c]) * sa[c]
+                        + abs(l0 * Rb[0, c] + l1 * Rb[1, c] + l2 * Rb[2, c]) * sb[c])
+            best = max(best, gap)
+    return best
+
+
 @njit(cache=True)
 def _box_edge_pair(pa, Ra, sa, pb, Rb, sb, k, dist, normal, point):
     """Slot k of two boxes: the crossing of their edges nearest to contact (box_edges_closest), its signed distance
     (< 0: the edges crossed, an overlap of that depth), the normal from a to b along the edges' common
     perpendicular, the point midway; APART where no two edges cross, or where a face's axis separates the boxes
     more than the edges' does (the separating-axis test: the contact is a face's)."""
+    face = _face_separation(pa, Ra, sa, pb, Rb, sb)
+    if _edge_axes_separation(pa, Ra, sa, pb, Rb, sb) + EDGE_BOUND_SLACK < face - 1e-12:
+        dist[k] = APART  # every crossing's distance is at most its axis's separation: a face's (the 144 pairs
+        return           # spared where boxes rest face on face)
     ca, ua, cb, ub = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
     s, t, d = box_edges_closest(pa, Ra, sa, pb, Rb, sb, ca, ua, cb, ub)
-    if d < _face_separation(pa, Ra, sa, pb, Rb, sb) - 1e-12:
+    if d < face - 1e-12:
         d = APART  # a face's axis separates them more: they touch face first (a face's corners hold that)
     dist[k] = d
     if d == APART:

@@ -201,3 +201,27 @@ def test_apart_is_never_a_contact():
     dist, _, _ = collide_pair("capsule", [0.0, 0.0, 1.0], I3, [0.05, 0.2], "cylinder", [0, 0, 0], I3, [0.3, 0.4])
     assert dist[0] == APART  # the lower end is the closest point
     assert dist[2] == pytest.approx(1.0 - 0.2 - 0.4 - 0.05, abs=1e-15) and dist[1] > dist[2]
+
+
+@pytest.mark.parametrize("other", ["plane", "box"])
+@pytest.mark.parametrize("tilt", [3e-5, 1e-3, 0.05])
+def test_a_cap_nearly_flat_on_a_face_has_its_lowest_rim_point_to_round_off(other, tilt):
+    """A cylinder (r 0.1, half-length 0.2) settling on its cap, tilted by `tilt` from the face's normal: its least
+    rim gap is the closed form, the cap's centre's height less r sin(tilt). The direction of the lowest point, the
+    normal projected onto the cap, is |w| = sin(tilt) long: computed as n - (n . axis) axis it carried an error of
+    eps per entry, which lifted the point by r eps / tilt (4e-12 m at 3e-5 rad), and the projection after a step,
+    aiming at 1e-13 m, stalled at 5e-13 m of overlap on that noise."""
+    rng = np.random.default_rng(int(tilt * 1e6))
+    face = ("plane", np.zeros(3), I3, (0.0, 0.0, 1.0)) if other == "plane" else ("box", (0, 0, -0.3), I3, (1, 1, 0.3))
+    for _ in range(50):
+        azimuth, spin = rng.uniform(-np.pi, np.pi, 2)
+        tilt_axis = np.array([np.cos(azimuth), np.sin(azimuth), 0.0])
+        q = quat_multiply(np.r_[np.cos(tilt / 2), np.sin(tilt / 2) * tilt_axis],
+                          np.array([np.cos(spin / 2), 0.0, 0.0, np.sin(spin / 2)]))
+        R = quat_to_matrix(q)
+        gap = rng.uniform(-1e-12, 1e-12)
+        centre = np.array([rng.uniform(-0.1, 0.1), rng.uniform(-0.1, 0.1),
+                           0.2 * R[2, 2] + 0.1 * np.linalg.norm(np.cross([0, 0, 1.0], R[:, 2])) + gap])
+        expected = centre[2] - 0.2 * R[2, 2] - 0.1 * np.linalg.norm(np.cross([0, 0, 1.0], R[:, 2]))
+        dist, _normal, _point = collide_pair(*face, "cylinder", centre, R, (0.1, 0.2))
+        assert abs(dist.min() - expected) <= 1e-16
