@@ -422,9 +422,9 @@ def _least_norm(A, r, weights):
     """x = the solution of A x = r of least sum x_i^2 / weights_i, A (k, k) symmetric semidefinite (a block of W).
     With D = diag(weights), x = D^1/2 z, z the least-norm solution of S z = D^1/2 r, S = D^1/2 A D^1/2 (the same
     solutions z as A D^1/2 z = r): S[p][:, p] = L L^T (pivoted Cholesky, rank n), u from the first n rows of L u =
-    (D^1/2 r)[p], then z[p] = L (L^T L)^-1 u, the least-norm solution of L^T z[p] = u. A dozen microseconds where
-    the SVD takes forty (24 rows). Where A x = r is inconsistent beyond round-off (dependent rows that cannot all
-    hold) the least-squares solution of the SVD instead."""
+    (D^1/2 r)[p], then z[p] = L (L^T L)^-1 u, the least-norm solution of L^T z[p] = u, and one step of iterative
+    refinement. 7 us where the SVD takes 42 (24 rows). Where A x = r is inconsistent beyond round-off (dependent rows
+    that cannot all hold) the least-squares solution of the SVD instead."""
     k = weights.shape[0]
     root = np.sqrt(weights)
     S = np.empty((k, k))
