@@ -561,7 +561,7 @@ CONE_SLACK = 1e-12  # a common perpendicular within this (a cosine) of an edge's
 
 
 @njit(cache=True)
-def box_edges_closest(pa, Ra, sa, pb, Rb, sb, ca, ua, cb, ub):
+def box_edges_closest(pa, Ra, sa, pb, Rb, sb, axes, ca, ua, cb, ub):
     """The crossing of two boxes' edges nearest to contact: of the 144 pairs of edges, one of each box, those that
     can touch edge on edge (their closest points, Ericson's, inside both edges; their common perpendicular n =
     ua x ub, oriented outward from box a at its edge, within the cone of a's two face normals there, and -n within
@@ -569,23 +569,15 @@ def box_edges_closest(pa, Ra, sa, pb, Rb, sb, ca, ua, cb, ub):
     the corner candidates hold), the one of greatest signed distance along n: the separating-axis test's
     separation along each such axis is at most the boxes' distance (and at most minus their overlap), so the
     greatest is the edges that touch first (other pairs, a far edge of one against a far edge of the other, project
-    overlapping). ca, ua (3,) and cb, ub (3,) their centres and directions written; returns (s, t, distance), the
-    closest points ca + s ua and cb + t ub; distance +inf where no pair can."""
+    overlapping). axes (3, 3, 3): edge_axes's common perpendiculars. ca, ua (3,) and cb, ub (3,) their centres and
+    directions written; returns (s, t, distance), the closest points ca + s ua and cb + t ub; distance +inf where no
+    pair can."""
     best, bs, bt = -np.inf, 0.0, 0.0
     c1, u1, m1, m2 = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
     c2, u2, k1, k2 = np.empty((12, 3)), np.empty((12, 3)), np.empty((12, 3)), np.empty((12, 3))
     hb = np.empty(12)
     for eb in range(12):  # b's edges once, not once per edge of a
         hb[eb] = _box_edge(pb, Rb, sb, eb, c2[eb], u2[eb], k1[eb], k2[eb])
-    axes = np.empty((3, 3, 3))  # the common perpendicular of a's axis i and b's axis j, unit (0: parallel)
-    for i in range(3):
-        for j in range(3):
-            v1, v2 = Ra[:, i], Rb[:, j]
-            n0, n1, n2 = v1[1] * v2[2] - v1[2] * v2[1], v1[2] * v2[0] - v1[0] * v2[2], v1[0] * v2[1] - v1[1] * v2[0]
-            length = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
-            if length < 1e-9:  # parallel: an edge along an edge, held by the corners
-                length = np.inf
-            axes[i, j, 0], axes[i, j, 1], axes[i, j, 2] = n0 / length, n1 / length, n2 / length
     for ea in range(12):
         ha = _box_edge(pa, Ra, sa, ea, c1, u1, m1, m2)
         for eb in range(12):
@@ -612,19 +604,37 @@ def box_edges_closest(pa, Ra, sa, pb, Rb, sb, ca, ua, cb, ub):
 
 
 @njit(cache=True)
+def edge_axes(Ra, Rb, axes):
+    """axes (3, 3, 3): the unit common perpendicular of box a's axis i and box b's axis j at axes[i, j] (0 where the
+    two are parallel: an edge along an edge, held by the corners)."""
+    for i in range(3):
+        for j in range(3):
+            v1, v2 = Ra[:, i], Rb[:, j]
+            n0, n1, n2 = v1[1] * v2[2] - v1[2] * v2[1], v1[2] * v2[0] - v1[0] * v2[2], v1[0] * v2[1] - v1[1] * v2[0]
+            length = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
+            if length < 1e-9:
+                length = np.inf
+            axes[i, j, 0], axes[i, j, 1], axes[i, j, 2] = n0 / length, n1 / length, n2 / length
+
+
+@njit(cache=True, inline="always")
+def _axis_separation(l0, l1, l2, pa, Ra, sa, pb, Rb, sb):
+    """The separation [m] of two boxes along the unit axis l: |l . (pb - pa)| less each box's half extent along l."""
+    gap = abs(l0 * (pb[0] - pa[0]) + l1 * (pb[1] - pa[1]) + l2 * (pb[2] - pa[2]))
+    for j in range(3):
+        gap -= (abs(l0 * Ra[0, j] + l1 * Ra[1, j] + l2 * Ra[2, j]) * sa[j]
+                + abs(l0 * Rb[0, j] + l1 * Rb[1, j] + l2 * Rb[2, j]) * sb[j])
+    return gap
+
+
+@njit(cache=True)
 def _face_separation(pa, Ra, sa, pb, Rb, sb):
-    """The greatest separation [m] of two boxes along their 6 face normals (the separating-axis test's face axes:
-    |l . (pb - pa)| less each box's half extent along l)."""
+    """The greatest separation [m] of two boxes along their 6 face normals (the separating-axis test's face axes)."""
     best = -np.inf
     for which in range(2):
         R = Ra if which == 0 else Rb
         for i in range(3):
-            l0, l1, l2 = R[0, i], R[1, i], R[2, i]
-            gap = abs(l0 * (pb[0] - pa[0]) + l1 * (pb[1] - pa[1]) + l2 * (pb[2] - pa[2]))
-            for j in range(3):
-                gap -= (abs(l0 * Ra[0, j] + l1 * Ra[1, j] + l2 * Ra[2, j]) * sa[j]
-                        + abs(l0 * Rb[0, j] + l1 * Rb[1, j] + l2 * Rb[2, j]) * sb[j])
-            best = max(best, gap)
+            best = max(best, _axis_separation(R[0, i], R[1, i], R[2, i], pa, Ra, sa, pb, Rb, sb))
     return best
 
 
@@ -632,26 +642,18 @@ EDGE_BOUND_SLACK = 1e-9  # [m] above the round-off of _edge_axes_separation and 
 
 
 @njit(cache=True)
-def _edge_axes_separation(pa, Ra, sa, pb, Rb, sb):
+def _edge_axes_separation(pa, Ra, sa, pb, Rb, sb, axes):
     """The greatest separation [m] of two boxes along the 9 cross products of their axes (the separating-axis
-    test's edge axes), parallel axes left out: an upper bound on the signed distance of any crossing of their edges
-    (box_edges_closest: at a crossing each edge is its box's support along the axis, and the distance is the
-    separation along it)."""
+    test's edge axes, edge_axes's), parallel axes left out: an upper bound on the signed distance of any crossing of
+    their edges (box_edges_closest: at a crossing each edge is its box's support along the axis, and the distance is
+    the separation along it)."""
     best = -np.inf
     for i in range(3):
         for j in range(3):
-            l0 = Ra[1, i] * Rb[2, j] - Ra[2, i] * Rb[1, j]
-            l1 = Ra[2, i] * Rb[0, j] - Ra[0, i] * Rb[2, j]
-            l2 = Ra[0, i] * Rb[1, j] - Ra[1, i] * Rb[0, j]
-            length = np.sqrt(l0 * l0 + l1 * l1 + l2 * l2)
-            if length < 1e-9:
+            l0, l1, l2 = axes[i, j, 0], axes[i, j, 1], axes[i, j, 2]
+            if l0 == 0.0 and l1 == 0.0 and l2 == 0.0:
                 continue
-            l0, l1, l2 = l0 / length, l1 / length, l2 / length
-            gap = abs(l0 * (pb[0] - pa[0]) + l1 * (pb[1] - pa[1]) + l2 * (pb[2] - pa[2]))
-            for c in range(3):
-                gap -= (abs(l0 * Ra[0, c] + l1 * Ra[1, c] + l2 * Ra[2, c]) * sa[c]
-                        + abs(l0 * Rb[0, c] + l1 * Rb[1, c] + l2 * Rb[2, c]) * sb[c])
-            best = max(best, gap)
+            best = max(best, _axis_separation(l0, l1, l2, pa, Ra, sa, pb, Rb, sb))
     return best
 
 
@@ -662,11 +664,13 @@ def _box_edge_pair(pa, Ra, sa, pb, Rb, sb, k, dist, normal, point):
     perpendicular, the point midway; APART where no two edges cross, or where a face's axis separates the boxes
     more than the edges' does (the separating-axis test: the contact is a face's)."""
     face = _face_separation(pa, Ra, sa, pb, Rb, sb)
-    if _edge_axes_separation(pa, Ra, sa, pb, Rb, sb) + EDGE_BOUND_SLACK < face - 1e-12:
+    axes = np.empty((3, 3, 3))
+    edge_axes(Ra, Rb, axes)
+    if _edge_axes_separation(pa, Ra, sa, pb, Rb, sb, axes) + EDGE_BOUND_SLACK < face - 1e-12:
         dist[k] = APART  # every crossing's distance is at most its axis's separation: a face's (the 144 pairs
         return           # spared where boxes rest face on face)
     ca, ua, cb, ub = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
-    s, t, d = box_edges_closest(pa, Ra, sa, pb, Rb, sb, ca, ua, cb, ub)
+    s, t, d = box_edges_closest(pa, Ra, sa, pb, Rb, sb, axes, ca, ua, cb, ub)
     if d < face - 1e-12:
         d = APART  # a face's axis separates them more: they touch face first (a face's corners hold that)
     dist[k] = d

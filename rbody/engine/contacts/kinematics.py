@@ -39,7 +39,8 @@ import numpy as np
 from numba import njit
 
 from rbody.engine.contacts.geometry import (BOX, CAPSULE, CYLINDER, ELLIPSOID, MESH, PLANE, SPHERE, bounding_radius,
-                                            box_edges_closest, capsule_box_slot, segment_closest, segment_in_box)
+                                            box_edges_closest, capsule_box_slot, edge_axes, segment_closest,
+                                            segment_in_box)
 from rbody.engine.contacts.rows import field_at, geom_pose
 from rbody.engine.contacts.terrain import HFIELD, field_reach
 from rbody.engine.multibody import _views
@@ -159,7 +160,9 @@ def contact_shape(ta, pa, Ra, sa, tb, pb, Rb, sb, k, x, u, slide, m, radius):
         return SHAPE_CORES, 0
     if ta == BOX and tb == BOX and k == 16:  # two edges crossing: two core segments of radius 0
         ea, eb = np.empty(3), np.empty(3)
-        s, t, _d = box_edges_closest(pa, Ra, sa, pb, Rb, sb, x[0], ea, x[1], eb)
+        axes = np.empty((3, 3, 3))
+        edge_axes(Ra, Rb, axes)
+        s, t, _d = box_edges_closest(pa, Ra, sa, pb, Rb, sb, axes, x[0], ea, x[1], eb)
         slide[0], slide[1] = 1.0, 1.0  # inside both edges (box_edges_closest)
         for a in range(3):
             x[0, a] += s * ea[a]
