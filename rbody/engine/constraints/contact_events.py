@@ -28,7 +28,7 @@ from rbody.engine.constraints import dynamics as dyn
 from rbody.engine.constraints.cone import NORMAL, TANGENT, TANGENT2, stick_polish
 from rbody.engine.constraints.jacobians import mode_at, row_count, unit_at, unit_count
 from rbody.engine.constraints.sliding import SLIDING, sliding_columns
-from rbody.engine.constraints.solver import RANK_RTOL
+from rbody.engine.constraints.solver import RANK_RTOL, lower_solve_rows
 from rbody.engine.constraints.table import CONTACT, CONTACT1, U_BOUND, U_KIND, U_ROW0, U_SLIP
 
 
@@ -61,10 +61,8 @@ def event_problem(p, y, index, W, b):
     L = np.linalg.cholesky(M)
     a0 = dyn.upper_solve(L, dyn.lower_solve(L, f))
     m = index.shape[0]
-    AJ, AF = np.empty((nv, m)), np.empty((nv, m))
+    AJ, AF = lower_solve_rows(L, J, index, m), lower_solve_rows(L, F, index, m)
     for c in range(m):
-        AJ[:, c] = dyn.lower_solve(L, J[index[c]])
-        AF[:, c] = dyn.lower_solve(L, F[index[c]])
         acc = jdot[index[c]]
         for d in range(nv):
             acc += J[index[c], d] * a0[d]
@@ -92,11 +90,9 @@ def contact_guards(p, y, out_a, out_b):
     if m > 0:
         L = np.linalg.cholesky(M)
         a0 = dyn.upper_solve(L, dyn.lower_solve(L, f))
-        AJ, AF = np.empty((nv, m)), np.empty((nv, m))
+        AJ, AF = lower_solve_rows(L, J, index, m), lower_solve_rows(L, F, index, m)
         b = np.empty(m)
         for c in range(m):
-            AJ[:, c] = dyn.lower_solve(L, J[index[c]])
-            AF[:, c] = dyn.lower_solve(L, F[index[c]])
             acc = jdot[index[c]]
             for d in range(nv):
                 acc += J[index[c], d] * a0[d]

@@ -38,7 +38,7 @@ from rbody.engine.constraints.jacobians import (all_rows, bias_accelerations, so
                                                 unit_count, unit_rows)
 from rbody.engine.contacts.kinematics import clearance
 from rbody.engine.contacts.rows import GEOMETRY_WORK, candidate, pair_candidates
-from rbody.engine.constraints.solver import RANK_RTOL, lower_solve, symmetric_solve, upper_solve
+from rbody.engine.constraints.solver import RANK_RTOL, lower_solve, lower_solve_rows, symmetric_solve, upper_solve
 from rbody.engine.constraints.sliding import general_held_solve, sliding_columns
 from rbody.engine.constraints.table import (CONE, CONNECT, CONTACT, CONTACT1, COUPLING, FRICTION, LOWER,
                                             TENDON_EQUALITY, TENDON_FRICTION, TENDON_LOWER, TENDON_UPPER, U_BOUND,
@@ -238,9 +238,7 @@ def held_solve(L, J, held, r, correction, lam_rows):
         correction[d] = 0.0
     if m == 0:
         return 0.0
-    A = np.empty((nv, m))
-    for c in range(m):
-        A[:, c] = lower_solve(L, J[index[c]])
+    A = lower_solve_rows(L, J, index, m)
     W = A.T @ A
     rhs = np.empty(m)
     for c in range(m):

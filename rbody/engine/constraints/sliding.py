@@ -27,7 +27,7 @@ from numba import njit
 from rbody.engine.contacts.geometry import tangents
 from rbody.engine.contacts.rows import contact_geometry
 from rbody.engine.constraints.jacobians import mode_at, unit_at, unit_count
-from rbody.engine.constraints.solver import RANK_RTOL, lower_solve, upper_solve
+from rbody.engine.constraints.solver import RANK_RTOL, lower_solve_rows, upper_solve
 from rbody.engine.constraints.table import CONTACT, U_BOUND, U_KIND, U_ROW0, U_SLIP
 
 SLIDING = 2.0        # a contact sliding along its own slip
@@ -110,11 +110,8 @@ def general_held_solve(L, J, F, held, r, correction, lam_rows):
         correction[d] = 0.0
     if m == 0:
         return 0.0
-    AJ = np.empty((nv, m))
-    AF = np.empty((nv, m))
-    for c in range(m):
-        AJ[:, c] = lower_solve(L, J[index[c]])
-        AF[:, c] = lower_solve(L, F[index[c]])
+    AJ = lower_solve_rows(L, J, index, m)
+    AF = lower_solve_rows(L, F, index, m)
     W = AJ.T @ AF
     rhs = np.empty(m)
     for c in range(m):

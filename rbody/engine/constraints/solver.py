@@ -57,6 +57,28 @@ def lower_solve(L, b):
 
 
 @njit(cache=True)
+def lower_solve_rows(L, J, index, m):
+    """A (n, m) = L^-1 J[index[:m]]^T for a lower-triangular L (n, n) and rows J (rows, n): column c is what
+    lower_solve(L, J[index[c]]) gives, to the bit (each entry's sum in the same order), but forward substitution
+    runs over A's rows with the m right-hand sides innermost. Column by column, each entry is a chain of dependent
+    additions the processor waits on; across the columns they are independent and vectorise (a five-box stack's
+    60 rows on 30 dofs: the chain took a quarter of its step)."""
+    n = L.shape[0]
+    A = np.empty((n, m))
+    for i in range(n):
+        for c in range(m):
+            A[i, c] = J[index[c], i]
+        for j in range(i):
+            lij = L[i, j]
+            for c in range(m):
+                A[i, c] -= lij * A[j, c]
+        d = L[i, i]
+        for c in range(m):
+            A[i, c] = A[i, c] / d
+    return A
+
+
+@njit(cache=True)
 def upper_solve(L, b):
     """x = L^-T b for a lower-triangular L (n, n)."""
     n = b.shape[0]

@@ -59,7 +59,8 @@ from rbody.engine.contacts.rows import GEOMETRY_WORK, candidate, pair_candidates
 from rbody.engine.multibody import _effective_qpos
 from rbody.engine.constraints.cone import (NORMAL, ROLL, ROUND_OFF, ROW, SPIN, TANGENT, cone_pgs, cone_polish,
                                            magnitude, slide_polish, stick_polish, sticking_qp)
-from rbody.engine.constraints.solver import RANK_RTOL, mlcp_exact_from, mlcp_pgs, natural_residual
+from rbody.engine.constraints.solver import (RANK_RTOL, lower_solve_rows, mlcp_exact_from, mlcp_pgs,
+                                             natural_residual)
 from rbody.engine.constraints.table import (C_HEADER, CONE, CONNECT, CONTACT, CONTACT1, CONTACT_KINDS, COUPLING,
                                             FRICTION, FRICTION_KINDS, LOWER, TENDON_EQUALITY, TENDON_FRICTION,
                                             TENDON_LOWER, TENDON_UPPER, U_BODY1, U_BODY2, U_BOUND, U_DOF, U_KIND,
@@ -359,9 +360,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
     status = 0
     residual = 0.0
     if m > 0:
-        A = np.empty((nv, m))
-        for c in range(m):
-            A[:, c] = dyn.lower_solve(L, J[index[c]])
+        A = lower_solve_rows(L, J, index, m)  # M^-1/2 J^T: W = A^T A
         kept = _drop_null_equalities(A, index, lo, hi, b, role, mu, m)
         if kept < m:  # (a copy only where a row went)
             A = np.ascontiguousarray(A[:, :kept])
