@@ -37,7 +37,7 @@ from rbody.engine.system import actuator_rates, add_element_forces, clamp_activa
 from rbody.engine.constraints.jacobians import (all_rows, bias_accelerations, some_rows, mode_at, row_count, unit_at,
                                                 unit_count, unit_rows)
 from rbody.engine.contacts.kinematics import clearance
-from rbody.engine.contacts.rows import GEOMETRY_WORK, candidate, pair_candidates
+from rbody.engine.contacts.rows import GEOMETRY_WORK, candidate, exact_within, keep_geometry, pair_candidates
 from rbody.engine.constraints.solver import RANK_RTOL, lower_solve, lower_solve_rows, symmetric_solve, upper_solve
 from rbody.engine.constraints.sliding import general_held_solve, sliding_columns
 from rbody.engine.constraints.table import (CONE, CONNECT, CONTACT, CONTACT1, COUPLING, FRICTION, LOWER,
@@ -543,12 +543,13 @@ def guards(p, y, out):
 
 
 @njit(cache=True)
-def state_gaps(p, y, g, beyond=np.inf):
+def state_gaps(p, y, g, beyond=np.inf, kept=None):
     """g (rows,) every row's residual at the state y (phi folded in) as state_rows gives it, from the tree's
     kinematics alone: a contact by its candidate's signed distance (no Jacobian; a pair whose bounding spheres are
     apart by the gap between them, a positive lower bound), the other units by their rows. beyond [m]: a caller
     that reads no contact gap above it (the projection's flags, the errors' min(g, 0)) lets a pair whose least gap
-    is above it give that (rows.pair_candidates)."""
+    is above it give that (rows.pair_candidates). kept (kept_geometry_size(p),) or None: the contacts' geometry
+    found here, kept for the next step's start at the same configuration (kept_geometry)."""
     nq, nv, _n = sizes(p)
     rows = row_count(p)
     q = np.empty(nq)
@@ -561,6 +562,10 @@ def state_gaps(p, y, g, beyond=np.inf):
     normal, point = np.empty(3), np.empty(3)
     work = np.empty(GEOMETRY_WORK)
     reach = 0.0
+    exact = False
+    if kept is not None:
+        kept[0] = 1.0
+        kept[1:1 + nq] = q
     for k in range(unit_count(p)):
         u = unit_at(p, k)
         kind = int(p[u + U_KIND])
@@ -571,9 +576,13 @@ def state_gaps(p, y, g, beyond=np.inf):
             slot = int(p[u + U_DOF])
             if slot == 0:  # bounding spheres apart: a lower bound will do (one per pair); else every candidate of
                 reach, _motion = clearance(p, w, u, 0.0, work)  # the pair at once, its geoms posed once
+                exact = False
                 if reach <= 0.0:
-                    pair_candidates(p, w, u, work, beyond)
+                    count = pair_candidates(p, w, u, work, beyond)
+                    exact = exact_within(p, u, count, work, beyond)
             g[row] = reach if reach > 0.0 else candidate(work, slot, normal, point)
+            if kept is not None:
+                keep_geometry(kept, nq, k, exact, g[row], normal, point)
         else:
             unit_rows(p, k, q, y[nq:nq + nv], w, acc, J, jdot, g, row, False)
 

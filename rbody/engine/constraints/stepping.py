@@ -55,7 +55,8 @@ from rbody.engine.mujoco_steps import EULER, IMPLICIT, IMPLICITFAST, MUJOCO_METH
     solve_general, step_matrices
 from rbody.engine.constraints.jacobians import contact_unit_rows, row_count, unit_at, unit_count
 from rbody.engine.contacts.kinematics import clearance, point_velocity
-from rbody.engine.contacts.rows import GEOMETRY_WORK, candidate, pair_candidates
+from rbody.engine.contacts.rows import (GEOMETRY_WORK, candidate, kept_candidate, kept_exact, kept_for,
+                                        kept_geometry_size, pair_candidates)
 from rbody.engine.multibody import _effective_qpos
 from rbody.engine.constraints.cone import (NORMAL, ROLL, ROUND_OFF, ROW, SPIN, TANGENT, cone_pgs, cone_polish,
                                            magnitude, slide_polish, stick_polish, sticking_qp)
@@ -205,18 +206,21 @@ def smooth_rows(p):
 
 
 @njit(cache=True)
-def near_contacts(p, w, vfree, h, J, g, formed):
+def near_contacts(p, w, vfree, h, J, g, formed, kept, reuse):
     """Every contact's gap into g, and the rows J of the contacts a step can involve: touching (g <= TOUCH_TOLERANCE)
     or closing within it (g + h n . (v_b - v_a) < 0 at the contact point, the bodies moving with the free velocities
     vfree (nv,)), each such unit flagged 1 in formed (units,). The others keep J = 0: a model's far candidates (a
     humanoid's limbs against the floor in the air) cost a distance each, not a row of nv numbers, and a pair whose
     bounding spheres cannot meet within the step (contacts.kinematics.clearance) not even that: its g is then that
     lower bound (> TOUCH_TOLERANCE). After the step's kinematics in the workspace w (its velocities are then
-    vfree's)."""
+    vfree's). kept: the geometry the last step's end found (rows.kept_geometry_size); reuse: whether it was found at
+    this configuration, its exact candidates then read, not found again."""
+    nq = int(p[mb.H_NQ])
     mb.velocities(p, vfree, w)
     normal, point, v_a, v_b = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
     work = np.empty(GEOMETRY_WORK)
     reach = 0.0
+    read = False
     for k in range(unit_count(p)):
         u = unit_at(p, k)
         kind = int(p[u + U_KIND])
@@ -226,12 +230,13 @@ def near_contacts(p, w, vfree, h, J, g, formed):
         slot = int(p[u + U_DOF])
         if slot == 0:  # a pair's first candidate (the others follow it, the same two geoms)
             reach, motion = clearance(p, w, u, h, work)
-            if reach <= TOUCH_TOLERANCE:  # every candidate of the pair at once, its geoms posed once; those whose
-                pair_candidates(p, w, u, work, TOUCH_TOLERANCE + motion)  # least gap is beyond reach: that bound
+            read = reuse and kept_exact(kept, nq, k)  # found exactly at the last step's end, at this configuration
+            if reach <= TOUCH_TOLERANCE and not read:  # every candidate of the pair at once, its geoms posed once;
+                pair_candidates(p, w, u, work, TOUCH_TOLERANCE + motion)  # beyond reach: their least gap
         if reach > TOUCH_TOLERANCE:  # the broad phase: the pair can neither touch nor close within the step
             g[row] = reach
             continue
-        gap = candidate(work, slot, normal, point)
+        gap = kept_candidate(kept, nq, k, normal, point) if read else candidate(work, slot, normal, point)
         g[row] = gap
         point_velocity(p, w, int(p[u + U_BODY2]), point, v_b)
         point_velocity(p, w, int(p[u + U_BODY1]), point, v_a)
@@ -265,7 +270,7 @@ def next_activations(p, act, rates, h):
 
 
 @njit(cache=True)
-def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
+def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode, end_geometry):
     """One step of the scheme (module docstring) of the state y (n,) (phi all zero) in place, h [s], its free motion
     Moreau-Jean's own (mode MOREAU) or MuJoCo's integrator `mode` (EULER, IMPLICITFAST, IMPLICIT). P (rows,)
     gets every row's impulse [N s or N m s] (0 for rows not in the problem), included (rows,) 1 on the rows of the
@@ -273,7 +278,8 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
     the problem): status 0 done, 1 the complementarity problem left a residual above the tolerance, 2 the
     configuration could not be projected onto the equalities, UNBOUNDED (-1) the equalities contradict. The budget:
     exactly when it has at most exact_rows rows, else at most `sweeps` Gauss-Seidel sweeps to `tolerance` (relative to
-    max(|b|, 1))."""
+    max(|b|, 1)). end_geometry (rows.kept_geometry_size): the contacts' geometry the last step's end found, read
+    where this step starts at its configuration, and this step's, kept for the next (zeros before the first step)."""
     nq, nv, n = dyn.sizes(p)
     rows = row_count(p)
     M = np.empty((nv, nv))
@@ -302,7 +308,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
         L = np.empty((nv, nv))
         mujoco_free_velocity(p, y, h, mode, M, f, vfree, L)
     formed = np.zeros(unit_count(p), dtype=np.int64)
-    near_contacts(p, w, vfree, h, J, g, formed)
+    near_contacts(p, w, vfree, h, J, g, formed, end_geometry, kept_for(end_geometry, q))
     jfree = np.zeros(rows)  # the rates at the free velocities of the rows that can enter the problem
     index = np.empty(rows, dtype=np.int64)
     lo, hi, b = np.empty(rows), np.empty(rows), np.empty(rows)
@@ -434,7 +440,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode):
     velocity_rows = np.zeros(rows)
     worst = 0.0
     for _round in range(PROJECTION_ROUNDS):
-        dyn.state_gaps(p, y, g, FLAGGED_GAP)
+        dyn.state_gaps(p, y, g, FLAGGED_GAP, end_geometry)
         grown = False  # a row newly flagged (nothing flagged at all: no projection, the step stands as it is)
         for k in range(unit_count(p)):
             u = unit_at(p, k)
@@ -491,11 +497,12 @@ def moreau_loop(p, y0, h, nsteps, save_every, out, exact_rows, sweeps, tolerance
     y = y0.copy()
     rows = row_count(p)
     P = np.zeros(rows)
+    end_geometry = np.zeros(kept_geometry_size(int(p[mb.H_NQ]), unit_count(p)))
     out[0] = y
     starts = np.zeros(out.shape[0] + 1, dtype=np.int64)
     kept, values, used = np.empty(max(64, 4 * out.shape[0]), dtype=np.int64), np.empty(max(64, 4 * out.shape[0])), 0
     for k in range(1, nsteps + 1):
-        status, residual, m = moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode)
+        status, residual, m = moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode, end_geometry)
         if status != 0:
             return k, status, residual, m, starts, kept[:used], values[:used]
         for a in range(y.shape[0]):
@@ -610,13 +617,14 @@ class MoreauRun:
         """moreau_loop's steps one by one, before_step called before each (the same steps, the impulses carried and
         recorded as the loop carries and records them)."""
         P = np.zeros(self.table.rows)
+        end_geometry = np.zeros(kept_geometry_size(int(self.p[mb.H_NQ]), len(self.table.units)))
         out[0] = y
         starts = np.zeros(out.shape[0] + 1, dtype=np.int64)
         kept, values, used = np.empty(max(64, 4 * out.shape[0]), dtype=np.int64), np.empty(max(64, 4 * out.shape[0])), 0
         for k in range(1, nsteps + 1):
             before_step(k - 1, (k - 1) * dt, y, self.p)
             status, residual, m = moreau_step(self.p, y, dt, P, EXACT_ROWS, PGS_SWEEPS, STEP_TOLERANCE, included,
-                                              self.mode)
+                                              self.mode, end_geometry)
             if status != 0:
                 return k, status, residual, m, starts, kept[:used], values[:used]
             if not np.all(np.isfinite(y)):

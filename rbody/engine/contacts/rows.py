@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from rbody.engine.contacts.geometry import MAX_SLOTS, collide
+from rbody.engine.contacts.geometry import ELLIPSOID, MAX_SLOTS, MESH, collide
 from rbody.engine.contacts.terrain import FIELD_HEADER, HFIELD, collide_field
 from rbody.engine.multibody import _views
 from rbody.engine.constraints.table import (U_BODY1, U_BODY2, U_DOF, U_GMAT_A, U_GMAT_B, U_GPOS_A, U_GPOS_B,
@@ -108,12 +108,76 @@ def pair_candidates(p, w, u, work, beyond=np.inf):
 
 
 @njit(cache=True, inline="always")
+def exact_within(p, u, count, work, beyond):
+    """Whether pair_candidates(p, w, u, work, beyond), which returned count, wrote every candidate exactly: a pair of
+    primitives always does; a pair with a mesh, an ellipsoid or a height field only where its least gap is within
+    beyond (else its slots may hold that least gap, a bound)."""
+    ta, tb = int(p[u + U_GTYPE_A]), int(p[u + U_GTYPE_B])
+    if not (ta == HFIELD or ta == ELLIPSOID or tb == MESH or tb == ELLIPSOID):
+        return True
+    for k in range(count):
+        if work[24 + k] <= beyond:
+            return True
+    return False
+
+
+@njit(cache=True, inline="always")
 def candidate(work, k, normal, point):
     """Slot k's gap [m] (returned), normal (3,) and point (3,) from work as _candidates lays them out."""
     for a in range(3):
         normal[a] = work[24 + MAX_SLOTS + 3 * k + a]
         point[a] = work[24 + 4 * MAX_SLOTS + 3 * k + a]
     return work[24 + k]
+
+
+KEPT = 8  # the floats kept for a contact unit: whether exact (1) or not (0), its gap, normal (3) and point (3)
+
+
+@njit(cache=True)
+def kept_geometry_size(nq, units):
+    """The length of a kept geometry: whether it holds one (1) or not (0), the configuration q (nq,) it was found at,
+    then KEPT floats for each of the table's units (the contact units' candidates; the others unused). A step's end
+    finds every touching pair's candidates (its projection's gaps); the next step starts at that configuration and
+    would find them again: it reads them here instead, where q has the same bits."""
+    return 1 + nq + KEPT * units
+
+
+@njit(cache=True, inline="always")
+def keep_geometry(kept, nq, k, exact, gap, normal, point):
+    """Keep unit k's candidate: its gap [m], normal (3,) and point (3,) [m], exact or not (a bound, or not found)."""
+    at = 1 + nq + KEPT * k
+    kept[at] = 1.0 if exact else 0.0
+    kept[at + 1] = gap
+    for a in range(3):
+        kept[at + 2 + a] = normal[a]
+        kept[at + 5 + a] = point[a]
+
+
+@njit(cache=True, inline="always")
+def kept_for(kept, q):
+    """Whether kept holds a geometry found at the configuration q (nq,), to the bit."""
+    if kept.shape[0] == 0 or kept[0] == 0.0:
+        return False
+    for a in range(q.shape[0]):
+        if kept[1 + a] != q[a]:
+            return False
+    return True
+
+
+@njit(cache=True, inline="always")
+def kept_exact(kept, nq, k):
+    """Whether unit k's kept candidate is exact."""
+    return kept[1 + nq + KEPT * k] != 0.0
+
+
+@njit(cache=True, inline="always")
+def kept_candidate(kept, nq, k, normal, point):
+    """Unit k's kept gap [m] (returned), normal (3,) and point (3,)."""
+    at = 1 + nq + KEPT * k
+    for a in range(3):
+        normal[a] = kept[at + 2 + a]
+        point[a] = kept[at + 5 + a]
+    return kept[at + 1]
 
 
 @njit(cache=True)
@@ -128,4 +192,5 @@ def contact_geometry(p, w, u, normal, point, work=None):
     return candidate(work, k, normal, point)
 
 
-__all__ = ["geom_pose", "contact_geometry", "pair_candidates", "candidate", "hull_at", "field_at", "GEOMETRY_WORK"]
+__all__ = ["geom_pose", "contact_geometry", "pair_candidates", "candidate", "exact_within", "hull_at", "field_at",
+           "GEOMETRY_WORK", "KEPT", "kept_geometry_size", "keep_geometry", "kept_for", "kept_exact", "kept_candidate"]
