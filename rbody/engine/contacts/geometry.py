@@ -711,11 +711,17 @@ def _point_against(x, kind, pos, mat, size, hull, own_is_b, k, dist, normal, poi
 
 
 @njit(cache=True, inline="always")
+def _same_point_as(point, k, j):
+    """True when slots k and j hold the same point (to 1e-12 m)."""
+    return (abs(point[j, 0] - point[k, 0]) <= 1e-12 and abs(point[j, 1] - point[k, 1]) <= 1e-12
+            and abs(point[j, 2] - point[k, 2]) <= 1e-12)
+
+
+@njit(cache=True, inline="always")
 def _same_point(point, k, first):
     """True when slot k's point repeats one of slots first..k-1 (the same vertex found by two directions)."""
     for j in range(first, k):
-        if (abs(point[j, 0] - point[k, 0]) <= 1e-12 and abs(point[j, 1] - point[k, 1]) <= 1e-12
-                and abs(point[j, 2] - point[k, 2]) <= 1e-12):
+        if _same_point_as(point, k, j):
             return True
     return False
 
@@ -736,8 +742,12 @@ def _plane_hull(pa, Ra, pb, Rb, sb, hb, dist, normal, point, beyond):
     """A plane (pa, normal Ra[:, 2]) and a mesh's hull (pb, Rb, sb, hb): slot 0 its vertex lowest towards the plane
     (the support along -n), slots 1-8 its supports along -n tilted by TILT towards the plane's own axes at 45
     degree steps (a face lying on the plane: its extreme vertices in those directions); each vertex's height above
-    the plane, exact; a vertex found twice APART. Returns 9 (the lowest vertex's height beyond `beyond`: every slot
-    that)."""
+    the plane, exact. A vertex found twice is APART where it repeats: in a later tilted slot, and in slot 0 where a
+    tilted slot holds it (as _patch keeps its vertex slots over its closest points). A face landing nearly flat
+    keeps each vertex in its tilted slot whichever of them is lowest; slot 0 moving from vertex to vertex as they
+    trade places (0.4 degrees from flat) carried one slot's impulse and projection over to another vertex, and the
+    projection after the landing stalled at 9e-9 m. Returns 9 (the lowest vertex's height beyond `beyond`: every
+    slot that)."""
     direction, x = np.empty(3), np.empty(3)
     for k in range(1 + PATCH):
         for a in range(3):
@@ -750,11 +760,15 @@ def _plane_hull(pa, Ra, pb, Rb, sb, hb, dist, normal, point, beyond):
         for a in range(3):
             normal[k, a] = Ra[a, 2]
             point[k, a] = x[a] - d * Ra[a, 2]  # on the plane (one vertex, one foot: supports along -n + tilt)
-        if _same_point(point, k, 0):
+        if k > 1 and _same_point(point, k, 1):
             dist[k] = APART
         if k == 0 and d > beyond:
             _fill(dist, normal, point, 0, 1 + PATCH)
             return 1 + PATCH
+    for k in range(1, 1 + PATCH):  # the lowest vertex held by a tilted slot: slot 0 gives it up
+        if dist[k] != APART and _same_point_as(point, k, 0):
+            dist[0] = APART
+            break
     return 1 + PATCH
 
 
