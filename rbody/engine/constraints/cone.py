@@ -18,9 +18,9 @@ ball's torque reaches mu_r N whatever its sliding friction does), not MuJoCo's s
 Sweep: every ordinary row i: lambda_i <- clamp(lambda_i - w_i / W_ii, lo_i, hi_i); every contact's tangent pair:
 its block's own minimiser lambda_t - B^-1 w_t (B the pair's 2 x 2 block of W) where that lies in the disc (the
 contact sticks: the block solved at once, where the steps below would take tens of iterations at B's condition of
-3), else the projected gradient step lambda_t <- P_disc(lambda_t - w_t / s), s the largest eigenvalue of the pair's 2 x 2
-block of W (a step that decreases the quadratic and whose fixed points are exactly the points where w_t lies in
-the normal cone of the disc, i.e. Coulomb's law), repeated within the block until it settles. The residual is the
+3), else the projected gradient step lambda_t <- P_disc(lambda_t - w_t / s), s the largest eigenvalue of B (a
+step that decreases the quadratic and whose fixed points are exactly the points where w_t lies in the normal cone
+of the disc, i.e. Coulomb's law), repeated within the block until it settles. The residual is the
 natural residual of the whole problem in the units of w (0 exactly at a solution): the caller compares it with
 its tolerance. Roles: ROW (ordinary), NORMAL (a contact's normal), TANGENT (its first tangent; the second,
 TANGENT2, follows), then SPIN, ROLL and ROLL2 where the contact has them; a contact's rows in that order.

@@ -548,8 +548,8 @@ def state_gaps(p, y, g, beyond=np.inf, kept=None):
     kinematics alone: a contact by its candidate's signed distance (no Jacobian; a pair whose bounding spheres are
     apart by the gap between them, a positive lower bound), the other units by their rows. beyond [m]: a caller
     that reads no contact gap above it (the projection's flags, the errors' min(g, 0)) lets a pair whose least gap
-    is above it give that (rows.pair_candidates). kept (kept_geometry_size(p),) or None: the contacts' geometry
-    found here, kept for the next step's start at the same configuration (kept_geometry)."""
+    is above it give that (rows.pair_candidates). kept (rows.kept_geometry_size(nq, units),) or None: the
+    contacts' geometry found here, kept for the next step's start at the same configuration."""
     nq, nv, _n = sizes(p)
     rows = row_count(p)
     q = np.empty(nq)
