@@ -760,7 +760,7 @@ def _plane_hull(pa, Ra, pb, Rb, sb, hb, dist, normal, point, beyond):
         for a in range(3):
             normal[k, a] = Ra[a, 2]
             point[k, a] = x[a] - d * Ra[a, 2]  # on the plane (one vertex, one foot: supports along -n + tilt)
-        if k > 1 and _same_point(point, k, 1):
+        if _same_point(point, k, 1):  # a later tilted slot repeating an earlier one's
             dist[k] = APART
         if k == 0 and d > beyond:
             _fill(dist, normal, point, 0, 1 + PATCH)
@@ -898,6 +898,13 @@ def _general(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point, beyond
     return -1
 
 
+@njit(cache=True, inline="always")
+def answers_beyond(ta, tb):
+    """Whether collide computes the pair of types ta <= tb by _general (an ellipsoid's or a mesh's pairs), which
+    may answer `beyond` with the pair's least distance in every slot; the others write every slot exactly."""
+    return tb == MESH or tb == ELLIPSOID or ta == ELLIPSOID
+
+
 @njit(cache=True)
 def collide(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point, only=-1, beyond=np.inf):
     """The candidate contacts of geom a (type ta <= tb, centre pa (3,) [m], axes Ra (3, 3), size sa (3,) [m]; ha a
@@ -908,7 +915,7 @@ def collide(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point, only=-1
     mesh write all of theirs). beyond [m]: a mesh's pair whose least distance is above it gives that least distance,
     normal and point for every slot (each slot's distance is at least the least: a caller asking which candidates
     come within `beyond` learns it from one distance, not 17)."""
-    if tb == MESH or tb == ELLIPSOID or ta == ELLIPSOID:
+    if answers_beyond(ta, tb):
         return _general(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point, beyond)
     scratch = np.empty(12)  # the small vectors below, one allocation
     if ta == PLANE:

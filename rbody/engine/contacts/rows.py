@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from rbody.engine.contacts.geometry import ELLIPSOID, MAX_SLOTS, MESH, collide
+from rbody.engine.contacts.geometry import MAX_SLOTS, answers_beyond, collide
 from rbody.engine.contacts.terrain import FIELD_HEADER, HFIELD, collide_field
 from rbody.engine.multibody import _views
 from rbody.engine.constraints.table import (U_BODY1, U_BODY2, U_DOF, U_GMAT_A, U_GMAT_B, U_GPOS_A, U_GPOS_B,
@@ -113,7 +113,7 @@ def exact_within(p, u, count, work, beyond):
     primitives always does; a pair with a mesh, an ellipsoid or a height field only where its least gap is within
     beyond (else its slots may hold that least gap, a bound)."""
     ta, tb = int(p[u + U_GTYPE_A]), int(p[u + U_GTYPE_B])
-    if not (ta == HFIELD or ta == ELLIPSOID or tb == MESH or tb == ELLIPSOID):
+    if not (ta == HFIELD or answers_beyond(ta, tb)):  # a field's window answers it as _general does
         return True
     for k in range(count):
         if work[24 + k] <= beyond:
@@ -156,7 +156,7 @@ def keep_geometry(kept, nq, k, exact, gap, normal, point):
 @njit(cache=True, inline="always")
 def kept_for(kept, q):
     """Whether kept holds a geometry found at the configuration q (nq,), to the bit."""
-    if kept.shape[0] == 0 or kept[0] == 0.0:
+    if kept[0] == 0.0:
         return False
     for a in range(q.shape[0]):
         if kept[1 + a] != q[a]:
