@@ -40,7 +40,7 @@ def sample_rows(table: ConstraintTable, params: np.ndarray, samples: np.ndarray,
     errors = np.empty((samples.shape[0], table.rows))
     qacc = np.empty(nv)
     q = np.empty(nq)
-    codes = np.array([unit.code for unit in table.units for _ in range(unit.rows)])
+    codes = np.repeat(table.codes, [unit.rows for unit in table.units])  # each row's unit's
     from rbody.engine.multibody import _effective_qpos
 
     from rbody.engine.constraints.table import C_HEADER, U_SLIP, UNIT_SIZE
@@ -117,8 +117,8 @@ def run_constrained(description: str, model, method: str, dt: float, nsteps: int
             events["impulse"].append(float(sum(event.impulse)))
     t = np.arange(count) * (dt * save_every)
     data = dict(model.observe(t, out))
-    limits = [k for k, unit in enumerate(table.units) if unit.code in UNILATERAL]
-    frictions = [k for k, unit in enumerate(table.units) if unit.code in FRICTION_KINDS]
+    limits = np.flatnonzero(table.of_kinds(UNILATERAL))
+    frictions = np.flatnonzero(table.of_kinds(FRICTION_KINDS))
     if stepped:
         def all_forces():
             return np.stack([record.dense() for record in recorded], axis=1)
@@ -146,8 +146,8 @@ def run_constrained(description: str, model, method: str, dt: float, nsteps: int
     data["active_limits"] = modes[:, :, limits] == 1.0
     data["sticking"] = modes[:, :, frictions] == 0.0
     data["dissipated"] = out[:, :, -1]
-    contact_units = [k for k, unit in enumerate(table.units) if unit.code in CONTACT_KINDS]
-    if contact_units:
+    contact_units = np.flatnonzero(table.of_kinds(CONTACT_KINDS))
+    if contact_units.size:
         from rbody.engine.contacts.observe import contact_observables
 
         data.update(contact_observables(table, params, out, rows_force, contact_units, pushing))

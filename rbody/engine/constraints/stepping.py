@@ -59,7 +59,7 @@ from rbody.engine.contacts.rows import (GEOMETRY_WORK, candidate, kept_candidate
                                         kept_geometry_size, pair_candidates)
 from rbody.engine.multibody import _effective_qpos
 from rbody.engine.constraints.cone import (NORMAL, ROLL, ROUND_OFF, ROW, SPIN, TANGENT, cone_pgs, cone_polish,
-                                           magnitude, slide_polish, stick_polish, sticking_qp)
+                                           follow_drift, magnitude, slide_polish, stick_polish, sticking_qp)
 from rbody.engine.constraints.solver import (RANK_RTOL, lower_solve_rows, mlcp_exact_from, mlcp_pgs,
                                              natural_residual)
 from rbody.engine.constraints.table import (C_HEADER, CONE, CONNECT, CONTACT, CONTACT1, CONTACT_KINDS, COUPLING,
@@ -137,9 +137,10 @@ def _inside_cones(role, mu, lam):
 def cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
     """The step's problem with contacts' cones (rbody.engine.constraints.cone) from lam (a start, solved in place):
     CONE_ROUND Gauss-Seidel sweeps at a time, each round finished exactly (every contact sticking; the states read
-    from lam; some sticking contacts made to slide), until the residual is 1e-3 of `tolerance` or `sweeps` are spent;
-    a start that already solves it (the last step's impulses, themselves finished) is kept, after one sweep. Returns
-    the residual."""
+    from lam; some sticking contacts made to slide; a crawl along dependent rows taken to its end), until the
+    residual is 1e-3 of `tolerance`, or `sweeps` are spent, or a round within `tolerance` moves nothing (each after
+    it would be the same); a start that already solves it (the last step's impulses, themselves finished) is kept,
+    after one sweep. Returns the residual."""
     done = 0
     residual = np.inf
     while done < sweeps:
@@ -154,6 +155,7 @@ def cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
                 lam[:] = trial
                 residual = swept
                 break
+        unswept = lam.copy() if spent == 0 else lam[:0]  # (Gauss-Seidel stops at `tolerance`: nothing to do)
         residual = min(stick_polish(W, b, lo, hi, role, mu, lam, 8), residual)
         if residual > 1e-3 * tolerance:
             residual = cone_polish(W, b, lo, hi, role, mu, lam, 4)
@@ -161,8 +163,12 @@ def cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
             residual = sticking_qp(W, b, lo, hi, role, mu, lam)
         if residual > 1e-3 * tolerance:  # no stick state holds: some contacts slide
             residual = slide_polish(W, b, lo, hi, role, mu, lam, 4)
-        if residual <= 1e-3 * tolerance:
+        if residual > 1e-3 * tolerance:  # dependent rows: Gauss-Seidel's crawl (a drift along W's null space to a
+            residual = follow_drift(W, b, lo, hi, role, mu, lam)  # bound, a slow geometric tail) taken at once;
+        if residual <= 1e-3 * tolerance:                          # the next round finishes from there
             break
+        if spent == 0 and np.array_equal(lam, unswept):  # within `tolerance`, and neither Gauss-Seidel nor a finish
+            break                                         # moved lam: every round after would repeat this one
     return residual
 
 
@@ -561,8 +567,7 @@ class MoreauRun:
         self.mode = MODES[method]  # the free motion: Moreau-Jean's own, or MuJoCo's integrator's
         self.table = table
         self.p = np.array(params, dtype=np.float64)
-        self.p[table.mode_slice()] = np.where(np.isin([u.code for u in table.units], FRICTION_KINDS), 0.0,
-                                              self.p[table.mode_slice()])
+        self.p[table.mode_slice()] = np.where(table.of_kinds(FRICTION_KINDS), 0.0, self.p[table.mode_slice()])
         self.description = description
         self.log = EventLog()
         self.forces = None
@@ -597,19 +602,17 @@ class MoreauRun:
         modes = np.zeros((count, len(units)), dtype=np.int8)  # small integers (a hand's 3,954 units over 10 s)
         # stops and contacts: held (1) where their first row pushes, read from the nonzeros alone
         first_of = np.full(self.table.rows, -1, dtype=np.int64)
-        first_of[[unit.row0 for unit in units]] = np.arange(len(units))
+        first_of[self.table.first_rows] = np.arange(len(units))
         unit_of = first_of[rows]
-        codes = np.array([unit.code for unit in units])
+        stops = self.table.of_kinds(UNILATERAL + CONTACT_KINDS)
         pushes = (unit_of >= 0) & (values > 0)
-        pushes[pushes] = np.isin(codes[unit_of[pushes]], UNILATERAL + CONTACT_KINDS)
+        pushes[pushes] = stops[unit_of[pushes]]
         modes[self.forces.sample_of[pushes], unit_of[pushes]] = 1
-        for k, unit in enumerate(units):
-            if unit.code in FRICTION_KINDS:  # sticking (0) inside the bound, else sliding against the impulse
-                value = self.forces.columns([unit.row0], impulses=True)[:, 0]
-                bound = unit_bound(self.p, self.table, k) * dt
-                modes[:, k] = np.where(np.abs(value) < bound * (1 - 1e-9), 0.0, -np.sign(value))
-            elif unit.code not in UNILATERAL and unit.code not in CONTACT_KINDS:
-                modes[:, k] = 1
+        for k in np.flatnonzero(self.table.of_kinds(FRICTION_KINDS)):  # sticking (0) inside the bound, else
+            value = self.forces.columns([units[k].row0], impulses=True)[:, 0]  # sliding against the impulse
+            bound = unit_bound(self.p, self.table, k) * dt
+            modes[:, k] = np.where(np.abs(value) < bound * (1 - 1e-9), 0.0, -np.sign(value))
+        modes[:, ~(stops | self.table.of_kinds(FRICTION_KINDS))] = 1  # equalities: always held
         return out, modes
 
 

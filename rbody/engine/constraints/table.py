@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -197,6 +198,30 @@ class ConstraintTable:
     def mode_slice(self) -> slice:
         start = self.offset + C_HEADER + UNIT_SIZE * len(self.units)
         return slice(start, start + len(self.units))
+
+    @cached_property
+    def codes(self) -> np.ndarray:
+        """(units,) every unit's kind code, read-only (kept: a run reads it once per batch element)."""
+        return _read_only(np.array([unit.code for unit in self.units], dtype=np.int64))
+
+    @cached_property
+    def first_rows(self) -> np.ndarray:
+        """(units,) the row each unit's rows start at, read-only."""
+        return _read_only(np.array([unit.row0 for unit in self.units], dtype=np.int64))
+
+    def of_kinds(self, kinds: tuple[int, ...]) -> np.ndarray:
+        """(units,) bool, read-only: True for the units whose code is one of `kinds` (e.g. FRICTION_KINDS), kept per
+        kinds."""
+        kept = self.__dict__.setdefault("_of_kinds", {})  # frozen: no setattr, but __dict__ is writable
+        mask = kept.get(kinds)
+        if mask is None:
+            mask = kept[kinds] = _read_only(np.isin(self.codes, kinds))
+        return mask
+
+
+def _read_only(array: np.ndarray) -> np.ndarray:
+    array.setflags(write=False)
+    return array
 
 
 def _quat_conjugate(q: np.ndarray) -> np.ndarray:

@@ -63,11 +63,11 @@ def contact_frames(p, y, units, dist, point, normal):
         dist[i] = candidate(work, k, normal[i], point[i])
 
 
-def contact_observables(table, params: np.ndarray, out: np.ndarray, rows_force, units: list[int],
+def contact_observables(table, params: np.ndarray, out: np.ndarray, rows_force, units: np.ndarray,
                         pushing=None) -> dict:
-    """The observables of the module docstring from the saved states out (S, B, n) and rows_force(which) -> (S, B,
-    len(which)) the forces of rows `which` of a run; pushing(which) -> (S, B) how many of rows `which` push (> 0) at
-    each sample, or None (from rows_force). Every per-candidate one (S, B, candidates, ...) is computed on first
+    """The observables of the module docstring of the contact units `units` (k,) from the saved states out (S, B,
+    n) and rows_force(which) -> (S, B, len(which)) the forces of rows `which` of a run; pushing(which) -> (S, B) how
+    many of rows `which` push (> 0) at each sample, or None (from rows_force). Every per-candidate one (S, B, candidates, ...) is computed on first
     access (a hand's 3,954 candidates over 10 s at 2 ms: gigabytes, where a user may read none): the geometric ones
     (contact_distance, contact_point, contact_normal) all three at once, the forces all four at once; `contacts`
     now."""
@@ -88,7 +88,7 @@ def contact_observables(table, params: np.ndarray, out: np.ndarray, rows_force, 
             return frames[name]
         return value
 
-    first = np.array([table.units[u].row0 for u in units], dtype=np.int64)
+    first = table.first_rows[index]
     counts = np.array([table.units[u].rows for u in units], dtype=np.int64)  # condim: normal, tangents, spin, rolling
     loads: dict = {}
 
