@@ -35,6 +35,7 @@ import json
 import multiprocessing
 import os
 import re
+import shlex
 import struct
 import sys
 import time
@@ -594,7 +595,8 @@ def main(argv: list[str] | None = None) -> int:
           f"Python {sys.version.split()[0]}", file=sys.stderr, flush=True)
     from rbody.files import write_atomic
 
-    command = "python benchmarks/mjcf_survey.py " + " ".join(sys.argv[1:] if argv is None else argv)
+    # quoted as a shell reads it: a note's spaces and parentheses, a glob, pasted back into bash
+    command = "python benchmarks/mjcf_survey.py " + shlex.join(sys.argv[1:] if argv is None else argv)
     if args.redraw:
         saved = json.loads(args.redraw.read_text())
         rows, command = saved["rows"], saved["command"]
