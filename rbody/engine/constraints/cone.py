@@ -197,26 +197,28 @@ def follow_drift(W, b, lo, hi, role, mu, lam):
         target = hi[i] if step > 0.0 else lo[i] if step < 0.0 else np.nan
         if np.isfinite(target) and second[i] != target and (target - second[i]) / step < alpha:
             alpha, hit, bound = (target - second[i]) / step, i, target
-    for end in range(2):
-        if end == 0:
-            if hit < 0:
-                continue
-            factor = alpha
-        else:
-            rho = across / along if along > 0.0 else 0.0
-            if not (rho > 0.0 and rho < 1.0):
-                continue
-            factor = rho / (1.0 - rho)
-        trial = second.copy()
-        for i in range(m):
-            trial[i] += factor * (second[i] - first[i])
-        if end == 0:
-            trial[hit] = bound
-        _within_sets(role, mu, lo, hi, trial)
-        residual = cone_residual(W, b, lo, hi, role, mu, trial)
-        if residual < best:
-            best = residual
-            lam[:] = trial
+    if hit >= 0:
+        best = _take_end(W, b, lo, hi, role, mu, first, second, alpha, hit, bound, lam, best)
+    rho = across / along if along > 0.0 else 0.0  # the geometric tail
+    if rho > 0.0 and rho < 1.0:
+        best = _take_end(W, b, lo, hi, role, mu, first, second, rho / (1.0 - rho), -1, 0.0, lam, best)
+    return best
+
+
+@njit(cache=True)
+def _take_end(W, b, lo, hi, role, mu, first, second, factor, hit, bound, lam, best):
+    """follow_drift's end second + factor (second - first), row `hit` (if >= 0) set at its bound, every impulse
+    within its own set: written into lam where its residual is below best. Returns the lower residual."""
+    trial = second.copy()
+    for i in range(trial.shape[0]):
+        trial[i] += factor * (second[i] - first[i])
+    if hit >= 0:
+        trial[hit] = bound
+    _within_sets(role, mu, lo, hi, trial)
+    residual = cone_residual(W, b, lo, hi, role, mu, trial)
+    if residual < best:
+        lam[:] = trial
+        return residual
     return best
 
 
@@ -232,8 +234,8 @@ def _within_sets(role, mu, lo, hi, lam):
         if is_disc(role[i]):
             lam[i], lam[i + 1] = _disc(lam[i], lam[i + 1], mu[i] * max(lam[normal_of(role, i)], 0.0))
         elif role[i] == SPIN:
-            bound = mu[i] * max(lam[normal_of(role, i)], 0.0)
-            lam[i] = clamp(lam[i], -bound, bound)
+            low, high = _bounds(role, mu, lo, hi, lam, i)
+            lam[i] = clamp(lam[i], low, high)
 
 
 __all__ = ["cone_pgs", "cone_residual", "follow_drift", "slide_polish", "stick_polish", "magnitude", "ROUND_OFF", "ROW", "NORMAL", "TANGENT", "TANGENT2", "SPIN", "ROLL",

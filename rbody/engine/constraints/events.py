@@ -108,15 +108,15 @@ class EventRun:
         self.nq, self.nv, self.n = (int(x) for x in dyn.sizes(self.p))
         self.rows = table.rows
         self.units = table.units
-        self.codes = np.array([u.code for u in table.units])
+        self.codes = table.codes
         self.row_unit = np.concatenate([[k] * u.rows for k, u in enumerate(table.units)]).astype(int)
         self.restitution = np.array([self.p[self._record(k) + U_RESTITUTION] for k in range(len(self.units))])
         self.fastest = np.zeros(len(self.units))
-        self.is_limit = np.isin(self.codes, UNILATERAL)
-        self.is_friction = np.isin(self.codes, FRICTION_KINDS)
+        self.is_limit = table.of_kinds(UNILATERAL)
+        self.is_friction = table.of_kinds(FRICTION_KINDS)
         self.largest_bound = max([0.0] + [float(self.p[self._record(k) + U_BOUND])
                                           for k in np.flatnonzero(self.is_friction)])
-        self.is_contact = np.isin(self.codes, CONTACT_KINDS)
+        self.is_contact = table.of_kinds(CONTACT_KINDS)
         self.contact_units = np.flatnonzero(self.is_contact)
         # guards: one per unit, then a contact's A and B (rbody.engine.constraints.contact_events)
         self.guard_unit = np.concatenate([np.arange(len(self.units)), self.contact_units,

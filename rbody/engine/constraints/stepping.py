@@ -605,14 +605,15 @@ class MoreauRun:
         first_of[self.table.first_rows] = np.arange(len(units))
         unit_of = first_of[rows]
         stops = self.table.of_kinds(UNILATERAL + CONTACT_KINDS)
+        frictions = self.table.of_kinds(FRICTION_KINDS)
         pushes = (unit_of >= 0) & (values > 0)
         pushes[pushes] = stops[unit_of[pushes]]
         modes[self.forces.sample_of[pushes], unit_of[pushes]] = 1
-        for k in np.flatnonzero(self.table.of_kinds(FRICTION_KINDS)):  # sticking (0) inside the bound, else
-            value = self.forces.columns([units[k].row0], impulses=True)[:, 0]  # sliding against the impulse
+        for k in np.flatnonzero(frictions):  # sticking (0) inside the bound, else sliding against the impulse
+            value = self.forces.columns([units[k].row0], impulses=True)[:, 0]
             bound = unit_bound(self.p, self.table, k) * dt
             modes[:, k] = np.where(np.abs(value) < bound * (1 - 1e-9), 0.0, -np.sign(value))
-        modes[:, ~(stops | self.table.of_kinds(FRICTION_KINDS))] = 1  # equalities: always held
+        modes[:, ~(stops | frictions)] = 1  # equalities: always held
         return out, modes
 
 

@@ -67,10 +67,10 @@ def contact_observables(table, params: np.ndarray, out: np.ndarray, rows_force, 
                         pushing=None) -> dict:
     """The observables of the module docstring of the contact units `units` (k,) from the saved states out (S, B,
     n) and rows_force(which) -> (S, B, len(which)) the forces of rows `which` of a run; pushing(which) -> (S, B) how
-    many of rows `which` push (> 0) at each sample, or None (from rows_force). Every per-candidate one (S, B, candidates, ...) is computed on first
-    access (a hand's 3,954 candidates over 10 s at 2 ms: gigabytes, where a user may read none): the geometric ones
-    (contact_distance, contact_point, contact_normal) all three at once, the forces all four at once; `contacts`
-    now."""
+    many of rows `which` push (> 0) at each sample, or None (from rows_force). Every per-candidate one (S, B,
+    candidates, ...) is computed on first access (a hand's 3,954 candidates over 10 s at 2 ms: gigabytes, where a
+    user may read none): the geometric ones (contact_distance, contact_point, contact_normal) all three at once, the
+    forces all four at once; `contacts` now."""
     S, B = out.shape[:2]
     k = len(units)
     index = np.array(units, dtype=np.int64)
