@@ -12,10 +12,10 @@ from rbody.engine.schema import Record
 
 def records() -> list[Record]:
     """The tree's header, body, joint and dof records, the planar row's, the force elements', the constraint
-    block's."""
+    block's (its contact pairs' and geoms' for the broad phase)."""
     return [multibody.TREE_HEADER, multibody.BODY, multibody.JOINT, multibody.DOF, planar.PLANAR_HEADER,
             planar.NODE, planar.NODE_WORK, elements.ELEMENTS_HEADER, elements.ACTUATOR, elements.TENDON,
-            elements.PATH_ENTRY, table.CONSTRAINT_HEADER, table.UNIT]
+            elements.PATH_ENTRY, table.CONSTRAINT_HEADER, table.UNIT, table.PAIR, table.GEOM]
 
 
 def markdown() -> str:

@@ -36,8 +36,10 @@ from rbody.engine.elements import X_ACTIVE, X_NA, X_NTEN, extension_start
 from rbody.engine.system import actuator_rates, add_element_forces, clamp_activations
 from rbody.engine.constraints.jacobians import (all_rows, bias_accelerations, some_rows, mode_at, row_count, unit_at,
                                                 unit_count, unit_rows)
-from rbody.engine.contacts.kinematics import clearance
-from rbody.engine.contacts.rows import GEOMETRY_WORK, candidate, exact_within, keep_geometry, pair_candidates
+from rbody.engine.contacts.broadphase import (SPHERE_SIZE, contact0, contact_row0, first_unit_at, geom_count, geom_spheres,
+                                             pair_at, pair_count, pair_reach, pair_span)
+from rbody.engine.contacts.rows import (GEOMETRY_WORK, candidate, exact_within, forget_geometry, keep_geometry,
+                                       pair_candidates)
 from rbody.engine.constraints.solver import RANK_RTOL, lower_solve, lower_solve_rows, symmetric_solve, upper_solve
 from rbody.engine.constraints.sliding import general_held_solve, sliding_columns
 from rbody.engine.constraints.table import (CONE, CONNECT, CONTACT, CONTACT1, COUPLING, FRICTION, LOWER,
@@ -62,13 +64,14 @@ def act_range(p):
 
 
 @njit(cache=True)
-def snapshot(p, q, v, act, M, f, J, jdot, g, w, acc, rows_wanted=None, with_bias=True):
+def snapshot(p, q, v, act, M, f, J, jdot, g, w, acc, rows_wanted=None, with_bias=True, contacts=True):
     """At qpos q (nq,) and qvel v (nv,): M (nv, nv); f (nv,) = passive - bias (gravity included; with force elements
     also the actuators' forces at the controls written in p, the tendons', fluid and gravity compensation:
     rbody.engine.system.add_element_forces); every unit's rows
     J (rows, nv), jdot (rows,) and g (rows,) (rbody.engine.constraints.jacobians), or only the units with a row
     flagged in rows_wanted (rows,). w: the tree's workspace; acc (nb, 6) scratch. with_bias False: the contacts'
-    J' v are left 0 (what the time-stepping and the projection read is J and g only)."""
+    J' v are left 0 (what the time-stepping and the projection read is J and g only). contacts False (rows_wanted
+    None): every unit's rows but the contacts' (the time-stepping forms those of the near ones itself)."""
     nv = int(p[H_DOFS])
     mass_matrix_one(p, q, M, w)
     zero = np.zeros(nv)
@@ -76,7 +79,7 @@ def snapshot(p, q, v, act, M, f, J, jdot, g, w, acc, rows_wanted=None, with_bias
     if with_bias:
         bias_accelerations(p, w, acc)
     if rows_wanted is None:
-        all_rows(p, q, v, w, acc, J, jdot, g, with_bias)
+        all_rows(p, q, v, w, acc, J, jdot, g, with_bias, contacts)
     else:
         some_rows(p, q, v, w, acc, J, jdot, g, rows_wanted, with_bias)
     held = np.empty(nv)
@@ -92,7 +95,7 @@ def add_sliding_friction(p, f, J):
     """f (nv,) += -frictionloss s on every dof whose friction unit slides (mode s = +-1), and -frictionloss s J^T
     for every sliding tendon friction (J (rows, nv): its row formed at the state)."""
     modes = mode_at(p)
-    for k in range(unit_count(p)):
+    for k in range(contact0(p)):  # the contacts follow every other unit
         u = unit_at(p, k)
         kind = int(p[u + U_KIND])
         if kind == FRICTION and p[modes + k] != 0.0:
@@ -468,7 +471,7 @@ def project(p, y, position_rows, velocity_rows):
     w = np.empty(workspace_size(p))
     M = np.empty((nv, nv))
     f = np.empty(nv)
-    J = np.zeros((rows, nv))  # the rows flagged are computed, the others stay 0
+    J = np.empty((rows, nv))  # the rows flagged are computed, and only they are read
     jdot = np.zeros(rows)
     g = np.zeros(rows)
     acc = np.empty((int(p[H_BODIES]), 6))
@@ -495,16 +498,34 @@ def project(p, y, position_rows, velocity_rows):
         held_solve(L, J, position_rows, -g, delta, lam)
         displace(p, y, delta)
     L = np.linalg.cholesky(M)
-    jv = J @ v
+    jv = _held_rates(J, velocity_rows, v)
     held_solve(L, J, velocity_rows, -jv, delta, lam)
     for d in range(nv):
         v[d] += delta[d]
-    jv = J @ v
+    jv = _held_rates(J, velocity_rows, v)
     speed = 0.0
     for a in range(rows):
         if velocity_rows[a] != 0.0:
             speed = max(speed, abs(jv[a]))
     return worst, speed
+
+
+@njit(cache=True)
+def _held_rates(J, held, v):
+    """(rows,) J v on the rows flagged in held, 0 elsewhere (a model's far contact rows are not formed): the held
+    rows gathered, their product taken at once."""
+    rows, nv = J.shape
+    index = np.flatnonzero(held)
+    out = np.zeros(rows)
+    if index.size == 0:
+        return out
+    gathered = np.empty((index.size, nv))
+    for c in range(index.size):
+        gathered[c] = J[index[c]]
+    rates = gathered @ v
+    for c in range(index.size):
+        out[index[c]] = rates[c]
+    return out
 
 
 @njit(cache=True)
@@ -543,48 +564,55 @@ def guards(p, y, out):
 
 
 @njit(cache=True)
-def state_gaps(p, y, g, beyond=np.inf, kept=None):
+def state_gaps(p, y, g, beyond=np.inf, kept=None, least=None):
     """g (rows,) every row's residual at the state y (phi folded in) as state_rows gives it, from the tree's
     kinematics alone: a contact by its candidate's signed distance (no Jacobian; a pair whose bounding spheres are
     apart by the gap between them, a positive lower bound), the other units by their rows. beyond [m]: a caller
     that reads no contact gap above it (the projection's flags, the errors' min(g, 0)) lets a pair whose least gap
     is above it give that (rows.pair_candidates). kept (rows.kept_geometry_size(nq, units),) or None: the
-    contacts' geometry found here, kept for the next step's start at the same configuration."""
+    contacts' geometry found here, kept for the next step's start at the same configuration. least (pairs,) or
+    None: each contact pair's least gap [m] (a bound where its spheres are apart), that a caller reads in place of
+    its rows."""
     nq, nv, _n = sizes(p)
-    rows = row_count(p)
     q = np.empty(nq)
     _effective_qpos(p, y, q, 0)
     w = np.empty(workspace_size(p))
     _frames(p, q, y[nq:nq + nv], w)
-    J = np.empty((rows, nv))
-    jdot = np.empty(rows)
+    J = np.empty((contact_row0(p), nv))  # the rows of the units before the contacts (their gaps come without J)
+    jdot = np.empty(contact_row0(p))
     acc = np.empty((int(p[H_BODIES]), 6))
     normal, point = np.empty(3), np.empty(3)
     work = np.empty(GEOMETRY_WORK)
-    reach = 0.0
-    exact = False
     if kept is not None:
         kept[0] = 1.0
         kept[1:1 + nq] = q
-    for k in range(unit_count(p)):
-        u = unit_at(p, k)
-        kind = int(p[u + U_KIND])
-        row = int(p[u + U_ROW0])
-        if kind == CONTACT or kind == CONTACT1:
-            for a in range(row, row + int(p[u + U_ROWS])):
-                g[a] = 0.0
-            slot = int(p[u + U_DOF])
-            if slot == 0:  # bounding spheres apart: a lower bound will do (one per pair); else every candidate of
-                reach, _motion = clearance(p, w, u, 0.0, work)  # the pair at once, its geoms posed once
-                exact = False
-                if reach <= 0.0:
-                    count = pair_candidates(p, w, u, work, beyond)
-                    exact = exact_within(p, u, count, work, beyond)
-            g[row] = reach if reach > 0.0 else candidate(work, slot, normal, point)
+    for k in range(contact0(p)):  # the contacts follow every other unit
+        unit_rows(p, k, q, y[nq:nq + nv], w, acc, J, jdot, g, int(p[unit_at(p, k) + U_ROW0]), False)
+    spheres = np.empty((geom_count(p), SPHERE_SIZE))
+    geom_spheres(p, w, 0.0, spheres)
+    g[contact_row0(p):] = 0.0  # the contacts' rows (one fill: a far pair's tangent rows are then set)
+    for i in range(pair_count(p)):
+        at = pair_at(p, i)
+        first, slots, row0, width = pair_span(p, at)
+        reach, _motion = pair_reach(p, w, at, 0.0, spheres, work)
+        if reach > 0.0:  # bounding spheres apart: a lower bound will do, one per pair
+            for j in range(slots):  # (a range with a step costs numba's sign test on every iteration)
+                g[row0 + j * width] = reach
             if kept is not None:
-                keep_geometry(kept, nq, k, exact, g[row], normal, point)
-        else:
-            unit_rows(p, k, q, y[nq:nq + nv], w, acc, J, jdot, g, row, False)
+                forget_geometry(kept, nq, first)
+            if least is not None:
+                least[i] = reach
+            continue
+        count = pair_candidates(p, w, first_unit_at(p, at), work, beyond)  # its geoms posed once
+        exact = exact_within(p, first_unit_at(p, at), count, work, beyond)
+        lowest = np.inf
+        for j in range(slots):
+            g[row0 + j * width] = candidate(work, j, normal, point)
+            lowest = min(lowest, g[row0 + j * width])
+            if kept is not None:
+                keep_geometry(kept, nq, first + j, exact, g[row0 + j * width], normal, point)
+        if least is not None:
+            least[i] = lowest
 
 
 @njit(cache=True)

@@ -27,6 +27,7 @@ from numba import njit
 from rbody.engine.elements import X_BLOCK, extension_start
 from rbody.engine.multibody import (B_DOF0, B_NDOF, B_PARENT, BODY_SIZE, H_BODIES, H_BODY, _views)
 from rbody.engine.contacts.geometry import tangents
+from rbody.engine.contacts.broadphase import contact0, pair_at, pair_count, pair_span
 from rbody.engine.contacts.rows import contact_geometry
 from rbody.engine.contacts.kinematics import contact_bias
 from rbody.engine.constraints.tendon_rows import tendon_row
@@ -360,21 +361,27 @@ def unit_rows(p, k, q, v, w, acc, J, jdot, g, row, with_bias=True):
 
 
 @njit(cache=True)
-def all_rows(p, q, v, w, acc, J, jdot, g, with_bias=True):
-    """Every unit's rows, in unit order, into J (rows, nv), jdot (rows,), g (rows,) (see unit_rows)."""
+def all_rows(p, q, v, w, acc, J, jdot, g, with_bias=True, contacts=True):
+    """Every unit's rows, in unit order, into J (rows, nv), jdot (rows,), g (rows,) (see unit_rows); contacts
+    False: the units before the contacts only (their rows are the first; the contacts' rows are left as they were)."""
     row = 0
-    for k in range(unit_count(p)):
+    for k in range(unit_count(p) if contacts else contact0(p)):
         row += unit_rows(p, k, q, v, w, acc, J, jdot, g, row, with_bias)
 
 
 @njit(cache=True)
 def some_rows(p, q, v, w, acc, J, jdot, g, rows_wanted, with_bias=True):
-    """As all_rows for the units with a row flagged in rows_wanted (rows,); the other rows are left as they were."""
-    for k in range(unit_count(p)):
-        u = unit_at(p, k)
-        row = int(p[u + U_ROW0])
+    """As all_rows for the units with a row flagged in rows_wanted (rows,); the other rows are left as they were.
+    The contacts pair by pair, by their rows' flags (a model's many far candidates: no unit record read)."""
+    for k in range(contact0(p)):
+        row = int(p[unit_at(p, k) + U_ROW0])
         if rows_wanted[row] != 0.0:
             unit_rows(p, k, q, v, w, acc, J, jdot, g, row, with_bias)
+    for i in range(pair_count(p)):
+        first, slots, row0, width = pair_span(p, pair_at(p, i))
+        for j in range(slots):
+            if rows_wanted[row0 + j * width] != 0.0:
+                unit_rows(p, first + j, q, v, w, acc, J, jdot, g, row0 + j * width, with_bias)
 
 
 __all__ = ["block_offset", "unit_count", "row_count", "unit_at", "mode_at", "bias_accelerations", "unit_rows",

@@ -54,7 +54,9 @@ from rbody.engine.elements import A_ACTADR, ACT_SIZE, X_ACT, X_ACTIVE, X_NU, ext
 from rbody.engine.mujoco_steps import EULER, IMPLICIT, IMPLICITFAST, MUJOCO_METHODS, integrate_positions, \
     solve_general, step_matrices
 from rbody.engine.constraints.jacobians import contact_unit_rows, row_count, unit_at, unit_count
-from rbody.engine.contacts.kinematics import clearance, point_velocity
+from rbody.engine.contacts.broadphase import (SPHERE_SIZE, contact0, first_unit_at, geom_count, geom_spheres,
+                                             pair_at, pair_count, pair_reach, pair_span)
+from rbody.engine.contacts.kinematics import point_velocity
 from rbody.engine.contacts.rows import (GEOMETRY_WORK, candidate, kept_candidate, kept_exact, kept_for,
                                         kept_geometry_size, pair_candidates)
 from rbody.engine.multibody import _effective_qpos
@@ -64,7 +66,7 @@ from rbody.engine.constraints.solver import (RANK_RTOL, lower_solve_rows, mlcp_e
                                              natural_residual)
 from rbody.engine.constraints.table import (C_HEADER, CONE, CONNECT, CONTACT, CONTACT1, CONTACT_KINDS, COUPLING,
                                             FRICTION, FRICTION_KINDS, LOWER, TENDON_EQUALITY, TENDON_FRICTION,
-                                            TENDON_LOWER, TENDON_UPPER, U_BODY1, U_BODY2, U_BOUND, U_DOF, U_KIND,
+                                            TENDON_LOWER, TENDON_UPPER, U_BODY1, U_BODY2, U_BOUND, U_KIND,
                                             UNILATERAL,
                                             UNIT_SIZE,
                                             U_RESTITUTION, U_ROLL, U_ROW0, U_ROWS, U_SPIN, UPPER, WELD,
@@ -200,57 +202,43 @@ def _drop_null_equalities(A, index, lo, hi, b, role, mu, m):
 
 
 @njit(cache=True)
-def smooth_rows(p):
-    """(rows,) 1 on the rows of every unit but contacts (limits, friction, equalities: computed at every step)."""
-    flags = np.zeros(row_count(p))
-    for k in range(unit_count(p)):
-        u = unit_at(p, k)
-        kind = int(p[u + U_KIND])
-        if kind != CONTACT and kind != CONTACT1:
-            flags[int(p[u + U_ROW0])] = 1.0
-    return flags
-
-
-@njit(cache=True)
 def near_contacts(p, w, vfree, h, J, g, formed, kept, reuse):
-    """Every contact's gap into g, and the rows J of the contacts a step can involve: touching (g <= TOUCH_TOLERANCE)
-    or closing within it (g + h n . (v_b - v_a) < 0 at the contact point, the bodies moving with the free velocities
-    vfree (nv,)), each such unit flagged 1 in formed (units,). The others keep J = 0: a model's far candidates (a
-    humanoid's limbs against the floor in the air) cost a distance each, not a row of nv numbers, and a pair whose
-    bounding spheres cannot meet within the step (contacts.kinematics.clearance) not even that: its g is then that
-    lower bound (> TOUCH_TOLERANCE). After the step's kinematics in the workspace w (its velocities are then
-    vfree's). kept: the geometry the last step's end found (rows.kept_geometry_size); reuse: whether it was found at
-    this configuration, its exact candidates then read, not found again."""
+    """The gaps g of the candidates of every pair whose bounding spheres may meet within the step, and the rows J of
+    the contacts a step can involve: touching (g <= TOUCH_TOLERANCE) or closing within it (g + h n . (v_b - v_a) < 0
+    at the contact point, the bodies moving with the free velocities vfree (nv,)), each such unit flagged 1 in
+    formed (units,). The others' rows of J and g are left as they were (the step reads the formed ones only): a
+    model's far candidates (a humanoid's limbs against the floor in the air) cost a distance each, not a row of nv
+    numbers, and a pair whose bounding spheres cannot meet within the step (contacts.broadphase.pair_reach) not
+    even that, nor a read of its candidates' unit records. After the step's kinematics in the workspace w (its
+    velocities are then vfree's). kept: the geometry the last step's end found (rows.kept_geometry_size); reuse:
+    whether it was found at this configuration, its exact candidates then read, not found again."""
     nq = int(p[mb.H_NQ])
     mb.velocities(p, vfree, w)
     normal, point, v_a, v_b = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
     work = np.empty(GEOMETRY_WORK)
-    reach = 0.0
-    read = False
-    for k in range(unit_count(p)):
-        u = unit_at(p, k)
-        kind = int(p[u + U_KIND])
-        if kind != CONTACT and kind != CONTACT1:
-            continue
-        row = int(p[u + U_ROW0])
-        slot = int(p[u + U_DOF])
-        if slot == 0:  # a pair's first candidate (the others follow it, the same two geoms)
-            reach, motion = clearance(p, w, u, h, work)
-            read = reuse and kept_exact(kept, nq, k)  # found exactly at the last step's end, at this configuration
-            if reach <= TOUCH_TOLERANCE and not read:  # every candidate of the pair at once, its geoms posed once;
-                pair_candidates(p, w, u, work, TOUCH_TOLERANCE + motion)  # beyond reach: their least gap
+    spheres = np.empty((geom_count(p), SPHERE_SIZE))
+    geom_spheres(p, w, h, spheres)  # every geom's bounding sphere once; then each pair's bound from two of them
+    for i in range(pair_count(p)):
+        at = pair_at(p, i)
+        first, slots, row0, width = pair_span(p, at)
+        reach, motion = pair_reach(p, w, at, h, spheres, work)
         if reach > TOUCH_TOLERANCE:  # the broad phase: the pair can neither touch nor close within the step
-            g[row] = reach
             continue
-        gap = kept_candidate(kept, nq, k, normal, point) if read else candidate(work, slot, normal, point)
-        g[row] = gap
-        point_velocity(p, w, int(p[u + U_BODY2]), point, v_b)
-        point_velocity(p, w, int(p[u + U_BODY1]), point, v_a)
-        closing = (normal[0] * (v_b[0] - v_a[0]) + normal[1] * (v_b[1] - v_a[1])   # n . (v_b - v_a) there
-                   + normal[2] * (v_b[2] - v_a[2]))
-        if gap <= TOUCH_TOLERANCE or gap + h * closing < 0.0:  # its rows from the geometry just found
-            contact_unit_rows(p, k, w, J, g, row, gap, normal, point)
-            formed[k] = 1
+        read = reuse and kept_exact(kept, nq, first)  # found exactly at the last step's end, at this configuration
+        if not read:  # every candidate of the pair at once, its geoms posed once; beyond reach: their least gap
+            pair_candidates(p, w, first_unit_at(p, at), work, TOUCH_TOLERANCE + motion)
+        for j in range(slots):
+            k, row = first + j, row0 + j * width
+            u = unit_at(p, k)
+            gap = kept_candidate(kept, nq, k, normal, point) if read else candidate(work, j, normal, point)
+            g[row] = gap
+            point_velocity(p, w, int(p[u + U_BODY2]), point, v_b)
+            point_velocity(p, w, int(p[u + U_BODY1]), point, v_a)
+            closing = (normal[0] * (v_b[0] - v_a[0]) + normal[1] * (v_b[1] - v_a[1])   # n . (v_b - v_a) there
+                       + normal[2] * (v_b[2] - v_a[2]))
+            if gap <= TOUCH_TOLERANCE or gap + h * closing < 0.0:  # its rows from the geometry just found
+                contact_unit_rows(p, k, w, J, g, row, gap, normal, point)
+                formed[k] = 1
 
 
 @njit(cache=True, inline="always")
@@ -290,7 +278,8 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode, end_g
     rows = row_count(p)
     M = np.empty((nv, nv))
     f = np.empty(nv)
-    J = np.zeros((rows, nv))  # a contact's rows stay 0 unless it touches or closes within the step (near_contacts)
+    J = np.empty((rows, nv))  # a contact's rows are formed only where it touches or closes within the step
+    # (near_contacts), and only those are read (a quadruped's 23,838 rows of 18 numbers, mostly far candidates)
     jdot = np.zeros(rows)
     g = np.zeros(rows)
     q = np.empty(nq)
@@ -298,7 +287,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode, end_g
     w = np.empty(mb.workspace_size(p))
     acc = np.empty((int(p[mb.H_BODIES]), 6))
     at, na = dyn.act_range(p)
-    dyn.snapshot(p, q, y[nq:nq + nv], y[at:at + na], M, f, J, jdot, g, w, acc, smooth_rows(p), False)
+    dyn.snapshot(p, q, y[nq:nq + nv], y[at:at + na], M, f, J, jdot, g, w, acc, None, False, False)
     dyn.add_sliding_friction(p, f, J)
     rates = np.empty(na)
     if na:  # the activations' rates at the step's start (advanced by explicit Euler below, as MuJoCo's Euler does)
@@ -321,12 +310,13 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode, end_g
     role, mu = np.zeros(rows, dtype=np.int64), np.zeros(rows)
     cones = False
     m = 0
+    c0 = contact0(p)
     for k in range(unit_count(p)):
+        if k >= c0 and formed[k] == 0:
+            continue  # a contact neither touching nor closing within the step (near_contacts): its rows are 0
         u = unit_at(p, k)
         kind = int(p[u + U_KIND])
         r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])
-        if (kind == CONTACT or kind == CONTACT1) and formed[k] == 0:
-            continue  # neither touching nor closing within the step (near_contacts): its rows are 0
         for a in range(r0, r0 + r):
             jfree[a] = _row_dot(J, a, vfree)
         if kind == CONNECT or kind == WELD or kind == COUPLING or kind == TENDON_EQUALITY:
@@ -444,11 +434,12 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode, end_g
     # every dof: a stop it pushes past joins the set, and the projection is repeated), velocities onto the equalities
     position_rows = np.zeros(rows)
     velocity_rows = np.zeros(rows)
+    least = np.empty(pair_count(p))  # each contact pair's least gap at the end (state_gaps)
     worst = 0.0
     for _round in range(PROJECTION_ROUNDS):
-        dyn.state_gaps(p, y, g, FLAGGED_GAP, end_geometry)
+        dyn.state_gaps(p, y, g, FLAGGED_GAP, end_geometry, least)
         grown = False  # a row newly flagged (nothing flagged at all: no projection, the step stands as it is)
-        for k in range(unit_count(p)):
+        for k in range(c0):
             u = unit_at(p, k)
             kind = int(p[u + U_KIND])
             r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])
@@ -457,12 +448,18 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode, end_g
                     grown = grown or position_rows[a] == 0.0
                     position_rows[a] = 1.0
                     velocity_rows[a] = 1.0
-            elif (kind == LOWER or kind == UPPER or kind == CONE or kind == CONTACT or kind == CONTACT1
-                  or kind == TENDON_LOWER or kind == TENDON_UPPER) \
-                    and g[r0] <= FLAGGED_GAP \
-                    and position_rows[r0] == 0.0 and (g[r0] < 0.0 or P[r0] > 0.0):
+            elif (kind == LOWER or kind == UPPER or kind == CONE or kind == TENDON_LOWER or kind == TENDON_UPPER) \
+                    and _newly_flagged(g, P, position_rows, r0):
                 position_rows[r0] = 1.0
                 grown = True
+        for i in range(pair_count(p)):  # contacts: their normal rows, where the pair's least gap allows
+            if least[i] > FLAGGED_GAP:
+                continue
+            _first, slots, row0, width = pair_span(p, pair_at(p, i))
+            for j in range(slots):
+                if _newly_flagged(g, P, position_rows, row0 + j * width):
+                    position_rows[row0 + j * width] = 1.0
+                    grown = True
         if not grown:
             break
         worst, needed = 0.0, False  # every flagged row already within the projection's tolerance, no velocity row
@@ -478,20 +475,42 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode, end_g
     return 0, residual, m
 
 
+@njit(cache=True, inline="always")
+def _newly_flagged(g, P, position_rows, r0):
+    """Whether a unilateral row r0 joins the projection: within FLAGGED_GAP of its stop, not yet flagged, and past
+    it or pushing."""
+    return g[r0] <= FLAGGED_GAP and position_rows[r0] == 0.0 and (g[r0] < 0.0 or P[r0] > 0.0)
+
+
 @njit(cache=True)
 def _record(P, s, starts, rows, values, used):
     """The nonzero impulses of P (rows,) as saved sample s: appended to rows and values (grown by doubling when
-    full), starts[s + 1] their end. Returns (rows, values, used)."""
+    full), starts[s + 1] their end. Returns (rows, values, used). Counted first, then copied: a scan whose loop
+    may replace the arrays it writes costs numba 9 ns a row (a quadruped's 23,838 rows: 0.2 ms a step)."""
+    count = 0
     for a in range(P.size):
         if P[a] != 0.0:
-            if used == rows.size:
-                grown_rows, grown_values = np.empty(2 * rows.size, dtype=np.int64), np.empty(2 * rows.size)
-                grown_rows[:used], grown_values[:used] = rows[:used], values[:used]
-                rows, values = grown_rows, grown_values
-            rows[used], values[used] = a, P[a]
-            used += 1
+            count += 1
+    if used + count > rows.size:
+        size = rows.size
+        while used + count > size:
+            size *= 2
+        grown_rows, grown_values = np.empty(size, dtype=np.int64), np.empty(size)
+        grown_rows[:used], grown_values[:used] = rows[:used], values[:used]
+        rows, values = grown_rows, grown_values
+    _append_nonzeros(P, rows, values, used)
+    used += count
     starts[s + 1] = used
     return rows, values, used
+
+
+@njit(cache=True)
+def _append_nonzeros(P, rows, values, used):
+    """rows[used:], values[used:] the nonzeros of P (rows,), in order (room for them is there)."""
+    for a in range(P.size):
+        if P[a] != 0.0:
+            rows[used], values[used] = a, P[a]
+            used += 1
 
 
 @njit(cache=True)

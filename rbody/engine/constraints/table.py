@@ -76,8 +76,13 @@ CONSTRAINT_HEADER = Record("constraint header", [
     ("rows", 1, INT, "constraint rows"),
     ("unit", 1, INT, "where the unit records start (absolute)"),
     ("mode", 1, INT, "where the modes start (absolute)"),
+    ("contact0", 1, INT, "the first contact unit (the contacts follow every other unit; units: none)"),
+    ("pairs", 1, INT, "contact pairs (two geoms each, their candidates consecutive units)"),
+    ("pair", 1, INT, "where the pair records start (absolute)"),
+    ("geoms", 1, INT, "geoms in a contact pair"),
+    ("geom", 1, INT, "where the geom records start (absolute)"),
 ])
-C_UNITS, C_ROWS, C_UNIT, C_MODE = CONSTRAINT_HEADER.offsets()
+C_UNITS, C_ROWS, C_UNIT, C_MODE, C_CONTACT0, C_PAIRS, C_PAIR, C_GEOMS, C_GEOM = CONSTRAINT_HEADER.offsets()
 C_HEADER = CONSTRAINT_HEADER.size
 UNIT = Record("constraint unit", [
     ("kind", 1, INT, "LOWER, UPPER, CONE, FRICTION, CONNECT, WELD, COUPLING, CONTACT, CONTACT1, TENDON_LOWER, "
@@ -135,6 +140,27 @@ U_SPIN, U_ROLL, U_MARGIN = UNIT.offsets("spin", "roll", "margin")
 U_HULL_A, U_HULL_B = UNIT.offsets("hull_a", "hull_b")
 (U_WINDOW,) = UNIT.offsets("window")
 UNIT_SIZE = UNIT.size
+# The broad phase's records (rbody.engine.contacts.broadphase): a step tests each pair of geoms once, from each geom's
+# bounding sphere found once, and reads its candidates' unit records only when the pair is near.
+PAIR = Record("contact pair", [
+    ("unit", 1, INT, "its first candidate's unit (the others follow it)"),
+    ("slots", 1, INT, "its candidates (units)"),
+    ("row", 1, INT, "its first candidate's first row (each candidate's rows follow the last's)"),
+    ("width", 1, INT, "rows per candidate (its condim; 1 for condim 1 or no friction)"),
+    ("geom_a", 1, INT, "geom a's record (its index among the geoms)"),
+    ("geom_b", 1, INT, "geom b's"),
+    ("margin", 1, FLOAT, "the pair's margin [m]"),
+])
+P_UNIT, P_SLOTS, P_ROW, P_WIDTH, P_GEOM_A, P_GEOM_B, P_MARGIN = PAIR.offsets()
+PAIR_SIZE = PAIR.size
+GEOM = Record("contact geom", [
+    ("body", 1, INT, "its body (-1: the world)"),
+    ("type", 1, INT, "its type (MuJoCo's code)"),
+    ("pose", 1, INT, "where its position (3), axes (9) and size (3) start in a unit record that holds it "
+                     "(absolute: U_GPOS_A or U_GPOS_B of one of its pairs' first units)"),
+])
+G_BODY, G_TYPE, G_POSE = GEOM.offsets()
+GEOM_SIZE = GEOM.size
 
 
 @dataclass(frozen=True)
@@ -410,9 +436,14 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
 
     time_stepped = []  # contacts the event-driven scheme does not run (geometry.TIME_STEPPED)
     spinning = []  # and those with torsional or rolling friction (condim 4, 6)
+    contact0 = len(units)
+    pairs: list[tuple[int, int, int, int, str, str, float]] = []  # (unit, slots, row, width, shape a, shape b, margin)
     for contact in layout.contacts:
         with_friction = contact.condim > 1 and contact.friction + contact.torsion + contact.rolling > 0
-        for record_fields, name in _contact_units(layout, contact, body_index):
+        candidates, (name_a, name_b) = _contact_units(layout, contact, body_index)
+        pairs.append((len(units), len(candidates), rows, contact.condim if with_friction else 1, name_a, name_b,
+                      contact.margin))
+        for record_fields, name in candidates:
             if with_friction:
                 add(CONTACT, name, count=contact.condim, **record_fields)
             else:
@@ -440,15 +471,23 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
             hulls.append(packed)
             end += packed.size
         records[index][field_at] = offset + placed[shape_name]
-    block = np.zeros(end)
+    hulls_end = end
+    pair_records, geom_records = _broad_phase_records(pairs, records, offset)
+    block = np.zeros(end + pair_records.size + geom_records.size)
     block[[C_UNITS, C_ROWS, C_UNIT, C_MODE]] = count, rows, offset + C_HEADER, offset + C_HEADER + UNIT_SIZE * count
+    block[[C_CONTACT0, C_PAIRS, C_PAIR, C_GEOMS, C_GEOM]] = (contact0, len(pairs), offset + end, geom_records.size // GEOM_SIZE,
+                                                             offset + end + pair_records.size)
     block[C_HEADER:C_HEADER + UNIT_SIZE * count] = np.concatenate(records)
     if hulls:
-        block[C_HEADER + UNIT_SIZE * count + count:] = np.concatenate(hulls)
+        block[C_HEADER + UNIT_SIZE * count + count:hulls_end] = np.concatenate(hulls)
+    block[end:end + pair_records.size] = pair_records
+    block[end + pair_records.size:] = geom_records
     mode0 = np.array([1.0 if unit.code in EQUALITY_KINDS else 0.0 for unit in units])
     block[C_HEADER + UNIT_SIZE * count:C_HEADER + UNIT_SIZE * count + count] = mode0
     CONSTRAINT_HEADER.check(block, 0, 1)
     UNIT.check(block, C_HEADER, count)
+    PAIR.check(block, end, len(pairs))
+    GEOM.check(block, end + pair_records.size, geom_records.size // GEOM_SIZE)
     block.setflags(write=False)
     mode0.setflags(write=False)
     # contacts: time-stepping by default (persistent contacts: stacks, feet, grasps), event-driven on request;
@@ -497,9 +536,29 @@ def _packed_hull(shape) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return _HULLS[key]
 
 
-def _contact_units(layout: Layout, contact, body_index: dict[str, int]) -> list[tuple[dict, str]]:
-    """The unit records (fields for build_table's add) and names of a Contact's candidates: one per slot of its
-    pair of geoms (rbody.engine.contacts.geometry.SLOTS), the geoms in MuJoCo's order (type codes ascending).
+def _broad_phase_records(pairs: list, records: list[np.ndarray], offset: int) -> tuple[np.ndarray, np.ndarray]:
+    """(pair records (PAIR_SIZE each), geom records (GEOM_SIZE each)) of build_table's contact pairs (first unit,
+    slots, first row, rows per candidate, shape a, shape b, margin): each geom once, found in the first pair that
+    names it (its pose read from that pair's first unit record, placed at offset + C_HEADER + UNIT_SIZE unit)."""
+    geom_index: dict[str, int] = {}
+    geoms, out = [], []
+    for unit, slots, row, width, name_a, name_b, margin in pairs:
+        record = records[unit]
+        for name, body_at, type_at, pos_at in ((name_a, U_BODY1, U_GTYPE_A, U_GPOS_A),
+                                              (name_b, U_BODY2, U_GTYPE_B, U_GPOS_B)):
+            if name not in geom_index:
+                geom_index[name] = len(geoms)
+                geoms.append((record[body_at], record[type_at], offset + C_HEADER + UNIT_SIZE * unit + pos_at))
+        out.append((unit, slots, row, width, geom_index[name_a], geom_index[name_b], margin))
+    pair_records = np.array(out, dtype=np.float64).reshape(-1)
+    geom_records = np.array(geoms, dtype=np.float64).reshape(-1)
+    return pair_records, geom_records
+
+
+def _contact_units(layout: Layout, contact, body_index: dict[str, int]) -> tuple[list[tuple[dict, str]], tuple[str, str]]:
+    """(the unit records (fields for build_table's add) and names of a Contact's candidates, (geom a's shape name,
+    geom b's)): one unit per slot of its pair of geoms (rbody.engine.contacts.geometry.SLOTS), the geoms in MuJoCo's
+    order (type codes ascending).
     Raises ValueError naming the contact for a shape that is not in the layout, two shapes of one body, or a pair
     of kinds rbody does not compute."""
     from rbody.engine.contacts.geometry import MAX_SLOTS, SLOTS, TYPE_CODES, pairs_text
@@ -569,4 +628,5 @@ def _contact_units(layout: Layout, contact, body_index: dict[str, int]) -> list[
     else:
         count = SLOTS[(ta, tb)]
     name = f"{shape_a.name}/{shape_b.name}"
-    return [(dict(fields, U_DOF=slot), name if count == 1 else f"{name}[{slot}]") for slot in range(count)]
+    return ([(dict(fields, U_DOF=slot), name if count == 1 else f"{name}[{slot}]") for slot in range(count)],
+            (shape_a.name, shape_b.name))

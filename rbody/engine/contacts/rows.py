@@ -154,6 +154,13 @@ def keep_geometry(kept, nq, k, exact, gap, normal, point):
 
 
 @njit(cache=True, inline="always")
+def forget_geometry(kept, nq, k):
+    """Mark unit k's candidate not kept (a pair's first unit: the step reads a pair's candidates from kept only
+    where its first is exact, rbody.engine.constraints.stepping.near_contacts)."""
+    kept[1 + nq + KEPT * k] = 0.0
+
+
+@njit(cache=True, inline="always")
 def kept_for(kept, q):
     """Whether kept holds a geometry found at the configuration q (nq,), to the bit."""
     if kept[0] == 0.0:
@@ -193,4 +200,4 @@ def contact_geometry(p, w, u, normal, point, work=None):
 
 
 __all__ = ["geom_pose", "contact_geometry", "pair_candidates", "candidate", "exact_within", "hull_at", "field_at",
-           "GEOMETRY_WORK", "KEPT", "kept_geometry_size", "keep_geometry", "kept_for", "kept_exact", "kept_candidate"]
+           "GEOMETRY_WORK", "KEPT", "kept_geometry_size", "keep_geometry", "forget_geometry", "kept_for", "kept_exact", "kept_candidate"]

@@ -1,0 +1,152 @@
+"""The broad phase (rbody.engine.contacts.broadphase): each geom's bounding sphere found once per call, a pair's
+bound on its candidates' gaps from two of them, the same to the bit as contacts.kinematics.clearance, which
+computes it pair by pair; the constraint table's pair and geom records that it reads."""
+
+import numpy as np
+import pytest
+
+import rbody
+from rbody.engine import multibody as mb
+from rbody.engine.constraints import dynamics as dyn
+from rbody.engine.constraints.jacobians import row_count, unit_at, unit_count
+from rbody.engine.constraints.stepping import MoreauRun
+from rbody.engine.constraints.table import (C_GEOM, CONTACT_KINDS, GEOM_SIZE, P_GEOM_A, P_GEOM_B, PAIR_SIZE,
+                                            U_BODY1, U_BODY2, U_DOF, U_GPOS_A, U_GPOS_B, U_GSIZE_A, U_GSIZE_B,
+                                            U_GTYPE_A, U_GTYPE_B, U_KIND, U_MARGIN, U_ROW0, U_ROWS, UNIT_SIZE)
+from rbody.engine.contacts.broadphase import (SPHERE_SIZE, contact0, contact_row0, first_unit_at, geom_count,
+                                              geom_spheres, pair_at, pair_count, pair_reach, pair_span)
+from rbody.engine.contacts.kinematics import clearance
+from rbody.engine.contacts.rows import GEOMETRY_WORK
+from rbody.engine.multibody import _effective_qpos
+
+CUBE = " ".join(f"{v:g}" for x in (-0.1, 0.1) for y in (-0.07, 0.07) for z in (-0.05, 0.05) for v in (x, y, z))
+
+# a floor, a height field and seven free bodies of every kind rbody collides, two geoms on one of them (a geom in
+# several pairs has one geom record), a hinge with a limit before the contacts, margins on two geoms
+XML = f"""<mujoco>
+  <asset><mesh name="brick" vertex="{CUBE}"/>
+    <hfield name="bumps" nrow="3" ncol="4" size="0.6 0.4 0.1 0.05"
+            elevation="0 1 0 1  1 0 1 0  0 1 0 1"/></asset>
+  <worldbody>
+    <geom name="floor" type="plane" size="0 0 1"/>
+    <geom name="terrain" type="hfield" hfield="bumps" pos="3 3 0"/>
+    <body name="arm" pos="0 0 1.2"><joint name="hinge" type="hinge" axis="0 1 0" range="-1 1"/>
+      <geom name="arm" type="capsule" fromto="0 0 0 0.4 0 0" size="0.04"/></body>
+    <body name="ball" pos="0.3 0 0.5"><freejoint/><geom name="ball" type="sphere" size="0.1" margin="0.01"/></body>
+    <body name="rod" pos="-0.3 0.2 0.4"><freejoint/><geom name="rod" type="capsule" size="0.05 0.2"/></body>
+    <body name="crate" pos="0 -0.3 0.3"><freejoint/><geom name="crate" type="box" size="0.2 0.1 0.05"/>
+      <geom name="lid" type="box" pos="0 0 0.08" size="0.05 0.05 0.03"/></body>
+    <body name="drum" pos="0.4 0.4 0.3"><freejoint/><geom name="drum" type="cylinder" size="0.1 0.06"/></body>
+    <body name="egg" pos="-0.4 -0.4 0.3"><freejoint/><geom name="egg" type="ellipsoid" size="0.12 0.08 0.06"
+      margin="0.005"/></body>
+    <body name="brick" pos="0 0.5 0.3"><freejoint/><geom name="brick" type="mesh" mesh="brick"/></body>
+  </worldbody>
+</mujoco>"""
+
+
+@pytest.fixture(scope="module")
+def model():
+    scene = rbody.from_mjcf(XML, t_end=0.1)
+    prepared = rbody.prepare(scene, dt=0.01, method="moreau")
+    table = prepared.model.constraints
+    run = MoreauRun(table, prepared.params[0], "broad phase")
+    return scene, table, run.p, np.array(prepared.y0[0])
+
+
+def _workspace(p, y):
+    """The tree's workspace at the state y (its frames and body velocities), as the step's kernels read it."""
+    nq, nv, _n = dyn.sizes(p)
+    q = np.empty(nq)
+    _effective_qpos(p, y, q, 0)
+    w = np.empty(mb.workspace_size(p))
+    dyn._frames(p, q, y[nq:nq + nv], w)
+    mb.velocities(p, np.ascontiguousarray(y[nq:nq + nv]), w)
+    return w
+
+
+def test_the_table_lists_each_pair_once_with_its_candidates_rows_and_geoms(model):
+    _scene, table, p, _y = model
+    codes = table.codes
+    first_contact = int(np.flatnonzero(np.isin(codes, CONTACT_KINDS))[0])
+    assert contact0(p) == first_contact and np.isin(codes[first_contact:], CONTACT_KINDS).all()  # contacts last
+    assert contact_row0(p) == table.units[first_contact].row0
+    units = np.asarray(p[unit_at(p, 0):unit_at(p, 0) + UNIT_SIZE * unit_count(p)]).reshape(-1, UNIT_SIZE)
+    assert U_GSIZE_A == U_GPOS_A + 12 and U_GSIZE_B == U_GPOS_B + 12  # a geom record's pose: position, axes, size
+    covered = []
+    geoms = {}
+    geom_start = int(p[table.offset + C_GEOM])
+    for i in range(pair_count(p)):
+        first, slots, row0, width = pair_span(p, pair_at(p, i))
+        record = units[first]
+        assert first_unit_at(p, pair_at(p, i)) == unit_at(p, first)
+        assert record[U_DOF] == 0 and record[U_ROW0] == row0 and record[U_ROWS] == width
+        for j in range(slots):  # its candidates: consecutive units, slots 0.., rows one after another
+            unit = units[first + j]
+            assert unit[U_KIND] in CONTACT_KINDS and unit[U_DOF] == j and unit[U_ROW0] == row0 + j * width
+            assert np.array_equal(unit[U_GPOS_A:U_GSIZE_B + 3], record[U_GPOS_A:U_GSIZE_B + 3])
+            covered.append(first + j)
+        for side, body_at, type_at, pos_at in ((P_GEOM_A, U_BODY1, U_GTYPE_A, U_GPOS_A),
+                                               (P_GEOM_B, U_BODY2, U_GTYPE_B, U_GPOS_B)):
+            g = int(p[pair_at(p, i) + side])
+            body, kind, pose = p[geom_start + g * GEOM_SIZE:geom_start + (g + 1) * GEOM_SIZE]
+            assert (body, kind) == (record[body_at], record[type_at])
+            # the geom's pose and size, read where its record points, are this pair's geom's
+            assert np.array_equal(p[int(pose):int(pose) + 15], record[pos_at:pos_at + 15])
+            key = (body, kind, tuple(record[pos_at:pos_at + 15]))
+            assert geoms.setdefault(key, g) == g  # one record per geom
+        assert p[pair_at(p, i) + 6] == record[U_MARGIN]
+    assert covered == list(range(first_contact, unit_count(p)))  # every contact unit in exactly one pair
+    assert geom_count(p) == len(geoms) == 10  # floor, terrain, arm, ball, rod, crate, lid, drum, egg, brick
+    assert pair_at(p, 1) - pair_at(p, 0) == PAIR_SIZE
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("h", [0.0, 0.01, 0.5])
+def test_a_pairs_bound_is_clearances_to_the_bit(model, seed, h):
+    """Random configurations and velocities, the bodies gathered near the origin so that some pairs overlap, some
+    are near and some far: pair_reach's (reach, motion) from the geoms' spheres equals clearance's, computed from
+    the pair's first unit, exactly (box and mesh pairs hand the near ones to clearance; the rest is one formula)."""
+    _scene, table, p, y0 = model
+    rng = np.random.default_rng(seed)
+    nq, nv, _n = dyn.sizes(p)
+    y = y0.copy()
+    for body in range(7):  # the free bodies' qpos (7 each) after the hinge's one
+        at = 1 + 7 * body
+        y[at:at + 3] = rng.uniform(-0.35, 0.35, 3) + (0.0, 0.0, 0.35)
+        quat = rng.normal(size=4)
+        y[at + 3:at + 7] = quat / np.linalg.norm(quat)
+    y[0] = rng.uniform(-1, 1)
+    y[nq:nq + nv] = rng.normal(scale=2.0, size=nv)
+    w = _workspace(p, y)
+    spheres = np.empty((geom_count(p), SPHERE_SIZE))
+    geom_spheres(p, w, h, spheres)
+    work, scratch = np.empty(GEOMETRY_WORK), np.empty(GEOMETRY_WORK)
+    near = 0
+    for i in range(pair_count(p)):
+        got = pair_reach(p, w, pair_at(p, i), h, spheres, work)
+        expected = clearance(p, w, first_unit_at(p, pair_at(p, i)), h, scratch)
+        assert got == expected, (i, got, expected)
+        near += got[0] <= 0.0
+    assert 0 < near < pair_count(p)  # the draw has pairs on both sides of the bound
+
+
+def test_the_end_gaps_give_each_pairs_least_gap(model):
+    """state_gaps's least (pairs,): a pair's least gap, the least of its candidates' rows where they were computed,
+    the pair's bound where its spheres are apart (every row of the pair then at least that)."""
+    _scene, table, p, y0 = model
+    rng = np.random.default_rng(7)
+    nq, nv, _n = dyn.sizes(p)
+    y = y0.copy()
+    for body in range(7):
+        y[1 + 7 * body:4 + 7 * body] = rng.uniform(-0.3, 0.3, 3) + (0.0, 0.0, 0.3)
+    g = np.full(row_count(p), np.nan)
+    least = np.full(pair_count(p), np.nan)
+    dyn.state_gaps(p, y, g, np.inf, None, least)
+    assert not np.isnan(least).any()  # every pair's written (+inf: a geom beside the height field's footprint)
+    for i in range(pair_count(p)):
+        _first, slots, row0, width = pair_span(p, pair_at(p, i))
+        normals = g[row0:row0 + slots * width:width]
+        assert least[i] == normals.min()
+        tangents = np.delete(g[row0:row0 + slots * width], np.arange(0, slots * width, width))
+        assert (tangents == 0.0).all()
+    assert (least <= 0.0).any() and (least > 0.0).any()
