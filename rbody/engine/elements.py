@@ -135,6 +135,13 @@ def extension_start(p) -> int:
     return int(p[H_DOF]) + int(p[H_DOFS]) * DOF_SIZE
 
 
+@njit(cache=True, inline="always")
+def block_offset(p) -> int:
+    """Where the constraint block starts in a params row: after the tree's row and its force-element section
+    (present, empty or not, in every constrained row), whose X_BLOCK records the offset."""
+    return int(p[extension_start(p) + X_BLOCK])
+
+
 @dataclass(frozen=True)
 class ElementArrays:
     """The force elements of a tree in numpy: the section's row and the names that index it.
@@ -356,4 +363,4 @@ def fluid_row(layout: Layout, arrays: TreeArrays, at: int) -> np.ndarray:
 
 
 __all__ = ["ElementArrays", "fluid_row", "has_fluid", "build_elements", "has_elements", "extension_start",
-           "X_HEADER", "ACT_SIZE", "TEN_SIZE", "PATH_SIZE"]
+           "block_offset", "X_HEADER", "ACT_SIZE", "TEN_SIZE", "PATH_SIZE"]

@@ -36,8 +36,8 @@ from rbody.engine.elements import X_ACTIVE, X_NA, X_NTEN, extension_start
 from rbody.engine.system import actuator_rates, add_element_forces, clamp_activations
 from rbody.engine.constraints.jacobians import (all_rows, bias_accelerations, some_rows, mode_at, row_count, unit_at,
                                                 unit_count, unit_rows)
-from rbody.engine.contacts.broadphase import (SPHERE_SIZE, contact0, contact_row0, first_unit_at, geom_count, geom_spheres,
-                                             pair_at, pair_count, pair_reach, pair_span)
+from rbody.engine.contacts.broadphase import (SPHERE_SIZE, contact0, contact_row0, first_unit_at, geom_count,
+                                             geom_spheres, pair_at, pair_count, pair_reach, pair_span)
 from rbody.engine.contacts.rows import (GEOMETRY_WORK, candidate, exact_within, forget_geometry, keep_geometry,
                                        pair_candidates)
 from rbody.engine.constraints.solver import RANK_RTOL, lower_solve, lower_solve_rows, symmetric_solve, upper_solve
@@ -603,8 +603,9 @@ def state_gaps(p, y, g, beyond=np.inf, kept=None, least=None):
             if least is not None:
                 least[i] = reach
             continue
-        count = pair_candidates(p, w, first_unit_at(p, at), work, beyond)  # its geoms posed once
-        exact = exact_within(p, first_unit_at(p, at), count, work, beyond)
+        u = first_unit_at(p, at)
+        count = pair_candidates(p, w, u, work, beyond)  # its geoms posed once
+        exact = exact_within(p, u, count, work, beyond)
         lowest = np.inf
         for j in range(slots):
             g[row0 + j * width] = candidate(work, j, normal, point)

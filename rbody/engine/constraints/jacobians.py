@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from rbody.engine.elements import X_BLOCK, extension_start
+from rbody.engine.elements import block_offset
 from rbody.engine.multibody import (B_DOF0, B_NDOF, B_PARENT, BODY_SIZE, H_BODIES, H_BODY, _views)
 from rbody.engine.contacts.geometry import tangents
 from rbody.engine.contacts.broadphase import contact0, pair_at, pair_count, pair_span
@@ -37,13 +37,6 @@ from rbody.engine.constraints.table import (C_MODE, C_ROWS, C_UNIT, C_UNITS, CON
                                             U_A1, U_A2, U_BOUND, U_BODY1, U_BODY2, U_DOF, U_DOF2, U_KIND,
                                             U_POLY, U_QADR, U_QADR2, U_QUAT, U_REF1, U_REF2, U_ROW0, U_ROWS,
                                             U_TENDON, U_TENDON2, UNIT_SIZE, UPPER, WELD)
-
-
-@njit(cache=True, inline="always")
-def block_offset(p):
-    """Where the constraint block starts in a params row: after the tree's row and its force-element section
-    (rbody.engine.elements; present, empty or not, in every constrained row), which records the offset."""
-    return int(p[extension_start(p) + X_BLOCK])
 
 
 @njit(cache=True, inline="always")

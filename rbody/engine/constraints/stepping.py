@@ -313,7 +313,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode, end_g
     c0 = contact0(p)
     for k in range(unit_count(p)):
         if k >= c0 and formed[k] == 0:
-            continue  # a contact neither touching nor closing within the step (near_contacts): its rows are 0
+            continue  # a contact neither touching nor closing within the step: its rows are not formed
         u = unit_at(p, k)
         kind = int(p[u + U_KIND])
         r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])

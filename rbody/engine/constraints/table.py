@@ -471,7 +471,6 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
             hulls.append(packed)
             end += packed.size
         records[index][field_at] = offset + placed[shape_name]
-    hulls_end = end
     pair_records, geom_records = _broad_phase_records(pairs, records, offset)
     block = np.zeros(end + pair_records.size + geom_records.size)
     block[[C_UNITS, C_ROWS, C_UNIT, C_MODE]] = count, rows, offset + C_HEADER, offset + C_HEADER + UNIT_SIZE * count
@@ -479,7 +478,7 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
                                                              offset + end + pair_records.size)
     block[C_HEADER:C_HEADER + UNIT_SIZE * count] = np.concatenate(records)
     if hulls:
-        block[C_HEADER + UNIT_SIZE * count + count:hulls_end] = np.concatenate(hulls)
+        block[C_HEADER + UNIT_SIZE * count + count:end] = np.concatenate(hulls)
     block[end:end + pair_records.size] = pair_records
     block[end + pair_records.size:] = geom_records
     mode0 = np.array([1.0 if unit.code in EQUALITY_KINDS else 0.0 for unit in units])

@@ -26,51 +26,48 @@ from numba import njit
 from rbody.engine.contacts.geometry import BOX, MESH, PLANE, bounding_radius
 from rbody.engine.contacts.kinematics import _geom_centre, clearance, point_velocity
 from rbody.engine.contacts.terrain import HFIELD
-from rbody.engine.elements import X_BLOCK, extension_start
+from rbody.engine.elements import block_offset
 from rbody.engine.multibody import _views
-from rbody.engine.constraints.table import (C_CONTACT0, C_GEOM, C_GEOMS, C_PAIR, C_PAIRS, C_ROWS, C_UNIT, G_BODY, G_POSE,
-                                            G_TYPE, GEOM_SIZE, P_GEOM_A, P_GEOM_B, P_MARGIN, P_ROW, P_SLOTS, P_UNIT,
-                                            P_WIDTH, PAIR_SIZE, UNIT_SIZE)
+from rbody.engine.constraints.table import (C_CONTACT0, C_GEOM, C_GEOMS, C_PAIR, C_PAIRS, C_ROWS, C_UNIT, G_BODY,
+                                            G_POSE, G_TYPE, GEOM_SIZE, P_GEOM_A, P_GEOM_B, P_MARGIN, P_ROW, P_SLOTS,
+                                            P_UNIT, P_WIDTH, PAIR_SIZE, U_GMAT_A, U_GPOS_A, U_GSIZE_A, UNIT_SIZE)
 
 # a geom's sphere (geom_spheres): centre (3) [m], the centre's velocity (3) [m/s], |omega| [rad/s], bounding radius
 # [m], a plane's outward normal (3)
 S_CENTRE, S_VELOCITY, S_SPIN, S_RADIUS, S_NORMAL = 0, 3, 6, 7, 8
 SPHERE_SIZE = 11
-
-
-@njit(cache=True, inline="always")
-def _block(p):
-    return int(p[extension_start(p) + X_BLOCK])
+# a geom record's pose points at its position in a unit record; its axes (row-major) and size follow there
+AXES_AT, SIZE_AT = U_GMAT_A - U_GPOS_A, U_GSIZE_A - U_GPOS_A
 
 
 @njit(cache=True, inline="always")
 def contact0(p):
     """The first contact unit (every unit before it is a limit, friction or an equality; the unit count if none)."""
-    return int(p[_block(p) + C_CONTACT0])
+    return int(p[block_offset(p) + C_CONTACT0])
 
 
 @njit(cache=True, inline="always")
 def contact_row0(p):
     """The first contact row (the rows of the units before the contacts are those below it)."""
     if pair_count(p) == 0:
-        return int(p[_block(p) + C_ROWS])
+        return int(p[block_offset(p) + C_ROWS])
     return int(p[pair_at(p, 0) + P_ROW])
 
 
 @njit(cache=True, inline="always")
 def pair_count(p):
-    return int(p[_block(p) + C_PAIRS])
+    return int(p[block_offset(p) + C_PAIRS])
 
 
 @njit(cache=True, inline="always")
 def pair_at(p, i):
     """Offset of pair i's record in the params row."""
-    return int(p[_block(p) + C_PAIR]) + i * PAIR_SIZE
+    return int(p[block_offset(p) + C_PAIR]) + i * PAIR_SIZE
 
 
 @njit(cache=True, inline="always")
 def geom_count(p):
-    return int(p[_block(p) + C_GEOMS])
+    return int(p[block_offset(p) + C_GEOMS])
 
 
 @njit(cache=True, inline="always")
@@ -83,7 +80,7 @@ def pair_span(p, at):
 @njit(cache=True, inline="always")
 def first_unit_at(p, at):
     """Offset of the unit record of the pair at `at`'s first candidate."""
-    return int(p[_block(p) + C_UNIT]) + int(p[at + P_UNIT]) * UNIT_SIZE
+    return int(p[block_offset(p) + C_UNIT]) + int(p[at + P_UNIT]) * UNIT_SIZE
 
 
 @njit(cache=True)
@@ -92,22 +89,22 @@ def geom_spheres(p, w, h, spheres):
     workspace w: its centre in the world, its radius (geometry.bounding_radius; +inf for a plane or a height field),
     a plane's normal (its third axis) and, for h > 0, the centre's velocity and |omega| of its body (the workspace's
     velocities; the world's: 0)."""
-    start = int(p[_block(p) + C_GEOM])
+    start = int(p[block_offset(p) + C_GEOM])
     ws = _views(p, w)
     for i in range(geom_count(p)):
         at = start + i * GEOM_SIZE
         body, kind, pose = int(p[at + G_BODY]), int(p[at + G_TYPE]), int(p[at + G_POSE])
         centre = spheres[i, S_CENTRE:S_CENTRE + 3]
         _geom_centre(p, w, body, pose, centre)
-        spheres[i, S_RADIUS] = bounding_radius(kind, p, pose + 12)  # the pose's position (3), axes (9), size
+        spheres[i, S_RADIUS] = bounding_radius(kind, p, pose + SIZE_AT)
         if kind == PLANE:  # its normal: the geom's third axis in the world (geom_pose's, in its order)
             for a in range(3):
                 if body < 0:
-                    spheres[i, S_NORMAL + a] = p[pose + 3 + 3 * a + 2]
+                    spheres[i, S_NORMAL + a] = p[pose + AXES_AT + 3 * a + 2]
                 else:
                     value = 0.0
                     for e in range(3):
-                        value += ws.xmat[body, a, e] * p[pose + 3 + 3 * e + 2]
+                        value += ws.xmat[body, a, e] * p[pose + AXES_AT + 3 * e + 2]
                     spheres[i, S_NORMAL + a] = value
         if h > 0.0:
             point_velocity(p, w, body, centre, spheres[i, S_VELOCITY:S_VELOCITY + 3])
@@ -125,7 +122,7 @@ def pair_reach(p, w, at, h, spheres, work):
     (geom_spheres at this h and workspace), to the bit; clearance itself where the spheres do not part a pair with
     a box or a mesh, or for a height field. work: scratch of rows.GEOMETRY_WORK floats."""
     ga, gb = int(p[at + P_GEOM_A]), int(p[at + P_GEOM_B])
-    start = int(p[_block(p) + C_GEOM])
+    start = int(p[block_offset(p) + C_GEOM])
     ta = int(p[start + ga * GEOM_SIZE + G_TYPE])
     tb = int(p[start + gb * GEOM_SIZE + G_TYPE])
     if ta == HFIELD:
@@ -152,5 +149,5 @@ def pair_reach(p, w, at, h, spheres, work):
     return apart - motion - p[at + P_MARGIN], motion
 
 
-__all__ = ["contact0", "contact_row0", "pair_count", "pair_at", "geom_count", "pair_span", "first_unit_at", "geom_spheres",
-           "pair_reach", "SPHERE_SIZE"]
+__all__ = ["contact0", "contact_row0", "pair_count", "pair_at", "geom_count", "pair_span", "first_unit_at",
+           "geom_spheres", "pair_reach", "SPHERE_SIZE"]

@@ -10,7 +10,8 @@ from rbody.engine import multibody as mb
 from rbody.engine.constraints import dynamics as dyn
 from rbody.engine.constraints.jacobians import row_count, unit_at, unit_count
 from rbody.engine.constraints.stepping import MoreauRun
-from rbody.engine.constraints.table import (C_GEOM, CONTACT_KINDS, GEOM_SIZE, P_GEOM_A, P_GEOM_B, PAIR_SIZE,
+from rbody.engine.constraints.table import (C_GEOM, CONTACT_KINDS, GEOM_SIZE, P_GEOM_A, P_GEOM_B, P_MARGIN,
+                                            PAIR_SIZE,
                                             U_BODY1, U_BODY2, U_DOF, U_GPOS_A, U_GPOS_B, U_GSIZE_A, U_GSIZE_B,
                                             U_GTYPE_A, U_GTYPE_B, U_KIND, U_MARGIN, U_ROW0, U_ROWS, UNIT_SIZE)
 from rbody.engine.contacts.broadphase import (SPHERE_SIZE, contact0, contact_row0, first_unit_at, geom_count,
@@ -94,7 +95,7 @@ def test_the_table_lists_each_pair_once_with_its_candidates_rows_and_geoms(model
             assert np.array_equal(p[int(pose):int(pose) + 15], record[pos_at:pos_at + 15])
             key = (body, kind, tuple(record[pos_at:pos_at + 15]))
             assert geoms.setdefault(key, g) == g  # one record per geom
-        assert p[pair_at(p, i) + 6] == record[U_MARGIN]
+        assert p[pair_at(p, i) + P_MARGIN] == record[U_MARGIN]
     assert covered == list(range(first_contact, unit_count(p)))  # every contact unit in exactly one pair
     assert geom_count(p) == len(geoms) == 10  # floor, terrain, arm, ball, rod, crate, lid, drum, egg, brick
     assert pair_at(p, 1) - pair_at(p, 0) == PAIR_SIZE
