@@ -38,6 +38,7 @@ INNER_STEPS = 50
 BLOCK_RTOL = 1e-10  # a tangent pair's 2 x 2 block with det below this of a c is solved by its steps
 ROUND_OFF = 64 * np.finfo(np.float64).eps  # a residual this small relative to the velocities' terms (magnitude):
                                            # solved to round-off
+QP_STALL = 1e-13  # sticking_qp: a fall of q below this relative to |q| is round-off
 
 
 @njit(cache=True, inline="always")
@@ -78,9 +79,13 @@ def _tangent_step_size(W, i):
 @njit(cache=True)
 def cone_residual(W, b, lo, hi, role, mu, lam):
     """The natural residual of the problem (module docstring) at lam: max over rows of W_ii |lambda_i -
-    clamp(lambda_i - w_i / W_ii)| and over tangent pairs of s |lambda_t - P_disc(lambda_t - w_t / s)|."""
+    clamp(lambda_i - w_i / W_ii)| and over tangent pairs of s |lambda_t - P_disc(lambda_t - w_t / s)|; inf where an
+    impulse or a velocity is not finite."""
     m = b.shape[0]
     w = b + W @ lam
+    for i in range(m):  # (max below passes over a NaN: a finish that broke down is no solution)
+        if not (np.isfinite(lam[i]) and np.isfinite(w[i])):
+            return np.inf
     worst = 0.0
     for i in range(m):
         if is_disc(role[i]):
@@ -403,8 +408,16 @@ def sticking_qp(W, b, lo, hi, role, mu, lam):
     for i in range(m):
         held[i] = x[i] == lo[i] or x[i] == hi[i]
     free = np.empty(m, dtype=np.int64)
+    least, stalled = np.inf, 0
     for _iteration in range(6 * m + 10):
         g = b + W @ x  # the gradient: the rows' velocities w
+        value = 0.5 * (x @ (g + b))  # q(x): it falls at every step that is not degenerate; 2 m steps in a row that
+        if value < least - QP_STALL * abs(value):  # leave it within round-off are a cycle of releases and zero-length
+            least, stalled = value, 0               # steps (a quadruped's feet rolling at their limits: to the cap of
+        else:                                       # 6 m + 10 steps, 20 ms, at one q to 1e-15)
+            stalled += 1
+            if stalled > 2 * m:
+                break
         k = 0
         for i in range(m):
             if not held[i]:
@@ -653,6 +666,11 @@ def stick_polish(W, b, lo, hi, role, mu, lam, rounds):
     r = np.empty(k)
     weights = np.empty(k)
     for _round in range(rounds):
+        pushing = True  # a round left a contact pulling (its normal <= 0): no sticking solution here, and no weight
+        for a in range(k):
+            pushing = pushing and (owner[a] < 0 or trial[owner[a]] > 0.0)
+        if not pushing:
+            break
         for a in range(k):
             acc = b[rows[a]]
             for j in range(m):

@@ -40,7 +40,8 @@ from rbody.engine.contacts.broadphase import (SPHERE_SIZE, contact0, contact_row
                                              geom_spheres, pair_at, pair_count, pair_reach, pair_span)
 from rbody.engine.contacts.rows import (GEOMETRY_WORK, candidate, exact_within, forget_geometry, keep_geometry,
                                        pair_candidates)
-from rbody.engine.constraints.solver import RANK_RTOL, lower_solve, lower_solve_rows, symmetric_solve, upper_solve
+from rbody.engine.constraints.solver import (RANK_RTOL, cholesky_factor, lower_solve, lower_solve_rows,
+                                            symmetric_solve, upper_solve)
 from rbody.engine.constraints.sliding import general_held_solve, sliding_columns
 from rbody.engine.constraints.table import (CONE, CONNECT, CONTACT, CONTACT1, COUPLING, FRICTION, LOWER,
                                             TENDON_EQUALITY, TENDON_FRICTION, TENDON_LOWER, TENDON_UPPER, U_BOUND,
@@ -179,28 +180,6 @@ def held_rows(p, rows_held):
         if on:
             count += r
     return count
-
-
-@njit(cache=True)
-def cholesky_factor(A, L, rtol, atol=0.0):
-    """L (m, m) <- the lower Cholesky factor of the symmetric A (m, m) when every pivot exceeds rtol times its diagonal
-    entry and atol (rtol = atol = 0: A positive definite), returning True; False (L partly written) otherwise."""
-    m = A.shape[0]
-    for i in range(m):
-        for j in range(m):
-            L[i, j] = 0.0
-    for i in range(m):
-        for j in range(i + 1):
-            acc = A[i, j]
-            for k in range(j):
-                acc -= L[i, k] * L[j, k]
-            if i == j:
-                if not (acc > rtol * A[i, i] and acc > atol):
-                    return False
-                L[i, i] = np.sqrt(acc)
-            else:
-                L[i, j] = acc / L[j, j]
-    return True
 
 
 @njit(cache=True)

@@ -57,6 +57,28 @@ def lower_solve(L, b):
 
 
 @njit(cache=True)
+def cholesky_factor(A, L, rtol, atol=0.0):
+    """L (m, m) <- the lower Cholesky factor of the symmetric A (m, m) when every pivot exceeds rtol times its diagonal
+    entry and atol (rtol = atol = 0: A positive definite), returning True; False (L partly written) otherwise."""
+    m = A.shape[0]
+    for i in range(m):
+        for j in range(m):
+            L[i, j] = 0.0
+    for i in range(m):
+        for j in range(i + 1):
+            acc = A[i, j]
+            for k in range(j):
+                acc -= L[i, k] * L[j, k]
+            if i == j:
+                if not (acc > rtol * A[i, i] and acc > atol):
+                    return False
+                L[i, i] = np.sqrt(acc)
+            else:
+                L[i, j] = acc / L[j, j]
+    return True
+
+
+@njit(cache=True)
 def lower_solve_rows(L, J, index, m):
     """A (n, m) = L^-1 J[index[:m]]^T for a lower-triangular L (n, n) and rows J (rows, n): column c is what
     lower_solve(L, J[index[c]]) gives, to the bit (each entry's sum in the same order), but forward substitution
@@ -263,5 +285,5 @@ def mlcp_pgs(W, b, lo, hi, lam, tolerance, max_sweeps):
     return max_sweeps, residual
 
 
-__all__ = ["lower_solve", "upper_solve", "natural_residual", "symmetric_solve", "mlcp_exact", "mlcp_exact_from",
+__all__ = ["cholesky_factor", "lower_solve", "upper_solve", "natural_residual", "symmetric_solve", "mlcp_exact", "mlcp_exact_from",
            "mlcp_pgs", "clamp", "RANK_RTOL", "UNBOUNDED"]

@@ -62,8 +62,9 @@ from rbody.engine.contacts.rows import (GEOMETRY_WORK, candidate, kept_candidate
 from rbody.engine.multibody import _effective_qpos
 from rbody.engine.constraints.cone import (NORMAL, ROLL, ROUND_OFF, ROW, SPIN, TANGENT, cone_pgs, cone_polish,
                                            follow_drift, magnitude, slide_polish, stick_polish, sticking_qp)
-from rbody.engine.constraints.solver import (RANK_RTOL, lower_solve_rows, mlcp_exact_from, mlcp_pgs,
-                                             natural_residual)
+from rbody.engine.constraints.interior import interior_finish
+from rbody.engine.constraints.solver import (RANK_RTOL, cholesky_factor, lower_solve_rows, mlcp_exact_from,
+                                             mlcp_pgs, natural_residual)
 from rbody.engine.constraints.table import (C_HEADER, CONE, CONNECT, CONTACT, CONTACT1, CONTACT_KINDS, COUPLING,
                                             FRICTION, FRICTION_KINDS, LOWER, TENDON_EQUALITY, TENDON_FRICTION,
                                             TENDON_LOWER, TENDON_UPPER, U_BODY1, U_BODY2, U_BOUND, U_KIND,
@@ -77,6 +78,7 @@ EXACT_ROWS = 64          # a step's problem with at most this many rows is solve
 STEP_TOLERANCE = 1e-10   # natural residual of PGS, relative to max(|b|, 1) [m/s or rad/s]
 PGS_SWEEPS = 2000
 CONE_ROUND = 50          # Gauss-Seidel sweeps between two exact finishes of a problem with contacts' cones
+INTERIOR_AFTER = 2       # rounds of those before each further round also finishes from inside (interior_finish)
 TOUCH_TOLERANCE = 1e-10  # [m or rad]
 FLAGGED_GAP = TOUCH_TOLERANCE * 1e-3  # a stop or contact within this after a step (and pushing) is projected onto
 PROJECTION_ROUNDS = 6    # projections after a step, each with the stops the last one pushed past
@@ -111,8 +113,8 @@ def mujoco_free_velocity(p, y, h, mode, M, f, vfree, L):
     for a in range(nv):
         for c in range(nv):
             metric[a, c] = 0.5 * (H[a, c] + H[c, a])
-    if not dyn.cholesky_factor(metric, L, 0.0, 0.0):
-        dyn.cholesky_factor(M, L, 0.0, 0.0)
+    if not cholesky_factor(metric, L, 0.0, 0.0):
+        cholesky_factor(M, L, 0.0, 0.0)
     rhs = f.copy()
     qacc = np.empty(nv)
     solve_general(H, rhs, qacc, nv)
@@ -142,9 +144,13 @@ def cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
     from lam; some sticking contacts made to slide; a crawl along dependent rows taken to its end), until the
     residual is 1e-3 of `tolerance`, or `sweeps` are spent, or a round within `tolerance` moves nothing (each after
     it would be the same); a start that already solves it (the last step's impulses, themselves finished) is kept,
-    after one sweep. Returns the residual."""
+    after one sweep. From the INTERIOR_AFTER-th round on, each round still above `tolerance` also solves Tresca's
+    problem from inside and finishes from its states (interior_finish: where dependent rows leave Gauss-Seidel
+    crawling along W's null space), kept where that lowers the residual. Returns the residual."""
     done = 0
+    rounds = 0
     residual = np.inf
+    normals = lam[:0]  # the interior finish's radii (its last barrier's impulses), from its first round on
     while done < sweeps:
         spent, residual = cone_pgs(W, b, lo, hi, role, mu, lam, tolerance, min(CONE_ROUND, sweeps - done))
         done += max(spent, 1)
@@ -171,6 +177,18 @@ def cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
             break
         if spent == 0 and np.array_equal(lam, unswept):  # within `tolerance`, and neither Gauss-Seidel nor a finish
             break                                         # moved lam: every round after would repeat this one
+        rounds += 1
+        if rounds >= INTERIOR_AFTER and residual > tolerance:  # Gauss-Seidel crawls (dependent rows): Tresca's
+            # problem from inside (not to go on from the step's tolerance to the rounds' 1e-3 of it), its
+            if normals.size == 0:  # normals the next round's radii (rbody.engine.constraints.interior)
+                normals = lam.copy()
+            trial = lam.copy()
+            inside = interior_finish(W, b, lo, hi, role, mu, normals, trial)
+            if inside < residual:
+                lam[:] = trial
+                residual = inside
+                if residual <= 1e-3 * tolerance:
+                    break
     return residual
 
 

@@ -1,0 +1,101 @@
+"""Tresca's problem from inside (rbody.engine.constraints.interior): the log barrier's solution against closed forms,
+the states read from it, and the fixed point on the normals that finishes a crawl of Gauss-Seidel exactly."""
+
+import numpy as np
+import pytest
+
+from rbody.engine.constraints.cone import (NORMAL, ROLL, ROLL2, ROW, SPIN, TANGENT, TANGENT2, cone_pgs,
+                                           cone_residual, magnitude)
+from rbody.engine.constraints.interior import friction_radii, interior_finish, snapped, tresca_barrier
+from rbody.engine.constraints.stepping import cone_solve
+
+from tests.rbody.engine.test_cone_drift import BOX, MU, ROLES, crawling_problem
+
+SLIDING = dict(W=np.diag([2.0, 3.0, 3.0]), b=np.array([-1.0, 4.0, -3.0]), role=np.array([NORMAL, TANGENT, TANGENT2]),
+               mu=np.array([0.0, 0.5, 0.0]), lo=np.array([0.0, -np.inf, -np.inf]), hi=np.full(3, np.inf))
+
+
+def sliding_solution():
+    """A contact on its own (W diagonal): lambda_n = -b_n / W_nn = 0.5; its free tangential impulse -b_t / W_tt
+    (|.| = 5/3) is beyond mu lambda_n = 0.25, so it slides: lambda_t = -0.25 b_t / |b_t|."""
+    b = SLIDING["b"]
+    return np.array([0.5, -0.25 * b[1] / np.hypot(b[1], b[2]), -0.25 * b[2] / np.hypot(b[1], b[2])])
+
+
+def test_the_barrier_reaches_a_sliding_contact_and_the_finish_makes_it_exact():
+    exact = sliding_solution()
+    p = SLIDING
+    inside, steps = tresca_barrier(p["W"], p["b"], p["lo"], p["hi"], p["role"], p["mu"], exact.copy())
+    assert 0 < steps < 500
+    assert np.hypot(inside[1], inside[2]) < 0.25  # strictly inside the disc (a barrier's iterate)
+    np.testing.assert_allclose(inside, exact, rtol=1e-9, atol=1e-12)  # within t / |w| of the edge
+    lam = np.zeros(3)
+    normals = np.array([0.3, 0.0, 0.0])  # radii from a wrong normal: the next round's come from this one
+    interior_finish(p["W"], p["b"], p["lo"], p["hi"], p["role"], p["mu"], normals, lam)
+    np.testing.assert_allclose(normals[0], 0.5, rtol=1e-9)
+    residual = interior_finish(p["W"], p["b"], p["lo"], p["hi"], p["role"], p["mu"], normals, lam)
+    assert residual <= 1e-15
+    np.testing.assert_allclose(lam, exact, rtol=1e-15, atol=1e-16)
+
+
+def test_friction_radii_follow_the_normals():
+    role = np.array([NORMAL, TANGENT, TANGENT2, SPIN, ROLL, ROLL2, ROW])
+    mu = np.array([0.0, 0.8, 0.0, 0.02, 0.01, 0.0, 0.0])
+    radius = friction_radii(role, mu, np.array([2.0, 9, 9, 9, 9, 9, 9]))
+    np.testing.assert_array_equal(radius, [0.0, 1.6, 0.0, 0.04, 0.02, 0.0, 0.0])
+    assert not friction_radii(role, mu, np.array([-1.0, 9, 9, 9, 9, 9, 9])).any()  # a pulling normal: no set
+
+
+def test_snapped_puts_near_impulses_on_their_bounds_only():
+    role = np.array([ROW, NORMAL, TANGENT, TANGENT2, SPIN])
+    mu = np.array([0.0, 0.0, 0.5, 0.0, 0.1])
+    lo = np.array([-1.0, 0.0, -np.inf, -np.inf, -np.inf])
+    hi = np.array([1.0, np.inf, np.inf, np.inf, np.inf])
+    lam = np.array([1.0 - 1e-7, 2.0, 0.6 * (1 - 1e-7), 0.8 * (1 - 1e-7), -0.2 * (1 - 1e-3)])
+    x = snapped(role, mu, lo, hi, lam, 1e-5)
+    assert x[0] == 1.0                       # within 1e-5 of its box's width 2
+    assert x[1] == 2.0                       # a pushing normal stays
+    assert np.hypot(x[2], x[3]) == pytest.approx(1.0, rel=1e-15)  # on the disc's edge mu lambda_n
+    assert x[4] == lam[4]                    # 1e-3 from its end: left inside
+    assert snapped(role, mu, lo, hi, lam, 1e-2)[4] == -0.2  # within 1e-2: on its end mu_s lambda_n
+
+
+def round_off(W, b, lam):
+    return 64 * np.finfo(float).eps * magnitude(W, b, lam)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_the_interior_finish_solves_a_crawl_at_once(seed):
+    """The crawl of test_cone_drift (a pair of friction rows along W's null space beside a contact at its spin and
+    rolling limits, its tangents sticking): from 50 sweeps of Gauss-Seidel (residual 1e-7, thousands of sweeps from
+    the bound), one round of the interior finish solves it to round-off."""
+    W, b, lo, hi = crawling_problem(seed)
+    lam = np.zeros(8)
+    cone_pgs(W, b, lo, hi, ROLES, MU, lam, 0.0, 50)
+    assert cone_residual(W, b, lo, hi, ROLES, MU, lam) > 1e-9
+    residual = interior_finish(W, b, lo, hi, ROLES, MU, lam.copy(), lam)
+    assert residual <= round_off(W, b, lam)
+    assert residual == cone_residual(W, b, lo, hi, ROLES, MU, lam)
+    w = W @ lam + b
+    assert lam[0] == -BOX and w[0] > 0.0  # the lower row on its bound, as the closed form of test_cone_drift has it
+
+
+def test_a_contact_sliding_tangentially_is_left_to_gauss_seidel():
+    """Seed 0's contact slides (0.12 m/s) on its cone's edge: the barrier's states are right, but cone_polish's fixed
+    point on the sliding direction stalls at 5e-7 (a limit of the finish, recorded here); the next 100 sweeps of the
+    step's solver take it to round-off from there (from Gauss-Seidel's own iterate: thousands)."""
+    W, b, lo, hi = crawling_problem(0)
+    lam = np.zeros(8)
+    cone_pgs(W, b, lo, hi, ROLES, MU, lam, 0.0, 50)
+    residual = interior_finish(W, b, lo, hi, ROLES, MU, lam.copy(), lam)
+    assert 1e-9 < residual < 1e-5
+    assert np.hypot(lam[3], lam[4]) == pytest.approx(MU[3] * lam[2], rel=1e-12)  # on the edge: the state found
+    assert cone_solve(W, b, lo, hi, ROLES, MU, lam, 1e-13, 100) <= round_off(W, b, lam)
+
+
+def test_a_residual_of_impulses_that_are_not_finite_is_infinite():
+    """A finish that breaks down (NaN impulses) is not taken for a solution: max passes over NaN, so the residual
+    would read 0."""
+    p = SLIDING
+    lam = np.array([np.nan, 0.0, 0.0])
+    assert cone_residual(p["W"], p["b"], p["lo"], p["hi"], p["role"], p["mu"], lam) == np.inf
