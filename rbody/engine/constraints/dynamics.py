@@ -587,10 +587,11 @@ def state_gaps(p, y, g, beyond=np.inf, kept=None, least=None):
         exact = exact_within(p, u, count, work, beyond)
         lowest = np.inf
         for j in range(slots):
-            g[row0 + j * width] = candidate(work, j, normal, point)
-            lowest = min(lowest, g[row0 + j * width])
+            row = row0 + j * width
+            g[row] = candidate(work, j, normal, point)
+            lowest = min(lowest, g[row])
             if kept is not None:
-                keep_geometry(kept, nq, first + j, exact, g[row0 + j * width], normal, point)
+                keep_geometry(kept, nq, first + j, exact, g[row], normal, point)
         if least is not None:
             least[i] = lowest
 

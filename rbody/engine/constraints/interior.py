@@ -209,7 +209,8 @@ def tresca_barrier(W, b, lo, hi, role, mu, normals):
                 gb[:] = 0.0
                 Hb[:, :] = 0.0
                 barrier = _barrier(trial, role, lo, hi, radius, gb, Hb)
-                if barrier < np.inf and 0.5 * (trial @ (W @ trial)) + b @ trial + t * barrier <= start - 0.25 * a * decrement:
+                if barrier < np.inf and (0.5 * (trial @ (W @ trial)) + b @ trial + t * barrier
+                                         <= start - 0.25 * a * decrement):
                     break
                 a *= 0.5
             if not a > 1e-16:

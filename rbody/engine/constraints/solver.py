@@ -285,5 +285,5 @@ def mlcp_pgs(W, b, lo, hi, lam, tolerance, max_sweeps):
     return max_sweeps, residual
 
 
-__all__ = ["cholesky_factor", "lower_solve", "upper_solve", "natural_residual", "symmetric_solve", "mlcp_exact", "mlcp_exact_from",
-           "mlcp_pgs", "clamp", "RANK_RTOL", "UNBOUNDED"]
+__all__ = ["cholesky_factor", "lower_solve", "upper_solve", "natural_residual", "symmetric_solve", "mlcp_exact",
+           "mlcp_exact_from", "mlcp_pgs", "clamp", "RANK_RTOL", "UNBOUNDED"]

@@ -472,9 +472,10 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
             end += packed.size
         records[index][field_at] = offset + placed[shape_name]
     pair_records, geom_records = _broad_phase_records(pairs, records, offset)
+    geom_count = geom_records.size // GEOM_SIZE
     block = np.zeros(end + pair_records.size + geom_records.size)
     block[[C_UNITS, C_ROWS, C_UNIT, C_MODE]] = count, rows, offset + C_HEADER, offset + C_HEADER + UNIT_SIZE * count
-    block[[C_CONTACT0, C_PAIRS, C_PAIR, C_GEOMS, C_GEOM]] = (contact0, len(pairs), offset + end, geom_records.size // GEOM_SIZE,
+    block[[C_CONTACT0, C_PAIRS, C_PAIR, C_GEOMS, C_GEOM]] = (contact0, len(pairs), offset + end, geom_count,
                                                              offset + end + pair_records.size)
     block[C_HEADER:C_HEADER + UNIT_SIZE * count] = np.concatenate(records)
     if hulls:
@@ -486,7 +487,7 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
     CONSTRAINT_HEADER.check(block, 0, 1)
     UNIT.check(block, C_HEADER, count)
     PAIR.check(block, end, len(pairs))
-    GEOM.check(block, end + pair_records.size, geom_records.size // GEOM_SIZE)
+    GEOM.check(block, end + pair_records.size, geom_count)
     block.setflags(write=False)
     mode0.setflags(write=False)
     # contacts: time-stepping by default (persistent contacts: stacks, feet, grasps), event-driven on request;
@@ -554,7 +555,8 @@ def _broad_phase_records(pairs: list, records: list[np.ndarray], offset: int) ->
     return pair_records, geom_records
 
 
-def _contact_units(layout: Layout, contact, body_index: dict[str, int]) -> tuple[list[tuple[dict, str]], tuple[str, str]]:
+def _contact_units(layout: Layout, contact,
+                   body_index: dict[str, int]) -> tuple[list[tuple[dict, str]], tuple[str, str]]:
     """(the unit records (fields for build_table's add) and names of a Contact's candidates, (geom a's shape name,
     geom b's)): one unit per slot of its pair of geoms (rbody.engine.contacts.geometry.SLOTS), the geoms in MuJoCo's
     order (type codes ascending).

@@ -71,6 +71,12 @@ def geom_count(p):
 
 
 @njit(cache=True, inline="always")
+def geom_at(p, i):
+    """Offset of geom i's record in the params row."""
+    return int(p[block_offset(p) + C_GEOM]) + i * GEOM_SIZE
+
+
+@njit(cache=True, inline="always")
 def pair_span(p, at):
     """(first unit, candidates, first row, rows per candidate) of the pair record at `at`: candidate j is unit
     first + j, its rows from first row + j * rows per candidate."""
@@ -89,10 +95,9 @@ def geom_spheres(p, w, h, spheres):
     workspace w: its centre in the world, its radius (geometry.bounding_radius; +inf for a plane or a height field),
     a plane's normal (its third axis) and, for h > 0, the centre's velocity and |omega| of its body (the workspace's
     velocities; the world's: 0)."""
-    start = int(p[block_offset(p) + C_GEOM])
     ws = _views(p, w)
     for i in range(geom_count(p)):
-        at = start + i * GEOM_SIZE
+        at = geom_at(p, i)
         body, kind, pose = int(p[at + G_BODY]), int(p[at + G_TYPE]), int(p[at + G_POSE])
         centre = spheres[i, S_CENTRE:S_CENTRE + 3]
         _geom_centre(p, w, body, pose, centre)
@@ -122,9 +127,7 @@ def pair_reach(p, w, at, h, spheres, work):
     (geom_spheres at this h and workspace), to the bit; clearance itself where the spheres do not part a pair with
     a box or a mesh, or for a height field. work: scratch of rows.GEOMETRY_WORK floats."""
     ga, gb = int(p[at + P_GEOM_A]), int(p[at + P_GEOM_B])
-    start = int(p[block_offset(p) + C_GEOM])
-    ta = int(p[start + ga * GEOM_SIZE + G_TYPE])
-    tb = int(p[start + gb * GEOM_SIZE + G_TYPE])
+    ta, tb = int(p[geom_at(p, ga) + G_TYPE]), int(p[geom_at(p, gb) + G_TYPE])
     if ta == HFIELD:
         return clearance(p, w, first_unit_at(p, at), h, work)
     a, b = spheres[ga], spheres[gb]
@@ -139,9 +142,9 @@ def pair_reach(p, w, at, h, spheres, work):
     motion = 0.0
     if h > 0.0:
         speed = np.sqrt((b[3] - a[3]) ** 2 + (b[4] - a[4]) ** 2 + (b[5] - a[5]) ** 2)
-        if int(p[start + ga * GEOM_SIZE + G_BODY]) >= 0:
+        if int(p[geom_at(p, ga) + G_BODY]) >= 0:
             speed += a[S_SPIN] * radius_a
-        if int(p[start + gb * GEOM_SIZE + G_BODY]) >= 0:
+        if int(p[geom_at(p, gb) + G_BODY]) >= 0:
             speed += b[S_SPIN] * radius_b
         motion = h * speed
     if apart - motion <= 1e-9 and ta != PLANE and (ta == BOX or tb == BOX or tb == MESH):
@@ -149,5 +152,5 @@ def pair_reach(p, w, at, h, spheres, work):
     return apart - motion - p[at + P_MARGIN], motion
 
 
-__all__ = ["contact0", "contact_row0", "pair_count", "pair_at", "geom_count", "pair_span", "first_unit_at",
+__all__ = ["contact0", "contact_row0", "pair_count", "pair_at", "geom_count", "geom_at", "pair_span", "first_unit_at",
            "geom_spheres", "pair_reach", "SPHERE_SIZE"]

@@ -200,4 +200,5 @@ def contact_geometry(p, w, u, normal, point, work=None):
 
 
 __all__ = ["geom_pose", "contact_geometry", "pair_candidates", "candidate", "exact_within", "hull_at", "field_at",
-           "GEOMETRY_WORK", "KEPT", "kept_geometry_size", "keep_geometry", "forget_geometry", "kept_for", "kept_exact", "kept_candidate"]
+           "GEOMETRY_WORK", "KEPT", "kept_geometry_size", "keep_geometry", "forget_geometry", "kept_for", "kept_exact",
+           "kept_candidate"]
