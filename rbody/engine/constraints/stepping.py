@@ -61,7 +61,8 @@ from rbody.engine.contacts.rows import (GEOMETRY_WORK, candidate, kept_candidate
                                         kept_geometry_size, pair_candidates)
 from rbody.engine.multibody import _effective_qpos
 from rbody.engine.constraints.cone import (NORMAL, ROLL, ROUND_OFF, ROW, SPIN, TANGENT, cone_pgs, cone_polish,
-                                           follow_drift, magnitude, slide_polish, stick_polish, sticking_qp)
+                                           follow_drift, hold_states, inside_cones, magnitude, slide_polish,
+                                           stick_polish, sticking_qp)
 from rbody.engine.constraints.interior import interior_finish
 from rbody.engine.constraints.solver import (RANK_RTOL, cholesky_factor, lower_solve_rows, mlcp_exact_from,
                                              mlcp_pgs, natural_residual)
@@ -123,21 +124,6 @@ def mujoco_free_velocity(p, y, h, mode, M, f, vfree, L):
 
 
 @njit(cache=True)
-def _inside_cones(role, mu, lam):
-    """True when every contact's friction impulses lie strictly inside their bounds (a relative 1e-9 within)."""
-    for i in range(lam.shape[0]):
-        if role[i] == TANGENT or role[i] == ROLL:
-            size = np.sqrt(lam[i] * lam[i] + lam[i + 1] * lam[i + 1])
-        elif role[i] == SPIN:
-            size = abs(lam[i])
-        else:
-            continue
-        if size > 0.0 and size >= (1.0 - 1e-9) * mu[i] * lam[i - (role[i] - NORMAL)]:
-            return False
-    return True
-
-
-@njit(cache=True)
 def cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
     """The step's problem with contacts' cones (rbody.engine.constraints.cone) from lam (a start, solved in place):
     CONE_ROUND Gauss-Seidel sweeps at a time, each round finished exactly (every contact sticking; the states read
@@ -156,11 +142,12 @@ def cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
         done += max(spent, 1)
         if spent == 0 and residual <= 1e-3 * tolerance:  # the start (the last step's finished impulses: a body at
             trial = lam.copy()  # rest, a ball rolling) may solve it: one sweep takes up the round-off its
-            _spent, swept = cone_pgs(W, b, lo, hi, role, mu, trial, 0.0, 1)  # velocities gathered since; kept
-            if swept <= ROUND_OFF * magnitude(W, b, trial) and _inside_cones(role, mu, trial):  # where that is
-                # round-off and no contact is at its cone's edge (there sliding at any speed is Coulomb's too: the
-                # finishes below choose sticking), else finished below
-                lam[:] = trial
+            _spent, swept = cone_pgs(W, b, lo, hi, role, mu, trial, 0.0, 1)  # velocities gathered since, or
+            if swept > ROUND_OFF * magnitude(W, b, trial):  # where dependent rows leave a sweep above it (condim 6
+                trial[:] = lam  # feet), Newton's step on the start's states; kept where that is round-off and no
+                swept = hold_states(W, b, lo, hi, role, mu, trial)  # contact is at its cone's edge (there sliding
+            if swept <= ROUND_OFF * magnitude(W, b, trial) and inside_cones(role, mu, trial):  # at any speed is
+                lam[:] = trial  # Coulomb's too: the finishes below choose sticking), else finished below
                 residual = swept
                 break
         unswept = lam.copy() if spent == 0 else lam[:0]  # (Gauss-Seidel stops at `tolerance`: nothing to do)

@@ -12,8 +12,9 @@ speed at which any two of their points approach,
 (a plane: the sphere's height above it in place of the distance, r_a = 0). Here each geom's centre c, its
 velocity v, |w| and radius r are found once per call (geom_spheres, G geoms), and a pair's bound is then a few
 operations on its two geoms' (pair_reach): the numbers clearance gives, in the same order of operations, so the
-same bits. Where the spheres do not part a pair with a box or a mesh (a long box's sphere reaches far beyond it:
-clearance's face axes may) or a height field's, clearance itself answers. A pair found far costs this, and no read
+same bits. Where the spheres do not part a pair (a long box's sphere reaches far beyond it, two legs side by side
+overlap theirs) and the geoms' axes may (clearance: the separating axes, or the lowest point above a plane), or for
+a height field, clearance itself answers. A pair found far costs this, and no read
 of its candidates' unit records: a quadruped's 7,792 candidates come in 592 pairs of 44 geoms, and a walk over
 every unit record (5 MB) costs more than all of these tests.
 """
@@ -23,8 +24,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from rbody.engine.contacts.geometry import BOX, MESH, PLANE, bounding_radius
-from rbody.engine.contacts.kinematics import _geom_centre, clearance, point_velocity
+from rbody.engine.contacts.geometry import PLANE, bounding_radius
+from rbody.engine.contacts.kinematics import _geom_centre, clearance, needs_axes, point_velocity
 from rbody.engine.contacts.terrain import HFIELD
 from rbody.engine.elements import block_offset
 from rbody.engine.multibody import _views
@@ -124,8 +125,8 @@ def geom_spheres(p, w, h, spheres):
 def pair_reach(p, w, at, h, spheres, work):
     """(reach, motion) of the pair record at `at` over the next h [s]: clearance's lower bound [m] on the gap of
     every candidate of the pair and h times its bound on their approach speed [m], from the geoms' spheres
-    (geom_spheres at this h and workspace), to the bit; clearance itself where the spheres do not part a pair with
-    a box or a mesh, or for a height field. work: scratch of rows.GEOMETRY_WORK floats."""
+    (geom_spheres at this h and workspace), to the bit; clearance itself where the spheres do not part a pair whose
+    axes may (kinematics.needs_axes), or for a height field. work: scratch of rows.GEOMETRY_WORK floats."""
     ga, gb = int(p[at + P_GEOM_A]), int(p[at + P_GEOM_B])
     ta, tb = int(p[geom_at(p, ga) + G_TYPE]), int(p[geom_at(p, gb) + G_TYPE])
     if ta == HFIELD:
@@ -147,8 +148,8 @@ def pair_reach(p, w, at, h, spheres, work):
         if int(p[geom_at(p, gb) + G_BODY]) >= 0:
             speed += b[S_SPIN] * radius_b
         motion = h * speed
-    if apart - motion <= 1e-9 and ta != PLANE and (ta == BOX or tb == BOX or tb == MESH):
-        return clearance(p, w, first_unit_at(p, at), h, work)  # the faces' axes may part them
+    if apart - motion <= 1e-9 and needs_axes(ta, tb):
+        return clearance(p, w, first_unit_at(p, at), h, work)  # the geoms' axes may part them
     return apart - motion - p[at + P_MARGIN], motion
 
 

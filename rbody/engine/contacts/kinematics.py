@@ -277,23 +277,52 @@ def _support_radius(kind, R, size, l0, l1, l2):
             + abs(l0 * R[0, 1] + l1 * R[1, 1] + l2 * R[2, 1]) * size[1] + along * size[2])
 
 
+@njit(cache=True, inline="always")
+def _axis_gap(ta, pa, Ra, sa, tb, pb, Rb, sb, l0, l1, l2):
+    """The gap [m] between the projections of two geoms onto the unit axis l: at most their distance."""
+    return (abs(l0 * (pb[0] - pa[0]) + l1 * (pb[1] - pa[1]) + l2 * (pb[2] - pa[2]))
+            - _support_radius(ta, Ra, sa, l0, l1, l2) - _support_radius(tb, Rb, sb, l0, l1, l2))
+
+
 @njit(cache=True)
-def axes_gap(ta, pa, Ra, sa, tb, pb, Rb, sb):
-    """A lower bound [m] on the distance of two geoms (not planes) from their projections onto the face normals of
-    whichever is a box (or a mesh, by the bounding box its size gives): along a unit axis the two project onto
-    intervals, and the gap between them is at most their distance (the separating-axis test's gap). -inf when
-    neither is a box nor a mesh."""
+def separating_gap(ta, pa, Ra, sa, tb, pb, Rb, sb):
+    """A lower bound [m] on the distance of two convex geoms (not planes or height fields; a mesh by the bounding
+    box its size gives) by the separating-axis test: along any unit axis the two project onto intervals, and the
+    gap between them is at most their distance. The axes: the line of centres, each geom's own three (a box's face
+    normals, a capsule's or cylinder's axis and two across it, an ellipsoid's), and the nine cross products of one
+    geom's axes with the other's (two boxes edge to edge: with the faces', the whole test of two oriented boxes;
+    two capsules askew: their common normal). A sphere's axes are any: it adds the line of centres only."""
+    dx, dy, dz = pb[0] - pa[0], pb[1] - pa[1], pb[2] - pa[2]
+    apart = np.sqrt(dx * dx + dy * dy + dz * dz)
     best = -np.inf
+    if apart > 0.0:
+        best = _axis_gap(ta, pa, Ra, sa, tb, pb, Rb, sb, dx / apart, dy / apart, dz / apart)
     for which in range(2):
         kind, R = (ta, Ra) if which == 0 else (tb, Rb)
-        if kind != BOX and kind != MESH:  # a mesh's bounding box (its size) holds it: its axes serve as a box's
+        if kind == SPHERE:
             continue
         for i in range(3):
-            l0, l1, l2 = R[0, i], R[1, i], R[2, i]
-            gap = (abs(l0 * (pb[0] - pa[0]) + l1 * (pb[1] - pa[1]) + l2 * (pb[2] - pa[2]))
-                   - _support_radius(ta, Ra, sa, l0, l1, l2) - _support_radius(tb, Rb, sb, l0, l1, l2))
-            best = max(best, gap)
+            best = max(best, _axis_gap(ta, pa, Ra, sa, tb, pb, Rb, sb, R[0, i], R[1, i], R[2, i]))
+    if ta == SPHERE or tb == SPHERE:
+        return best
+    for i in range(3):
+        for j in range(3):
+            l0 = Ra[1, i] * Rb[2, j] - Ra[2, i] * Rb[1, j]
+            l1 = Ra[2, i] * Rb[0, j] - Ra[0, i] * Rb[2, j]
+            l2 = Ra[0, i] * Rb[1, j] - Ra[1, i] * Rb[0, j]
+            size = np.sqrt(l0 * l0 + l1 * l1 + l2 * l2)
+            if size > 1e-6:  # (parallel axes: the faces' own test holds that direction)
+                best = max(best, _axis_gap(ta, pa, Ra, sa, tb, pb, Rb, sb, l0 / size, l1 / size, l2 / size))
     return best
+
+
+@njit(cache=True, inline="always")
+def needs_axes(ta, tb):
+    """Whether a pair's bounding spheres can be tightened by their axes (clearance): a plane with anything but a
+    sphere (its lowest point), two geoms not both spheres (the separating axes); not a height field's."""
+    if ta == PLANE:
+        return tb != SPHERE
+    return ta != HFIELD and not (ta == SPHERE and tb == SPHERE)
 
 
 @njit(cache=True)
@@ -302,8 +331,9 @@ def clearance(p, w, u, h, work):
     phase): the gap between the two geoms' bounding spheres (a plane and a sphere: the sphere's height above it),
     less h times a bound on the speed at which any point of one approaches any point of the other, |v_b - v_a| at
     the centres plus |omega| times each radius (the workspace's body velocities; h = 0: the gap bound alone). Where
-    that does not part them and one is a box, the gap along its faces' normals, if larger (axes_gap: a long box's
-    bounding sphere reaches far beyond it). Less the pair's margin, as its gaps are.
+    that does not part them and the geoms' axes may (needs_axes: a long box's bounding sphere reaches far beyond it,
+    two legs side by side overlap theirs), the separating axes' gap, or above a plane the height of the geom's
+    lowest point, if larger. Less the pair's margin, as its gaps are.
     > TOUCH_TOLERANCE: no candidate of the pair touches or closes within h, and its distance need not be computed.
     Returns (that bound, motion): motion [m] h times the bound on the approach speed. work: scratch of
     GEOMETRY_WORK floats (contact_geometry's)."""
@@ -348,12 +378,17 @@ def clearance(p, w, u, h, work):
                 omega = ws.vel[body]
                 speed += np.sqrt(omega[0] ** 2 + omega[1] ** 2 + omega[2] ** 2) * radius
         motion = h * speed
-    if apart - motion <= 1e-9 and ta != PLANE and (ta == BOX or tb == BOX or tb == MESH):  # a box's spheres are loose (a long
-        Ra, Rb = work[6:15].reshape((3, 3)), work[15:24].reshape((3, 3))   # box beside another): its faces' axes
-        geom_pose(p, w, body_a, u + U_GPOS_A, u + U_GMAT_A, pa, Ra)
+    if apart - motion <= 1e-9 and needs_axes(ta, tb):  # the spheres are loose (a long box, two legs side by side)
+        Rb = work[15:24].reshape((3, 3))
         geom_pose(p, w, body_b, u + U_GPOS_B, u + U_GMAT_B, pb, Rb)
-        apart = max(apart, axes_gap(ta, pa, Ra, p[u + U_GSIZE_A:u + U_GSIZE_A + 3], tb, pb, Rb,
-                                    p[u + U_GSIZE_B:u + U_GSIZE_B + 3]))
+        sb = p[u + U_GSIZE_B:u + U_GSIZE_B + 3]
+        Ra = work[6:15].reshape((3, 3))  # (a plane's: its pose above)
+        if ta == PLANE:  # b's lowest point along the plane's normal: the gap itself (a mesh: its bounding box's)
+            apart = max(apart, Ra[0, 2] * (pb[0] - pa[0]) + Ra[1, 2] * (pb[1] - pa[1]) + Ra[2, 2] * (pb[2] - pa[2])
+                        - _support_radius(tb, Rb, sb, Ra[0, 2], Ra[1, 2], Ra[2, 2]))
+        else:  # the separating axes' gap
+            geom_pose(p, w, body_a, u + U_GPOS_A, u + U_GMAT_A, pa, Ra)
+            apart = max(apart, separating_gap(ta, pa, Ra, p[u + U_GSIZE_A:u + U_GSIZE_A + 3], tb, pb, Rb, sb))
     return apart - motion - p[u + U_MARGIN], motion
 
 
@@ -482,6 +517,6 @@ def contact_bias(p, w, acc, uo, g, frame, r, jdot, row):
         jdot[row + e] = frame[e, 0] * total[0] + frame[e, 1] * total[1] + frame[e, 2] * total[2]
 
 
-__all__ = ["contact_shape", "contact_bias", "body_motion", "point_velocity", "clearance", "axes_gap", "bounding_radius",
+__all__ = ["contact_shape", "contact_bias", "body_motion", "point_velocity", "clearance", "separating_gap", "needs_axes", "bounding_radius",
            "SHAPE_PLANE",
            "SHAPE_CORES"]

@@ -10,14 +10,17 @@ from rbody.engine import multibody as mb
 from rbody.engine.constraints import dynamics as dyn
 from rbody.engine.constraints.jacobians import row_count, unit_at, unit_count
 from rbody.engine.constraints.stepping import MoreauRun
-from rbody.engine.constraints.table import (C_GEOM, CONTACT_KINDS, GEOM_SIZE, P_GEOM_A, P_GEOM_B, P_MARGIN,
+from rbody.engine.constraints.table import (C_GEOM, CONTACT_KINDS, G_TYPE, GEOM_SIZE, P_GEOM_A, P_GEOM_B, P_MARGIN,
                                             PAIR_SIZE,
                                             U_BODY1, U_BODY2, U_DOF, U_GPOS_A, U_GPOS_B, U_GSIZE_A, U_GSIZE_B,
                                             U_GTYPE_A, U_GTYPE_B, U_KIND, U_MARGIN, U_ROW0, U_ROWS, UNIT_SIZE)
-from rbody.engine.contacts.broadphase import (SPHERE_SIZE, contact0, contact_row0, first_unit_at, geom_count,
-                                              geom_spheres, pair_at, pair_count, pair_reach, pair_span)
+from rbody.engine.contacts.broadphase import (S_NORMAL, S_RADIUS, SPHERE_SIZE, contact0, contact_row0,
+                                              first_unit_at, geom_at, geom_count, geom_spheres, pair_at, pair_count,
+                                              pair_reach, pair_span)
+from rbody.engine.contacts.geometry import TYPE_CODES
 from rbody.engine.contacts.kinematics import clearance
-from rbody.engine.contacts.rows import GEOMETRY_WORK
+from rbody.engine.contacts.terrain import HFIELD
+from rbody.engine.contacts.rows import GEOMETRY_WORK, candidate, pair_candidates
 from rbody.engine.multibody import _effective_qpos
 
 CUBE = " ".join(f"{v:g}" for x in (-0.1, 0.1) for y in (-0.07, 0.07) for z in (-0.05, 0.05) for v in (x, y, z))
@@ -106,7 +109,8 @@ def test_the_table_lists_each_pair_once_with_its_candidates_rows_and_geoms(model
 def test_a_pairs_bound_is_clearances_to_the_bit(model, seed, h):
     """Random configurations and velocities, the bodies gathered near the origin so that some pairs overlap, some
     are near and some far: pair_reach's (reach, motion) from the geoms' spheres equals clearance's, computed from
-    the pair's first unit, exactly (box and mesh pairs hand the near ones to clearance; the rest is one formula)."""
+    the pair's first unit, exactly (pairs whose axes may part them hand the near ones to clearance; the rest is one
+    formula)."""
     _scene, table, p, y0 = model
     rng = np.random.default_rng(seed)
     nq, nv, _n = dyn.sizes(p)
@@ -151,3 +155,47 @@ def test_the_end_gaps_give_each_pairs_least_gap(model):
         tangents = np.delete(g[row0:row0 + slots * width], np.arange(0, slots * width, width))
         assert (tangents == 0.0).all()
     assert (least <= 0.0).any() and (least > 0.0).any()
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_a_pairs_bound_never_exceeds_its_candidates_gaps(model, seed):
+    """Random configurations of the bodies gathered near the origin: clearance's bound (h = 0) is at most every
+    candidate's gap, as the narrow phase computes them; and the geoms' axes (the separating axes, a geom's lowest
+    point above the floor) part pairs without a box whose bounding spheres overlap, which the narrow phase would
+    otherwise pose."""
+    _scene, table, p, y0 = model
+    rng = np.random.default_rng(10 + seed)
+    nq, nv, _n = dyn.sizes(p)
+    parted = 0
+    for _draw in range(10):
+        y = y0.copy()
+        for body in range(7):
+            at = 1 + 7 * body
+            y[at:at + 3] = rng.uniform(-0.4, 0.4, 3) + (0.0, 0.0, 0.4)
+            quat = rng.normal(size=4)
+            y[at + 3:at + 7] = quat / np.linalg.norm(quat)
+        w = _workspace(p, y)
+        spheres = np.empty((geom_count(p), SPHERE_SIZE))
+        geom_spheres(p, w, 0.0, spheres)
+        work, scratch = np.empty(GEOMETRY_WORK), np.empty(GEOMETRY_WORK)
+        normal, point = np.empty(3), np.empty(3)
+        for i in range(pair_count(p)):
+            u = first_unit_at(p, pair_at(p, i))
+            bound, _motion = clearance(p, w, u, 0.0, scratch)
+            count = pair_candidates(p, w, u, work)
+            nearest = min(candidate(work, j, normal, point) for j in range(count))
+            assert bound <= nearest + 1e-12, (i, bound, nearest)
+            ga = int(p[pair_at(p, i) + P_GEOM_A])
+            kind = int(p[geom_at(p, ga) + G_TYPE])
+            gb = int(p[pair_at(p, i) + P_GEOM_B])
+            kind_b = int(p[geom_at(p, gb) + G_TYPE])
+            a, b = spheres[ga], spheres[gb]
+            if kind == HFIELD:  # (its own bound)
+                continue
+            if kind == TYPE_CODES["plane"]:
+                apart = a[S_NORMAL:S_NORMAL + 3] @ (b[:3] - a[:3]) - b[S_RADIUS]
+            else:
+                apart = np.linalg.norm(b[:3] - a[:3]) - a[S_RADIUS] - b[S_RADIUS]
+            boxes = TYPE_CODES["box"] in (kind, kind_b) or kind_b == TYPE_CODES["mesh"]  # (faces' axes before)
+            parted += apart - p[pair_at(p, i) + P_MARGIN] <= 0.0 < bound and not boxes
+    assert parted > 0
