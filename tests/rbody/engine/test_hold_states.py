@@ -5,12 +5,13 @@ A box of 10 kg rests on four condim 6 corners (24 rows of rank 6): its sticking 
 family (W's null space: the corners' tangential forces can push against each other, the spins and rolling torques
 trade with the tangents). The last step's finished impulses carry one member of the family and the round-off of
 the velocities gathered since; the step keeps that member (the load does not jump between steps) and solves it to
-round-off, where a sweep of Gauss-Seidel leaves it 7 times above and stick_polish moves to its own member."""
+round-off, where a sweep of Gauss-Seidel leaves it 7 times above and stick_polish moves to its own member. Last,
+the face step of sticking_qp (the pseudo-inverse's, by a pivoted Cholesky factor) on the same rows."""
 
 import numpy as np
 
-from rbody.engine.constraints.cone import (NORMAL, ROLL, ROLL2, SPIN, TANGENT, TANGENT2, cone_pgs, cone_residual,
-                                           hold_states, inside_cones, magnitude, stick_polish)
+from rbody.engine.constraints.cone import (NORMAL, ROLL, ROLL2, SPIN, TANGENT, TANGENT2, _face_step, cone_pgs,
+                                           cone_residual, hold_states, inside_cones, magnitude, stick_polish)
 from rbody.engine.constraints.stepping import cone_solve
 
 MASS, INERTIA = 10.0, np.array([0.1, 0.2, 0.25])  # [kg], [kg m^2] about the box's axes at its centre
@@ -105,3 +106,20 @@ def test_hold_states_leaves_a_sliding_contact_alone():
     residual = hold_states(W, b, lo, hi, role, mu, lam)
     assert residual == cone_residual(W, b, lo, hi, role, mu, kept)
     np.testing.assert_array_equal(lam, kept)
+
+
+def test_the_face_step_is_the_pseudo_inverses():
+    """sticking_qp's Newton step on a face, _face_step(A, r) = A^+ r, against the SVD's: the box's W (24 rows of rank
+    6) and a block of it, with right sides inside A's range and outside it (the gradient's part along the null
+    space, which the active-set method follows to a bound)."""
+    W, _b, _lo, _hi = resting_box()
+    rng = np.random.default_rng(3)
+    for rows in (np.arange(24), np.arange(3, 17)):
+        A = np.ascontiguousarray(W[np.ix_(rows, rows)])
+        inside = A @ rng.normal(size=rows.size)
+        for r in (inside, rng.normal(size=rows.size)):
+            expected = np.linalg.pinv(A, rcond=1e-12) @ r
+            d = _face_step(A, r)
+            np.testing.assert_allclose(d, expected, rtol=0.0, atol=1e-12 * np.abs(expected).max())
+            rest = r - A @ d  # r's part along the null space: orthogonal to A's range
+            assert np.abs(A @ rest).max() <= 1e-12 * np.abs(r).max()
