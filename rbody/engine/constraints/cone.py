@@ -542,15 +542,8 @@ def _nearest_solution(A, r, weights, start):
             S[a, c] = root[a] * A[a, c] * root[c]
     perm = np.empty(k, dtype=np.int64)
     n = _pivoted_cholesky(S, LEAST_NORM_RTOL, perm)
-    T = np.empty((n, n))  # L^T L (n, n): definite, its eigenvalues S's nonzero ones; (L^T L) s = u by its own
-    for a in range(n):     # pivoted factor T[q][:, q] = N N^T
-        for c in range(a + 1):
-            acc = 0.0
-            for i in range(a, k):
-                acc += S[i, a] * S[i, c]
-            T[a, c] = T[c, a] = acc
-    order = np.empty(n, dtype=np.int64)
-    if _pivoted_cholesky(T, 0.0, order) < n:
+    T, order, definite = _gram_factor(S, n)
+    if not definite:
         return start + _least_squares(A, _miss(A, r, start), root)
     x = start.copy()
     for _solve in range(2):  # the solve, then one step of iterative refinement: the factors' own rounding taken
@@ -567,6 +560,23 @@ def _nearest_solution(A, r, weights, start):
     if worst > ROUND_OFF * size:
         return start + _least_squares(A, _miss(A, r, start), root)
     return x
+
+
+@njit(cache=True)
+def _gram_factor(S, n):
+    """T = L^T L (n, n) of the pivoted factor L (k, n) in S's lower trapezoid (_pivoted_cholesky's, rank n): definite,
+    its eigenvalues S's nonzero ones; T overwritten by its own pivoted factor T[q][:, q] = N N^T. Returns (T, its
+    order q, whether T is definite to round-off)."""
+    k = S.shape[0]
+    T = np.empty((n, n))
+    for a in range(n):
+        for c in range(a + 1):
+            acc = 0.0
+            for i in range(a, k):
+                acc += S[i, a] * S[i, c]
+            T[a, c] = T[c, a] = acc
+    order = np.empty(n, dtype=np.int64)
+    return T, order, _pivoted_cholesky(T, 0.0, order) == n
 
 
 @njit(cache=True)
@@ -621,15 +631,8 @@ def _face_step(A, r):
     n = _pivoted_cholesky(S, LEAST_NORM_RTOL, perm)
     if n == 0:
         return np.zeros(k)
-    T = np.empty((n, n))
-    for a in range(n):
-        for c in range(a + 1):
-            acc = 0.0
-            for i in range(a, k):
-                acc += S[i, a] * S[i, c]
-            T[a, c] = T[c, a] = acc
-    order = np.empty(n, dtype=np.int64)
-    if _pivoted_cholesky(T, 0.0, order) < n:
+    T, order, definite = _gram_factor(S, n)
+    if not definite:
         return np.linalg.lstsq(A, r, 1e-12)[0]
     projected = np.empty(n)  # (L^T r[p])[order]
     for a in range(n):
@@ -703,12 +706,15 @@ def magnitude(W, b, lam):
 
 
 @njit(cache=True)
-def _sticking_rows(role, lo, hi, lam, rows, owner):
+def _sticking_rows(role, lo, hi, lam):
     """The rows that have w = 0 where every pushing contact sticks: each pushing normal (lam > 0) with its tangents,
-    spin and rolling rows, and the ordinary rows strictly inside their bounds, into rows (m,), with owner (m,) the
-    normal row whose impulse weighs each (-1: an ordinary row). Returns (their count k, the pushing normals' mean
-    impulse: an ordinary row's weight; 0 where none pushes)."""
+    spin and rolling rows, and the ordinary rows strictly inside their bounds. Returns (rows (m,), their first k
+    those; owner (m,), the normal row whose impulse weighs each (-1: an ordinary row); inside (m,), True on them; k;
+    the pushing normals' mean impulse, an ordinary row's weight: 0 where none pushes)."""
     m = lam.shape[0]
+    rows = np.empty(m, dtype=np.int64)
+    owner = np.empty(m, dtype=np.int64)
+    inside = np.zeros(m, dtype=np.bool_)
     k = 0
     total, count = 0.0, 0
     for i in range(m):
@@ -725,7 +731,24 @@ def _sticking_rows(role, lo, hi, lam, rows, owner):
         elif role[i] == ROW and lam[i] > lo[i] and lam[i] < hi[i]:
             rows[k], owner[k] = i, -1
             k += 1
-    return k, total / count if count else 0.0
+    for a in range(k):
+        inside[rows[a]] = True
+    return rows, owner, inside, k, total / count if count else 0.0
+
+
+@njit(cache=True)
+def _held_system(W, b, lam, rows, k, inside, A, r):
+    """A (k, k), W's block of the rows rows[:k] (inside (m,) marks them), and r (k,) = -(b + W lam) over them with
+    their own impulses left out: A x = r puts their velocities at 0 with every other row's impulse held."""
+    m = b.shape[0]
+    for a in range(k):
+        acc = b[rows[a]]
+        for j in range(m):
+            if not inside[j]:
+                acc += W[rows[a], j] * lam[j]
+        r[a] = -acc
+        for c in range(k):
+            A[a, c] = W[rows[a], rows[c]]
 
 
 @njit(cache=True)
@@ -737,32 +760,20 @@ def hold_states(W, b, lo, hi, role, mu, lam):
     gathered since, where a sweep of Gauss-Seidel leaves it (a quadruped standing on condim 6 feet: 40 rows of rank
     18, a sweep 8e-14, this step 3e-17). lam is replaced where the natural residual falls; returns the residual
     kept."""
-    m = b.shape[0]
     best = cone_residual(W, b, lo, hi, role, mu, lam)
     if not inside_cones(role, mu, lam):
         return best
-    rows = np.empty(m, dtype=np.int64)
-    owner = np.empty(m, dtype=np.int64)
-    k, mean = _sticking_rows(role, lo, hi, lam, rows, owner)
+    rows, owner, inside, k, mean = _sticking_rows(role, lo, hi, lam)
     if mean == 0.0:  # no contact pushes
         return best
-    inside = np.zeros(m, dtype=np.bool_)
-    for a in range(k):
-        inside[rows[a]] = True
     A = np.empty((k, k))
     r = np.empty(k)
     weights = np.empty(k)
     start = np.empty(k)
+    _held_system(W, b, lam, rows, k, inside, A, r)
     for a in range(k):
-        acc = b[rows[a]]
-        for j in range(m):
-            if not inside[j]:
-                acc += W[rows[a], j] * lam[j]
-        r[a] = -acc
         weights[a] = lam[owner[a]] if owner[a] >= 0 else mean
         start[a] = lam[rows[a]]
-        for c in range(k):
-            A[a, c] = W[rows[a], rows[c]]
     x = _nearest_solution(A, r, weights, start)
     trial = lam.copy()
     for a in range(k):
@@ -788,15 +799,10 @@ def stick_polish(W, b, lo, hi, role, mu, lam, rounds):
     too); returns the residual kept."""
     m = b.shape[0]
     best = cone_residual(W, b, lo, hi, role, mu, lam)
-    rows = np.empty(m, dtype=np.int64)
-    owner = np.empty(m, dtype=np.int64)
-    k, mean = _sticking_rows(role, lo, hi, lam, rows, owner)
+    rows, owner, inside, k, mean = _sticking_rows(role, lo, hi, lam)
     if mean == 0.0:  # no contact pushes
         return best
     trial = lam.copy()
-    inside = np.zeros(m, dtype=np.bool_)
-    for a in range(k):
-        inside[rows[a]] = True
     A = np.empty((k, k))
     r = np.empty(k)
     weights = np.empty(k)
@@ -806,15 +812,9 @@ def stick_polish(W, b, lo, hi, role, mu, lam, rounds):
             pushing = pushing and (owner[a] < 0 or trial[owner[a]] > 0.0)
         if not pushing:
             break
+        _held_system(W, b, trial, rows, k, inside, A, r)
         for a in range(k):
-            acc = b[rows[a]]
-            for j in range(m):
-                if not inside[j]:
-                    acc += W[rows[a], j] * trial[j]
-            r[a] = -acc
             weights[a] = max(trial[owner[a]], 1e-300) if owner[a] >= 0 else mean
-            for c in range(k):
-                A[a, c] = W[rows[a], rows[c]]
         x = _least_norm(A, r, weights)
         change, size = 0.0, 0.0  # settled: the last round's impulses again to round-off (its weights again, every
         for a in range(k):       # later round the same; the rounds otherwise trade the last bits, 8 SVDs a step);
