@@ -36,8 +36,8 @@ from rbody.engine.elements import X_ACTIVE, X_NA, X_NTEN, extension_start
 from rbody.engine.system import actuator_rates, add_element_forces, clamp_activations
 from rbody.engine.constraints.jacobians import (all_rows, bias_accelerations, some_rows, mode_at, row_count, unit_at,
                                                 unit_count, unit_rows)
-from rbody.engine.contacts.broadphase import (SPHERE_SIZE, contact0, contact_row0, first_unit_at, geom_count,
-                                             geom_spheres, pair_at, pair_count, pair_reach, pair_span)
+from rbody.engine.contacts.broadphase import (contact0, contact_row0, first_unit_at, pair_at, pair_count, pair_reaches,
+                                             pair_span)
 from rbody.engine.contacts.rows import (GEOMETRY_WORK, candidate, exact_within, forget_geometry, keep_geometry,
                                        pair_candidates)
 from rbody.engine.constraints.solver import (RANK_RTOL, cholesky_factor, lower_solve, lower_solve_rows,
@@ -567,20 +567,19 @@ def state_gaps(p, y, g, beyond=np.inf, kept=None, least=None):
         kept[1:1 + nq] = q
     for k in range(contact0(p)):  # the contacts follow every other unit
         unit_rows(p, k, q, y[nq:nq + nv], w, acc, J, jdot, g, int(p[unit_at(p, k) + U_ROW0]), False)
-    spheres = np.empty((geom_count(p), SPHERE_SIZE))
-    geom_spheres(p, w, 0.0, spheres)
+    reach, motion = np.empty(pair_count(p)), np.empty(pair_count(p))
+    pair_reaches(p, w, 0.0, reach, motion)
     g[contact_row0(p):] = 0.0  # the contacts' rows (one fill: a far pair's tangent rows are then set)
     for i in range(pair_count(p)):
         at = pair_at(p, i)
         first, slots, row0, width = pair_span(p, at)
-        reach, _motion = pair_reach(p, w, at, 0.0, spheres, work)
-        if reach > 0.0:  # bounding spheres apart: a lower bound will do, one per pair
+        if reach[i] > 0.0:  # bounding spheres apart: a lower bound will do, one per pair
             for j in range(slots):  # (a range with a step costs numba's sign test on every iteration)
-                g[row0 + j * width] = reach
+                g[row0 + j * width] = reach[i]
             if kept is not None:
                 forget_geometry(kept, nq, first)
             if least is not None:
-                least[i] = reach
+                least[i] = reach[i]
             continue
         u = first_unit_at(p, at)
         count = pair_candidates(p, w, u, work, beyond)  # its geoms posed once

@@ -54,8 +54,7 @@ from rbody.engine.elements import A_ACTADR, ACT_SIZE, X_ACT, X_ACTIVE, X_NU, ext
 from rbody.engine.mujoco_steps import EULER, IMPLICIT, IMPLICITFAST, MUJOCO_METHODS, integrate_positions, \
     solve_general, step_matrices
 from rbody.engine.constraints.jacobians import contact_unit_rows, row_count, unit_at, unit_count
-from rbody.engine.contacts.broadphase import (SPHERE_SIZE, contact0, first_unit_at, geom_count, geom_spheres,
-                                             pair_at, pair_count, pair_reach, pair_span)
+from rbody.engine.contacts.broadphase import contact0, first_unit_at, pair_at, pair_count, pair_reaches, pair_span
 from rbody.engine.contacts.kinematics import point_velocity
 from rbody.engine.contacts.rows import (GEOMETRY_WORK, candidate, kept_candidate, kept_exact, kept_for,
                                         kept_geometry_size, pair_candidates)
@@ -213,7 +212,7 @@ def near_contacts(p, w, vfree, h, J, g, formed, kept, reuse):
     at the contact point, the bodies moving with the free velocities vfree (nv,)), each such unit flagged 1 in
     formed (units,). The others' rows of J and g are left as they were (the step reads the formed ones only): a
     model's far candidates (a humanoid's limbs against the floor in the air) cost a distance each, not a row of nv
-    numbers, and a pair whose bounding spheres cannot meet within the step (contacts.broadphase.pair_reach) not
+    numbers, and a pair whose bounding spheres cannot meet within the step (contacts.broadphase.pair_reaches) not
     even that, nor a read of its candidates' unit records. After the step's kinematics in the workspace w (its
     velocities are then vfree's). kept: the geometry the last step's end found (rows.kept_geometry_size); reuse:
     whether it was found at this configuration, its exact candidates then read, not found again."""
@@ -221,17 +220,16 @@ def near_contacts(p, w, vfree, h, J, g, formed, kept, reuse):
     mb.velocities(p, vfree, w)
     normal, point, v_a, v_b = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
     work = np.empty(GEOMETRY_WORK)
-    spheres = np.empty((geom_count(p), SPHERE_SIZE))
-    geom_spheres(p, w, h, spheres)  # every geom's bounding sphere once; then each pair's bound from two of them
+    reach, motion = np.empty(pair_count(p)), np.empty(pair_count(p))
+    pair_reaches(p, w, h, reach, motion)  # every geom's bounding sphere once; then each pair's bound from two of them
     for i in range(pair_count(p)):
+        if reach[i] > TOUCH_TOLERANCE:  # the broad phase: the pair can neither touch nor close within the step
+            continue
         at = pair_at(p, i)
         first, slots, row0, width = pair_span(p, at)
-        reach, motion = pair_reach(p, w, at, h, spheres, work)
-        if reach > TOUCH_TOLERANCE:  # the broad phase: the pair can neither touch nor close within the step
-            continue
         read = reuse and kept_exact(kept, nq, first)  # found exactly at the last step's end, at this configuration
         if not read:  # every candidate of the pair at once, its geoms posed once; beyond reach: their least gap
-            pair_candidates(p, w, first_unit_at(p, at), work, TOUCH_TOLERANCE + motion)
+            pair_candidates(p, w, first_unit_at(p, at), work, TOUCH_TOLERANCE + motion[i])
         for j in range(slots):
             k, row = first + j, row0 + j * width
             u = unit_at(p, k)

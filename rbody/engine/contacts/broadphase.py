@@ -10,13 +10,14 @@ speed at which any two of their points approach,
     reach = |c_b - c_a| - r_a - r_b - h (|v_b - v_a| + |w_a| r_a + |w_b| r_b) - margin
 
 (a plane: the sphere's height above it in place of the distance, r_a = 0). Here each geom's centre c, its
-velocity v, |w| and radius r are found once per call (geom_spheres, G geoms), and a pair's bound is then a few
-operations on its two geoms' (pair_reach): the numbers clearance gives, in the same order of operations, so the
-same bits. Where the spheres do not part a pair (a long box's sphere reaches far beyond it, two legs side by side
-overlap theirs) and the geoms' axes may (clearance: the separating axes, or the lowest point above a plane), or for
-a height field, clearance itself answers. A pair found far costs this, and no read
-of its candidates' unit records: a quadruped's 7,792 candidates come in 592 pairs of 44 geoms, and a walk over
-every unit record (5 MB) costs more than all of these tests.
+velocity v, |w| r and radius r are found once per call (geom_spheres, G geoms), and every pair's bound is then a
+few operations on two rows of them in one loop (pair_reaches): the numbers clearance gives, in the same order of
+operations, so the same bits. Where the spheres, less the margin, do not part a pair (a long box's sphere reaches
+far beyond it, two legs side by side overlap theirs, a quadruped's thigh passes its trunk within the margins) and
+the geoms' axes may (clearance: the cores of round geoms, the separating axes, the lowest point above a plane), or
+for a height field, clearance itself answers. A pair found far costs this, and no read of its candidates' unit
+records: a quadruped's 7,792 candidates come in 592 pairs of 44 geoms, and a walk over every unit record (5 MB)
+costs more than all of these tests.
 """
 
 from __future__ import annotations
@@ -25,7 +26,8 @@ import numpy as np
 from numba import njit
 
 from rbody.engine.contacts.geometry import PLANE, bounding_radius
-from rbody.engine.contacts.kinematics import _geom_centre, clearance, needs_axes, point_velocity
+from rbody.engine.contacts.kinematics import TIGHTEN_BELOW, _geom_centre, clearance, needs_axes, point_velocity
+from rbody.engine.contacts.rows import GEOMETRY_WORK
 from rbody.engine.contacts.terrain import HFIELD
 from rbody.engine.elements import block_offset
 from rbody.engine.multibody import _views
@@ -33,10 +35,10 @@ from rbody.engine.constraints.table import (C_CONTACT0, C_GEOM, C_GEOMS, C_PAIR,
                                             G_POSE, G_TYPE, GEOM_SIZE, P_GEOM_A, P_GEOM_B, P_MARGIN, P_ROW, P_SLOTS,
                                             P_UNIT, P_WIDTH, PAIR_SIZE, U_GMAT_A, U_GPOS_A, U_GSIZE_A, UNIT_SIZE)
 
-# a geom's sphere (geom_spheres): centre (3) [m], the centre's velocity (3) [m/s], |omega| [rad/s], bounding radius
-# [m], a plane's outward normal (3)
-S_CENTRE, S_VELOCITY, S_SPIN, S_RADIUS, S_NORMAL = 0, 3, 6, 7, 8
-SPHERE_SIZE = 11
+# a geom's sphere (geom_spheres): centre (3) [m], the centre's velocity (3) [m/s], |omega| r [m/s] (0 for a plane or
+# the world's), bounding radius r [m], a plane's outward normal (3), its type (geometry's codes)
+S_CENTRE, S_VELOCITY, S_SWEEP, S_RADIUS, S_NORMAL, S_KIND = 0, 3, 6, 7, 8, 11
+SPHERE_SIZE = 12
 # a geom record's pose points at its position in a unit record; its axes (row-major) and size follow there
 AXES_AT, SIZE_AT = U_GMAT_A - U_GPOS_A, U_GSIZE_A - U_GPOS_A
 
@@ -112,46 +114,49 @@ def geom_spheres(p, w, h, spheres):
                     for e in range(3):
                         value += ws.xmat[body, a, e] * p[pose + AXES_AT + 3 * e + 2]
                     spheres[i, S_NORMAL + a] = value
-        if h > 0.0:
+        spheres[i, S_KIND] = kind
+        if h > 0.0:  # the fastest any of its points moves about its centre: |omega| r
             point_velocity(p, w, body, centre, spheres[i, S_VELOCITY:S_VELOCITY + 3])
-            spin = 0.0
-            if body >= 0:
+            sweep = 0.0
+            if body >= 0 and kind != PLANE and kind != HFIELD:  # (their radius: inf)
                 omega = ws.vel[body]
-                spin = np.sqrt(omega[0] ** 2 + omega[1] ** 2 + omega[2] ** 2)
-            spheres[i, S_SPIN] = spin
+                sweep = np.sqrt(omega[0] ** 2 + omega[1] ** 2 + omega[2] ** 2) * spheres[i, S_RADIUS]
+            spheres[i, S_SWEEP] = sweep
 
 
 @njit(cache=True)
-def pair_reach(p, w, at, h, spheres, work):
-    """(reach, motion) of the pair record at `at` over the next h [s]: clearance's lower bound [m] on the gap of
-    every candidate of the pair and h times its bound on their approach speed [m], from the geoms' spheres
-    (geom_spheres at this h and workspace), to the bit; clearance itself where the spheres do not part a pair whose
-    axes may (kinematics.needs_axes), or for a height field. work: scratch of rows.GEOMETRY_WORK floats."""
-    ga, gb = int(p[at + P_GEOM_A]), int(p[at + P_GEOM_B])
-    ta, tb = int(p[geom_at(p, ga) + G_TYPE]), int(p[geom_at(p, gb) + G_TYPE])
-    if ta == HFIELD:
-        return clearance(p, w, first_unit_at(p, at), h, work)
-    a, b = spheres[ga], spheres[gb]
-    radius_b = b[S_RADIUS]
-    if ta == PLANE:
-        radius_a = 0.0
-        apart = (a[S_NORMAL] * (b[0] - a[0]) + a[S_NORMAL + 1] * (b[1] - a[1]) + a[S_NORMAL + 2] * (b[2] - a[2])) \
-            - radius_b
-    else:
-        radius_a = a[S_RADIUS]
-        apart = np.sqrt((b[0] - a[0]) ** 2 + (b[1] - a[1]) ** 2 + (b[2] - a[2]) ** 2) - radius_a - radius_b
-    motion = 0.0
-    if h > 0.0:
-        speed = np.sqrt((b[3] - a[3]) ** 2 + (b[4] - a[4]) ** 2 + (b[5] - a[5]) ** 2)
-        if int(p[geom_at(p, ga) + G_BODY]) >= 0:
-            speed += a[S_SPIN] * radius_a
-        if int(p[geom_at(p, gb) + G_BODY]) >= 0:
-            speed += b[S_SPIN] * radius_b
-        motion = h * speed
-    if apart - motion <= 1e-9 and needs_axes(ta, tb):
-        return clearance(p, w, first_unit_at(p, at), h, work)  # the geoms' axes may part them
-    return apart - motion - p[at + P_MARGIN], motion
+def pair_reaches(p, w, h, reach, motion):
+    """reach, motion (pairs,): for every pair over the next h [s], clearance's lower bound [m] on the gap of each of
+    its candidates and h times its bound on their approach speed [m], to the bit, from the geoms' spheres
+    (geom_spheres, after the tree's kinematics in the workspace w, its velocities for h > 0); clearance itself where
+    the spheres do not part a pair whose axes may (kinematics.needs_axes), or for a height field. One loop over the
+    pair records reading two rows of the spheres each (5 ns a pair; a call per pair costs seven times that)."""
+    spheres = np.empty((geom_count(p), SPHERE_SIZE))
+    geom_spheres(p, w, h, spheres)
+    work = np.empty(GEOMETRY_WORK)
+    for i in range(pair_count(p)):
+        at = pair_at(p, i)
+        a, b = int(p[at + P_GEOM_A]), int(p[at + P_GEOM_B])
+        ta, tb = int(spheres[a, S_KIND]), int(spheres[b, S_KIND])
+        if ta == HFIELD:
+            reach[i], motion[i] = clearance(p, w, first_unit_at(p, at), h, work)
+            continue
+        if ta == PLANE:
+            apart = (spheres[a, S_NORMAL] * (spheres[b, 0] - spheres[a, 0])
+                     + spheres[a, S_NORMAL + 1] * (spheres[b, 1] - spheres[a, 1])
+                     + spheres[a, S_NORMAL + 2] * (spheres[b, 2] - spheres[a, 2])) - spheres[b, S_RADIUS]
+        else:
+            apart = (np.sqrt((spheres[b, 0] - spheres[a, 0]) ** 2 + (spheres[b, 1] - spheres[a, 1]) ** 2
+                             + (spheres[b, 2] - spheres[a, 2]) ** 2) - spheres[a, S_RADIUS] - spheres[b, S_RADIUS])
+        moved = 0.0
+        if h > 0.0:
+            moved = h * (np.sqrt((spheres[b, 3] - spheres[a, 3]) ** 2 + (spheres[b, 4] - spheres[a, 4]) ** 2
+                                 + (spheres[b, 5] - spheres[a, 5]) ** 2) + spheres[a, S_SWEEP] + spheres[b, S_SWEEP])
+        if apart - moved - p[at + P_MARGIN] <= TIGHTEN_BELOW and needs_axes(ta, tb):  # the geoms' axes may part them
+            reach[i], motion[i] = clearance(p, w, first_unit_at(p, at), h, work)
+        else:
+            reach[i], motion[i] = apart - moved - p[at + P_MARGIN], moved
 
 
 __all__ = ["contact0", "contact_row0", "pair_count", "pair_at", "geom_count", "geom_at", "pair_span", "first_unit_at",
-           "geom_spheres", "pair_reach", "SPHERE_SIZE"]
+           "geom_spheres", "pair_reaches", "SPHERE_SIZE"]

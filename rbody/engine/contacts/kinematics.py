@@ -48,6 +48,8 @@ from rbody.engine.constraints.table import (U_BODY1, U_BODY2, U_DOF, U_GMAT_A, U
                                             U_GSIZE_A, U_GSIZE_B, U_GTYPE_A, U_GTYPE_B, U_HULL_A, U_MARGIN)
 
 SHAPE_PLANE, SHAPE_CORES = 0, 1
+TIGHTEN_BELOW = 1e-9  # [m] a broad-phase bound at most this is tightened by the geoms' axes (the callers part pairs
+# above TOUCH_TOLERANCE, 1e-10 m, or above 0)
 
 
 @njit(cache=True)
@@ -317,6 +319,29 @@ def separating_gap(ta, pa, Ra, sa, tb, pb, Rb, sb):
 
 
 @njit(cache=True, inline="always")
+def _round(kind):
+    """Whether a geom is a sphere, a capsule or a cylinder: a core (a point or its axis segment) and a radius."""
+    return kind == SPHERE or kind == CAPSULE or kind == CYLINDER
+
+
+@njit(cache=True)
+def core_gap(ta, pa, Ra, sa, tb, pb, Rb, sb):
+    """A lower bound [m] on the distance of two round geoms (spheres, capsules, cylinders: _round): the distance
+    between their cores (a sphere's centre, the segment of a capsule's or a cylinder's axis of its half-length
+    size[1]) less their radii size[0]. Exact for spheres and capsules (their surfaces are the points within a radius
+    of the core); a cylinder lies within the capsule of its radius and half-length, whose gap this is. Where the
+    separating axes fail (a capsule beside a cylinder's rim, askew: no axis of the two nor their cross products
+    parts them, though they are centimetres apart), the cores' closest points do."""
+    la = 0.0 if ta == SPHERE else sa[1]
+    lb = 0.0 if tb == SPHERE else sb[1]
+    s, t = segment_closest(pa, Ra[:, 2], la, pb, Rb[:, 2], lb)
+    d0 = pb[0] + t * Rb[0, 2] - pa[0] - s * Ra[0, 2]
+    d1 = pb[1] + t * Rb[1, 2] - pa[1] - s * Ra[1, 2]
+    d2 = pb[2] + t * Rb[2, 2] - pa[2] - s * Ra[2, 2]
+    return np.sqrt(d0 * d0 + d1 * d1 + d2 * d2) - sa[0] - sb[0]
+
+
+@njit(cache=True, inline="always")
 def needs_axes(ta, tb):
     """Whether a pair's bounding spheres can be tightened by their axes (clearance): a plane with anything but a
     sphere (its lowest point), two geoms not both spheres (the separating axes); not a height field's."""
@@ -331,9 +356,11 @@ def clearance(p, w, u, h, work):
     phase): the gap between the two geoms' bounding spheres (a plane and a sphere: the sphere's height above it),
     less h times a bound on the speed at which any point of one approaches any point of the other, |v_b - v_a| at
     the centres plus |omega| times each radius (the workspace's body velocities; h = 0: the gap bound alone). Where
-    that does not part them and the geoms' axes may (needs_axes: a long box's bounding sphere reaches far beyond it,
-    two legs side by side overlap theirs), the separating axes' gap, or above a plane the height of the geom's
-    lowest point, if larger. Less the pair's margin, as its gaps are.
+    that, less the margin, is not above TIGHTEN_BELOW and the geoms' axes may part them (needs_axes: a long box's
+    bounding sphere reaches far beyond it, two legs side by side overlap theirs), if larger: above a plane the
+    height of the geom's lowest point; two spheres, capsules or cylinders their cores' gap (core_gap: two capsules'
+    distance), and with a cylinder, if that leaves them within reach, the separating axes' gap; any other pair the
+    separating axes' gap. Less the pair's margin, as its gaps are.
     > TOUCH_TOLERANCE: no candidate of the pair touches or closes within h, and its distance need not be computed.
     Returns (that bound, motion): motion [m] h times the bound on the approach speed. work: scratch of
     GEOMETRY_WORK floats (contact_geometry's)."""
@@ -378,7 +405,8 @@ def clearance(p, w, u, h, work):
                 omega = ws.vel[body]
                 speed += np.sqrt(omega[0] ** 2 + omega[1] ** 2 + omega[2] ** 2) * radius
         motion = h * speed
-    if apart - motion <= 1e-9 and needs_axes(ta, tb):  # the spheres are loose (a long box, two legs side by side)
+    margin = p[u + U_MARGIN]
+    if apart - motion - margin <= TIGHTEN_BELOW and needs_axes(ta, tb):  # loose spheres (a long box, legs side by side)
         Rb = work[15:24].reshape((3, 3))
         geom_pose(p, w, body_b, u + U_GPOS_B, u + U_GMAT_B, pb, Rb)
         sb = p[u + U_GSIZE_B:u + U_GSIZE_B + 3]
@@ -386,10 +414,15 @@ def clearance(p, w, u, h, work):
         if ta == PLANE:  # b's lowest point along the plane's normal: the gap itself (a mesh: its bounding box's)
             apart = max(apart, Ra[0, 2] * (pb[0] - pa[0]) + Ra[1, 2] * (pb[1] - pa[1]) + Ra[2, 2] * (pb[2] - pa[2])
                         - _support_radius(tb, Rb, sb, Ra[0, 2], Ra[1, 2], Ra[2, 2]))
-        else:  # the separating axes' gap
-            geom_pose(p, w, body_a, u + U_GPOS_A, u + U_GMAT_A, pa, Ra)
-            apart = max(apart, separating_gap(ta, pa, Ra, p[u + U_GSIZE_A:u + U_GSIZE_A + 3], tb, pb, Rb, sb))
-    return apart - motion - p[u + U_MARGIN], motion
+        else:  # round geoms: their cores' gap (two capsules: their distance); else, or if that leaves them
+            geom_pose(p, w, body_a, u + U_GPOS_A, u + U_GMAT_A, pa, Ra)  # within reach with a cylinder, the
+            sa = p[u + U_GSIZE_A:u + U_GSIZE_A + 3]  # separating axes' gap
+            cores = _round(ta) and _round(tb)
+            if cores:
+                apart = max(apart, core_gap(ta, pa, Ra, sa, tb, pb, Rb, sb))
+            if not cores or ((ta == CYLINDER or tb == CYLINDER) and apart - motion - margin <= TIGHTEN_BELOW):
+                apart = max(apart, separating_gap(ta, pa, Ra, sa, tb, pb, Rb, sb))
+    return apart - motion - margin, motion
 
 
 @njit(cache=True)
@@ -517,6 +550,5 @@ def contact_bias(p, w, acc, uo, g, frame, r, jdot, row):
         jdot[row + e] = frame[e, 0] * total[0] + frame[e, 1] * total[1] + frame[e, 2] * total[2]
 
 
-__all__ = ["contact_shape", "contact_bias", "body_motion", "point_velocity", "clearance", "separating_gap", "needs_axes", "bounding_radius",
-           "SHAPE_PLANE",
-           "SHAPE_CORES"]
+__all__ = ["contact_shape", "contact_bias", "body_motion", "point_velocity", "clearance", "separating_gap", "core_gap",
+           "needs_axes", "bounding_radius", "SHAPE_PLANE", "SHAPE_CORES"]

@@ -6,7 +6,7 @@ it is the height of the geom's lowest point."""
 import numpy as np
 
 from rbody.engine.contacts.geometry import TYPE_CODES, collide_pair
-from rbody.engine.contacts.kinematics import _support_radius, separating_gap
+from rbody.engine.contacts.kinematics import _support_radius, core_gap, separating_gap
 from rbody.motion import quat_to_matrix
 
 SIZES = {"sphere": (0.2, 0.0, 0.0), "capsule": (0.1, 0.3, 0.0), "box": (0.1, 0.4, 0.2), "cylinder": (0.15, 0.25, 0.0),
@@ -96,3 +96,44 @@ def test_above_a_plane_the_bound_is_the_lowest_point():
     np.testing.assert_allclose(lowest, dist.min(), rtol=0.0, atol=1e-15)
     np.testing.assert_allclose(lowest, 0.05, rtol=0.0, atol=1e-15)
     assert centre[2] - 0.45 < 0.0  # the sphere reaches the floor, the capsule does not
+
+
+def test_the_cores_gap_is_the_distance_of_capsules_and_a_bound_with_cylinders():
+    """On random poses: the cores' gap (the distance between a sphere's centre or a capsule's or cylinder's axis
+    segment less the radii) is the narrow phase's distance for spheres and capsules, to round-off, and at most it
+    with a cylinder (inside the capsule of its radius and half-length); it parts pairs the separating axes leave
+    touching (a sphere beside a capsule's end, off its axis)."""
+    rng = np.random.default_rng(4)
+    round_kinds = ("sphere", "capsule", "cylinder")
+    parted = 0
+    for _ in range(3000):
+        ka, kb = sorted(rng.choice(round_kinds, size=2), key=lambda kind: TYPE_CODES[str(kind)])
+        ka, kb = str(ka), str(kb)
+        pa, pb = rng.normal(size=3) * 0.5, rng.normal(size=3) * 0.5
+        Ra, Rb = rotation(rng), rotation(rng)
+        sa, sb = np.array(SIZES[ka]), np.array(SIZES[kb])
+        ta, tb = TYPE_CODES[ka], TYPE_CODES[kb]
+        bound = core_gap(ta, pa, Ra, sa, tb, pb, Rb, sb)
+        dist, _, _ = collide_pair(ka, pa, Ra, sa, kb, pb, Rb, sb)
+        nearest = np.min(dist[np.isfinite(dist)])
+        if "cylinder" in (ka, kb):
+            assert bound <= nearest + 1e-12, (ka, kb, bound, nearest)
+        else:
+            assert abs(bound - nearest) <= 1e-12, (ka, kb, bound, nearest)
+        parted += bound > 0.0 and separating_gap(ta, pa, Ra, sa, tb, pb, Rb, sb) <= 0.0
+    assert parted >= 5, parted
+
+
+def test_the_cores_gap_parts_capsules_end_to_end_askew():
+    """Capsules of radius 0.1 and half-length 0.3, one along x at the origin, the other along z at (0.4, 0.2, 0.4):
+    their nearest points are the ends (0.3, 0, 0) and (0.4, 0.2, 0.1), sqrt(0.06) - 0.2 = 0.0449 m apart; no axis of
+    either nor a cross product of two parts them (along y: 0.2 - 0.1 - 0.1 = 0)."""
+    code = TYPE_CODES["capsule"]
+    size = np.array([0.1, 0.3, 0.0])
+    along_x = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])
+    pb = np.array([0.4, 0.2, 0.4])
+    expected = np.sqrt(0.06) - 0.2
+    assert abs(core_gap(code, np.zeros(3), along_x, size, code, pb, np.eye(3), size) - expected) <= 1e-15
+    assert separating_gap(code, np.zeros(3), along_x, size, code, pb, np.eye(3), size) <= 1e-15
+    dist, _, _ = collide_pair("capsule", np.zeros(3), along_x, size, "capsule", pb, np.eye(3), size)
+    assert abs(dist.min() - expected) <= 1e-15

@@ -16,7 +16,7 @@ from rbody.engine.constraints.table import (C_GEOM, CONTACT_KINDS, G_TYPE, GEOM_
                                             U_GTYPE_A, U_GTYPE_B, U_KIND, U_MARGIN, U_ROW0, U_ROWS, UNIT_SIZE)
 from rbody.engine.contacts.broadphase import (S_NORMAL, S_RADIUS, SPHERE_SIZE, contact0, contact_row0,
                                               first_unit_at, geom_at, geom_count, geom_spheres, pair_at, pair_count,
-                                              pair_reach, pair_span)
+                                              pair_reaches, pair_span)
 from rbody.engine.contacts.geometry import TYPE_CODES
 from rbody.engine.contacts.kinematics import clearance
 from rbody.engine.contacts.terrain import HFIELD
@@ -108,7 +108,7 @@ def test_the_table_lists_each_pair_once_with_its_candidates_rows_and_geoms(model
 @pytest.mark.parametrize("h", [0.0, 0.01, 0.5])
 def test_a_pairs_bound_is_clearances_to_the_bit(model, seed, h):
     """Random configurations and velocities, the bodies gathered near the origin so that some pairs overlap, some
-    are near and some far: pair_reach's (reach, motion) from the geoms' spheres equals clearance's, computed from
+    are near and some far: pair_reaches's (reach, motion) from the geoms' spheres equals clearance's, computed from
     the pair's first unit, exactly (pairs whose axes may part them hand the near ones to clearance; the rest is one
     formula)."""
     _scene, table, p, y0 = model
@@ -123,12 +123,12 @@ def test_a_pairs_bound_is_clearances_to_the_bit(model, seed, h):
     y[0] = rng.uniform(-1, 1)
     y[nq:nq + nv] = rng.normal(scale=2.0, size=nv)
     w = _workspace(p, y)
-    spheres = np.empty((geom_count(p), SPHERE_SIZE))
-    geom_spheres(p, w, h, spheres)
-    work, scratch = np.empty(GEOMETRY_WORK), np.empty(GEOMETRY_WORK)
+    reach, motion = np.full(pair_count(p), np.nan), np.full(pair_count(p), np.nan)
+    pair_reaches(p, w, h, reach, motion)
+    scratch = np.empty(GEOMETRY_WORK)
     near = 0
     for i in range(pair_count(p)):
-        got = pair_reach(p, w, pair_at(p, i), h, spheres, work)
+        got = (reach[i], motion[i])
         expected = clearance(p, w, first_unit_at(p, pair_at(p, i)), h, scratch)
         assert got == expected, (i, got, expected)
         near += got[0] <= 0.0
@@ -199,3 +199,32 @@ def test_a_pairs_bound_never_exceeds_its_candidates_gaps(model, seed):
             boxes = TYPE_CODES["box"] in (kind, kind_b) or kind_b == TYPE_CODES["mesh"]  # (faces' axes before)
             parted += apart - p[pair_at(p, i) + P_MARGIN] <= 0.0 < bound and not boxes
     assert parted > 0
+
+
+# two shins side by side, 0.245 m apart between their axes, with margins of 0.01 m: their bounding spheres (0.12 m)
+# are 5 mm apart, less than the pair's margin of 0.02 m
+SHINS = """<mujoco>
+  <worldbody>
+    <body name="left" pos="0 0 1"><freejoint/><geom type="capsule" size="0.02 0.1" margin="0.01"/></body>
+    <body name="right" pos="0.245 0 1"><freejoint/><geom type="capsule" size="0.02 0.1" margin="0.01"/></body>
+  </worldbody>
+</mujoco>"""
+
+
+def test_spheres_within_the_margin_are_tightened_by_the_axes():
+    """Bounding spheres apart by less than the pair's margin: the bound is tightened as where they overlap, to the
+    capsules' distance less the margin, 0.245 - 0.04 - 0.02 m (the spheres alone gave 0.005 - 0.02 < 0, and the
+    step posed the pair's candidates every step)."""
+    scene = rbody.from_mjcf(SHINS, t_end=0.1)
+    prepared = rbody.prepare(scene, dt=0.01, method="moreau")
+    run = MoreauRun(prepared.model.constraints, prepared.params[0], "shins")
+    p, y = run.p, np.array(prepared.y0[0])
+    assert pair_count(p) == 1
+    w = _workspace(p, y)
+    spheres = np.empty((geom_count(p), SPHERE_SIZE))
+    geom_spheres(p, w, 0.0, spheres)
+    apart = np.linalg.norm(spheres[1, :3] - spheres[0, :3]) - spheres[0, S_RADIUS] - spheres[1, S_RADIUS]
+    assert abs(apart - 0.005) < 1e-12 and p[pair_at(p, 0) + P_MARGIN] == 0.02
+    reach, motion = np.empty(1), np.empty(1)
+    pair_reaches(p, w, 0.0, reach, motion)
+    assert abs(reach[0] - (0.245 - 0.04 - 0.02)) < 1e-12
