@@ -545,8 +545,8 @@ def guards(p, y, out):
 @njit(cache=True)
 def state_gaps(p, y, g, beyond=np.inf, kept=None, least=None):
     """g (rows,) every row's residual at the state y (phi folded in) as state_rows gives it, from the tree's
-    kinematics alone: a contact by its candidate's signed distance (no Jacobian; a pair whose bounding spheres are
-    apart by the gap between them, a positive lower bound), the other units by their rows. beyond [m]: a caller
+    kinematics alone: a contact by its candidate's signed distance (no Jacobian; a pair the broad phase finds apart
+    by its bound, broadphase.pair_reaches, a positive lower bound), the other units by their rows. beyond [m]: a caller
     that reads no contact gap above it (the projection's flags, the errors' min(g, 0)) lets a pair whose least gap
     is above it give that (rows.pair_candidates). kept (rows.kept_geometry_size(nq, units),) or None: the
     contacts' geometry found here, kept for the next step's start at the same configuration. least (pairs,) or
@@ -573,7 +573,7 @@ def state_gaps(p, y, g, beyond=np.inf, kept=None, least=None):
     for i in range(pair_count(p)):
         at = pair_at(p, i)
         first, slots, row0, width = pair_span(p, at)
-        if reach[i] > 0.0:  # bounding spheres apart: a lower bound will do, one per pair
+        if reach[i] > 0.0:  # apart by the broad phase's bound: a lower bound will do, one per pair
             for j in range(slots):  # (a range with a step costs numba's sign test on every iteration)
                 g[row0 + j * width] = reach[i]
             if kept is not None:

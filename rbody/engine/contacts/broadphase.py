@@ -129,8 +129,9 @@ def pair_reaches(p, w, h, reach, motion):
     """reach, motion (pairs,): for every pair over the next h [s], clearance's lower bound [m] on the gap of each of
     its candidates and h times its bound on their approach speed [m], to the bit, from the geoms' spheres
     (geom_spheres, after the tree's kinematics in the workspace w, its velocities for h > 0); clearance itself where
-    the spheres do not part a pair whose axes may (kinematics.needs_axes), or for a height field. One loop over the
-    pair records reading two rows of the spheres each (5 ns a pair; a call per pair costs seven times that)."""
+    the spheres' bound less the margin is at most kinematics.TIGHTEN_BELOW and the geoms' axes may part the pair
+    (kinematics.needs_axes), or for a height field. One loop over the pair records reading two rows of the spheres
+    each (5 ns a pair; a call per pair costs seven times that)."""
     spheres = np.empty((geom_count(p), SPHERE_SIZE))
     geom_spheres(p, w, h, spheres)
     work = np.empty(GEOMETRY_WORK)

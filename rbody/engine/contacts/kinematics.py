@@ -344,7 +344,8 @@ def core_gap(ta, pa, Ra, sa, tb, pb, Rb, sb):
 @njit(cache=True, inline="always")
 def needs_axes(ta, tb):
     """Whether a pair's bounding spheres can be tightened by their axes (clearance): a plane with anything but a
-    sphere (its lowest point), two geoms not both spheres (the separating axes); not a height field's."""
+    sphere (its lowest point), two geoms not both spheres (round ones by their cores, core_gap; any by the separating
+    axes); not a height field's."""
     if ta == PLANE:
         return tb != SPHERE
     return ta != HFIELD and not (ta == SPHERE and tb == SPHERE)
