@@ -129,9 +129,10 @@ def cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
     from lam; some sticking contacts made to slide; a crawl along dependent rows taken to its end), until the
     residual is 1e-3 of `tolerance`, or `sweeps` are spent, or a round within `tolerance` moves nothing (each after
     it would be the same); a start that already solves it (the last step's impulses, themselves finished) is kept,
-    after one sweep. From the INTERIOR_AFTER-th round on, each round still above `tolerance` also solves Tresca's
-    problem from inside and finishes from its states (interior_finish: where dependent rows leave Gauss-Seidel
-    crawling along W's null space), kept where that lowers the residual. Returns the residual."""
+    after one sweep. From the INTERIOR_AFTER-th round on, each round not yet at 1e-3 of `tolerance` also solves
+    Tresca's problem from inside and finishes from its states (interior_finish: where dependent rows leave
+    Gauss-Seidel crawling along W's null space), kept where that lowers the residual, the round then not counted
+    as one that moved nothing. Returns the residual."""
     done = 0
     rounds = 0
     residual = np.inf
@@ -161,20 +162,21 @@ def cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
             residual = follow_drift(W, b, lo, hi, role, mu, lam)  # bound, a slow geometric tail) taken at once;
         if residual <= 1e-3 * tolerance:                          # the next round finishes from there
             break
-        if spent == 0 and np.array_equal(lam, unswept):  # within `tolerance`, and neither Gauss-Seidel nor a finish
-            break                                         # moved lam: every round after would repeat this one
-        rounds += 1
-        if rounds >= INTERIOR_AFTER and residual > tolerance:  # Gauss-Seidel crawls (dependent rows): Tresca's
-            # problem from inside (not to go on from the step's tolerance to the rounds' 1e-3 of it), its
-            if normals.size == 0:  # normals the next round's radii (rbody.engine.constraints.interior)
-                normals = lam.copy()
-            trial = lam.copy()
-            inside = interior_finish(W, b, lo, hi, role, mu, normals, trial)
+        stalled = spent == 0 and np.array_equal(lam, unswept)  # within `tolerance`, and neither Gauss-Seidel nor a
+        rounds += 1                                             # finish moved lam
+        if rounds >= INTERIOR_AFTER:  # Gauss-Seidel crawls (dependent rows): Tresca's problem from inside, its
+            if normals.size == 0:  # normals the next round's radii (rbody.engine.constraints.interior); tried
+                normals = lam.copy()  # within `tolerance` too, where the drift's rounds would halve the residual
+            trial = lam.copy()  # a round (the Go1 landing from its qpos0: 2e-11 to 7e-14 in 13 rounds, 20 ms;
+            inside = interior_finish(W, b, lo, hi, role, mu, normals, trial)  # from inside, 2e-16 at once)
             if inside < residual:
                 lam[:] = trial
                 residual = inside
                 if residual <= 1e-3 * tolerance:
                     break
+                continue
+        if stalled:  # nothing moved lam: every round after would repeat this one
+            break
     return residual
 
 

@@ -80,6 +80,20 @@ def test_the_interior_finish_solves_a_crawl_at_once(seed):
     assert lam[0] == -BOX and w[0] > 0.0  # the lower row on its bound, as the closed form of test_cone_drift has it
 
 
+@pytest.mark.parametrize("seed", [1, 4])
+def test_a_crawl_within_the_tolerance_is_still_finished_from_inside(seed):
+    """With a loose tolerance (1e-6) the rounds of cone_solve end within it, the crawl left at 1e-7, above the rounds'
+    1e-3 of it: the interior finish is tried there too, and the problem is solved to round-off (it was left at 1e-7
+    where the finish was tried only above the tolerance; the Go1's landing from its published qpos0 likewise
+    crawled from 2e-11 to 7e-14 in 13 rounds, 20 ms)."""
+    W, b, lo, hi = crawling_problem(seed)
+    lam = np.zeros(8)
+    residual = cone_solve(W, b, lo, hi, ROLES, MU, lam, 1e-6, 2000)
+    assert residual <= round_off(W, b, lam)
+    assert residual == cone_residual(W, b, lo, hi, ROLES, MU, lam)
+    assert lam[0] == -BOX  # the crawl's row on its bound (test_cone_drift's closed form)
+
+
 def test_a_contact_sliding_tangentially_is_left_to_gauss_seidel():
     """Seed 0's contact slides (0.12 m/s) on its cone's edge: the barrier's states are right, but cone_polish's fixed
     point on the sliding direction stalls at 5e-7 (a limit of the finish, recorded here); the next 100 sweeps of the
