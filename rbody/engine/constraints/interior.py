@@ -29,7 +29,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from rbody.engine.constraints.cone import (NORMAL, ROLL, ROW, SPIN, TANGENT, cone_polish, cone_residual, is_disc,
+from rbody.engine.constraints.cone import (NORMAL, ROLL, ROW, SPIN, TANGENT, cone_polish, is_disc,
                                            normal_of)
 from rbody.engine.constraints.solver import cholesky_factor, lower_solve, symmetric_solve, upper_solve
 

@@ -38,7 +38,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from rbody.engine.contacts.geometry import (BOX, CAPSULE, CYLINDER, ELLIPSOID, MESH, PLANE, SPHERE, bounding_radius,
+from rbody.engine.contacts.geometry import (BOX, CAPSULE, CYLINDER, ELLIPSOID, PLANE, SPHERE, bounding_radius,
                                             box_edges_closest, capsule_box_slot, edge_axes, segment_closest,
                                             segment_in_box)
 from rbody.engine.contacts.rows import field_at, geom_pose
