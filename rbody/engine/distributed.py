@@ -16,7 +16,10 @@ bits may differ: DESIGN.md, "Results that hold on any machine").
 
 A worker that dies mid-run loses its task, and Dask runs it again on another worker (up to the
 scheduler's `distributed.scheduler.allowed-failures`, 3 by default); a task that has killed that many
-workers is a SimulationError naming its rows. Dask is imported only here, and only when a client is given.
+workers is a SimulationError naming its rows. Workers that die with the last copy of the scattered scene
+(all at once, or the one Dask's memory manager left it on) make the cluster cancel the tasks that need
+it: those chunks are sent again, scene and all, up to RESENDS times. Dask is imported only here, and only
+when a client is given.
 """
 
 from __future__ import annotations
@@ -45,6 +48,10 @@ CHUNKS_PER_THREAD = 4
 PREPARED_KEY = "_prepared"
 # How long a cluster without workers is waited for before giving up [s].
 WORKER_WAIT_SECONDS = 30.0
+# How many times the chunks whose tasks the cluster cancelled are sent again. Dask's active memory manager
+# keeps one copy of the scattered scene once its waiting tasks sit on one worker; if that worker then dies,
+# the scene is forgotten and every task still needing it is cancelled ("already forgotten"), not retried.
+RESENDS = 3
 
 
 def chunk_rows(batch: int, threads: int) -> int:
@@ -83,13 +90,11 @@ def integrate_on_cluster(client: Any, scene: Experiment, model: NativeModel, met
     row or -1, as the serial loops do.
 
     chunk: rows per task (>= 1), default chunk_rows(B, worker threads).
+    Chunks whose tasks the cluster cancels are sent again, up to RESENDS times (see there).
     Raises ValueError for a bad chunk or client (before any task), SimulationError when a task lost more
-    workers than Dask retries it on, or when the scheduler is lost mid-run.
+    workers than Dask retries it on, when chunks are cancelled more than RESENDS times, or when the
+    scheduler is lost mid-run.
     """
-    from concurrent.futures import CancelledError
-
-    from distributed import as_completed
-    from distributed.client import FutureCancelledError
     from distributed.scheduler import KilledWorker
 
     batch = model.y0.shape[0]
@@ -98,42 +103,83 @@ def integrate_on_cluster(client: Any, scene: Experiment, model: NativeModel, met
     threads = check_client(client)
     rows = chunk if chunk is not None else chunk_rows(batch, threads)
     address = _address(client)
-    token = uuid.uuid4().hex[:8]
-    futures = {}
+    failed = np.empty(batch, dtype=np.int64)
+    chunks = [(start, min(batch, start + rows)) for start in range(0, batch, rows)]
+    sent = 0
     try:
-        shipped = client.scatter(portable(scene), broadcast=True, hash=False)
-        for start in range(0, batch, rows):
-            stop = min(batch, start + rows)
-            key = f"rbody-simulate-{scene.name}-rows-{start}:{stop}-{token}"
-            future = client.submit(integrate_rows, shipped, start, stop, method, dt, nsteps, save_every,
-                                   key=key, pure=False)
-            futures[future.key] = (future, start, stop)
-        failed = np.empty(batch, dtype=np.int64)
-        for future in as_completed([f for f, _, _ in futures.values()]):
-            _, start, stop = futures[future.key]
-            result = future.result()  # a task's error, a KilledWorker or a cancellation is raised here, not unpacked
-            if not (isinstance(result, tuple) and len(result) == 2):
-                raise SimulationError(f"scene {scene.describe()}: task {future.key!r} (rows {start}:{stop} of {batch}) "
-                                      f"returned {type(result).__name__}, not its states: the Dask cluster at "
-                                      f"{address} lost it")
-            out[:, start:stop], failed[start:stop] = result
-            future.release()
+        while chunks:
+            first = f"{len(chunks)} of its tasks (rows {chunks[0][0]}:{chunks[0][1]} first)"
+            if client.status != "running":
+                raise SimulationError(f"scene {scene.describe()}: the Dask cluster at {address} lost the run: its "
+                                      f"scheduler went away mid-run (client {client.status}) with {first} not done; "
+                                      "run it again, or without a client")
+            if sent > RESENDS:
+                raise SimulationError(f"scene {scene.describe()}: the Dask cluster at {address} lost the run: {first} "
+                                      f"were cancelled each of the {sent} times they were sent (the scene scattered "
+                                      "to the workers lost with every worker that held it); run it again, or "
+                                      "without a client")
+            chunks = _send_chunks(client, scene, chunks, method, dt, nsteps, save_every, out, failed)
+            sent += 1
         return failed
     except KilledWorker as error:
-        _, start, stop = futures.get(error.task, (None, "?", "?"))
+        start, stop = _rows_of_key(error.task)
         raise SimulationError(
             f"scene {scene.describe()}: task {error.task!r} (rows {start}:{stop} of {batch}) lost the worker "
             f"that ran it {error.allowed_failures + 1} times: Dask ran it again after each worker death, up to "
             f"distributed.scheduler.allowed-failures = {error.allowed_failures} times (scheduler {address}, last "
             f"worker {error.last_worker.address})") from None
-    except (OSError, FutureCancelledError, CancelledError) as error:
-        raise SimulationError(f"scene {scene.describe()}: the Dask cluster at {address} lost the run: its tasks were "
-                              f"cancelled or its scheduler went away mid-run (every worker killed at once, or the "
-                              f"scheduler stopped: {type(error).__name__}: {error}); run it again, or without a "
+    except OSError as error:
+        raise SimulationError(f"scene {scene.describe()}: the Dask cluster at {address} lost the run: its scheduler "
+                              f"went away mid-run ({type(error).__name__}: {error}); run it again, or without a "
                               "client") from None
+
+
+def _send_chunks(client: Any, scene: Experiment, chunks: list[tuple[int, int]], method: str, dt: float, nsteps: int,
+                 save_every: int, out: np.ndarray, failed: np.ndarray) -> list[tuple[int, int]]:
+    """One sending of `chunks` (start, stop) to the cluster: the scene scattered to every worker, a task per
+    chunk, each chunk's states written into out and its failed steps into failed as it arrives. Returns the
+    chunks whose tasks the cluster cancelled (their scattered scene lost with the last worker that held it),
+    to be sent again; a task's error or a KilledWorker is raised."""
+    from concurrent.futures import CancelledError
+
+    from distributed import as_completed
+    from distributed.client import FutureCancelledError
+
+    batch = out.shape[1]
+    token = uuid.uuid4().hex[:8]
+    futures = {}
+    cancelled = []
+    try:
+        shipped = client.scatter(portable(scene), broadcast=True, hash=False)
+        for start, stop in chunks:
+            key = f"rbody-simulate-{scene.name}-rows-{start}:{stop}-{token}"
+            future = client.submit(integrate_rows, shipped, start, stop, method, dt, nsteps, save_every,
+                                   key=key, pure=False)
+            futures[future.key] = (future, start, stop)
+        for future in as_completed([f for f, _, _ in futures.values()]):
+            _, start, stop = futures[future.key]
+            try:
+                result = future.result()  # a task's error or a KilledWorker is raised here, not unpacked
+            except (FutureCancelledError, CancelledError):
+                cancelled.append((start, stop))
+                continue
+            if not (isinstance(result, tuple) and len(result) == 2):
+                raise SimulationError(f"scene {scene.describe()}: task {future.key!r} (rows {start}:{stop} of {batch}) "
+                                      f"returned {type(result).__name__}, not its states: the Dask cluster at "
+                                      f"{_address(client)} lost it")
+            out[:, start:stop], failed[start:stop] = result
+            future.release()
     finally:
         for future, _, _ in futures.values():
             future.cancel()
+    return sorted(cancelled)
+
+
+def _rows_of_key(key: Any) -> tuple[str, str]:
+    """(start, stop) of a task key 'rbody-simulate-<scene>-rows-<start>:<stop>-<token>', as text; '?' if it is
+    not one."""
+    rows = str(key).rsplit("-rows-", 1)[-1].rsplit("-", 1)[0].split(":")
+    return (rows[0], rows[1]) if len(rows) == 2 and all(r.isdigit() for r in rows) else ("?", "?")
 
 
 def integrate_rows(scene: Experiment, start: int, stop: int, method: str, dt: float, nsteps: int,
