@@ -143,11 +143,13 @@ def cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
         if spent == 0 and residual <= 1e-3 * tolerance:  # the start (the last step's finished impulses: a body at
             trial = lam.copy()  # rest, a ball rolling) may solve it: one sweep takes up the round-off its
             _spent, swept = cone_pgs(W, b, lo, hi, role, mu, trial, 0.0, 1)  # velocities gathered since, or
-            if swept > ROUND_OFF * magnitude(W, b, trial):  # where dependent rows leave a sweep above it (condim 6
-                trial[:] = lam  # feet), Newton's step on the start's states; kept where that is round-off and no
-                swept = hold_states(W, b, lo, hi, role, mu, trial)  # contact is at its cone's edge (there sliding
-            if swept <= ROUND_OFF * magnitude(W, b, trial) and inside_cones(role, mu, trial):  # at any speed is
-                lam[:] = trial  # Coulomb's too: the finishes below choose sticking), else finished below
+            round_off = ROUND_OFF * magnitude(W, b, trial)  # where dependent rows leave a sweep above it (condim 6
+            if swept > round_off:  # feet), Newton's step on the start's states; kept where that is round-off and no
+                trial[:] = lam  # contact is at its cone's edge (there sliding at any speed is Coulomb's too: the
+                swept = hold_states(W, b, lo, hi, role, mu, trial)  # finishes below choose sticking), else
+                round_off = ROUND_OFF * magnitude(W, b, trial)  # finished below
+            if swept <= round_off and inside_cones(role, mu, trial):
+                lam[:] = trial
                 residual = swept
                 break
         unswept = lam.copy() if spent == 0 else lam[:0]  # (Gauss-Seidel stops at `tolerance`: nothing to do)
