@@ -105,6 +105,7 @@ def integrate_on_cluster(client: Any, scene: Experiment, model: NativeModel, met
     address = _address(client)
     failed = np.empty(batch, dtype=np.int64)
     chunks = [(start, min(batch, start + rows)) for start in range(0, batch, rows)]
+    rows_of = {}  # every task key sent: its chunk (start, stop)
     sent = 0
     try:
         while chunks:
@@ -118,11 +119,11 @@ def integrate_on_cluster(client: Any, scene: Experiment, model: NativeModel, met
                                       f"were cancelled each of the {sent} times they were sent (the scene scattered "
                                       "to the workers lost with every worker that held it); run it again, or "
                                       "without a client")
-            chunks = _send_chunks(client, scene, chunks, method, dt, nsteps, save_every, out, failed)
+            chunks = _send_chunks(client, scene, chunks, method, dt, nsteps, save_every, out, failed, rows_of)
             sent += 1
         return failed
     except KilledWorker as error:
-        start, stop = _rows_of_key(error.task)
+        start, stop = rows_of.get(error.task, ("?", "?"))
         raise SimulationError(
             f"scene {scene.describe()}: task {error.task!r} (rows {start}:{stop} of {batch}) lost the worker "
             f"that ran it {error.allowed_failures + 1} times: Dask ran it again after each worker death, up to "
@@ -135,11 +136,12 @@ def integrate_on_cluster(client: Any, scene: Experiment, model: NativeModel, met
 
 
 def _send_chunks(client: Any, scene: Experiment, chunks: list[tuple[int, int]], method: str, dt: float, nsteps: int,
-                 save_every: int, out: np.ndarray, failed: np.ndarray) -> list[tuple[int, int]]:
+                 save_every: int, out: np.ndarray, failed: np.ndarray,
+                 rows_of: dict[str, tuple[int, int]]) -> list[tuple[int, int]]:
     """One sending of `chunks` (start, stop) to the cluster: the scene scattered to every worker, a task per
-    chunk, each chunk's states written into out and its failed steps into failed as it arrives. Returns the
-    chunks whose tasks the cluster cancelled (their scattered scene lost with the last worker that held it),
-    to be sent again; a task's error or a KilledWorker is raised."""
+    chunk (its key and chunk recorded in rows_of), each chunk's states written into out and its failed steps
+    into failed as it arrives. Returns the chunks whose tasks the cluster cancelled (their scattered scene lost
+    with the last worker that held it), to be sent again; a task's error or a KilledWorker is raised."""
     from concurrent.futures import CancelledError
 
     from distributed import as_completed
@@ -156,6 +158,7 @@ def _send_chunks(client: Any, scene: Experiment, chunks: list[tuple[int, int]], 
             future = client.submit(integrate_rows, shipped, start, stop, method, dt, nsteps, save_every,
                                    key=key, pure=False)
             futures[future.key] = (future, start, stop)
+            rows_of[future.key] = (start, stop)
         for future in as_completed([f for f, _, _ in futures.values()]):
             _, start, stop = futures[future.key]
             try:
@@ -173,13 +176,6 @@ def _send_chunks(client: Any, scene: Experiment, chunks: list[tuple[int, int]], 
         for future, _, _ in futures.values():
             future.cancel()
     return sorted(cancelled)
-
-
-def _rows_of_key(key: Any) -> tuple[str, str]:
-    """(start, stop) of a task key 'rbody-simulate-<scene>-rows-<start>:<stop>-<token>', as text; '?' if it is
-    not one."""
-    rows = str(key).rsplit("-rows-", 1)[-1].rsplit("-", 1)[0].split(":")
-    return (rows[0], rows[1]) if len(rows) == 2 and all(r.isdigit() for r in rows) else ("?", "?")
 
 
 def integrate_rows(scene: Experiment, start: int, stop: int, method: str, dt: float, nsteps: int,

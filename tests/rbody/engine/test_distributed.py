@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import dataclasses
-import os
 import subprocess
 import sys
 from pathlib import Path
@@ -13,10 +11,9 @@ import pytest
 
 distributed = pytest.importorskip("distributed")
 
-from rbody import Body, Inertia, Joint, Layout, Scene, SimulationError, simulate  # noqa: E402
+from rbody import Body, Inertia, Joint, Layout, Scene, simulate  # noqa: E402
 from rbody.engine.distributed import MIN_CHUNK, chunk_rows, portable  # noqa: E402
 from rbody.scenes import free_rotation, pendulum_chain, rocket, rolling_race, swinging_rod, two_body  # noqa: E402
-from rbody.scenes.pendulum import SwingingRod  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[3]
 
@@ -126,53 +123,3 @@ def test_the_scenes_sent_to_workers_carry_no_cached_model():
     bare = portable(rod)
     assert "native_model" not in vars(bare) and "native_model" in vars(rod)
     assert np.array_equal(bare.native_model.y0, rod.native_model.y0)
-
-
-def _rod_that_kills_its_worker(marker: Path, *, always: bool):
-    """A swinging rod whose native model, built in a Dask worker, ends that worker's process: once (the first
-    worker to build it creates `marker`), or every time (always=True). Built here, outside a worker, it is
-    the plain rod. A local class, so that Dask sends it by value."""
-
-    @dataclasses.dataclass(frozen=True, kw_only=True)
-    class RodThatKillsItsWorker(SwingingRod):
-        marker: str = ""
-        always: bool = False
-
-        def native(self):
-            try:
-                distributed.get_worker()
-            except ValueError:  # not in a worker
-                return super().native()
-            try:
-                os.close(os.open(self.marker, os.O_CREAT | os.O_EXCL))
-                first = True
-            except FileExistsError:
-                first = False
-            if first or self.always:
-                os._exit(1)
-            return super().native()
-
-    plain = swinging_rod(1.0, theta0=np.linspace(0.1, 3.0, 40), t_end=1.0)
-    return RodThatKillsItsWorker(**{f.name: getattr(plain, f.name) for f in dataclasses.fields(plain)},
-                                 marker=str(marker), always=always)
-
-
-def test_a_worker_killed_mid_run_still_gives_the_full_result(client, tmp_path):
-    scene = _rod_that_kills_its_worker(tmp_path / "killed", always=False)
-    serial = simulate(scene, dt=1e-2, method="rk4")
-    split = simulate(scene, dt=1e-2, method="rk4", client=client, chunk=4)
-    assert (tmp_path / "killed").exists()  # a worker did die
-    for observable in serial.observables:
-        assert np.array_equal(split[observable], serial[observable]), observable
-
-
-def test_a_task_that_kills_every_worker_is_an_error_naming_it(tmp_path):
-    import dask
-
-    scene = _rod_that_kills_its_worker(tmp_path / "killed", always=True)
-    with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
-        with distributed.LocalCluster(n_workers=1, processes=True, threads_per_worker=1,
-                                      dashboard_address=":0") as cluster, distributed.Client(cluster) as one:
-            with pytest.raises(SimulationError, match=r"task 'rbody-simulate-swinging_rod-rows-0:40-\w+' "
-                                                      r"\(rows 0:40 of 40\) lost the worker that ran it 1 times"):
-                simulate(scene, dt=1e-2, method="rk4", client=one)

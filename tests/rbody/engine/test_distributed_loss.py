@@ -1,5 +1,6 @@
-"""Workers lost mid-run (issue 23, and the scene scattered to them lost with them): the batch still gives the
-serial run's result, and a cluster that keeps losing the run, or its scheduler, is a SimulationError."""
+"""Workers lost mid-run (one, all at once as in issue 23, or the scene scattered to them lost with them): the
+batch still gives the serial run's result; a task that kills every worker it runs on, a cluster that keeps
+losing the run, and a scheduler gone mid-run are SimulationErrors."""
 
 from __future__ import annotations
 
@@ -77,6 +78,27 @@ def _rod(marker: Path, action: str):
 def _equal_runs(split, serial) -> None:
     for observable in serial.observables:
         assert np.array_equal(split[observable], serial[observable]), observable
+
+
+def test_a_worker_killed_mid_run_still_gives_the_full_result(cluster, tmp_path):
+    _, client = cluster
+    scene = _rod(tmp_path / "killed", "kill")
+    serial = simulate(scene, dt=1e-2, method="rk4")
+    split = simulate(scene, dt=1e-2, method="rk4", client=client, chunk=4)
+    assert (tmp_path / "killed-0").exists()  # a worker did die
+    _equal_runs(split, serial)
+
+
+def test_a_task_that_kills_every_worker_is_an_error_naming_it(tmp_path):
+    import dask
+
+    scene = _rod(tmp_path / "killed", "kill-always")
+    with dask.config.set({"distributed.scheduler.allowed-failures": 0}):
+        with distributed.LocalCluster(n_workers=1, processes=True, threads_per_worker=1,
+                                      dashboard_address=":0") as cluster, distributed.Client(cluster) as one:
+            with pytest.raises(SimulationError, match=r"task 'rbody-simulate-swinging_rod-rows-0:40-\w+' "
+                                                      r"\(rows 0:40 of 40\) lost the worker that ran it 1 times"):
+                simulate(scene, dt=1e-2, method="rk4", client=one)
 
 
 def test_a_forgotten_scene_is_sent_again_and_the_result_is_whole(cluster, tmp_path):
