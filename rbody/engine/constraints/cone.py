@@ -394,7 +394,8 @@ def sticking_qp(W, b, lo, hi, role, mu, lam):
     met, which joins the set; at a face's minimiser release the held bound whose multiplier w has the wrong sign).
     W is only semidefinite where rows are dependent (a robot standing on four feet with dry friction in its
     joints: 24 rows of rank 18): on such a face the minimiser is the least-norm solution plus, where the gradient
-    has a part along the face's null space, a descent along it to the next bound; Gauss-Seidel crawls along those
+    has a part along the face's null space, a descent along it to the next bound (a full step on a face reaches its
+    minimiser: after it and one refining step the release test follows at once); Gauss-Seidel crawls along those
     directions (200,000 sweeps), the state-reading finishes jump between the same few states. Where the result keeps
     every contact's friction within its cone it solves the whole problem (stationarity is w = 0 on every free row,
     the sticking contacts' law). lam (m,): the start (clipped to the bounds), the answer if better. Returns the
@@ -409,6 +410,7 @@ def sticking_qp(W, b, lo, hi, role, mu, lam):
         held[i] = x[i] == lo[i] or x[i] == hi[i]
     free = np.empty(m, dtype=np.int64)
     least, stalled = np.inf, 0
+    unblocked = 0  # full steps in a row on the face held: the first reaches its minimiser, the second refines it
     for _iteration in range(6 * m + 10):
         g = b + W @ x  # the gradient: the rows' velocities w
         value = 0.5 * (x @ (g + b))  # q(x): it falls at every step that is not degenerate; 2 m steps in a row that
@@ -426,8 +428,8 @@ def sticking_qp(W, b, lo, hi, role, mu, lam):
         step = np.zeros(m)
         moving = False
         along, scale = 0.0, 1.0
-        if k > 0:
-            A = np.empty((k, k))
+        if k > 0 and unblocked < 2:  # (a third solve on the face moves x by round-off only: 1e-14 a step, 100
+            A = np.empty((k, k))    # of them on the ANYmal's hard steps, a factorisation each)
             r = np.empty(k)
             for a in range(k):
                 r[a] = -g[free[a]]
@@ -454,6 +456,7 @@ def sticking_qp(W, b, lo, hi, role, mu, lam):
             if release < 0:
                 break
             held[release] = False
+            unblocked = 0
             continue
         alpha, blocking = 1.0, -1  # the ratio test: the first bound met along the step
         for i in range(m):
@@ -472,6 +475,9 @@ def sticking_qp(W, b, lo, hi, role, mu, lam):
         if blocking >= 0:
             x[blocking] = lo[blocking] if step[blocking] < 0.0 else hi[blocking]
             held[blocking] = True
+            unblocked = 0
+        else:
+            unblocked += 1
     residual = cone_residual(W, b, lo, hi, role, mu, x)
     if residual < best:
         best = residual

@@ -1,0 +1,262 @@
+"""The contact step's problems, captured from a run and timed alone: a suite on which a change of the cone
+solver's schedule (rbody.engine.constraints.stepping.cone_solve) is judged on the same problems, not on whole runs
+whose hard steps are chaotic in cost (a landing quadruped's trajectories part at round-off, and which side of a
+round-off difference a step falls on can change its cost five times).
+
+    python benchmarks/cone_problems.py capture MODEL.xml OUT.npz [--steps 1000] [--lift 0.0105] [--keep 24]
+    python benchmarks/cone_problems.py time PROBLEMS.npz [--repeats 5]
+    python benchmarks/cone_problems.py compare PROBLEMS.npz OTHER_CHECKOUT [--repeats 5]
+
+capture: runs MODEL.xml (a user's MJCF with contacts; its free body raised by --lift [m] to land) natively with its
+own integrator at its own step, timing each step. The --keep slowest steps, and --keep steps spread over the run
+(the common ones, so that a change that slows them shows), are taken again from the state before them through
+the step's own code run in Python (moreau_step.py_func, the solver itself compiled), which records each call of
+cone_solve: the problem, its start, tolerance and budget, kept in OUT.npz (written to a temporary name, then
+renamed).
+
+time: each kept problem solved --repeats times from its start by this checkout's cone_solve, after one call
+that compiles: per problem the minimum, median and maximum [ms] and the residual reached, then the totals.
+
+compare: `time` run in turn by this checkout and by OTHER_CHECKOUT's (a git worktree of another commit, each in
+its own process, alternating --repeats times so that the machine's drift falls on both), and per problem the
+ratio of their minima and both residuals.
+
+Prints the machine and versions. Benchmarks are not tests: the machine may be shared.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve()
+if __name__ == "__main__" and "RBODY_ROOT" not in os.environ:
+    sys.path.insert(0, str(HERE.parents[1]))
+elif "RBODY_ROOT" in os.environ:  # compare's child process: the other checkout's rbody
+    sys.path.insert(0, os.environ["RBODY_ROOT"])
+
+FIELDS = ("W", "b", "lo", "hi", "role", "mu", "lam", "tolerance", "sweeps")
+
+
+def capture(path: Path, out: Path, steps: int, lift: float, keep: int) -> None:
+    """Run the model `steps` steps natively and keep the problems of its `keep` slowest steps and of `keep` steps
+    spread over the run in `out`."""
+    import heapq
+
+    import mujoco
+
+    import rbody
+    from rbody.engine import multibody
+    from rbody.engine.constraints import stepping
+    from rbody.engine.constraints.jacobians import row_count, unit_count
+    from rbody.engine.contacts.rows import kept_geometry_size
+
+    if steps < 1 or keep < 1:
+        raise ValueError(f"steps={steps} and keep={keep}: expected positive counts")
+    if out.suffix != ".npz":
+        raise ValueError(f"out={str(out)!r}: expected a file name ending in .npz")
+    if lift != 0.0:
+        mj = mujoco.MjModel.from_xml_path(str(path))
+        if mj.njnt == 0 or mj.jnt_type[0] != mujoco.mjtJoint.mjJNT_FREE:
+            raise ValueError(f"lift={lift}: {path.name}'s first joint is not a free joint, nothing to raise")
+    scene = rbody.from_mjcf(path, overlapping_geoms="sum")
+    if lift != 0.0:
+        qpos0 = np.array(scene.qpos0, dtype=float)
+        qpos0[2] += lift
+        scene = rbody.from_mjcf(path, overlapping_geoms="sum", qpos0=qpos0)
+    dt = scene.timestep
+    prepared = rbody.prepare(scene, dt=dt, method=scene.file_method, t_end=steps * dt)
+    run = stepping.MoreauRun(prepared.model.constraints, prepared.params[0], path.name, scene.file_method)
+    p, y = run.p, np.array(prepared.y0[0])
+    P, included = np.zeros(row_count(p)), np.zeros(row_count(p))
+    end_geometry = np.zeros(kept_geometry_size(int(p[multibody.H_NQ]), unit_count(p)))
+
+    def step(step_function, state):
+        y, P, end_geometry = state
+        return step_function(p, y, dt, P, stepping.EXACT_ROWS, stepping.PGS_SWEEPS, stepping.STEP_TOLERANCE,
+                             included, run.mode, end_geometry)
+
+    step(stepping.moreau_step, (y.copy(), P.copy(), end_geometry.copy()))  # compiles
+    spread = set(np.linspace(0, steps - 1, min(keep, steps)).astype(int).tolist())
+    slowest: list = []  # a heap of (seconds, step, the state before it) of the slowest steps
+    chosen = {}
+    for k in range(steps):  # moreau_loop's steps one by one (MoreauRun._stepwise), the state before each kept
+        before = (y.copy(), P.copy(), end_geometry.copy())
+        start = time.perf_counter()
+        status, residual, _rows = step(stepping.moreau_step, (y, P, end_geometry))
+        seconds = time.perf_counter() - start
+        if status != 0:
+            raise rbody.SimulationError(f"{path.name}: step {k} (t = {k * dt:g} s) left the residual {residual:.3g}")
+        if k in spread:
+            chosen[k] = (seconds, before, False)
+        heapq.heappush(slowest, (seconds, k, before))
+        if len(slowest) > keep:
+            heapq.heappop(slowest)
+        if k % 100 == 0:
+            print(f"  step {k} of {steps}", file=sys.stderr, flush=True)
+    for seconds, k, before in slowest:
+        chosen[k] = (seconds, before, True)
+    problems: list[dict] = []
+    solve = stepping.cone_solve
+
+    def recorded(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
+        problems.append(dict(W=W.copy(), b=b.copy(), lo=lo.copy(), hi=hi.copy(), role=role.copy(), mu=mu.copy(),
+                             lam=lam.copy(), tolerance=tolerance, sweeps=sweeps, step=k, slow=slow,
+                             step_ms=1e3 * seconds, rows=int(b.size)))
+        return solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps)
+
+    stepping.cone_solve = recorded  # the kept steps again, in Python from the same state: their problems recorded
+    try:
+        for k in sorted(chosen):
+            seconds, before, slow = chosen[k]
+            step(stepping.moreau_step.py_func, before)
+    finally:
+        stepping.cone_solve = solve
+    if not problems:
+        raise ValueError(f"{path.name}: no kept step had a contact problem (raise it with --lift, or run longer)")
+    arrays = {f"{name}_{n}": np.asarray(problem[name]) for n, problem in enumerate(problems) for name in FIELDS}
+    meta = dict(model=path.name, steps=steps, lift=lift, dt=dt, method=scene.file_method,
+                kept=[{key: problem[key] for key in ("step", "slow", "step_ms", "rows")} for problem in problems])
+    temporary = out.with_name(out.name + ".partial.npz")
+    np.savez(temporary, meta=np.array(json.dumps(meta)), **arrays)
+    os.replace(temporary, out)
+    times = sorted(seconds for seconds, _k, _before in slowest)
+    print(f"{path.name}: {steps} steps; kept the problems of {len(chosen)} ({len(slowest)} slowest, "
+          f"{1e3 * times[0]:.2f} to {1e3 * times[-1]:.2f} ms a step) in {out}")
+
+
+def load(path: Path) -> tuple[dict, list[dict]]:
+    if not path.is_file():
+        raise ValueError(f"problems={str(path)!r}: no such file (write one with `capture`)")
+    with np.load(path) as data:
+        meta = json.loads(str(data["meta"]))
+        problems = [{name: data[f"{name}_{n}"] for name in FIELDS} for n in range(len(meta["kept"]))]
+    return meta, problems
+
+
+def solve_times(problems: list[dict], repeats: int) -> list[tuple[list[float], float]]:
+    """Each problem solved `repeats` times from its start: (seconds of each, residual)."""
+    from rbody.engine.constraints.stepping import cone_solve
+
+    def once(problem):
+        lam = problem["lam"].copy()
+        start = time.perf_counter()
+        residual = cone_solve(problem["W"], problem["b"], problem["lo"], problem["hi"], problem["role"],
+                              problem["mu"], lam, float(problem["tolerance"]), int(problem["sweeps"]))
+        return time.perf_counter() - start, residual
+
+    once(problems[0])  # compiles
+    results = []
+    for problem in problems:
+        seconds, residual = zip(*(once(problem) for _ in range(repeats)))
+        results.append((list(seconds), residual[-1]))
+    return results
+
+
+def header() -> None:
+    import numba
+
+    from validation.machine import describe_machine
+
+    print(f"{describe_machine()}; numpy {np.__version__}, numba {numba.__version__}")
+
+
+def time_suite(path: Path, repeats: int, as_json: bool) -> None:
+    if repeats < 1:
+        raise ValueError(f"repeats={repeats}: expected at least 1")
+    meta, problems = load(path)
+    results = solve_times(problems, repeats)
+    if as_json:
+        import rbody
+
+        print(json.dumps(dict(rbody=str(Path(rbody.__file__).resolve().parents[1]),
+                              results=[dict(seconds=s, residual=r) for s, r in results])))
+        return
+    header()
+    import rbody
+
+    print(f"{meta['model']}: the problems of {len(problems)} steps of {meta['steps']} "
+          f"(lift {meta['lift']} m, dt {meta['dt']} s, {meta['method']}); rbody from {Path(rbody.__file__).parent}")
+    print("| step | rows | kept as | min / median / max [ms] | residual | tolerance |")
+    print("|---|---|---|---|---|---|")
+    for info, problem, (seconds, residual) in zip(meta["kept"], problems, results):
+        ms = 1e3 * np.array(seconds)
+        print(f"| {info['step']} | {info['rows']} | {'slowest' if info['slow'] else 'spread'} | {ms.min():.3f} / "
+              f"{np.median(ms):.3f} / {ms.max():.3f} | {residual:.2g} | {float(problem['tolerance']):.2g} |")
+    for kind, slow in (("slowest", True), ("spread", False)):
+        total = sum(min(s) for info, (s, _r) in zip(meta["kept"], results) if info["slow"] == slow)
+        print(f"{kind}: sum of minima {1e3 * total:.2f} ms")
+
+
+def compare(path: Path, other: Path, repeats: int) -> None:
+    if repeats < 1:
+        raise ValueError(f"repeats={repeats}: expected at least 1")
+    if not (other / "rbody" / "__init__.py").is_file():
+        raise ValueError(f"other={str(other)!r}: not a checkout of rbody (no rbody/__init__.py there)")
+    meta, problems = load(path)
+    header()
+    roots = {"this": HERE.parents[1], "other": other.resolve()}
+    best = {name: [np.inf] * len(problems) for name in roots}
+    residual = {}
+    for repeat in range(repeats):
+        for name, root in roots.items():
+            env = dict(os.environ, RBODY_ROOT=str(root), PYTHONPATH=str(root))
+            done = subprocess.run([sys.executable, str(HERE), "time", str(path), "--repeats", "1", "--json"],
+                                  env=env, check=True, capture_output=True, text=True)
+            answer = json.loads(done.stdout.strip().splitlines()[-1])
+            if Path(answer["rbody"]) != root:
+                raise RuntimeError(f"the {name} checkout's run imported rbody from {answer['rbody']}, not {root}")
+            results = answer["results"]
+            best[name] = [min(b, r["seconds"][0]) for b, r in zip(best[name], results)]
+            residual[name] = [r["residual"] for r in results]
+        print(f"  round {repeat + 1} of {repeats}", file=sys.stderr, flush=True)
+    print(f"{meta['model']}: {len(problems)} problems; this = {roots['this']}, other = {roots['other']}; the minimum of "
+          f"{repeats} runs each, alternating")
+    print("| step | rows | kept as | this [ms] | other [ms] | this / other | residual this | residual other |")
+    print("|---|---|---|---|---|---|---|---|")
+    for n, info in enumerate(meta["kept"]):
+        a, b = 1e3 * best["this"][n], 1e3 * best["other"][n]
+        print(f"| {info['step']} | {info['rows']} | {'slowest' if info['slow'] else 'spread'} | {a:.3f} | {b:.3f} | "
+              f"{a / b:.2f} | {residual['this'][n]:.2g} | {residual['other'][n]:.2g} |")
+    for kind, slow in (("slowest", True), ("spread", False)):
+        chosen = [n for n, info in enumerate(meta["kept"]) if info["slow"] == slow]
+        a, b = (1e3 * sum(best[name][n] for n in chosen) for name in ("this", "other"))
+        print(f"{kind}: this {a:.2f} ms, other {b:.2f} ms, ratio {a / b:.2f}")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    commands = parser.add_subparsers(dest="command", required=True)
+    cap = commands.add_parser("capture")
+    cap.add_argument("model", type=Path)
+    cap.add_argument("out", type=Path)
+    cap.add_argument("--steps", type=int, default=1000)
+    cap.add_argument("--lift", type=float, default=0.0, help="raise the free body by this [m] at the start")
+    cap.add_argument("--keep", type=int, default=24)
+    tim = commands.add_parser("time")
+    tim.add_argument("problems", type=Path)
+    tim.add_argument("--repeats", type=int, default=5)
+    tim.add_argument("--json", action="store_true", help=argparse.SUPPRESS)
+    com = commands.add_parser("compare")
+    com.add_argument("problems", type=Path)
+    com.add_argument("other", type=Path, help="another checkout of rbody (a git worktree)")
+    com.add_argument("--repeats", type=int, default=5)
+    args = parser.parse_args()
+    if args.command == "capture":
+        header()
+        capture(args.model, args.out, args.steps, args.lift, args.keep)
+    elif args.command == "time":
+        time_suite(args.problems, args.repeats, args.json)
+    else:
+        compare(args.problems, args.other, args.repeats)
+
+
+if __name__ == "__main__":
+    main()
