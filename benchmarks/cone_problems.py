@@ -10,16 +10,16 @@ round-off difference a step falls on can change its cost five times).
 capture: runs MODEL.xml (a user's MJCF with contacts; its free body raised by --lift [m] to land) natively with its
 own integrator at its own step, timing each step. The --keep slowest steps, and --keep steps spread over the run
 (the common ones, so that a change that slows them shows), are taken again from the state before them through
-the step's own code run in Python (moreau_step.py_func, the solver itself compiled), which records each call of
-cone_solve: the problem, its start, tolerance and budget, kept in OUT.npz (written to a temporary name, then
-renamed).
+the step's own code run in Python (moreau_step.py_func, the solver itself compiled), which records its contact
+problem as it calls solve_cones (cone_solve, with its start from rest where the warm start fails): the problem,
+its start, tolerance and budget, kept in OUT.npz (written to a temporary name, then renamed).
 
-time: each kept problem solved --repeats times from its start by this checkout's cone_solve, after one call
+time: each kept problem solved --repeats times from its start as this checkout's step solves it, after one call
 that compiles: per problem the minimum, median and maximum [ms] and the residual reached, then the totals.
 
 compare: `time` run in turn by this checkout and by OTHER_CHECKOUT's (a git worktree of another commit, each in
-its own process, alternating --repeats times so that the machine's drift falls on both), and per problem the
-ratio of their minima and both residuals.
+its own process, alternating --repeats times so that the machine's drift falls on both; each process solves each
+problem WITHIN times), and per problem the ratio of their minima and both residuals.
 
 Prints the machine and versions. Benchmarks are not tests: the machine may be shared.
 """
@@ -42,6 +42,8 @@ if __name__ == "__main__" and "RBODY_ROOT" not in os.environ:
 elif "RBODY_ROOT" in os.environ:  # compare's child process: the other checkout's rbody
     sys.path.insert(0, os.environ["RBODY_ROOT"])
 
+WITHIN = 3  # compare: the times each process solves each problem (its first solve of a problem can cost 4 times
+# the next: 23 against 6 us on a step the warm start solves)
 FIELDS = ("W", "b", "lo", "hi", "role", "mu", "lam", "tolerance", "sweeps")
 
 
@@ -104,7 +106,7 @@ def capture(path: Path, out: Path, steps: int, lift: float, keep: int) -> None:
     for seconds, k, before in slowest:
         chosen[k] = (seconds, before, True)
     problems: list[dict] = []
-    solve = stepping.cone_solve
+    solve = stepping.solve_cones
 
     def recorded(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
         problems.append(dict(W=W.copy(), b=b.copy(), lo=lo.copy(), hi=hi.copy(), role=role.copy(), mu=mu.copy(),
@@ -112,13 +114,13 @@ def capture(path: Path, out: Path, steps: int, lift: float, keep: int) -> None:
                              step_ms=1e3 * seconds, rows=int(b.size)))
         return solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps)
 
-    stepping.cone_solve = recorded  # the kept steps again, in Python from the same state: their problems recorded
+    stepping.solve_cones = recorded  # the kept steps again, in Python from the same state: their problems recorded
     try:
         for k in sorted(chosen):
             seconds, before, slow = chosen[k]
             step(stepping.moreau_step.py_func, before)
     finally:
-        stepping.cone_solve = solve
+        stepping.solve_cones = solve
     if not problems:
         raise ValueError(f"{path.name}: no kept step had a contact problem (raise it with --lift, or run longer)")
     arrays = {f"{name}_{n}": np.asarray(problem[name]) for n, problem in enumerate(problems) for name in FIELDS}
@@ -141,15 +143,29 @@ def load(path: Path) -> tuple[dict, list[dict]]:
     return meta, problems
 
 
+def _solve_before_patience(cone_solve):
+    """A checkout before solve_cones (2026-11-29): its step's solve, cone_solve once more from rest where the warm
+    start ends above the tolerance."""
+    def solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
+        residual = cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps)
+        if residual > tolerance:
+            lam[:] = 0.0
+            residual = cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps)
+        return residual
+    return solve
+
+
 def solve_times(problems: list[dict], repeats: int) -> list[tuple[list[float], float]]:
-    """Each problem solved `repeats` times from its start: (seconds of each, residual)."""
-    from rbody.engine.constraints.stepping import cone_solve
+    """Each problem solved `repeats` times from its start, as the step solves it: (seconds of each, residual)."""
+    from rbody.engine.constraints import stepping
+
+    solve = getattr(stepping, "solve_cones", None) or _solve_before_patience(stepping.cone_solve)
 
     def once(problem):
         lam = problem["lam"].copy()
         start = time.perf_counter()
-        residual = cone_solve(problem["W"], problem["b"], problem["lo"], problem["hi"], problem["role"],
-                              problem["mu"], lam, float(problem["tolerance"]), int(problem["sweeps"]))
+        residual = solve(problem["W"], problem["b"], problem["lo"], problem["hi"], problem["role"], problem["mu"],
+                         lam, float(problem["tolerance"]), int(problem["sweeps"]))
         return time.perf_counter() - start, residual
 
     once(problems[0])  # compiles
@@ -208,17 +224,17 @@ def compare(path: Path, other: Path, repeats: int) -> None:
     for repeat in range(repeats):
         for name, root in roots.items():
             env = dict(os.environ, RBODY_ROOT=str(root), PYTHONPATH=str(root))
-            done = subprocess.run([sys.executable, str(HERE), "time", str(path), "--repeats", "1", "--json"],
+            done = subprocess.run([sys.executable, str(HERE), "time", str(path), "--repeats", str(WITHIN), "--json"],
                                   env=env, check=True, capture_output=True, text=True)
             answer = json.loads(done.stdout.strip().splitlines()[-1])
             if Path(answer["rbody"]) != root:
                 raise RuntimeError(f"the {name} checkout's run imported rbody from {answer['rbody']}, not {root}")
             results = answer["results"]
-            best[name] = [min(b, r["seconds"][0]) for b, r in zip(best[name], results)]
+            best[name] = [min(b, *r["seconds"]) for b, r in zip(best[name], results)]
             residual[name] = [r["residual"] for r in results]
         print(f"  round {repeat + 1} of {repeats}", file=sys.stderr, flush=True)
     print(f"{meta['model']}: {len(problems)} problems; this = {roots['this']}, other = {roots['other']}; the minimum of "
-          f"{repeats} runs each, alternating")
+          f"{repeats} processes each, alternating, {WITHIN} solves each")
     print("| step | rows | kept as | this [ms] | other [ms] | this / other | residual this | residual other |")
     print("|---|---|---|---|---|---|---|---|")
     for n, info in enumerate(meta["kept"]):

@@ -50,7 +50,7 @@ def test_the_captured_problems_are_the_steps_own_and_solve_again_within_their_to
         W = problem["W"]
         assert W.shape == (info["rows"], info["rows"]) and np.allclose(W, W.T, rtol=0, atol=1e-12 * abs(W).max())
         lam = problem["lam"].copy()
-        residual = cone_solve(W, problem["b"], problem["lo"], problem["hi"], problem["role"], problem["mu"], lam,
+        residual, _sweeps = cone_solve(W, problem["b"], problem["lo"], problem["hi"], problem["role"], problem["mu"], lam,
                               float(problem["tolerance"]), int(problem["sweeps"]))
         assert residual <= float(problem["tolerance"])
         assert np.any(lam > 0.0)  # a contact that pushes: the block is held up by the floor
