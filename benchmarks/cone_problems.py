@@ -12,7 +12,11 @@ own integrator at its own step, timing each step. The --keep slowest steps, and 
 (the common ones, so that a change that slows them shows), are taken again from the state before them through
 the step's own code run in Python (moreau_step.py_func, the solver itself compiled), which records its contact
 problem as it calls solve_cones (cone_solve, with its start from rest where the warm start fails): the problem,
-its start, tolerance and budget, kept in OUT.npz (written to a temporary name, then renamed).
+its start, tolerance and budget, kept in OUT.npz (written to a temporary name, then renamed). The replay forms W
+and b by Python's loops and numpy's products, not the compiled step's, so its problem can differ from the native
+one at round-off; each replayed step's state is compared with the native step's (replay_dy, 0 where they agree
+bit for bit). A hard step's cost can hang on such a difference (the ANYmal C's landing step: 72 ms native, 165 ms
+replayed, on the same code), so a change judged on the suite is checked on a whole run too.
 
 time: each kept problem solved --repeats times from its start as this checkout's step solves it, after one call
 that compiles: per problem the minimum, median and maximum [ms] and the residual reached, then the totals.
@@ -96,6 +100,7 @@ def capture(path: Path, out: Path, steps: int, lift: float, keep: int) -> None:
         seconds = time.perf_counter() - start
         if status != 0:
             raise rbody.SimulationError(f"{path.name}: step {k} (t = {k * dt:g} s) left the residual {residual:.3g}")
+        before = before + (y.copy(),)  # and the state after it, to check the replay against
         if k in spread:
             chosen[k] = (seconds, before, False)
         heapq.heappush(slowest, (seconds, k, before))
@@ -109,7 +114,7 @@ def capture(path: Path, out: Path, steps: int, lift: float, keep: int) -> None:
     solve = stepping.solve_cones
 
     def recorded(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
-        problems.append(dict(W=W.copy(), b=b.copy(), lo=lo.copy(), hi=hi.copy(), role=role.copy(), mu=mu.copy(),
+        problems.append(dict(replay_dy=np.nan, W=W.copy(), b=b.copy(), lo=lo.copy(), hi=hi.copy(), role=role.copy(), mu=mu.copy(),
                              lam=lam.copy(), tolerance=tolerance, sweeps=sweeps, step=k, slow=slow,
                              step_ms=1e3 * seconds, rows=int(b.size)))
         return solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps)
@@ -117,21 +122,28 @@ def capture(path: Path, out: Path, steps: int, lift: float, keep: int) -> None:
     stepping.solve_cones = recorded  # the kept steps again, in Python from the same state: their problems recorded
     try:
         for k in sorted(chosen):
-            seconds, before, slow = chosen[k]
-            step(stepping.moreau_step.py_func, before)
+            seconds, (y0, P0, end0, after), slow = chosen[k]
+            replayed = (y0.copy(), P0.copy(), end0.copy())
+            count = len(problems)
+            step(stepping.moreau_step.py_func, replayed)
+            for problem in problems[count:]:  # 0 where the replay is the native step bit for bit
+                problem["replay_dy"] = float(np.max(np.abs(replayed[0] - after)))
     finally:
         stepping.solve_cones = solve
     if not problems:
         raise ValueError(f"{path.name}: no kept step had a contact problem (raise it with --lift, or run longer)")
     arrays = {f"{name}_{n}": np.asarray(problem[name]) for n, problem in enumerate(problems) for name in FIELDS}
     meta = dict(model=path.name, steps=steps, lift=lift, dt=dt, method=scene.file_method,
-                kept=[{key: problem[key] for key in ("step", "slow", "step_ms", "rows")} for problem in problems])
+                kept=[{key: problem[key] for key in ("step", "slow", "step_ms", "rows", "replay_dy")}
+                      for problem in problems])
     temporary = out.with_name(out.name + ".partial.npz")
     np.savez(temporary, meta=np.array(json.dumps(meta)), **arrays)
     os.replace(temporary, out)
     times = sorted(seconds for seconds, _k, _before in slowest)
     print(f"{path.name}: {steps} steps; kept the problems of {len(chosen)} ({len(slowest)} slowest, "
-          f"{1e3 * times[0]:.2f} to {1e3 * times[-1]:.2f} ms a step) in {out}")
+          f"{1e3 * times[0]:.2f} to {1e3 * times[-1]:.2f} ms a step) in {out}; the replayed steps end "
+          f"{sum(p['replay_dy'] == 0.0 for p in problems)} of {len(problems)} bit for bit on the native ones, the "
+          f"others within {max(p['replay_dy'] for p in problems):.1e}")
 
 
 def load(path: Path) -> tuple[dict, list[dict]]:
@@ -143,9 +155,8 @@ def load(path: Path) -> tuple[dict, list[dict]]:
     return meta, problems
 
 
-def _solve_before_patience(cone_solve):
-    """A checkout before solve_cones (2026-11-29): its step's solve, cone_solve once more from rest where the warm
-    start ends above the tolerance."""
+def _solve_before_solve_cones(cone_solve):
+    """A checkout before solve_cones (2026-11-29): its step's solve, the same calls written in its moreau_step."""
     def solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
         residual = cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps)
         if residual > tolerance:
@@ -159,7 +170,7 @@ def solve_times(problems: list[dict], repeats: int) -> list[tuple[list[float], f
     """Each problem solved `repeats` times from its start, as the step solves it: (seconds of each, residual)."""
     from rbody.engine.constraints import stepping
 
-    solve = getattr(stepping, "solve_cones", None) or _solve_before_patience(stepping.cone_solve)
+    solve = getattr(stepping, "solve_cones", None) or _solve_before_solve_cones(stepping.cone_solve)
 
     def once(problem):
         lam = problem["lam"].copy()
@@ -200,11 +211,12 @@ def time_suite(path: Path, repeats: int, as_json: bool) -> None:
 
     print(f"{meta['model']}: the problems of {len(problems)} steps of {meta['steps']} "
           f"(lift {meta['lift']} m, dt {meta['dt']} s, {meta['method']}); rbody from {Path(rbody.__file__).parent}")
-    print("| step | rows | kept as | min / median / max [ms] | residual | tolerance |")
-    print("|---|---|---|---|---|---|")
+    print("| step | rows | kept as | replay's max \\|dy\\| | min / median / max [ms] | residual | tolerance |")
+    print("|---|---|---|---|---|---|---|")
     for info, problem, (seconds, residual) in zip(meta["kept"], problems, results):
         ms = 1e3 * np.array(seconds)
-        print(f"| {info['step']} | {info['rows']} | {'slowest' if info['slow'] else 'spread'} | {ms.min():.3f} / "
+        print(f"| {info['step']} | {info['rows']} | {'slowest' if info['slow'] else 'spread'} | "
+              f"{info.get('replay_dy', float('nan')):.1e} | {ms.min():.3f} / "
               f"{np.median(ms):.3f} / {ms.max():.3f} | {residual:.2g} | {float(problem['tolerance']):.2g} |")
     for kind, slow in (("slowest", True), ("spread", False)):
         total = sum(min(s) for info, (s, _r) in zip(meta["kept"], results) if info["slow"] == slow)

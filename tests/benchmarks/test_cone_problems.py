@@ -47,10 +47,11 @@ def test_the_captured_problems_are_the_steps_own_and_solve_again_within_their_to
     assert sum(info["slow"] for info in meta["kept"]) >= 1           # contacts, the first (in the air) none
     assert 0 not in spread  # the block falls 1 cm first: the first step has no contact, so no problem
     for info, problem in zip(meta["kept"], problems):
+        assert 0.0 <= info["replay_dy"] <= 1e-12  # the step replayed in Python ends where the native one did
         W = problem["W"]
         assert W.shape == (info["rows"], info["rows"]) and np.allclose(W, W.T, rtol=0, atol=1e-12 * abs(W).max())
         lam = problem["lam"].copy()
-        residual, _sweeps = cone_solve(W, problem["b"], problem["lo"], problem["hi"], problem["role"], problem["mu"], lam,
+        residual = cone_solve(W, problem["b"], problem["lo"], problem["hi"], problem["role"], problem["mu"], lam,
                               float(problem["tolerance"]), int(problem["sweeps"]))
         assert residual <= float(problem["tolerance"])
         assert np.any(lam > 0.0)  # a contact that pushes: the block is held up by the floor

@@ -79,8 +79,6 @@ STEP_TOLERANCE = 1e-10   # natural residual of PGS, relative to max(|b|, 1) [m/s
 PGS_SWEEPS = 2000
 CONE_ROUND = 50          # Gauss-Seidel sweeps between two exact finishes of a problem with contacts' cones
 INTERIOR_AFTER = 2       # rounds of those before each further round also finishes from inside (interior_finish)
-PATIENCE = 8             # rounds above the tolerance without halving the residual after which a warm-started
-# cone_solve gives up for a start from rest (the ANYmal C landing: 3.1e-10 for 35 rounds, 2000 sweeps, 108 ms)
 TOUCH_TOLERANCE = 1e-10  # [m or rad]
 FLAGGED_GAP = TOUCH_TOLERANCE * 1e-3  # a stop or contact within this after a step (and pushing) is projected onto
 PROJECTION_ROUNDS = 6    # projections after a step, each with the stops the last one pushed past
@@ -125,7 +123,7 @@ def mujoco_free_velocity(p, y, h, mode, M, f, vfree, L):
 
 
 @njit(cache=True)
-def cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps, patience=0):
+def cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
     """The step's problem with contacts' cones (rbody.engine.constraints.cone) from lam (a start, solved in place):
     CONE_ROUND Gauss-Seidel sweeps at a time, each round finished exactly (every contact sticking; the states read
     from lam; some sticking contacts made to slide; a crawl along dependent rows taken to its end), until the
@@ -134,20 +132,12 @@ def cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps, patience=0):
     after one sweep. From the INTERIOR_AFTER-th round on, each round not yet at 1e-3 of `tolerance` also solves
     Tresca's problem from inside and finishes from its states (interior_finish: where dependent rows leave
     Gauss-Seidel crawling along W's null space), kept where that lowers the residual, the round then not counted
-    as one that moved nothing. With patience > 0, it also stops where that many rounds above `tolerance` have
-    not halved the residual (the caller then starts again from rest). Returns (residual, Gauss-Seidel sweeps
-    spent)."""
+    as one that moved nothing. Returns the residual."""
     done = 0
     rounds = 0
     residual = np.inf
     normals = lam[:0]  # the interior finish's radii (its last barrier's impulses), from its first round on
-    mark, marked = np.inf, 0  # the residual the last halving reached, and its round
     while done < sweeps:
-        if patience > 0 and rounds > 0:
-            if residual < 0.5 * mark:
-                mark, marked = residual, rounds
-            elif rounds - marked >= patience and residual > tolerance:
-                break
         spent, residual = cone_pgs(W, b, lo, hi, role, mu, lam, tolerance, min(CONE_ROUND, sweeps - done))
         done += max(spent, 1)
         if spent == 0 and residual <= 1e-3 * tolerance:  # the start (the last step's finished impulses: a body at
@@ -189,23 +179,18 @@ def cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps, patience=0):
                 continue
         if stalled:  # nothing moved lam: every round after would repeat this one
             break
-    return residual, done
+    return residual
 
 
 @njit(cache=True)
 def solve_cones(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
     """The step's problem with contacts' cones from the warm start lam (the last step's impulses), solved in place
-    by cone_solve; where its rounds stall (PATIENCE) or the budget ends above `tolerance`, once more from rest (the
-    warm start led Gauss-Seidel astray), and where that fails too, the warm start's rounds taken on. Returns the
-    residual."""
-    residual, _spent = cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps, PATIENCE)
+    by cone_solve, and once more from rest where that ends above `tolerance` (the warm start led Gauss-Seidel
+    astray). Returns the residual."""
+    residual = cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps)
     if residual > tolerance:
-        warm = lam.copy()
         lam[:] = 0.0
-        residual, _spent = cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps)
-        if residual > tolerance:
-            lam[:] = warm
-            residual, _spent = cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps)
+        residual = cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps)
     return residual
 
 

@@ -44,7 +44,7 @@ def crawling_problem(seed: int):
 def test_a_crawl_along_dependent_rows_is_solved_exactly(seed):
     W, b, lo, hi = crawling_problem(seed)
     lam = np.zeros(8)
-    residual, _sweeps = cone_solve(W, b, lo, hi, ROLES, MU, lam, TOLERANCE, 2000)
+    residual = cone_solve(W, b, lo, hi, ROLES, MU, lam, TOLERANCE, 2000)
     assert residual <= TOLERANCE  # what the step accepts (without follow_drift: 1e-7)
     assert cone_residual(W, b, lo, hi, ROLES, MU, lam) == residual
     w = W @ lam + b

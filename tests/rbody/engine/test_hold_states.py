@@ -41,7 +41,7 @@ def squeezed_solution(W, b, lo, hi):
     """A sticking solution that is not the least-norm one: the solved impulses plus the corners' tangential forces
     pushing the x-pairs towards each other at a tenth of mu lambda_n (in W's null space, so every velocity stays 0)."""
     lam = np.zeros(24)
-    assert cone_solve(W, b, lo, hi, ROLES, MU, lam, 1e-10, 2000)[0] <= 1e-16
+    assert cone_solve(W, b, lo, hi, ROLES, MU, lam, 1e-10, 2000) <= 1e-16
     squeeze = np.zeros(24)
     squeeze[[1, 7, 13, 19]] = [-1.0, 1.0, 1.0, -1.0]
     np.testing.assert_allclose(W @ squeeze, 0.0, atol=1e-15)
@@ -90,7 +90,7 @@ def test_a_warm_start_within_the_tolerance_keeps_its_share_of_the_load():
     squeezed member to round-off; stick_polish, before the hold, moved the load to its own member."""
     W, b, lo, hi, exact, start = warm_start()
     lam = start.copy()
-    residual, _sweeps = cone_solve(W, b, lo, hi, ROLES, MU, lam, 1e-8, 2000)
+    residual = cone_solve(W, b, lo, hi, ROLES, MU, lam, 1e-8, 2000)
     assert residual <= round_off(W, b, lam)
     np.testing.assert_allclose(lam, exact, rtol=0.0, atol=1e-12)
 
