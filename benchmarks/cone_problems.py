@@ -91,32 +91,32 @@ def capture(path: Path, out: Path, steps: int, lift: float, keep: int) -> None:
 
     step(stepping.moreau_step, (y.copy(), P.copy(), end_geometry.copy()))  # compiles
     spread = set(np.linspace(0, steps - 1, min(keep, steps)).astype(int).tolist())
-    slowest: list = []  # a heap of (seconds, step, the state before it) of the slowest steps
+    slowest: list = []  # a heap of (seconds, step, its states) of the slowest steps
     chosen = {}
-    for k in range(steps):  # moreau_loop's steps one by one (MoreauRun._stepwise), the state before each kept
+    for k in range(steps):  # moreau_loop's steps one by one (MoreauRun._stepwise), the states of each kept
         before = (y.copy(), P.copy(), end_geometry.copy())
         start = time.perf_counter()
         status, residual, _rows = step(stepping.moreau_step, (y, P, end_geometry))
         seconds = time.perf_counter() - start
         if status != 0:
             raise rbody.SimulationError(f"{path.name}: step {k} (t = {k * dt:g} s) left the residual {residual:.3g}")
-        before = before + (y.copy(),)  # and the state after it, to check the replay against
+        states = before + (y.copy(),)  # and the state after it, to check the replay against
         if k in spread:
-            chosen[k] = (seconds, before, False)
-        heapq.heappush(slowest, (seconds, k, before))
+            chosen[k] = (seconds, states, False)
+        heapq.heappush(slowest, (seconds, k, states))
         if len(slowest) > keep:
             heapq.heappop(slowest)
         if k % 100 == 0:
             print(f"  step {k} of {steps}", file=sys.stderr, flush=True)
-    for seconds, k, before in slowest:
-        chosen[k] = (seconds, before, True)
+    for seconds, k, states in slowest:
+        chosen[k] = (seconds, states, True)
     problems: list[dict] = []
     solve = stepping.solve_cones
 
     def recorded(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
-        problems.append(dict(replay_dy=np.nan, W=W.copy(), b=b.copy(), lo=lo.copy(), hi=hi.copy(), role=role.copy(), mu=mu.copy(),
+        problems.append(dict(W=W.copy(), b=b.copy(), lo=lo.copy(), hi=hi.copy(), role=role.copy(), mu=mu.copy(),
                              lam=lam.copy(), tolerance=tolerance, sweeps=sweeps, step=k, slow=slow,
-                             step_ms=1e3 * seconds, rows=int(b.size)))
+                             step_ms=1e3 * seconds, rows=int(b.size), replay_dy=np.nan))
         return solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps)
 
     stepping.solve_cones = recorded  # the kept steps again, in Python from the same state: their problems recorded
@@ -139,7 +139,7 @@ def capture(path: Path, out: Path, steps: int, lift: float, keep: int) -> None:
     temporary = out.with_name(out.name + ".partial.npz")
     np.savez(temporary, meta=np.array(json.dumps(meta)), **arrays)
     os.replace(temporary, out)
-    times = sorted(seconds for seconds, _k, _before in slowest)
+    times = sorted(seconds for seconds, _k, _states in slowest)
     print(f"{path.name}: {steps} steps; kept the problems of {len(chosen)} ({len(slowest)} slowest, "
           f"{1e3 * times[0]:.2f} to {1e3 * times[-1]:.2f} ms a step) in {out}; the replayed steps end "
           f"{sum(p['replay_dy'] == 0.0 for p in problems)} of {len(problems)} bit for bit on the native ones, the "
@@ -200,15 +200,13 @@ def time_suite(path: Path, repeats: int, as_json: bool) -> None:
         raise ValueError(f"repeats={repeats}: expected at least 1")
     meta, problems = load(path)
     results = solve_times(problems, repeats)
-    if as_json:
-        import rbody
+    import rbody
 
+    if as_json:
         print(json.dumps(dict(rbody=str(Path(rbody.__file__).resolve().parents[1]),
                               results=[dict(seconds=s, residual=r) for s, r in results])))
         return
     header()
-    import rbody
-
     print(f"{meta['model']}: the problems of {len(problems)} steps of {meta['steps']} "
           f"(lift {meta['lift']} m, dt {meta['dt']} s, {meta['method']}); rbody from {Path(rbody.__file__).parent}")
     print("| step | rows | kept as | replay's max \\|dy\\| | min / median / max [ms] | residual | tolerance |")
@@ -245,8 +243,8 @@ def compare(path: Path, other: Path, repeats: int) -> None:
             best[name] = [min(b, *r["seconds"]) for b, r in zip(best[name], results)]
             residual[name] = [r["residual"] for r in results]
         print(f"  round {repeat + 1} of {repeats}", file=sys.stderr, flush=True)
-    print(f"{meta['model']}: {len(problems)} problems; this = {roots['this']}, other = {roots['other']}; the minimum of "
-          f"{repeats} processes each, alternating, {WITHIN} solves each")
+    print(f"{meta['model']}: {len(problems)} problems; this = {roots['this']}, other = {roots['other']}; the "
+          f"minimum of {repeats} processes each, alternating, {WITHIN} solves each")
     print("| step | rows | kept as | this [ms] | other [ms] | this / other | residual this | residual other |")
     print("|---|---|---|---|---|---|---|---|")
     for n, info in enumerate(meta["kept"]):

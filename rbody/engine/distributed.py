@@ -157,10 +157,10 @@ def _send_chunks(client: Any, scene: Experiment, chunks: list[tuple[int, int]], 
             key = f"rbody-simulate-{scene.name}-rows-{start}:{stop}-{token}"
             future = client.submit(integrate_rows, shipped, start, stop, method, dt, nsteps, save_every,
                                    key=key, pure=False)
-            futures[future.key] = (future, start, stop)
+            futures[future.key] = future
             rows_of[future.key] = (start, stop)
-        for future in as_completed([f for f, _, _ in futures.values()]):
-            _, start, stop = futures[future.key]
+        for future in as_completed(list(futures.values())):
+            start, stop = rows_of[future.key]
             try:
                 result = future.result()  # a task's error or a KilledWorker is raised here, not unpacked
             except (FutureCancelledError, CancelledError):
@@ -173,7 +173,7 @@ def _send_chunks(client: Any, scene: Experiment, chunks: list[tuple[int, int]], 
             out[:, start:stop], failed[start:stop] = result
             future.release()
     finally:
-        for future, _, _ in futures.values():
+        for future in futures.values():
             future.cancel()
     return sorted(cancelled)
 
