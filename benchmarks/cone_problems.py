@@ -6,6 +6,7 @@ round-off difference a step falls on can change its cost five times).
     python benchmarks/cone_problems.py capture MODEL.xml OUT.npz [--steps 1000] [--lift 0.0105] [--keep 24]
     python benchmarks/cone_problems.py time PROBLEMS.npz [--repeats 5]
     python benchmarks/cone_problems.py compare PROBLEMS.npz OTHER_CHECKOUT [--repeats 5]
+    python benchmarks/cone_problems.py census MODEL.xml [--steps 1000] [--lift 0.0105] [--runs 2] [--other CHECKOUT]
 
 capture: runs MODEL.xml (a user's MJCF with contacts; its free body raised by --lift [m] to land) natively with its
 own integrator at its own step, timing each step. The --keep slowest steps, and --keep steps spread over the run
@@ -24,6 +25,14 @@ that compiles: per problem the minimum, median and maximum [ms] and the residual
 compare: `time` run in turn by this checkout and by OTHER_CHECKOUT's (a git worktree of another commit, each in
 its own process, alternating --repeats times so that the machine's drift falls on both; each process solves each
 problem WITHIN times), and per problem the ratio of their minima and both residuals.
+
+census: the whole run's cost and exactness, step by step, which the suite cannot show (a change of the schedule
+moves which steps are hard and where each ends): MODEL.xml run natively --runs times, each step timed (the
+compiled moreau_step alone) and its residual kept; per step the minimum over the runs. It prints the sum of those
+minima, each run's mean, the quantiles, the steps above 1 and 5 ms, and the steps accepted with a residual above
+ROUND_GOAL (1e-13 [m/s], the rounds' goal of 1e-3 of the step's tolerance at a scale of 1), each with its
+residual. With --other, the same from OTHER_CHECKOUT, the two alternating run by run in their own processes, and
+the steps whose residual or cost differ most.
 
 Prints the machine and versions. Benchmarks are not tests: the machine may be shared.
 """
@@ -49,13 +58,12 @@ elif "RBODY_ROOT" in os.environ:  # compare's child process: the other checkout'
 WITHIN = 3  # compare: the times each process solves each problem (its first solve of a problem can cost 4 times
 # the next: 23 against 6 us on a step the warm start solves)
 FIELDS = ("W", "b", "lo", "hi", "role", "mu", "lam", "tolerance", "sweeps")
+ROUND_GOAL = 1e-13  # census: a step accepted above this residual [m/s] is reported
 
 
-def capture(path: Path, out: Path, steps: int, lift: float, keep: int) -> None:
-    """Run the model `steps` steps natively and keep the problems of its `keep` slowest steps and of `keep` steps
-    spread over the run in `out`."""
-    import heapq
-
+def _native_run(path: Path, steps: int, lift: float):
+    """The model's scene (its free body raised by `lift` [m]), its step [s], a function that takes one step of
+    moreau_step (or its py_func) from a state (y, P, end_geometry) in place, and the first state."""
     import mujoco
 
     import rbody
@@ -64,10 +72,8 @@ def capture(path: Path, out: Path, steps: int, lift: float, keep: int) -> None:
     from rbody.engine.constraints.jacobians import row_count, unit_count
     from rbody.engine.contacts.rows import kept_geometry_size
 
-    if steps < 1 or keep < 1:
-        raise ValueError(f"steps={steps} and keep={keep}: expected positive counts")
-    if out.suffix != ".npz":
-        raise ValueError(f"out={str(out)!r}: expected a file name ending in .npz")
+    if not path.is_file():
+        raise ValueError(f"model={str(path)!r}: no such file")
     if lift != 0.0:
         mj = mujoco.MjModel.from_xml_path(str(path))
         if mj.njnt == 0 or mj.jnt_type[0] != mujoco.mjtJoint.mjJNT_FREE:
@@ -80,15 +86,32 @@ def capture(path: Path, out: Path, steps: int, lift: float, keep: int) -> None:
     dt = scene.timestep
     prepared = rbody.prepare(scene, dt=dt, method=scene.file_method, t_end=steps * dt)
     run = stepping.MoreauRun(prepared.model.constraints, prepared.params[0], path.name, scene.file_method)
-    p, y = run.p, np.array(prepared.y0[0])
-    P, included = np.zeros(row_count(p)), np.zeros(row_count(p))
-    end_geometry = np.zeros(kept_geometry_size(int(p[multibody.H_NQ]), unit_count(p)))
+    p = run.p
+    included = np.zeros(row_count(p))
 
     def step(step_function, state):
         y, P, end_geometry = state
         return step_function(p, y, dt, P, stepping.EXACT_ROWS, stepping.PGS_SWEEPS, stepping.STEP_TOLERANCE,
                              included, run.mode, end_geometry)
 
+    first = (np.array(prepared.y0[0]), np.zeros(row_count(p)),
+             np.zeros(kept_geometry_size(int(p[multibody.H_NQ]), unit_count(p))))
+    return scene, dt, step, first
+
+
+def capture(path: Path, out: Path, steps: int, lift: float, keep: int) -> None:
+    """Run the model `steps` steps natively and keep the problems of its `keep` slowest steps and of `keep` steps
+    spread over the run in `out`."""
+    import heapq
+
+    import rbody
+    from rbody.engine.constraints import stepping
+
+    if steps < 1 or keep < 1:
+        raise ValueError(f"steps={steps} and keep={keep}: expected positive counts")
+    if out.suffix != ".npz":
+        raise ValueError(f"out={str(out)!r}: expected a file name ending in .npz")
+    scene, dt, step, (y, P, end_geometry) = _native_run(path, steps, lift)
     step(stepping.moreau_step, (y.copy(), P.copy(), end_geometry.copy()))  # compiles
     spread = set(np.linspace(0, steps - 1, min(keep, steps)).astype(int).tolist())
     slowest: list = []  # a heap of (seconds, step, its states) of the slowest steps
@@ -257,6 +280,84 @@ def compare(path: Path, other: Path, repeats: int) -> None:
         print(f"{kind}: this {a:.2f} ms, other {b:.2f} ms, ratio {a / b:.2f}")
 
 
+def census_runs(path: Path, steps: int, lift: float, runs: int) -> dict:
+    """The model run natively `runs` times from its first state: each run's step times [s], and each step's residual
+    and rows (those of the first run; a run repeats them bit for bit)."""
+    import rbody
+    from rbody.engine.constraints import stepping
+
+    if steps < 1 or runs < 1:
+        raise ValueError(f"steps={steps} and runs={runs}: expected positive counts")
+    _scene, dt, step, first = _native_run(path, steps, lift)
+    step(stepping.moreau_step, tuple(a.copy() for a in first))  # compiles
+    seconds, residuals, rows = [], [], []
+    for run in range(runs):
+        state = tuple(a.copy() for a in first)
+        times = []
+        for k in range(steps):
+            start = time.perf_counter()
+            status, residual, m = step(stepping.moreau_step, state)
+            times.append(time.perf_counter() - start)
+            if status != 0:
+                raise rbody.SimulationError(f"{path.name}: step {k} (t = {k * dt:g} s) left the residual "
+                                            f"{residual:.3g}")
+            if run == 0:
+                residuals.append(float(residual))
+                rows.append(int(m))
+        seconds.append(times)
+        print(f"  run {run + 1} of {runs}", file=sys.stderr, flush=True)
+    return dict(rbody=str(Path(rbody.__file__).resolve().parents[1]), seconds=seconds, residual=residuals, rows=rows)
+
+
+def census(path: Path, steps: int, lift: float, runs: int, other: Path | None) -> None:
+    """Print the census (module docstring) of this checkout, and of `other` beside it."""
+    if other is not None and not (other / "rbody" / "__init__.py").is_file():
+        raise ValueError(f"other={str(other)!r}: not a checkout of rbody (no rbody/__init__.py there)")
+    if other is None:
+        results = {"this": census_runs(path, steps, lift, runs)}
+    else:
+        if steps < 1 or runs < 1:
+            raise ValueError(f"steps={steps} and runs={runs}: expected positive counts")
+        roots = {"this": HERE.parents[1], "other": other.resolve()}
+        results = {name: dict(seconds=[]) for name in roots}
+        for run in range(runs):
+            for name, root in roots.items():
+                env = dict(os.environ, RBODY_ROOT=str(root), PYTHONPATH=str(root))
+                done = subprocess.run([sys.executable, str(HERE), "census", str(path), "--steps", str(steps),
+                                       "--lift", repr(lift), "--runs", "1", "--json"],
+                                      env=env, check=True, capture_output=True, text=True)
+                answer = json.loads(done.stdout.strip().splitlines()[-1])
+                if Path(answer["rbody"]) != root:
+                    raise RuntimeError(f"the {name} checkout's run imported rbody from {answer['rbody']}, not {root}")
+                results[name]["seconds"] += answer["seconds"]
+                results[name].update(rbody=answer["rbody"], residual=answer["residual"], rows=answer["rows"])
+            print(f"  round {run + 1} of {runs}", file=sys.stderr, flush=True)
+    print(f"{path.name}: {steps} steps (lift {lift} m), {runs} runs of each checkout; per step the minimum over the "
+          f"runs [us]; steps accepted above {ROUND_GOAL:g}")
+    print("| checkout | sum [ms] | mean of each run [us] | median | 90% | 99% | max | steps > 1 ms | > 5 ms | "
+          f"above {ROUND_GOAL:g} |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    minima = {}
+    for name, result in results.items():
+        seconds = 1e6 * np.array(result["seconds"])
+        best = minima[name] = seconds.min(axis=0)
+        residual = np.array(result["residual"])
+        quantiles = np.percentile(best, [50, 90, 99])
+        print(f"| {name} ({result['rbody']}) | {best.sum() / 1e3:.1f} | "
+              f"{' / '.join(f'{run.mean():.0f}' for run in seconds)} | {quantiles[0]:.1f} | {quantiles[1]:.1f} | "
+              f"{quantiles[2]:.0f} | {best.max():.0f} | {int((best > 1e3).sum())} | {int((best > 5e3).sum())} | "
+              f"{int((residual > ROUND_GOAL).sum())} |")
+    for name, result in results.items():
+        residual = np.array(result["residual"])
+        above = np.flatnonzero(residual > ROUND_GOAL)
+        slowest = np.argsort(minima[name])[::-1][:10]
+        print(f"{name}: above {ROUND_GOAL:g}: "
+              + (", ".join(f"{k} ({residual[k]:.1e})" for k in above[:30]) or "none")
+              + ("" if above.size <= 30 else f", and {above.size - 30} more"))
+        print(f"{name}: slowest: " + ", ".join(f"{k} ({minima[name][k] / 1e3:.1f} ms, {residual[k]:.0e})"
+                                               for k in slowest))
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     commands = parser.add_subparsers(dest="command", required=True)
@@ -274,8 +375,20 @@ def main() -> None:
     com.add_argument("problems", type=Path)
     com.add_argument("other", type=Path, help="another checkout of rbody (a git worktree)")
     com.add_argument("--repeats", type=int, default=5)
+    cen = commands.add_parser("census")
+    cen.add_argument("model", type=Path)
+    cen.add_argument("--steps", type=int, default=1000)
+    cen.add_argument("--lift", type=float, default=0.0, help="raise the free body by this [m] at the start")
+    cen.add_argument("--runs", type=int, default=2)
+    cen.add_argument("--other", type=Path, help="another checkout of rbody (a git worktree), run alternately")
+    cen.add_argument("--json", action="store_true", help=argparse.SUPPRESS)
     args = parser.parse_args()
-    if args.command == "capture":
+    if args.command == "census" and args.json:
+        print(json.dumps(census_runs(args.model, args.steps, args.lift, args.runs)))
+    elif args.command == "census":
+        header()
+        census(args.model, args.steps, args.lift, args.runs, args.other)
+    elif args.command == "capture":
         header()
         capture(args.model, args.out, args.steps, args.lift, args.keep)
     elif args.command == "time":

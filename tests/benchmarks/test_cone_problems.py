@@ -80,3 +80,28 @@ def test_bad_arguments_are_refused_before_any_run(tmp_path):
     with pytest.raises(ValueError, match=r"not a checkout of rbody"):
         problems_script.compare(tmp_path / "missing.npz", tmp_path, repeats=1)
     assert not list(tmp_path.glob("*.npz"))
+
+
+def test_the_census_times_every_step_and_keeps_its_residual(tmp_path, capsys):
+    model = tmp_path / "block.xml"
+    model.write_text(BLOCK)
+    result = problems_script.census_runs(model, steps=60, lift=0.01, runs=2)
+    assert Path(result["rbody"]) == SCRIPT.parents[1]
+    assert len(result["seconds"]) == 2 and all(len(run) == 60 and min(run) > 0.0 for run in result["seconds"])
+    assert len(result["residual"]) == len(result["rows"]) == 60
+    assert result["rows"][0] == 0 and max(result["rows"]) > 0  # in the air first, then on the floor
+    assert max(result["residual"]) <= 1e-10  # every step accepted within the step's tolerance (scale 1 here)
+    problems_script.census(model, steps=60, lift=0.01, runs=1, other=None)
+    printed = capsys.readouterr().out
+    assert "| this (" in printed and "this: above 1e-13:" in printed and "this: slowest: " in printed
+
+
+def test_the_census_refuses_bad_arguments_before_any_run(tmp_path):
+    model = tmp_path / "block.xml"
+    model.write_text(BLOCK)
+    with pytest.raises(ValueError, match=r"steps=0 and runs=1: expected positive counts"):
+        problems_script.census_runs(model, steps=0, lift=0.0, runs=1)
+    with pytest.raises(ValueError, match=r"model='.*missing\.xml': no such file"):
+        problems_script.census_runs(tmp_path / "missing.xml", steps=5, lift=0.0, runs=1)
+    with pytest.raises(ValueError, match=r"not a checkout of rbody"):
+        problems_script.census(model, steps=5, lift=0.0, runs=1, other=tmp_path)

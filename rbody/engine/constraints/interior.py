@@ -21,7 +21,9 @@ normal impulses are the next lambda_n^0 (the fixed point is Coulomb's problem: T
 The states are read from it: every impulse within a relative `near` of its bound put on it (`snapped`), and the exact
 finish of rbody.engine.constraints.cone (cone_polish: the held rows solved, the sliding ones on their bounds against
 their velocity, the Coulomb radii moving with the normals) taken from there; several `near` (SNAP_LEVELS), the best
-kept.
+kept, and Newton's method on the natural map from it where none reaches the goal (rbody.engine.constraints.
+natural_newton: cone_polish's fixed point on a sliding contact's direction is linear and can stall). The states
+are read already after each of the last centrings, and the barrier stops where they reach the goal.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from numba import njit
 
 from rbody.engine.constraints.cone import (NORMAL, ROLL, ROW, SPIN, TANGENT, cone_polish, is_disc,
                                            normal_of)
+from rbody.engine.constraints.natural_newton import newton_polish
 from rbody.engine.constraints.solver import cholesky_factor, lower_solve, symmetric_solve, upper_solve
 
 BARRIER_START = 0.1        # the first barrier weight t, of the problem's scale max(|b|, 1) max(lambda_n^0)
@@ -38,9 +41,12 @@ BARRIER_SHRINK = 0.02      # t's factor between two centrings
 BARRIER_END = 1e-18        # the last t, of that scale: a bound held at a velocity w is then within t / w of it
 CENTRED = 0.01             # a centring ends where the Newton decrement -g.d is below this of t
 CENTRING_STEPS = 60        # Newton steps at most per t
+CENTRING_STALL = 3         # Newton steps that do not halve the least decrement so far end a centring,
+ROUNDING_DECREMENT = 1e-12  # where the decrement is below this of |q| (q's rounding, not the damped phase)
 TO_BOUNDARY = 0.99         # a Newton step goes at most this share of the way to the nearest bound
 SNAP_LEVELS = (1e-2, 1e-3, 1e-4, 1e-5, 1e-6)  # the `near` of the states read from the barrier's impulses
 POLISH_ROUNDS = 4
+TRY_BELOW = 1e-12          # interior_finish reads the states after each centring below this weight (of the scale)
 
 
 @njit(cache=True)
@@ -150,12 +156,10 @@ def _newton_direction(H, g, d):
 
 
 @njit(cache=True)
-def tresca_barrier(W, b, lo, hi, role, mu, normals):
-    """The solution (m,) of Tresca's problem (module docstring) with the radii friction_radii(role, mu, normals), by
-    the log barrier, from the centre of each set (normals at max(normals, 1e-3 of their largest)). W (m, m), b (m,)
-    as in cone_pgs. Returns (lambda, Newton steps)."""
-    m = b.shape[0]
-    radius = friction_radii(role, mu, normals)
+def _barrier_start(lo, hi, role, normals):
+    """The barrier's first iterate (m,), the centre of each set (normals at max(normals, 1e-3 of their largest)),
+    and the problem's scale of impulses, max(lambda_n^0)."""
+    m = role.shape[0]
     top = 1e-300
     for i in range(m):
         if role[i] == NORMAL:
@@ -169,53 +173,88 @@ def tresca_barrier(W, b, lo, hi, role, mu, normals):
                 lam[i] = lo[i] + (max(normals[i], 1e-3 * top) if role[i] == NORMAL else top)
             elif hi[i] < np.inf:
                 lam[i] = hi[i] - top
-    size = 1.0
-    for i in range(m):
-        size = max(size, abs(b[i]))
-    scale = size * top
-    t = BARRIER_START * scale
+    return lam, top
+
+
+@njit(cache=True)
+def _centre(W, b, lo, hi, role, radius, lam, t):
+    """Newton's method on q + t barrier from lam (m,), in place, until its decrement is below CENTRED of t, or has
+    not fallen below half its least for CENTRING_STALL steps while below ROUNDING_DECREMENT of |q| (round-off:
+    the last weights' criterion, 1e-20 of the scale, lies below q's rounding, and the steps went on to
+    CENTRING_STEPS), or CENTRING_STEPS. Returns the Newton steps taken."""
+    m = b.shape[0]
     g, H, d = np.empty(m), np.empty((m, m)), np.empty(m)
     gb, Hb = np.empty(m), np.empty((m, m))
     steps = 0
-    while True:
-        for _step in range(CENTRING_STEPS):
+    least, stalled = np.inf, 0
+    for _step in range(CENTRING_STEPS):
+        gb[:] = 0.0
+        Hb[:, :] = 0.0
+        value = _barrier(lam, role, lo, hi, radius, gb, Hb)
+        w = b + W @ lam
+        for i in range(m):
+            g[i] = w[i] + t * gb[i]
+            for j in range(m):
+                H[i, j] = W[i, j] + t * Hb[i, j]
+        for i in range(m):  # the rows of a set of radius 0: held at 0
+            if _fixed(role, radius, i):
+                g[i] = 0.0
+                for j in range(m):
+                    H[i, j] = H[j, i] = 0.0
+                H[i, i] = 1.0
+        _newton_direction(H, g, d)
+        steps += 1
+        decrement = 0.0
+        for i in range(m):
+            decrement -= g[i] * d[i]
+        if not decrement > CENTRED * t:
+            break
+        objective = 0.5 * (lam @ (w + b))  # q
+        if decrement < 0.5 * least:
+            least, stalled = decrement, 0
+        elif decrement <= ROUNDING_DECREMENT * abs(objective):  # round-off: the decrement no longer falls (at the
+            stalled += 1                                        # last weights, 1e-16 of q)
+            if stalled >= CENTRING_STALL:
+                break
+        a = TO_BOUNDARY * _longest_step(lam, d, role, lo, hi, radius)
+        start = objective + t * value  # q + t barrier
+        trial = lam.copy()
+        while a > 1e-16:  # Armijo's backtracking on q + t barrier
+            for i in range(m):
+                trial[i] = lam[i] + a * d[i]
             gb[:] = 0.0
             Hb[:, :] = 0.0
-            value = _barrier(lam, role, lo, hi, radius, gb, Hb)
-            w = b + W @ lam
-            for i in range(m):
-                g[i] = w[i] + t * gb[i]
-                for j in range(m):
-                    H[i, j] = W[i, j] + t * Hb[i, j]
-            for i in range(m):  # the rows of a set of radius 0: held at 0
-                if _fixed(role, radius, i):
-                    g[i] = 0.0
-                    for j in range(m):
-                        H[i, j] = H[j, i] = 0.0
-                    H[i, i] = 1.0
-            _newton_direction(H, g, d)
-            steps += 1
-            decrement = 0.0
-            for i in range(m):
-                decrement -= g[i] * d[i]
-            if not decrement > CENTRED * t:
+            barrier = _barrier(trial, role, lo, hi, radius, gb, Hb)
+            if barrier < np.inf and (0.5 * (trial @ (W @ trial)) + b @ trial + t * barrier
+                                     <= start - 0.25 * a * decrement):
                 break
-            a = TO_BOUNDARY * _longest_step(lam, d, role, lo, hi, radius)
-            start = 0.5 * (lam @ (w + b)) + t * value  # q + t barrier
-            trial = lam.copy()
-            while a > 1e-16:  # Armijo's backtracking on q + t barrier
-                for i in range(m):
-                    trial[i] = lam[i] + a * d[i]
-                gb[:] = 0.0
-                Hb[:, :] = 0.0
-                barrier = _barrier(trial, role, lo, hi, radius, gb, Hb)
-                if barrier < np.inf and (0.5 * (trial @ (W @ trial)) + b @ trial + t * barrier
-                                         <= start - 0.25 * a * decrement):
-                    break
-                a *= 0.5
-            if not a > 1e-16:
-                break
-            lam[:] = trial
+            a *= 0.5
+        if not a > 1e-16:
+            break
+        lam[:] = trial
+    return steps
+
+
+@njit(cache=True)
+def _problem_scale(b, top):
+    size = 1.0
+    for i in range(b.shape[0]):
+        size = max(size, abs(b[i]))
+    return size * top
+
+
+@njit(cache=True)
+def tresca_barrier(W, b, lo, hi, role, mu, normals):
+    """The solution (m,) of Tresca's problem (module docstring) with the radii friction_radii(role, mu, normals), by
+    the log barrier, from the centre of each set (normals at max(normals, 1e-3 of their largest)). W (m, m), b (m,)
+    as in cone_pgs. Returns (lambda, Newton steps)."""
+    radius = friction_radii(role, mu, normals)
+    lam, top = _barrier_start(lo, hi, role, normals)
+    scale = _problem_scale(b, top)
+    t = BARRIER_START * scale
+    steps = 0
+    while True:
+        steps += _centre(W, b, lo, hi, role, radius, lam, t)
         if t <= BARRIER_END * scale:
             break
         t *= BARRIER_SHRINK
@@ -255,21 +294,49 @@ def snapped(role, mu, lo, hi, lam, near):
 
 
 @njit(cache=True)
-def interior_finish(W, b, lo, hi, role, mu, normals, lam):
-    """One round of the fixed point on the normals: Tresca's problem with the radii of `normals` (m,) by the barrier,
-    its states read at each of SNAP_LEVELS and finished exactly (cone_polish), the best written into lam (m,) and
-    the barrier's impulses into normals (the next round's radii). Returns the residual of lam."""
-    inside, _steps = tresca_barrier(W, b, lo, hi, role, mu, normals)
-    best, kept = np.inf, inside.copy()
-    for near in SNAP_LEVELS:
-        trial = snapped(role, mu, lo, hi, inside, near)
+def _read_states(W, b, lo, hi, role, mu, inside, goal, levels, lam):
+    """The states read from the barrier's impulses inside (m,) at the first `levels` of SNAP_LEVELS, each finished
+    exactly (cone_polish) until one reaches `goal`; where none does, Newton's method on the natural map from the best
+    (natural_newton: a sliding contact's direction, which cone_polish's fixed point approaches linearly). The best
+    written into lam (m,). Returns its residual."""
+    best = np.inf
+    for level in range(levels):
+        trial = snapped(role, mu, lo, hi, inside, SNAP_LEVELS[level])
         residual = cone_polish(W, b, lo, hi, role, mu, trial, POLISH_ROUNDS)
         if residual < best:
             best = residual
-            kept[:] = trial
+            lam[:] = trial
+        if best <= goal:
+            return best
+    return newton_polish(W, b, lo, hi, role, mu, lam, goal)
+
+
+@njit(cache=True)
+def interior_finish(W, b, lo, hi, role, mu, normals, lam, goal):
+    """One round of the fixed point on the normals: Tresca's problem with the radii of `normals` (m,) by the barrier,
+    its states read and finished exactly (_read_states), written into lam (m,), and the barrier's impulses into
+    normals (the next round's radii). Once the barrier's weight is below TRY_BELOW of the problem's scale, the
+    states are read after each centring (at the first of SNAP_LEVELS), and the barrier stops where they reach
+    `goal`: the last centrings (down to BARRIER_END) take half its steps, and most problems' states are right
+    before them. Returns the residual of lam."""
+    radius = friction_radii(role, mu, normals)
+    inside, top = _barrier_start(lo, hi, role, normals)
+    scale = _problem_scale(b, top)
+    t = BARRIER_START * scale
+    while True:
+        _centre(W, b, lo, hi, role, radius, inside, t)
+        if t <= BARRIER_END * scale:
+            break
+        if t <= TRY_BELOW * scale:
+            trial = lam.copy()
+            early = _read_states(W, b, lo, hi, role, mu, inside, goal, 1, trial)
+            if early <= goal:
+                normals[:] = inside
+                lam[:] = trial
+                return early
+        t *= BARRIER_SHRINK
     normals[:] = inside
-    lam[:] = kept
-    return best
+    return _read_states(W, b, lo, hi, role, mu, inside, goal, len(SNAP_LEVELS), lam)
 
 
 __all__ = ["friction_radii", "interior_finish", "snapped", "tresca_barrier"]
