@@ -31,8 +31,8 @@ moves which steps are hard and where each ends): MODEL.xml run natively --runs t
 compiled moreau_step alone) and its residual kept; per step the minimum over the runs. It prints the sum of those
 minima, each run's mean, the quantiles, the steps above 1 and 5 ms, and the steps accepted with a residual above
 ROUND_GOAL (1e-13 [m/s], the rounds' goal of 1e-3 of the step's tolerance at a scale of 1), each with its
-residual. With --other, the same from OTHER_CHECKOUT, the two alternating run by run in their own processes, and
-the steps whose residual or cost differ most.
+residual, and the ten slowest steps. With --other, the same from OTHER_CHECKOUT beside it, the two alternating
+run by run in their own processes.
 
 Prints the machine and versions. Benchmarks are not tests: the machine may be shared.
 """
@@ -244,25 +244,36 @@ def time_suite(path: Path, repeats: int, as_json: bool) -> None:
         print(f"{kind}: sum of minima {1e3 * total:.2f} ms")
 
 
+def _checkouts(other: Path) -> dict[str, Path]:
+    """This checkout and `other` (refused unless it is a checkout of rbody), by name."""
+    if not (other / "rbody" / "__init__.py").is_file():
+        raise ValueError(f"other={str(other)!r}: not a checkout of rbody (no rbody/__init__.py there)")
+    return {"this": HERE.parents[1], "other": other.resolve()}
+
+
+def _child(name: str, root: Path, arguments: list[str]) -> dict:
+    """This script run with `arguments` (ending in --json) by the checkout at root, in its own process: its JSON
+    answer, checked to come from that checkout's rbody."""
+    env = dict(os.environ, RBODY_ROOT=str(root), PYTHONPATH=str(root))
+    done = subprocess.run([sys.executable, str(HERE), *arguments], env=env, check=True, capture_output=True,
+                          text=True)
+    answer = json.loads(done.stdout.strip().splitlines()[-1])
+    if Path(answer["rbody"]) != root:
+        raise RuntimeError(f"the {name} checkout's run imported rbody from {answer['rbody']}, not {root}")
+    return answer
+
+
 def compare(path: Path, other: Path, repeats: int) -> None:
     if repeats < 1:
         raise ValueError(f"repeats={repeats}: expected at least 1")
-    if not (other / "rbody" / "__init__.py").is_file():
-        raise ValueError(f"other={str(other)!r}: not a checkout of rbody (no rbody/__init__.py there)")
+    roots = _checkouts(other)
     meta, problems = load(path)
     header()
-    roots = {"this": HERE.parents[1], "other": other.resolve()}
     best = {name: [np.inf] * len(problems) for name in roots}
     residual = {}
     for repeat in range(repeats):
         for name, root in roots.items():
-            env = dict(os.environ, RBODY_ROOT=str(root), PYTHONPATH=str(root))
-            done = subprocess.run([sys.executable, str(HERE), "time", str(path), "--repeats", str(WITHIN), "--json"],
-                                  env=env, check=True, capture_output=True, text=True)
-            answer = json.loads(done.stdout.strip().splitlines()[-1])
-            if Path(answer["rbody"]) != root:
-                raise RuntimeError(f"the {name} checkout's run imported rbody from {answer['rbody']}, not {root}")
-            results = answer["results"]
+            results = _child(name, root, ["time", str(path), "--repeats", str(WITHIN), "--json"])["results"]
             best[name] = [min(b, *r["seconds"]) for b, r in zip(best[name], results)]
             residual[name] = [r["residual"] for r in results]
         print(f"  round {repeat + 1} of {repeats}", file=sys.stderr, flush=True)
@@ -311,24 +322,17 @@ def census_runs(path: Path, steps: int, lift: float, runs: int) -> dict:
 
 def census(path: Path, steps: int, lift: float, runs: int, other: Path | None) -> None:
     """Print the census (module docstring) of this checkout, and of `other` beside it."""
-    if other is not None and not (other / "rbody" / "__init__.py").is_file():
-        raise ValueError(f"other={str(other)!r}: not a checkout of rbody (no rbody/__init__.py there)")
     if other is None:
         results = {"this": census_runs(path, steps, lift, runs)}
     else:
+        roots = _checkouts(other)
         if steps < 1 or runs < 1:
             raise ValueError(f"steps={steps} and runs={runs}: expected positive counts")
-        roots = {"this": HERE.parents[1], "other": other.resolve()}
         results = {name: dict(seconds=[]) for name in roots}
         for run in range(runs):
             for name, root in roots.items():
-                env = dict(os.environ, RBODY_ROOT=str(root), PYTHONPATH=str(root))
-                done = subprocess.run([sys.executable, str(HERE), "census", str(path), "--steps", str(steps),
-                                       "--lift", repr(lift), "--runs", "1", "--json"],
-                                      env=env, check=True, capture_output=True, text=True)
-                answer = json.loads(done.stdout.strip().splitlines()[-1])
-                if Path(answer["rbody"]) != root:
-                    raise RuntimeError(f"the {name} checkout's run imported rbody from {answer['rbody']}, not {root}")
+                answer = _child(name, root, ["census", str(path), "--steps", str(steps), "--lift", repr(lift),
+                                             "--runs", "1", "--json"])
                 results[name]["seconds"] += answer["seconds"]
                 results[name].update(rbody=answer["rbody"], residual=answer["residual"], rows=answer["rows"])
             print(f"  round {run + 1} of {runs}", file=sys.stderr, flush=True)

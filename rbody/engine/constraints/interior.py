@@ -244,21 +244,37 @@ def _problem_scale(b, top):
 
 
 @njit(cache=True)
-def tresca_barrier(W, b, lo, hi, role, mu, normals):
-    """The solution (m,) of Tresca's problem (module docstring) with the radii friction_radii(role, mu, normals), by
-    the log barrier, from the centre of each set (normals at max(normals, 1e-3 of their largest)). W (m, m), b (m,)
-    as in cone_pgs. Returns (lambda, Newton steps)."""
+def _barrier_path(W, b, lo, hi, role, mu, normals, goal, lam, read_early):
+    """The barrier down its path (tresca_barrier) from the centre of each set; where read_early, once its weight is
+    below TRY_BELOW of the problem's scale the states are read after each centring (_read_states at the first of
+    SNAP_LEVELS, into lam (m,)) and the path is left where they reach `goal`. Returns (the last iterate (m,), Newton
+    steps, the residual of lam: inf where no early reading reached goal)."""
     radius = friction_radii(role, mu, normals)
-    lam, top = _barrier_start(lo, hi, role, normals)
+    inside, top = _barrier_start(lo, hi, role, normals)
     scale = _problem_scale(b, top)
     t = BARRIER_START * scale
     steps = 0
     while True:
-        steps += _centre(W, b, lo, hi, role, radius, lam, t)
+        steps += _centre(W, b, lo, hi, role, radius, inside, t)
         if t <= BARRIER_END * scale:
             break
+        if read_early and t <= TRY_BELOW * scale:
+            trial = lam.copy()
+            early = _read_states(W, b, lo, hi, role, mu, inside, goal, 1, trial)
+            if early <= goal:
+                lam[:] = trial
+                return inside, steps, early
         t *= BARRIER_SHRINK
-    return lam, steps
+    return inside, steps, np.inf
+
+
+@njit(cache=True)
+def tresca_barrier(W, b, lo, hi, role, mu, normals):
+    """The solution (m,) of Tresca's problem (module docstring) with the radii friction_radii(role, mu, normals), by
+    the log barrier, from the centre of each set (normals at max(normals, 1e-3 of their largest)). W (m, m), b (m,)
+    as in cone_pgs. Returns (lambda, Newton steps)."""
+    inside, steps, _early = _barrier_path(W, b, lo, hi, role, mu, normals, 0.0, np.empty(0), False)
+    return inside, steps
 
 
 @njit(cache=True)
@@ -319,23 +335,10 @@ def interior_finish(W, b, lo, hi, role, mu, normals, lam, goal):
     states are read after each centring (at the first of SNAP_LEVELS), and the barrier stops where they reach
     `goal`: the last centrings (down to BARRIER_END) take half its steps, and most problems' states are right
     before them. Returns the residual of lam."""
-    radius = friction_radii(role, mu, normals)
-    inside, top = _barrier_start(lo, hi, role, normals)
-    scale = _problem_scale(b, top)
-    t = BARRIER_START * scale
-    while True:
-        _centre(W, b, lo, hi, role, radius, inside, t)
-        if t <= BARRIER_END * scale:
-            break
-        if t <= TRY_BELOW * scale:
-            trial = lam.copy()
-            early = _read_states(W, b, lo, hi, role, mu, inside, goal, 1, trial)
-            if early <= goal:
-                normals[:] = inside
-                lam[:] = trial
-                return early
-        t *= BARRIER_SHRINK
+    inside, _steps, early = _barrier_path(W, b, lo, hi, role, mu, normals, goal, lam, True)
     normals[:] = inside
+    if early <= goal:
+        return early
     return _read_states(W, b, lo, hi, role, mu, inside, goal, len(SNAP_LEVELS), lam)
 
 

@@ -55,14 +55,15 @@ def natural_map(W, b, lo, hi, role, mu, lam, G, J, with_jacobian):
         if is_disc(r):
             s = _tangent_step_size(W, i)
             n = normal_of(role, i)
-            radius = mu[i] * max(lam[n], 0.0)
-            zx, zy = lam[i] - w[i] / s, lam[i + 1] - w[i + 1] / s
-            length = np.sqrt(zx * zx + zy * zy)
             if not s > 0.0:  # rows no impulse acts through: held where they are
                 G[i], G[i + 1] = 0.0, 0.0
                 if with_jacobian:
                     J[i, i], J[i + 1, i + 1] = 1.0, 1.0
-            elif length <= radius:  # sticking: w_t = 0
+                continue
+            radius = mu[i] * max(lam[n], 0.0)
+            zx, zy = lam[i] - w[i] / s, lam[i + 1] - w[i + 1] / s
+            length = np.sqrt(zx * zx + zy * zy)
+            if length <= radius:  # sticking: w_t = 0
                 G[i], G[i + 1] = w[i], w[i + 1]
                 if with_jacobian:
                     J[i, :] = W[i, :]
@@ -137,8 +138,9 @@ def newton_polish(W, b, lo, hi, role, mu, lam, goal):
             A[i, i] += max(2.0 * merit, floor)
         if not cholesky_factor(A, L, 0.0, 0.0):
             break
-        step = -upper_solve(L, lower_solve(L, J.T @ G))
-        slope = (J.T @ G) @ step  # d|G|^2/2 along the step (< 0)
+        gradient = J.T @ G  # of |G|^2 / 2
+        step = -upper_solve(L, lower_solve(L, gradient))
+        slope = gradient @ step  # d|G|^2/2 along the step (< 0)
         if not slope < 0.0:
             break
         a = 1.0

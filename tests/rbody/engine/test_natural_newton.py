@@ -108,3 +108,20 @@ def test_a_start_that_solves_is_kept_as_it_is():
     kept = lam.copy()
     assert newton_polish(p["W"], p["b"], p["lo"], p["hi"], p["role"], p["mu"], lam, start) == start
     np.testing.assert_array_equal(lam, kept)
+
+
+def test_a_disc_no_impulse_acts_through_is_held_not_divided_by():
+    """A contact whose tangents act on nothing (their 2 x 2 block of W zero, s = 0): the map holds them (G = 0,
+    unit rows of J) instead of dividing by s (numba raises ZeroDivisionError), and Newton's method still solves the
+    normal, lambda_n = -b_n / W_nn."""
+    W = np.diag([2.0, 0.0, 0.0])
+    b = np.array([-1.0, 0.3, 0.0])
+    role, mu = np.array([NORMAL, TANGENT, TANGENT2]), np.array([0.0, 0.5, 0.0])
+    lo, hi = np.array([0.0, -np.inf, -np.inf]), np.full(3, np.inf)
+    lam = np.array([0.2, 0.0, 0.0])
+    G, J = np.empty(3), np.empty((3, 3))
+    natural_map(W, b, lo, hi, role, mu, lam, G, J, True)
+    assert G[1] == 0.0 and G[2] == 0.0
+    np.testing.assert_array_equal(J[1:], [[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    assert newton_polish(W, b, lo, hi, role, mu, lam, 0.0) <= 1e-15
+    assert lam[0] == pytest.approx(0.5, rel=1e-15)
