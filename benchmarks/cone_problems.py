@@ -63,7 +63,7 @@ ROUND_GOAL = 1e-13  # census: a step accepted above this residual [m/s] is repor
 
 def _native_run(path: Path, steps: int, lift: float):
     """The model's scene (its free body raised by `lift` [m]), its step [s], a function that takes one step of
-    moreau_step (or its py_func) from a state (y, P, end_geometry) in place, and the first state."""
+    moreau_step (or its py_func) from a state (y, P, end_geometry, problem_rows) in place, and the first state."""
     import mujoco
 
     import rbody
@@ -87,15 +87,16 @@ def _native_run(path: Path, steps: int, lift: float):
     prepared = rbody.prepare(scene, dt=dt, method=scene.file_method, t_end=steps * dt)
     run = stepping.MoreauRun(prepared.model.constraints, prepared.params[0], path.name, scene.file_method)
     p = run.p
-    included = np.zeros(row_count(p))
 
     def step(step_function, state):
-        y, P, end_geometry = state
+        y, P, end_geometry, problem_rows = state
         return step_function(p, y, dt, P, stepping.EXACT_ROWS, stepping.PGS_SWEEPS, stepping.STEP_TOLERANCE,
-                             included, run.mode, end_geometry)
+                             problem_rows, run.mode, end_geometry)
 
     first = (np.array(prepared.y0[0]), np.zeros(row_count(p)),
-             np.zeros(kept_geometry_size(int(p[multibody.H_NQ]), unit_count(p))))
+             np.zeros(kept_geometry_size(int(p[multibody.H_NQ]), unit_count(p))),
+             np.zeros(row_count(p) + 1, dtype=np.int64))  # (a checkout before its step listed its problem's rows
+    # took a dense flag per row here: this array serves it as well)
     return scene, dt, step, first
 
 
@@ -111,19 +112,19 @@ def capture(path: Path, out: Path, steps: int, lift: float, keep: int) -> None:
         raise ValueError(f"steps={steps} and keep={keep}: expected positive counts")
     if out.suffix != ".npz":
         raise ValueError(f"out={str(out)!r}: expected a file name ending in .npz")
-    scene, dt, step, (y, P, end_geometry) = _native_run(path, steps, lift)
-    step(stepping.moreau_step, (y.copy(), P.copy(), end_geometry.copy()))  # compiles
+    scene, dt, step, state = _native_run(path, steps, lift)
+    step(stepping.moreau_step, tuple(a.copy() for a in state))  # compiles
     spread = set(np.linspace(0, steps - 1, min(keep, steps)).astype(int).tolist())
     slowest: list = []  # a heap of (seconds, step, its states) of the slowest steps
     chosen = {}
     for k in range(steps):  # moreau_loop's steps one by one (MoreauRun._stepwise), the states of each kept
-        before = (y.copy(), P.copy(), end_geometry.copy())
+        before = tuple(a.copy() for a in state)
         start = time.perf_counter()
-        status, residual, _rows = step(stepping.moreau_step, (y, P, end_geometry))
+        status, residual, _rows = step(stepping.moreau_step, state)
         seconds = time.perf_counter() - start
         if status != 0:
             raise rbody.SimulationError(f"{path.name}: step {k} (t = {k * dt:g} s) left the residual {residual:.3g}")
-        states = before + (y.copy(),)  # and the state after it, to check the replay against
+        states = before + (state[0].copy(),)  # and the state after it, to check the replay against
         if k in spread:
             chosen[k] = (seconds, states, False)
         heapq.heappush(slowest, (seconds, k, states))
@@ -145,8 +146,8 @@ def capture(path: Path, out: Path, steps: int, lift: float, keep: int) -> None:
     stepping.solve_cones = recorded  # the kept steps again, in Python from the same state: their problems recorded
     try:
         for k in sorted(chosen):
-            seconds, (y0, P0, end0, after), slow = chosen[k]
-            replayed = (y0.copy(), P0.copy(), end0.copy())
+            seconds, (*before, after), slow = chosen[k]
+            replayed = tuple(a.copy() for a in before)
             count = len(problems)
             step(stepping.moreau_step.py_func, replayed)
             for problem in problems[count:]:  # 0 where the replay is the native step bit for bit

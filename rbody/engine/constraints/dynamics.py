@@ -551,7 +551,8 @@ def state_gaps(p, y, g, beyond=np.inf, kept=None, least=None):
     is above it give that (rows.pair_candidates). kept (rows.kept_geometry_size(nq, units),) or None: the
     contacts' geometry found here, kept for the next step's start at the same configuration. least (pairs,) or
     None: each contact pair's least gap [m] (a bound where its spheres are apart), that a caller reads in place of
-    its rows."""
+    its rows: only its candidates' normal rows are then written, and not even those where the broad phase's bound
+    is above `beyond` (the rest are left as they were: a quadruped's far candidates, 24,822 rows each step)."""
     nq, nv, _n = sizes(p)
     q = np.empty(nq)
     _effective_qpos(p, y, q, 0)
@@ -569,13 +570,15 @@ def state_gaps(p, y, g, beyond=np.inf, kept=None, least=None):
         unit_rows(p, k, q, y[nq:nq + nv], w, acc, J, jdot, g, int(p[unit_at(p, k) + U_ROW0]), False)
     reach, motion = np.empty(pair_count(p)), np.empty(pair_count(p))
     pair_reaches(p, w, 0.0, reach, motion)
-    g[contact_row0(p):] = 0.0  # the contacts' rows (one fill: a far pair's tangent rows are then set)
+    if least is None:
+        g[contact_row0(p):] = 0.0  # the contacts' rows (one fill: a far pair's tangent rows are then set)
     for i in range(pair_count(p)):
         at = pair_at(p, i)
         first, slots, row0, width = pair_span(p, at)
         if reach[i] > 0.0:  # apart by the broad phase's bound: a lower bound will do, one per pair
-            for j in range(slots):  # (a range with a step costs numba's sign test on every iteration)
-                g[row0 + j * width] = reach[i]
+            if least is None or reach[i] <= beyond:
+                for j in range(slots):  # (a range with a step costs numba's sign test on every iteration)
+                    g[row0 + j * width] = reach[i]
             if kept is not None:
                 forget_geometry(kept, nq, first)
             if least is not None:

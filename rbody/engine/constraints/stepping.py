@@ -54,7 +54,8 @@ from rbody.engine.elements import A_ACTADR, ACT_SIZE, X_ACT, X_ACTIVE, X_NU, ext
 from rbody.engine.mujoco_steps import EULER, IMPLICIT, IMPLICITFAST, MUJOCO_METHODS, integrate_positions, \
     solve_general, step_matrices
 from rbody.engine.constraints.jacobians import contact_unit_rows, row_count, unit_at, unit_count
-from rbody.engine.contacts.broadphase import contact0, first_unit_at, pair_at, pair_count, pair_reaches, pair_span
+from rbody.engine.contacts.broadphase import (contact0, contact_row0, first_unit_at, pair_at, pair_count,
+                                              pair_reaches, pair_span)
 from rbody.engine.contacts.kinematics import point_velocity
 from rbody.engine.contacts.rows import (GEOMETRY_WORK, candidate, kept_candidate, kept_exact, kept_for,
                                         kept_geometry_size, pair_candidates)
@@ -200,12 +201,13 @@ def solve_cones(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
 
 
 @njit(cache=True)
-def _drop_null_equalities(A, index, lo, hi, b, role, mu, m):
+def _drop_null_equalities(A, index, lo, hi, b, role, mu, m, rates):
     """The step's rows without the equality rows no impulse acts through: those whose column of A (M^-1/2 J^T) is
     below RANK_RTOL of the largest in W's scale (|A_c|^2), the round-off of a zero row (a connect's component across
     a planar loop: 1e-17 where the loop's rows are 0.05). Kept, Gauss-Seidel would divide their round-off residual
     by their round-off diagonal and push the other rows by an impulse of order one through their round-off
-    coupling. The rows after them move up in place (A's columns, index, bounds, b, role, mu); returns the count."""
+    coupling. The rows after them move up in place (A's columns, index, bounds, b, role, mu and their free rates);
+    returns the count."""
     nv = A.shape[0]
     top = 0.0
     size = np.empty(m)
@@ -222,6 +224,7 @@ def _drop_null_equalities(A, index, lo, hi, b, role, mu, m):
             for d in range(nv):
                 A[d, kept] = A[d, c]
             index[kept], lo[kept], hi[kept], b[kept], role[kept], mu[kept] = index[c], lo[c], hi[c], b[c], role[c], mu[c]
+            rates[kept] = rates[c]
         kept += 1
     return kept
 
@@ -236,8 +239,10 @@ def near_contacts(p, w, vfree, h, J, g, formed, kept, reuse):
     numbers, and a pair whose bounding spheres cannot meet within the step (contacts.broadphase.pair_reaches) not
     even that, nor a read of its candidates' unit records. After the step's kinematics in the workspace w (its
     velocities are then vfree's). kept: the geometry the last step's end found (rows.kept_geometry_size); reuse:
-    whether it was found at this configuration, its exact candidates then read, not found again."""
+    whether it was found at this configuration, its exact candidates then read, not found again. Returns the rows
+    of the units it formed (the step's problem has at most these and the rows before the contacts)."""
     nq = int(p[mb.H_NQ])
+    count = 0
     mb.velocities(p, vfree, w)
     normal, point, v_a, v_b = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
     work = np.empty(GEOMETRY_WORK)
@@ -263,6 +268,8 @@ def near_contacts(p, w, vfree, h, J, g, formed, kept, reuse):
             if gap <= TOUCH_TOLERANCE or gap + h * closing < 0.0:  # its rows from the geometry just found
                 contact_unit_rows(p, k, w, J, g, row, gap, normal, point)
                 formed[k] = 1
+                count += int(p[u + U_ROWS])
+    return count
 
 
 @njit(cache=True, inline="always")
@@ -288,24 +295,26 @@ def next_activations(p, act, rates, h):
 
 
 @njit(cache=True)
-def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode, end_geometry):
+def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, end_geometry):
     """One step of the scheme (module docstring) of the state y (n,) (phi all zero) in place, h [s], its free motion
     Moreau-Jean's own (mode MOREAU) or MuJoCo's integrator `mode` (EULER, IMPLICITFAST, IMPLICIT). P (rows,)
-    gets every row's impulse [N s or N m s] (0 for rows not in the problem), included (rows,) 1 on the rows of the
-    step's problem. Returns (status, residual, rows in
-    the problem): status 0 done, 1 the complementarity problem left a residual above the tolerance, 2 the
-    configuration could not be projected onto the equalities, UNBOUNDED (-1) the equalities contradict. The budget:
-    exactly when it has at most exact_rows rows, else at most `sweeps` Gauss-Seidel sweeps to `tolerance` (relative to
-    max(|b|, 1)). end_geometry (rows.kept_geometry_size): the contacts' geometry the last step's end found, read
-    where this step starts at its configuration, and this step's, kept for the next (zeros before the first step)."""
+    gets every row's impulse [N s or N m s] (0 for rows not in the problem) and problem_rows (rows + 1,) int64 the
+    rows of the step's problem (their count, then the rows, ascending); on entry both are the last step's (zeros
+    before the first step: P is cleared on the rows problem_rows lists, not read elsewhere, since a model's far
+    contact candidates are nearly all its rows). Returns (status, residual, rows in the problem): status 0 done, 1
+    the complementarity problem left a residual above the tolerance, 2 the configuration could not be projected
+    onto the equalities, UNBOUNDED (-1) the equalities contradict. The budget: exactly when it has at most
+    exact_rows rows, else at most `sweeps` Gauss-Seidel sweeps to `tolerance` (relative to max(|b|, 1)).
+    end_geometry (rows.kept_geometry_size): the contacts' geometry the last step's end found, read where this step
+    starts at its configuration, and this step's, kept for the next (zeros before the first step)."""
     nq, nv, n = dyn.sizes(p)
     rows = row_count(p)
     M = np.empty((nv, nv))
     f = np.empty(nv)
     J = np.empty((rows, nv))  # a contact's rows are formed only where it touches or closes within the step
     # (near_contacts), and only those are read (a quadruped's 23,838 rows of 18 numbers, mostly far candidates)
-    jdot = np.zeros(rows)
-    g = np.zeros(rows)
+    jdot = np.empty(rows)  # (each unit's rows are set where formed, and only those are read)
+    g = np.empty(rows)
     q = np.empty(nq)
     _effective_qpos(p, y, q, 0)
     w = np.empty(mb.workspace_size(p))
@@ -327,11 +336,11 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode, end_g
         L = np.empty((nv, nv))
         mujoco_free_velocity(p, y, h, mode, M, f, vfree, L)
     formed = np.zeros(unit_count(p), dtype=np.int64)
-    near_contacts(p, w, vfree, h, J, g, formed, end_geometry, kept_for(end_geometry, q))
-    jfree = np.zeros(rows)  # the rates at the free velocities of the rows that can enter the problem
-    index = np.empty(rows, dtype=np.int64)
-    lo, hi, b = np.empty(rows), np.empty(rows), np.empty(rows)
-    role, mu = np.zeros(rows, dtype=np.int64), np.zeros(rows)
+    bound = contact_row0(p) + near_contacts(p, w, vfree, h, J, g, formed, end_geometry, kept_for(end_geometry, q))
+    jfree = np.empty(bound)  # the problem's rows (sized by the rows formed, not the model's): their rates at the
+    index = np.empty(bound, dtype=np.int64)  # free velocities, rows, bounds, b, roles and friction coefficients
+    lo, hi, b = np.empty(bound), np.empty(bound), np.empty(bound)
+    role, mu = np.zeros(bound, dtype=np.int64), np.zeros(bound)
     cones = False
     m = 0
     c0 = contact0(p)
@@ -341,64 +350,70 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode, end_g
         u = unit_at(p, k)
         kind = int(p[u + U_KIND])
         r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])
-        for a in range(r0, r0 + r):
-            jfree[a] = _row_dot(J, a, vfree)
         if kind == CONNECT or kind == WELD or kind == COUPLING or kind == TENDON_EQUALITY:
             for a in range(r0, r0 + r):
-                index[m], lo[m], hi[m], b[m] = a, -np.inf, np.inf, jfree[a]
+                jfree[m] = _row_dot(J, a, vfree)
+                index[m], lo[m], hi[m], b[m] = a, -np.inf, np.inf, jfree[m]
                 m += 1
         elif kind == LOWER or kind == UPPER or kind == CONE or kind == TENDON_LOWER or kind == TENDON_UPPER:
             e = p[u + U_RESTITUTION]
-            if g[r0] <= TOUCH_TOLERANCE or (e > 0.0 and g[r0] + h * jfree[r0] < 0.0):
+            rate = _row_dot(J, r0, vfree)
+            jfree[m] = rate
+            if g[r0] <= TOUCH_TOLERANCE or (e > 0.0 and g[r0] + h * rate < 0.0):
                 index[m], lo[m], hi[m] = r0, 0.0, np.inf
-                b[m] = jfree[r0] + e * min(jfree[r0], 0.0)
+                b[m] = rate + e * min(rate, 0.0)
                 m += 1
-            elif g[r0] + h * jfree[r0] < 0.0:
-                index[m], lo[m], hi[m], b[m] = r0, 0.0, np.inf, jfree[r0] + g[r0] / h
+            elif g[r0] + h * rate < 0.0:
+                index[m], lo[m], hi[m], b[m] = r0, 0.0, np.inf, rate + g[r0] / h
                 m += 1
         elif kind == FRICTION or kind == TENDON_FRICTION:
-            bound = p[u + U_BOUND] * h
-            index[m], lo[m], hi[m], b[m] = r0, -bound, bound, jfree[r0]
+            box = p[u + U_BOUND] * h
+            jfree[m] = _row_dot(J, r0, vfree)
+            index[m], lo[m], hi[m], b[m] = r0, -box, box, jfree[m]
             m += 1
         elif kind == CONTACT or kind == CONTACT1:  # a contact: its normal as a limit's row, its cone with it
             e = p[u + U_RESTITUTION]
             touching = g[r0] <= TOUCH_TOLERANCE
-            if touching or g[r0] + h * jfree[r0] < 0.0:
+            rate = _row_dot(J, r0, vfree)
+            if touching or g[r0] + h * rate < 0.0:
+                jfree[m] = rate
                 index[m], lo[m], hi[m] = r0, 0.0, np.inf
                 if touching or e > 0.0:
-                    b[m] = jfree[r0] + e * min(jfree[r0], 0.0)
+                    b[m] = rate + e * min(rate, 0.0)
                 else:
-                    b[m] = jfree[r0] + g[r0] / h
+                    b[m] = rate + g[r0] / h
                 m += 1
                 role[m - 1] = NORMAL
                 if kind == CONTACT:  # tangents, then spin and rolling (condim 4, 6): cone's roles in order
                     for t in range(1, r):
-                        index[m], lo[m], hi[m], b[m] = r0 + t, -np.inf, np.inf, jfree[r0 + t]
+                        jfree[m] = _row_dot(J, r0 + t, vfree)
+                        index[m], lo[m], hi[m], b[m] = r0 + t, -np.inf, np.inf, jfree[m]
                         role[m] = NORMAL + t
                         mu[m] = (p[u + U_BOUND] if role[m] == TANGENT else p[u + U_SPIN] if role[m] == SPIN
                                  else p[u + U_ROLL] if role[m] == ROLL else 0.0)
                         m += 1
                     cones = True
-    previous = P.copy()  # the last step's impulses: the warm start of Gauss-Seidel
-    for a in range(rows):
-        P[a] = 0.0
-        included[a] = 0.0
     status = 0
     residual = 0.0
     if m > 0:
         A = lower_solve_rows(L, J, index, m)  # M^-1/2 J^T: W = A^T A
-        kept = _drop_null_equalities(A, index, lo, hi, b, role, mu, m)
+        kept = _drop_null_equalities(A, index, lo, hi, b, role, mu, m, jfree)
         if kept < m:  # (a copy only where a row went)
             A = np.ascontiguousarray(A[:, :kept])
         m = kept
+    lam = np.empty(m)
+    for c in range(m):  # the last step's impulses: the warm start of Gauss-Seidel
+        lam[c] = P[index[c]]
+    for c in range(problem_rows[0]):  # then cleared on the last step's rows, the only ones set (not every row:
+        P[problem_rows[1 + c]] = 0.0  # a quadruped's 24,822, nearly all its far contact candidates')
+    problem_rows[0] = m
     for c in range(m):
-        included[index[c]] = 1.0
+        problem_rows[1 + c] = index[c]
     if m > 0:
         W = A.T @ A
         bb, ll, hh = b[:m].copy(), lo[:m].copy(), hi[:m].copy()
-        lam = np.empty(m)
         for c in range(m):
-            lam[c] = min(max(previous[index[c]], ll[c]), hh[c])
+            lam[c] = min(max(lam[c], ll[c]), hh[c])
         scale = 1.0
         for c in range(m):
             scale = max(scale, abs(bb[c]))
@@ -431,7 +446,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode, end_g
                 # body at rest does no work against the velocity gravity gave it within the step)
                 loss -= 0.5 * lam[c] * (after + jnow[c])
             elif lo[c] > -np.inf:  # limits and friction: the kinetic energy their impulse took
-                loss -= 0.5 * lam[c] * (after + jfree[index[c]])
+                loss -= 0.5 * lam[c] * (after + jfree[c])
         y[n - 1] += loss
     else:
         for d in range(nv):
@@ -453,7 +468,9 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode, end_g
     # positions onto the equalities and onto every stop passed or touched (a projection in the metric of M moves
     # every dof: a stop it pushes past joins the set, and the projection is repeated), velocities onto the equalities
     position_rows = np.zeros(rows)
-    velocity_rows = np.zeros(rows)
+    flagged = np.empty(rows, dtype=np.int64)  # the rows flagged in position_rows, in the order flagged
+    count = 0
+    equalities = False
     least = np.empty(pair_count(p))  # each contact pair's least gap at the end (state_gaps)
     worst = 0.0
     for _round in range(PROJECTION_ROUNDS):
@@ -464,13 +481,18 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode, end_g
             kind = int(p[u + U_KIND])
             r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])
             if kind == CONNECT or kind == WELD or kind == COUPLING or kind == TENDON_EQUALITY:
+                equalities = True
                 for a in range(r0, r0 + r):
-                    grown = grown or position_rows[a] == 0.0
-                    position_rows[a] = 1.0
-                    velocity_rows[a] = 1.0
+                    if position_rows[a] == 0.0:
+                        grown = True
+                        position_rows[a] = 1.0
+                        flagged[count] = a
+                        count += 1
             elif (kind == LOWER or kind == UPPER or kind == CONE or kind == TENDON_LOWER or kind == TENDON_UPPER) \
                     and _newly_flagged(g, P, position_rows, r0):
                 position_rows[r0] = 1.0
+                flagged[count] = r0
+                count += 1
                 grown = True
         for i in range(pair_count(p)):  # contacts: their normal rows, where the pair's least gap allows
             if least[i] > FLAGGED_GAP:
@@ -479,16 +501,29 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode, end_g
             for j in range(slots):
                 if _newly_flagged(g, P, position_rows, row0 + j * width):
                     position_rows[row0 + j * width] = 1.0
+                    flagged[count] = row0 + j * width
+                    count += 1
                     grown = True
         if not grown:
             break
-        worst, needed = 0.0, False  # every flagged row already within the projection's tolerance, no velocity row
-        for a in range(rows):       # (no equality): the projection would change nothing
+        worst, live = 0.0, 0  # every flagged row already within the projection's tolerance, no equality: the
+        for c in range(count):  # projection would change nothing (the list kept to the rows still flagged: one a
+            a = flagged[c]      # projection found apart is no longer)
             if position_rows[a] != 0.0:
+                flagged[live] = a
+                live += 1
                 worst = max(worst, abs(g[a]))
-            needed = needed or velocity_rows[a] != 0.0
-        if not needed and worst <= dyn.PROJECTION_TOLERANCE:
+        count = live
+        if not equalities and worst <= dyn.PROJECTION_TOLERANCE:
             break
+        velocity_rows = np.zeros(rows)  # the equalities' rows
+        for k in range(c0):
+            u = unit_at(p, k)
+            kind = int(p[u + U_KIND])
+            if kind == CONNECT or kind == WELD or kind == COUPLING or kind == TENDON_EQUALITY:
+                r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])
+                for a in range(r0, r0 + r):
+                    velocity_rows[a] = 1.0
         worst, _speed = dyn.project(p, y, position_rows, velocity_rows)
     if worst > 1e3 * dyn.PROJECTION_TOLERANCE:
         return 2, worst, m
@@ -503,13 +538,14 @@ def _newly_flagged(g, P, position_rows, r0):
 
 
 @njit(cache=True)
-def _record(P, s, starts, rows, values, used):
+def _record(P, problem_rows, s, starts, rows, values, used):
     """The nonzero impulses of P (rows,) as saved sample s: appended to rows and values (grown by doubling when
-    full), starts[s + 1] their end. Returns (rows, values, used). Counted first, then copied: a scan whose loop
-    may replace the arrays it writes costs numba 9 ns a row (a quadruped's 23,838 rows: 0.2 ms a step)."""
+    full), starts[s + 1] their end. Returns (rows, values, used). Read on the step's rows alone (problem_rows:
+    count, then the rows, ascending; P is 0 elsewhere). Counted first, then copied: a scan whose loop may replace
+    the arrays it writes costs numba 9 ns a row."""
     count = 0
-    for a in range(P.size):
-        if P[a] != 0.0:
+    for c in range(problem_rows[0]):
+        if P[problem_rows[1 + c]] != 0.0:
             count += 1
     if used + count > rows.size:
         size = rows.size
@@ -518,23 +554,25 @@ def _record(P, s, starts, rows, values, used):
         grown_rows, grown_values = np.empty(size, dtype=np.int64), np.empty(size)
         grown_rows[:used], grown_values[:used] = rows[:used], values[:used]
         rows, values = grown_rows, grown_values
-    _append_nonzeros(P, rows, values, used)
+    _append_nonzeros(P, problem_rows, rows, values, used)
     used += count
     starts[s + 1] = used
     return rows, values, used
 
 
 @njit(cache=True)
-def _append_nonzeros(P, rows, values, used):
-    """rows[used:], values[used:] the nonzeros of P (rows,), in order (room for them is there)."""
-    for a in range(P.size):
+def _append_nonzeros(P, problem_rows, rows, values, used):
+    """rows[used:], values[used:] the nonzeros of P (rows,) on problem_rows' rows, in order (room for them is
+    there)."""
+    for c in range(problem_rows[0]):
+        a = problem_rows[1 + c]
         if P[a] != 0.0:
             rows[used], values[used] = a, P[a]
             used += 1
 
 
 @njit(cache=True)
-def moreau_loop(p, y0, h, nsteps, save_every, out, exact_rows, sweeps, tolerance, included, mode):
+def moreau_loop(p, y0, h, nsteps, save_every, out, exact_rows, sweeps, tolerance, problem_rows, mode):
     """nsteps steps from y0 (n,); out (S, n) every save_every-th state (out[0] = y0). Returns (failed step or -1, its
     status, its residual, its rows, starts (S + 1,), rows, values): the impulses of the step that ended at each saved
     state as nonzeros (sample s's: rows[starts[s]:starts[s + 1]] and values there; a model's far contact candidates
@@ -547,14 +585,15 @@ def moreau_loop(p, y0, h, nsteps, save_every, out, exact_rows, sweeps, tolerance
     starts = np.zeros(out.shape[0] + 1, dtype=np.int64)
     kept, values, used = np.empty(max(64, 4 * out.shape[0]), dtype=np.int64), np.empty(max(64, 4 * out.shape[0])), 0
     for k in range(1, nsteps + 1):
-        status, residual, m = moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, included, mode, end_geometry)
+        status, residual, m = moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode,
+                                          end_geometry)
         if status != 0:
             return k, status, residual, m, starts, kept[:used], values[:used]
         for a in range(y.shape[0]):
             if not np.isfinite(y[a]):
                 return k, 3, 0.0, m, starts, kept[:used], values[:used]
         if k % save_every == 0:
-            kept, values, used = _record(P, k // save_every, starts, kept, values, used)
+            kept, values, used = _record(P, problem_rows, k // save_every, starts, kept, values, used)
             out[k // save_every] = y
     return -1, 0, 0.0, 0, starts, kept[:used], values[:used]
 
@@ -616,14 +655,14 @@ class MoreauRun:
         None (one compiled loop); with it the steps are taken one by one, each as moreau_loop takes it."""
         count = nsteps // save_every + 1
         out = np.empty((count, len(y0)))
-        included = np.zeros(self.table.rows)
+        problem_rows = np.zeros(self.table.rows + 1, dtype=np.int64)  # the last step's (moreau_step)
         if before_step is None:
             failed, status, residual, m, starts, rows, values = moreau_loop(
                 self.p, np.array(y0, dtype=np.float64), dt, nsteps, save_every, out, EXACT_ROWS, PGS_SWEEPS,
-                STEP_TOLERANCE, included, self.mode)
+                STEP_TOLERANCE, problem_rows, self.mode)
         else:
             failed, status, residual, m, starts, rows, values = self._stepwise(
-                np.array(y0, dtype=np.float64), dt, nsteps, save_every, out, included, before_step)
+                np.array(y0, dtype=np.float64), dt, nsteps, save_every, out, problem_rows, before_step)
         if failed >= 0:
             what = {1: f"the step's complementarity problem ({m} rows) was left with a residual above "
                        f"{STEP_TOLERANCE:g} of its scale (solver budget: exact up to {EXACT_ROWS} rows, else "
@@ -632,7 +671,8 @@ class MoreauRun:
                        "or the loop cannot close)",
                     -1: "the equalities contradict each other (no impulse makes them hold)",
                     3: "a non-finite state; try a smaller dt"}[status]
-            named = [u for u in self.table.units if included[u.row0]] or list(self.table.units)
+            in_problem = set(problem_rows[1:1 + problem_rows[0]].tolist())
+            named = [u for u in self.table.units if u.row0 in in_problem] or list(self.table.units)
             names = ", ".join(repr(u.name) for u in named)
             raise SimulationError(f"scene {self.description}: method {self.method!r} with dt={dt}: at t={failed * dt:.9g} s, "
                                   f"constraints {names}: {what}; residual {residual:.3g}")
@@ -656,7 +696,7 @@ class MoreauRun:
         return out, modes
 
 
-    def _stepwise(self, y, dt, nsteps, save_every, out, included, before_step):
+    def _stepwise(self, y, dt, nsteps, save_every, out, problem_rows, before_step):
         """moreau_loop's steps one by one, before_step called before each (the same steps, the impulses carried and
         recorded as the loop carries and records them)."""
         P = np.zeros(self.table.rows)
@@ -666,14 +706,14 @@ class MoreauRun:
         kept, values, used = np.empty(max(64, 4 * out.shape[0]), dtype=np.int64), np.empty(max(64, 4 * out.shape[0])), 0
         for k in range(1, nsteps + 1):
             before_step(k - 1, (k - 1) * dt, y, self.p)
-            status, residual, m = moreau_step(self.p, y, dt, P, EXACT_ROWS, PGS_SWEEPS, STEP_TOLERANCE, included,
+            status, residual, m = moreau_step(self.p, y, dt, P, EXACT_ROWS, PGS_SWEEPS, STEP_TOLERANCE, problem_rows,
                                               self.mode, end_geometry)
             if status != 0:
                 return k, status, residual, m, starts, kept[:used], values[:used]
             if not np.all(np.isfinite(y)):
                 return k, 3, 0.0, m, starts, kept[:used], values[:used]
             if k % save_every == 0:
-                kept, values, used = _record(P, k // save_every, starts, kept, values, used)
+                kept, values, used = _record(P, problem_rows, k // save_every, starts, kept, values, used)
                 out[k // save_every] = y
         return -1, 0, 0.0, 0, starts, kept[:used], values[:used]
 

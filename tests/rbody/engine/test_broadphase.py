@@ -135,9 +135,12 @@ def test_a_pairs_bound_is_clearances_to_the_bit(model, seed, h):
     assert 0 < near < pair_count(p)  # the draw has pairs on both sides of the bound
 
 
-def test_the_end_gaps_give_each_pairs_least_gap(model):
+@pytest.mark.parametrize("beyond", [np.inf, 0.05])
+def test_the_end_gaps_give_each_pairs_least_gap(model, beyond):
     """state_gaps's least (pairs,): a pair's least gap, the least of its candidates' rows where they were computed,
-    the pair's bound where its spheres are apart (every row of the pair then at least that)."""
+    the pair's bound where its spheres are apart (every row of the pair then at least that). With least, only the
+    candidates' normal rows are written, and not those of a pair the broad phase finds apart by more than beyond
+    (the step reads least there): the rest are left as they were."""
     _scene, table, p, y0 = model
     rng = np.random.default_rng(7)
     nq, nv, _n = dyn.sizes(p)
@@ -146,15 +149,21 @@ def test_the_end_gaps_give_each_pairs_least_gap(model):
         y[1 + 7 * body:4 + 7 * body] = rng.uniform(-0.3, 0.3, 3) + (0.0, 0.0, 0.3)
     g = np.full(row_count(p), np.nan)
     least = np.full(pair_count(p), np.nan)
-    dyn.state_gaps(p, y, g, np.inf, None, least)
+    dyn.state_gaps(p, y, g, beyond, None, least)
     assert not np.isnan(least).any()  # every pair's written (+inf: a geom beside the height field's footprint)
     for i in range(pair_count(p)):
         _first, slots, row0, width = pair_span(p, pair_at(p, i))
         normals = g[row0:row0 + slots * width:width]
-        assert least[i] == normals.min()
+        if least[i] > beyond:  # apart by more than beyond (the bound or the candidates' least): nothing or all
+            assert np.isnan(normals).all() or least[i] == normals.min()
+        else:
+            assert least[i] == normals.min()
         tangents = np.delete(g[row0:row0 + slots * width], np.arange(0, slots * width, width))
-        assert (tangents == 0.0).all()
+        assert np.isnan(tangents).all()
     assert (least <= 0.0).any() and (least > 0.0).any()
+    if beyond < np.inf:
+        normal_rows = [pair_span(p, pair_at(p, i))[2] for i in range(pair_count(p))]
+        assert np.isnan(g[normal_rows]).any()  # a far pair's rows not written at all
 
 
 @pytest.mark.parametrize("seed", range(4))

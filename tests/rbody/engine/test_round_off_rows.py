@@ -68,7 +68,7 @@ def test_definite_solve_refuses_a_round_off_row():
 
 def test_drop_null_equalities_keeps_every_row_an_impulse_acts_through():
     """The step's columns: a connect's round-off row goes, the rest move up in order with their bounds, right-hand
-    sides, roles and coefficients; a limit's row is kept however small."""
+    sides, roles, coefficients and free rates; a limit's row is kept however small."""
     rng = np.random.default_rng(5)
     A = rng.normal(size=(4, 6))
     A[:, 1] *= 1e-17                         # an equality's round-off row
@@ -79,13 +79,15 @@ def test_drop_null_equalities_keeps_every_row_an_impulse_acts_through():
     b = np.arange(6.0)
     role = np.array([ROW, ROW, NORMAL, TANGENT, ROW, ROW])
     mu = np.array([0.0, 0.0, 0.0, 0.5, 0.0, 0.0])
+    rates = np.arange(6.0) + 0.5
     before = A.copy()
-    m = _drop_null_equalities(A, index, lo, hi, b, role, mu, 6)
+    m = _drop_null_equalities(A, index, lo, hi, b, role, mu, 6, rates)
     assert m == 5
     np.testing.assert_array_equal(A[:, :5], before[:, [0, 2, 3, 4, 5]])
     assert list(index[:5]) == [10, 12, 13, 14, 15] and list(b[:5]) == [0, 2, 3, 4, 5]
     assert list(role[:5]) == [ROW, NORMAL, TANGENT, ROW, ROW] and mu[2] == 0.5 and lo[1] == 0.0
     assert TANGENT2 not in role[:5]
+    assert list(rates[:5]) == [0.5, 2.5, 3.5, 4.5, 5.5]
 
 
 @pytest.mark.parametrize("dt", [1e-3, 1e-4])

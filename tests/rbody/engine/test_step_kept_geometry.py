@@ -54,7 +54,7 @@ def step_run(scene: Scene, dt: float, steps: int, keep: bool):
     run = MoreauRun(model.constraints, np.asarray(model.params)[0], "test")
     p, y = run.p, np.array(np.asarray(model.y0)[0], dtype=np.float64)
     rows = model.constraints.rows
-    P, included = np.zeros(rows), np.zeros(rows)
+    P, problem_rows = np.zeros(rows), np.zeros(rows + 1, dtype=np.int64)
     size = kept_geometry_size(int(p[mb.H_NQ]), unit_count(p))
     kept = np.zeros(size)
     states, read = [y.copy()], []
@@ -63,7 +63,7 @@ def step_run(scene: Scene, dt: float, steps: int, keep: bool):
         if not keep:
             kept = np.zeros(size)
         read.append(kept_for(kept, y[:nq].copy()))
-        status, _residual, _m = moreau_step(p, y, dt, P, EXACT_ROWS, PGS_SWEEPS, STEP_TOLERANCE, included,
+        status, _residual, _m = moreau_step(p, y, dt, P, EXACT_ROWS, PGS_SWEEPS, STEP_TOLERANCE, problem_rows,
                                             MODES["moreau"], kept)
         assert status == 0
         states.append(y.copy())
