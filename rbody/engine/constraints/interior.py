@@ -33,7 +33,7 @@ from numba import njit
 
 from rbody.engine.constraints.cone import (NORMAL, ROLL, ROW, SPIN, TANGENT, cone_polish, is_disc,
                                            normal_of)
-from rbody.engine.constraints.natural_newton import newton_polish
+from rbody.engine.constraints.natural_newton import NATURAL, newton_polish
 from rbody.engine.constraints.solver import cholesky_factor, lower_solve, symmetric_solve, upper_solve
 
 BARRIER_START = 0.1        # the first barrier weight t, of the problem's scale max(|b|, 1) max(lambda_n^0)
@@ -324,7 +324,7 @@ def _read_states(W, b, lo, hi, role, mu, inside, goal, levels, lam):
             lam[:] = trial
         if best <= goal:
             return best
-    return newton_polish(W, b, lo, hi, role, mu, lam, goal)
+    return newton_polish(W, b, lo, hi, role, mu, lam, goal, NATURAL)
 
 
 @njit(cache=True)

@@ -24,6 +24,13 @@ rows that the solution holds on their bounds are still inside them (a barrier's 
 Seidel's crawl along W's null space), it stops on a point of its wrong piece where J^T G = 0. So it finishes where the
 states are already read (rbody.engine.constraints.interior: the barrier's impulses snapped onto their bounds), where
 cone_polish's fixed point on a sliding contact's direction is linear and stalls (5e-7 on test_interior's crawl).
+
+Or where the pieces are known: a robot settling on its feet gives the same problem step after step, its pieces
+(which joints' dry friction slides, which feet's spin and rolling slide) those of the last step's impulses while
+its b moves. G's pieces then read from those impulses (read_pieces: a row on its bound, a disc on its edge) and held
+(natural_map with `pieces`), Newton's method from them reaches round-off in three steps (states_newton), where the
+pieces read from where lambda - w / d lies at the new b are wrong on a few rows (a friction that stuck now pushed
+past its bound) and Newton's steps stall on them (5e-8).
 """
 
 from __future__ import annotations
@@ -31,20 +38,27 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from rbody.engine.constraints.cone import (SPIN, ROLL2, TANGENT2, _bounds, _tangent_step_size, cone_residual,
-                                           is_disc, normal_of)
+from rbody.engine.constraints.cone import (ROUND_OFF, ROW, SPIN, ROLL2, TANGENT2, _bounds, _tangent_step_size,
+                                           cone_residual, is_disc, magnitude, normal_of)
 from rbody.engine.constraints.solver import cholesky_factor, lower_solve, upper_solve
 
 NEWTON_STEPS = 20   # Newton steps at most
 STALL_STEPS = 3     # a run of this many steps that has not halved the residual ends it
 ARMIJO = 1e-4       # sufficient decrease of |G|^2 / 2, of the step's slope
+# a block's piece (read_pieces): a one-row block free (w = 0), on its lower or upper bound; a disc sticking or sliding
+FREE, LOWER, UPPER, STICKS, SLIDES = 0, 1, 2, 3, 4
+ON_BOUND = 1e-9     # read_pieces: an impulse within this (relative) of its bound is on it
+SLIP_FLOOR = 1e3    # states_newton: a friction on its bound must slip faster than this many times w's round-off
+NATURAL = np.empty(0, dtype=np.int64)  # natural_map's pieces where none are held: each block's own
 
 
 @njit(cache=True)
-def natural_map(W, b, lo, hi, role, mu, lam, G, J, with_jacobian):
+def natural_map(W, b, lo, hi, role, mu, lam, G, J, with_jacobian, pieces):
     """G (m,) <- the natural map at lam (module docstring) [w's units]; J (m, m) <- its Jacobian on G's piece where
-    with_jacobian. Returns |G|^2 / 2."""
+    with_jacobian. pieces (m,): each block's piece held (FREE, LOWER, UPPER, STICKS, SLIDES on its first row), or
+    empty (NATURAL): the piece where lambda - w / d lies. Returns |G|^2 / 2."""
     m = b.shape[0]
+    held = pieces.shape[0] > 0
     w = b + W @ lam
     if with_jacobian:
         J[:, :] = 0.0
@@ -63,7 +77,12 @@ def natural_map(W, b, lo, hi, role, mu, lam, G, J, with_jacobian):
             radius = mu[i] * max(lam[n], 0.0)
             zx, zy = lam[i] - w[i] / s, lam[i + 1] - w[i + 1] / s
             length = np.sqrt(zx * zx + zy * zy)
-            if length <= radius:  # sticking: w_t = 0
+            if held and pieces[i] == SLIDES and not length > 0.0:  # held sliding with no direction: lambda_t = 0
+                G[i], G[i + 1] = s * lam[i], s * lam[i + 1]
+                if with_jacobian:
+                    J[i, i], J[i + 1, i + 1] = s, s
+                continue
+            if (pieces[i] == STICKS) if held else length <= radius:  # sticking: w_t = 0
                 G[i], G[i + 1] = w[i], w[i + 1]
                 if with_jacobian:
                     J[i, :] = W[i, :]
@@ -90,14 +109,15 @@ def natural_map(W, b, lo, hi, role, mu, lam, G, J, with_jacobian):
             continue
         low, high = _bounds(role, mu, lo, hi, lam, i)
         z = lam[i] - w[i] / d
-        if z <= low or z >= high:  # on a bound: lambda = bound (a spin's +-mu_s lambda_n)
-            bound = low if z <= low else high
+        lower = pieces[i] == LOWER if held else z <= low
+        if lower or ((pieces[i] == UPPER) if held else z >= high):  # on a bound: lambda = bound (a spin's
+            bound = low if lower else high                            # +-mu_s lambda_n)
             G[i] = d * (lam[i] - bound)
             if with_jacobian:
                 J[i, i] = d
                 n = normal_of(role, i)
                 if r == SPIN and lam[n] > 0.0:
-                    J[i, n] += d * mu[i] if z <= low else -d * mu[i]
+                    J[i, n] += d * mu[i] if lower else -d * mu[i]
         else:  # free: w = 0
             G[i] = w[i]
             if with_jacobian:
@@ -109,10 +129,11 @@ def natural_map(W, b, lo, hi, role, mu, lam, G, J, with_jacobian):
 
 
 @njit(cache=True)
-def newton_polish(W, b, lo, hi, role, mu, lam, goal):
-    """Newton's method on the natural map (module docstring) from lam (m,), in place: until the residual is at most
-    `goal`, a step finds no decrease, STALL_STEPS steps have not halved the residual, or NEWTON_STEPS are taken. lam
-    ends at the iterate of least residual (the start where none is less). Returns that residual."""
+def newton_polish(W, b, lo, hi, role, mu, lam, goal, pieces):
+    """Newton's method on the natural map (module docstring) from lam (m,), in place, on the pieces `pieces` held
+    (natural_map; NATURAL: each step's own): until the residual is at most `goal`, a step finds no decrease,
+    STALL_STEPS steps have not halved the residual, or NEWTON_STEPS are taken. lam ends at the iterate of least
+    residual (the natural one, cone_residual: the start where none is less). Returns that residual."""
     m = b.shape[0]
     G, J = np.empty(m), np.empty((m, m))
     G_trial, no_jacobian = np.empty(m), np.empty((0, 0))
@@ -122,7 +143,7 @@ def newton_polish(W, b, lo, hi, role, mu, lam, goal):
     for i in range(m):
         floor = max(floor, W[i, i])
     floor = 1e-14 * floor * floor
-    merit = natural_map(W, b, lo, hi, role, mu, lam, G, J, True)
+    merit = natural_map(W, b, lo, hi, role, mu, lam, G, J, True, pieces)
     x, trial = lam.copy(), np.empty(m)
     A, L = np.empty((m, m)), np.empty((m, m))
     mark, since = best, 0
@@ -147,13 +168,14 @@ def newton_polish(W, b, lo, hi, role, mu, lam, goal):
         while a > 1e-10:
             for i in range(m):
                 trial[i] = x[i] + a * step[i]
-            if natural_map(W, b, lo, hi, role, mu, trial, G_trial, no_jacobian, False) <= merit + ARMIJO * a * slope:
+            if natural_map(W, b, lo, hi, role, mu, trial, G_trial, no_jacobian, False, pieces) \
+                    <= merit + ARMIJO * a * slope:
                 break
             a *= 0.5
         if not a > 1e-10:
             break
         x[:] = trial
-        merit = natural_map(W, b, lo, hi, role, mu, x, G, J, True)
+        merit = natural_map(W, b, lo, hi, role, mu, x, G, J, True, pieces)
         residual = cone_residual(W, b, lo, hi, role, mu, x)
         if residual < best:
             best = residual
@@ -167,4 +189,69 @@ def newton_polish(W, b, lo, hi, role, mu, lam, goal):
     return best
 
 
-__all__ = ["natural_map", "newton_polish", "NEWTON_STEPS"]
+@njit(cache=True)
+def read_pieces(role, mu, lo, hi, lam):
+    """Each block's piece (m,) as lam (a solution: the last step's impulses) lies: a one-row block on its lower or
+    upper bound (within ON_BOUND of it; a spin's +-mu_s lambda_n), else free; a disc sliding on its edge (a contact
+    that does not push: r = 0), else sticking."""
+    m = lam.shape[0]
+    pieces = np.zeros(m, dtype=np.int64)
+    for i in range(m):
+        r = role[i]
+        if r == TANGENT2 or r == ROLL2:
+            continue
+        if is_disc(r):
+            radius = mu[i] * max(lam[normal_of(role, i)], 0.0)
+            length = np.sqrt(lam[i] * lam[i] + lam[i + 1] * lam[i + 1])
+            pieces[i] = SLIDES if length >= (1.0 - ON_BOUND) * radius else STICKS
+            continue
+        low, high = _bounds(role, mu, lo, hi, lam, i)
+        if low > -np.inf and lam[i] <= low + ON_BOUND * abs(low):
+            pieces[i] = LOWER
+        elif high < np.inf and lam[i] >= high - ON_BOUND * abs(high):
+            pieces[i] = UPPER
+        else:
+            pieces[i] = FREE
+    return pieces
+
+
+@njit(cache=True)
+def states_newton(W, b, lo, hi, role, mu, lam, goal):
+    """The problem solved from lam (m,), a solution of the last step's, by Newton's method on lam's own pieces held
+    (read_pieces: a robot settling on its feet), to round-off. The result is written into lam where it is within
+    `goal` and every friction on its bound there (a joint's box, a spin's interval, a sliding disc that pushes) slips
+    faster than SLIP_FLOOR times w's round-off: at the edge with no slip, sliding is Coulomb's too, and the step's
+    finishes choose sticking there (a block at mu = tan(alpha) stays put). Returns its residual; +inf where it is
+    not kept (lam unchanged)."""
+    trial = lam.copy()
+    exact = ROUND_OFF * magnitude(W, b, lam)  # on to round-off, one or two steps past the goal: the finishes it
+    residual = newton_polish(W, b, lo, hi, role, mu, trial, min(goal, exact),  # stands in for are exact (a cube
+                             read_pieces(role, mu, lo, hi, lam))  # sliding on an incline, stopped at the goal,
+    if residual <= goal and _slips_clear(W, b, lo, hi, role, mu, trial):  # drifted 4e-13 m from its closed form)
+        lam[:] = trial
+        return residual
+    return np.inf
+
+
+@njit(cache=True)
+def _slips_clear(W, b, lo, hi, role, mu, lam):
+    """Whether every friction on its bound at lam (read_pieces) slips faster than SLIP_FLOOR times w's round-off."""
+    pieces = read_pieces(role, mu, lo, hi, lam)
+    w = b + W @ lam
+    floor = SLIP_FLOOR * ROUND_OFF * magnitude(W, b, lam)
+    for i in range(b.shape[0]):
+        r = role[i]
+        if pieces[i] == SLIDES and mu[i] * lam[normal_of(role, i)] > 0.0:
+            slip = np.sqrt(w[i] * w[i] + w[i + 1] * w[i + 1])
+        elif (pieces[i] == LOWER or pieces[i] == UPPER) and \
+                ((r == SPIN and mu[i] * lam[normal_of(role, i)] > 0.0)
+                 or (r == ROW and lo[i] > -np.inf and hi[i] < np.inf)):
+            slip = abs(w[i])
+        else:
+            continue
+        if not slip > floor:
+            return False
+    return True
+
+
+__all__ = ["natural_map", "newton_polish", "read_pieces", "states_newton", "NATURAL", "NEWTON_STEPS"]

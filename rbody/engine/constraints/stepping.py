@@ -61,9 +61,10 @@ from rbody.engine.contacts.rows import (GEOMETRY_WORK, candidate, kept_candidate
                                         kept_geometry_size, pair_candidates)
 from rbody.engine.multibody import _effective_qpos
 from rbody.engine.constraints.cone import (NORMAL, ROLL, ROUND_OFF, ROW, SPIN, TANGENT, cone_pgs, cone_polish,
-                                           follow_drift, hold_states, inside_cones, magnitude, slide_polish,
-                                           stick_polish, sticking_qp)
+                                           cone_residual, follow_drift, hold_states, inside_cones, magnitude,
+                                           slide_polish, stick_polish, sticking_qp)
 from rbody.engine.constraints.interior import interior_finish
+from rbody.engine.constraints.natural_newton import states_newton
 from rbody.engine.constraints.solver import (RANK_RTOL, cholesky_factor, lower_solve_rows, mlcp_exact_from,
                                              mlcp_pgs, natural_residual)
 from rbody.engine.constraints.table import (C_HEADER, CONE, CONNECT, CONTACT, CONTACT1, CONTACT_KINDS, COUPLING,
@@ -133,7 +134,13 @@ def cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
     after one sweep. From the INTERIOR_AFTER-th round on, each round not yet at 1e-3 of `tolerance` also solves
     Tresca's problem from inside and finishes from its states (interior_finish: where dependent rows leave
     Gauss-Seidel crawling along W's null space), kept where that lowers the residual, the round then not counted
-    as one that moved nothing. Returns the residual."""
+    as one that moved nothing. A start that no longer solves it is first tried on its own pieces (states_newton: a
+    robot settling on its feet, the last step's sliding and sticking holding while b moves), kept where that
+    reaches 1e-3 of `tolerance`. Returns the residual."""
+    if np.any(lam != 0.0) and cone_residual(W, b, lo, hi, role, mu, lam) > tolerance:
+        held = states_newton(W, b, lo, hi, role, mu, lam, 1e-3 * tolerance)
+        if held <= 1e-3 * tolerance:
+            return held
     done = 0
     rounds = 0
     residual = np.inf

@@ -8,7 +8,9 @@ import pytest
 from rbody.engine.constraints.cone import (NORMAL, ROLL, ROLL2, ROW, SPIN, TANGENT, TANGENT2, cone_pgs,
                                            cone_residual, magnitude, ROUND_OFF)
 from rbody.engine.constraints.interior import interior_finish
-from rbody.engine.constraints.natural_newton import natural_map, newton_polish
+from rbody.engine.constraints.natural_newton import (FREE, LOWER, NATURAL, SLIDES, STICKS, UPPER, natural_map,
+                                                     newton_polish, read_pieces, states_newton)
+from rbody.engine.constraints.stepping import solve_cones
 
 from tests.rbody.engine.test_cone_drift import MU as CRAWL_MU, ROLES as CRAWL_ROLES, crawling_problem
 from tests.rbody.engine.test_interior import SLIDING, sliding_solution
@@ -32,7 +34,7 @@ def test_the_natural_map_is_the_residual_row_by_row(seed):
     W, b, lam = random_problem(seed)
     lam[2] = abs(lam[2])
     G, J = np.empty(8), np.empty((8, 8))
-    half = natural_map(W, b, LO, HI, ROLES, MU, lam, G, J, True)
+    half = natural_map(W, b, LO, HI, ROLES, MU, lam, G, J, True, NATURAL)
     assert half == pytest.approx(0.5 * G @ G, rel=1e-15)
     per_block = [abs(G[0]), abs(G[1]), abs(G[2]), np.hypot(G[3], G[4]), abs(G[5]), np.hypot(G[6], G[7])]
     assert max(per_block) == pytest.approx(cone_residual(W, b, LO, HI, ROLES, MU, lam), rel=1e-12)
@@ -43,15 +45,20 @@ def test_the_jacobian_is_the_map_s_derivative_on_its_piece(seed):
     """Central differences of G at a random point (no block within 1e-4 of a kink there) against J."""
     W, b, lam = random_problem(seed)
     lam[2] = abs(lam[2]) + 0.1
+    assert_jacobian_is_derivative(W, b, lam, NATURAL)
+
+
+def assert_jacobian_is_derivative(W, b, lam, pieces):
+    """natural_map's J at lam against central differences of its G (the pieces held or NATURAL)."""
     G, J = np.empty(8), np.empty((8, 8))
-    natural_map(W, b, LO, HI, ROLES, MU, lam, G, J, True)
+    natural_map(W, b, LO, HI, ROLES, MU, lam, G, J, True, pieces)
     h = 1e-7
     plus, minus, unused = np.empty(8), np.empty(8), np.empty((0, 0))
     for j in range(8):
         step = np.zeros(8)
         step[j] = h
-        natural_map(W, b, LO, HI, ROLES, MU, lam + step, plus, unused, False)
-        natural_map(W, b, LO, HI, ROLES, MU, lam - step, minus, unused, False)
+        natural_map(W, b, LO, HI, ROLES, MU, lam + step, plus, unused, False, pieces)
+        natural_map(W, b, LO, HI, ROLES, MU, lam - step, minus, unused, False, pieces)
         np.testing.assert_allclose((plus - minus) / (2 * h), J[:, j], rtol=1e-5, atol=1e-6 * np.abs(J).max())
 
 
@@ -61,7 +68,7 @@ def test_a_sliding_contact_converges_quadratically_to_its_closed_form():
     p = SLIDING
     exact = sliding_solution()
     lam = exact + np.array([1e-3, -2e-3, 1e-3])
-    residual = newton_polish(p["W"], p["b"], p["lo"], p["hi"], p["role"], p["mu"], lam, 0.0)
+    residual = newton_polish(p["W"], p["b"], p["lo"], p["hi"], p["role"], p["mu"], lam, 0.0, NATURAL)
     assert residual <= ROUND_OFF * magnitude(p["W"], p["b"], lam)
     np.testing.assert_allclose(lam, exact, rtol=1e-14, atol=1e-16)
 
@@ -71,7 +78,8 @@ def test_the_iterates_residuals_fall_quadratically():
     lam = sliding_solution() + np.array([1e-2, -2e-2, 1e-2])
     history = [cone_residual(p["W"], p["b"], p["lo"], p["hi"], p["role"], p["mu"], lam)]
     for _ in range(3):  # one step at a time (the goal the residual's half: newton_polish stops after one step)
-        history.append(newton_polish(p["W"], p["b"], p["lo"], p["hi"], p["role"], p["mu"], lam, 0.5 * history[-1]))
+        history.append(newton_polish(p["W"], p["b"], p["lo"], p["hi"], p["role"], p["mu"], lam, 0.5 * history[-1],
+                                      NATURAL))
     assert history[1] < 1e-2 * history[0]
     assert history[2] <= max(10 * history[1] ** 2 / history[0], 1e-15)
 
@@ -84,7 +92,7 @@ def test_newton_does_not_find_the_pieces_and_keeps_its_start():
     lam = np.zeros(8)
     cone_pgs(W, b, lo, hi, CRAWL_ROLES, CRAWL_MU, lam, 0.0, 50)
     start = cone_residual(W, b, lo, hi, CRAWL_ROLES, CRAWL_MU, lam)
-    residual = newton_polish(W, b, lo, hi, CRAWL_ROLES, CRAWL_MU, lam, 0.0)
+    residual = newton_polish(W, b, lo, hi, CRAWL_ROLES, CRAWL_MU, lam, 0.0, NATURAL)
     assert residual <= start
     assert residual > 1e-12
     assert residual == cone_residual(W, b, lo, hi, CRAWL_ROLES, CRAWL_MU, lam)
@@ -106,7 +114,7 @@ def test_a_start_that_solves_is_kept_as_it_is():
     lam = sliding_solution()
     start = cone_residual(p["W"], p["b"], p["lo"], p["hi"], p["role"], p["mu"], lam)
     kept = lam.copy()
-    assert newton_polish(p["W"], p["b"], p["lo"], p["hi"], p["role"], p["mu"], lam, start) == start
+    assert newton_polish(p["W"], p["b"], p["lo"], p["hi"], p["role"], p["mu"], lam, start, NATURAL) == start
     np.testing.assert_array_equal(lam, kept)
 
 
@@ -120,8 +128,99 @@ def test_a_disc_no_impulse_acts_through_is_held_not_divided_by():
     lo, hi = np.array([0.0, -np.inf, -np.inf]), np.full(3, np.inf)
     lam = np.array([0.2, 0.0, 0.0])
     G, J = np.empty(3), np.empty((3, 3))
-    natural_map(W, b, lo, hi, role, mu, lam, G, J, True)
+    natural_map(W, b, lo, hi, role, mu, lam, G, J, True, NATURAL)
     assert G[1] == 0.0 and G[2] == 0.0
     np.testing.assert_array_equal(J[1:], [[0.0, 1.0, 0.0], [0.0, 0.0, 1.0]])
-    assert newton_polish(W, b, lo, hi, role, mu, lam, 0.0) <= 1e-15
+    assert newton_polish(W, b, lo, hi, role, mu, lam, 0.0, NATURAL) <= 1e-15
     assert lam[0] == pytest.approx(0.5, rel=1e-15)
+
+
+
+def settled_problem(seed, move):
+    """A random problem solved exactly (the step's solver from rest), then its b moved by `move` (relative to b's
+    scale of one): the next step of a body settling, whose pieces (which rows sit on their bounds, which discs slide)
+    are the last step's where the move is small."""
+    W, b, _lam = random_problem(seed)
+    lam = np.zeros(8)
+    assert solve_cones(W, b, LO, HI, ROLES, MU, lam, 1e-12, 2000) <= 1e-12
+    moved = b + move * np.random.default_rng(100 + seed).normal(size=8)
+    return W, moved, lam
+
+
+def test_the_pieces_are_read_from_where_the_impulses_lie():
+    """A joint's box on its upper bound, a limit free, a pushing contact sliding on its cone's edge with its spin on
+    -mu_s lambda_n and its rolling inside; then the same contact not pushing (every friction on a zero radius)."""
+    lam = np.array([0.3, 0.2, 2.0, 0.8 * 2.0 * 0.6, 0.8 * 2.0 * 0.8 * (1 - 1e-12), -0.02 * 2.0, 0.001, 0.0])
+    pieces = read_pieces(ROLES, MU, LO, HI, lam)
+    assert pieces[[0, 1, 2, 3, 5, 6]].tolist() == [UPPER, FREE, FREE, SLIDES, LOWER, STICKS]
+    lam[2:] = 0.0
+    pieces = read_pieces(ROLES, MU, LO, HI, lam)
+    assert pieces[[2, 3, 5, 6]].tolist() == [LOWER, SLIDES, LOWER, SLIDES]
+
+
+@pytest.mark.parametrize("seed", range(20))
+def test_the_held_map_s_jacobian_is_its_derivative(seed):
+    """natural_map with pieces held (random ones) against central differences of itself: smooth on those pieces."""
+    W, b, lam = random_problem(seed)
+    lam[2] = abs(lam[2]) + 0.1
+    rng = np.random.default_rng(seed)
+    pieces = np.array([rng.choice([FREE, LOWER, UPPER]), rng.choice([FREE, LOWER]), rng.choice([FREE, LOWER]),
+                       rng.choice([STICKS, SLIDES]), 0, rng.choice([FREE, LOWER, UPPER]), rng.choice([STICKS, SLIDES]),
+                       0])
+    assert_jacobian_is_derivative(W, b, lam, pieces)
+
+
+def test_the_last_solution_s_pieces_solve_the_next_problem():
+    """From the last problem's solution, Newton's method on its pieces held solves the problem moved by 1e-4 to
+    round-off on nearly every seed (19 of 20 measured), and what states_newton keeps solves the moved problem (its
+    natural residual, not the held map's); where it keeps nothing, lam is left as it was."""
+    held = 0
+    for seed in range(20):
+        W, b, lam = settled_problem(seed, 1e-4)
+        trial = lam.copy()
+        held += newton_polish(W, b, LO, HI, ROLES, MU, trial, 1e-13, read_pieces(ROLES, MU, LO, HI, lam)) <= 1e-13
+        start = lam.copy()
+        residual = states_newton(W, b, LO, HI, ROLES, MU, lam, 1e-13)
+        if residual <= 1e-13:
+            assert cone_residual(W, b, LO, HI, ROLES, MU, lam) == residual
+        else:
+            assert residual == np.inf
+            np.testing.assert_array_equal(lam, start)
+    assert held >= 17
+
+
+def test_where_the_held_pieces_miss_nothing_is_kept():
+    """A larger move (0.3) changes some problems' pieces: Newton's method on the held ones misses there (6 of 20
+    measured, at least 2 asserted), and states_newton then keeps nothing (the rounds of cone_solve take the problem
+    from the same start), while what it keeps elsewhere solves the moved problem."""
+    missed = 0
+    for seed in range(20):
+        W, b, lam = settled_problem(seed, 0.3)
+        start = lam.copy()
+        held = newton_polish(W, b, LO, HI, ROLES, MU, start.copy(), 1e-13, read_pieces(ROLES, MU, LO, HI, lam))
+        residual = states_newton(W, b, LO, HI, ROLES, MU, lam, 1e-13)
+        if held > 1e-13:
+            missed += 1
+            assert residual == np.inf
+            np.testing.assert_array_equal(lam, start)
+        elif residual < np.inf:
+            assert cone_residual(W, b, LO, HI, ROLES, MU, lam) == residual <= 1e-13
+    assert missed >= 2
+
+
+def test_a_friction_on_its_edge_that_does_not_slip_is_left_to_the_finishes():
+    """A contact whose tangential impulse sits on its cone's edge with no slip (a block on an incline at mu =
+    tan(alpha)): sticking and sliding both hold there, and the finishes choose sticking; states_newton solves it but
+    does not keep it (its slip, 0, is below the floor)."""
+    W = np.eye(3)
+    b = np.array([-1.0, -0.5, 0.0])
+    role, mu = np.array([NORMAL, TANGENT, TANGENT2]), np.array([0.0, 0.5, 0.0])
+    lo, hi = np.array([0.0, -np.inf, -np.inf]), np.full(3, np.inf)
+    lam = np.array([1.0, 0.5, 0.0])
+    assert read_pieces(role, mu, lo, hi, lam)[1] == SLIDES
+    assert states_newton(W, b, lo, hi, role, mu, lam, 1e-13) == np.inf
+    np.testing.assert_array_equal(lam, [1.0, 0.5, 0.0])
+    b[1] = -0.6  # pushed past the edge: it slides at 0.1 m/s, and that is kept
+    assert states_newton(W, b, lo, hi, role, mu, lam, 1e-13) <= 1e-13
+    np.testing.assert_allclose(lam, [1.0, 0.5, 0.0], atol=1e-15)
+    assert (b + W @ lam)[1] == pytest.approx(-0.1)
