@@ -2,7 +2,8 @@
 (dynamics.state_gaps) and keeps them (contacts.rows.kept_geometry_size); the next step starts at that configuration
 and reads them instead of finding them again. Reading them must change nothing: the runs below, each step given
 the kept geometry or an empty one, agree to the bit, over pairs whose candidates are always exact (boxes) and pairs
-that may answer with a bound (an ellipsoid's, a mesh's)."""
+that may answer with a bound (an ellipsoid's, a mesh's). Each step also lists its problem's rows, ascending, and
+sets its impulses on those rows only (the next step clears P there and nowhere else)."""
 
 import sys
 import warnings
@@ -63,9 +64,12 @@ def step_run(scene: Scene, dt: float, steps: int, keep: bool):
         if not keep:
             kept = np.zeros(size)
         read.append(kept_for(kept, y[:nq].copy()))
-        status, _residual, _m = moreau_step(p, y, dt, P, EXACT_ROWS, PGS_SWEEPS, STEP_TOLERANCE, problem_rows,
-                                            MODES["moreau"], kept)
+        status, _residual, m = moreau_step(p, y, dt, P, EXACT_ROWS, PGS_SWEEPS, STEP_TOLERANCE, problem_rows,
+                                           MODES["moreau"], kept)
         assert status == 0
+        listed = problem_rows[1:1 + problem_rows[0]]  # the step's problem: its rows, ascending, and P set on them only
+        assert problem_rows[0] == m and np.all(np.diff(listed) > 0)
+        assert set(np.flatnonzero(P)) <= set(listed.tolist())
         states.append(y.copy())
     return np.array(states), np.array(read)
 
