@@ -114,13 +114,13 @@ def _bounds(role, mu, lo, hi, lam, i):
 
 
 @njit(cache=True)
-def cone_pgs(W, b, lo, hi, role, mu, lam, tolerance, max_sweeps):
+def cone_pgs(W, b, lo, hi, role, mu, lam, tolerance, max_sweeps, start=-1.0):
     """Solve the step's problem with Coulomb cones by block projected Gauss-Seidel from lam (a warm start), until
     cone_residual <= tolerance or max_sweeps sweeps. role (m,) each row's ROW, NORMAL, TANGENT, TANGENT2, SPIN, ROLL
-    or ROLL2; mu (m,) the friction coefficient on TANGENT, SPIN [m] and ROLL [m] rows. Returns (sweeps, residual)."""
+    or ROLL2; mu (m,) the friction coefficient on TANGENT, SPIN [m] and ROLL [m] rows; start: lam's cone_residual
+    where the caller has it (negative: computed here). Returns (sweeps, residual)."""
     m = b.shape[0]
-    w = b + W @ lam
-    residual = cone_residual(W, b, lo, hi, role, mu, lam)
+    residual = start if start >= 0.0 else cone_residual(W, b, lo, hi, role, mu, lam)
     for sweep in range(max_sweeps):
         if residual <= tolerance:
             return sweep, residual

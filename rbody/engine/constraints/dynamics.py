@@ -109,6 +109,18 @@ def add_sliding_friction(p, f, J):
 
 
 @njit(cache=True, inline="always")
+def is_equality_kind(kind):
+    """An equality unit: its rows held at g = 0 always (bilateral, unbounded impulses)."""
+    return kind == CONNECT or kind == WELD or kind == COUPLING or kind == TENDON_EQUALITY
+
+
+@njit(cache=True, inline="always")
+def is_stop_kind(kind):
+    """A unit of one unilateral row (g >= 0, impulse >= 0): a joint's or a tendon's limit, a ball's cone."""
+    return kind == LOWER or kind == UPPER or kind == CONE or kind == TENDON_LOWER or kind == TENDON_UPPER
+
+
+@njit(cache=True, inline="always")
 def is_tendon_kind(kind):
     return kind == TENDON_LOWER or kind == TENDON_UPPER or kind == TENDON_FRICTION or kind == TENDON_EQUALITY
 
@@ -164,7 +176,7 @@ def held_rows(p, rows_held):
         kind = int(p[u + U_KIND])
         mode = p[modes + k]
         d = coordinate_key(p, u)
-        on = (kind == CONNECT or kind == WELD or kind == COUPLING or kind == TENDON_EQUALITY or
+        on = (is_equality_kind(kind) or
               ((kind == LOWER or kind == UPPER or kind == TENDON_LOWER or kind == TENDON_UPPER) and mode == 1.0) or
               (kind == CONE and mode == 1.0 and not (sticking[d] > 0.0 and sticking[d + 1] > 0.0
                                                      and sticking[d + 2] > 0.0)) or

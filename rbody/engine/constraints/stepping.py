@@ -67,13 +67,9 @@ from rbody.engine.constraints.interior import interior_finish
 from rbody.engine.constraints.natural_newton import states_newton
 from rbody.engine.constraints.solver import (RANK_RTOL, cholesky_factor, lower_solve_rows, mlcp_exact_from,
                                              mlcp_pgs, natural_residual)
-from rbody.engine.constraints.table import (C_HEADER, CONE, CONNECT, CONTACT, CONTACT1, CONTACT_KINDS, COUPLING,
-                                            FRICTION, FRICTION_KINDS, LOWER, TENDON_EQUALITY, TENDON_FRICTION,
-                                            TENDON_LOWER, TENDON_UPPER, U_BODY1, U_BODY2, U_BOUND, U_KIND,
-                                            UNILATERAL,
-                                            UNIT_SIZE,
-                                            U_RESTITUTION, U_ROLL, U_ROW0, U_ROWS, U_SPIN, UPPER, WELD,
-                                            ConstraintTable)
+from rbody.engine.constraints.table import (C_HEADER, CONTACT, CONTACT1, CONTACT_KINDS, FRICTION, FRICTION_KINDS,
+                                            TENDON_FRICTION, U_BODY1, U_BODY2, U_BOUND, U_KIND, UNILATERAL, UNIT_SIZE,
+                                            U_RESTITUTION, U_ROLL, U_ROW0, U_ROWS, U_SPIN, ConstraintTable)
 from rbody.errors import SimulationError
 
 EXACT_ROWS = 64          # a step's problem with at most this many rows is solved exactly
@@ -137,16 +133,20 @@ def cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
     as one that moved nothing. A start that no longer solves it is first tried on its own pieces (states_newton: a
     robot settling on its feet, the last step's sliding and sticking holding while b moves), kept where that
     reaches 1e-3 of `tolerance`. Returns the residual."""
-    if np.any(lam != 0.0) and cone_residual(W, b, lo, hi, role, mu, lam) > tolerance:
-        held = states_newton(W, b, lo, hi, role, mu, lam, 1e-3 * tolerance)
-        if held <= 1e-3 * tolerance:
-            return held
+    start = -1.0  # the warm start's residual, where taken (cone_pgs's first round starts from it)
+    if np.any(lam != 0.0):
+        start = cone_residual(W, b, lo, hi, role, mu, lam)
+        if start > tolerance:
+            held = states_newton(W, b, lo, hi, role, mu, lam, 1e-3 * tolerance)  # lam unchanged where it misses
+            if held <= 1e-3 * tolerance:
+                return held
     done = 0
     rounds = 0
     residual = np.inf
     normals = lam[:0]  # the interior finish's radii (its last barrier's impulses), from its first round on
     while done < sweeps:
-        spent, residual = cone_pgs(W, b, lo, hi, role, mu, lam, tolerance, min(CONE_ROUND, sweeps - done))
+        spent, residual = cone_pgs(W, b, lo, hi, role, mu, lam, tolerance, min(CONE_ROUND, sweeps - done), start)
+        start = -1.0
         done += max(spent, 1)
         if spent == 0 and residual <= 1e-3 * tolerance:  # the start (the last step's finished impulses: a body at
             trial = lam.copy()  # rest, a ball rolling) may solve it: one sweep takes up the round-off its
@@ -357,12 +357,12 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
         u = unit_at(p, k)
         kind = int(p[u + U_KIND])
         r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])
-        if kind == CONNECT or kind == WELD or kind == COUPLING or kind == TENDON_EQUALITY:
+        if dyn.is_equality_kind(kind):
             for a in range(r0, r0 + r):
                 jfree[m] = _row_dot(J, a, vfree)
                 index[m], lo[m], hi[m], b[m] = a, -np.inf, np.inf, jfree[m]
                 m += 1
-        elif kind == LOWER or kind == UPPER or kind == CONE or kind == TENDON_LOWER or kind == TENDON_UPPER:
+        elif dyn.is_stop_kind(kind):
             e = p[u + U_RESTITUTION]
             rate = _row_dot(J, r0, vfree)
             jfree[m] = rate
@@ -477,7 +477,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
     position_rows = np.zeros(rows)
     flagged = np.empty(rows, dtype=np.int64)  # the rows flagged in position_rows, in the order flagged
     count = 0
-    equalities = False
+    velocity_rows = np.zeros(0)  # the equalities' rows (rows,), from the first equality met (most models have none)
     least = np.empty(pair_count(p))  # each contact pair's least gap at the end (state_gaps)
     worst = 0.0
     for _round in range(PROJECTION_ROUNDS):
@@ -487,16 +487,17 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
             u = unit_at(p, k)
             kind = int(p[u + U_KIND])
             r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])
-            if kind == CONNECT or kind == WELD or kind == COUPLING or kind == TENDON_EQUALITY:
-                equalities = True
+            if dyn.is_equality_kind(kind):
+                if velocity_rows.size == 0:
+                    velocity_rows = np.zeros(rows)
                 for a in range(r0, r0 + r):
+                    velocity_rows[a] = 1.0
                     if position_rows[a] == 0.0:
                         grown = True
                         position_rows[a] = 1.0
                         flagged[count] = a
                         count += 1
-            elif (kind == LOWER or kind == UPPER or kind == CONE or kind == TENDON_LOWER or kind == TENDON_UPPER) \
-                    and _newly_flagged(g, P, position_rows, r0):
+            elif dyn.is_stop_kind(kind) and _newly_flagged(g, P, position_rows, r0):
                 position_rows[r0] = 1.0
                 flagged[count] = r0
                 count += 1
@@ -521,16 +522,10 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
                 live += 1
                 worst = max(worst, abs(g[a]))
         count = live
-        if not equalities and worst <= dyn.PROJECTION_TOLERANCE:
-            break
-        velocity_rows = np.zeros(rows)  # the equalities' rows
-        for k in range(c0):
-            u = unit_at(p, k)
-            kind = int(p[u + U_KIND])
-            if kind == CONNECT or kind == WELD or kind == COUPLING or kind == TENDON_EQUALITY:
-                r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])
-                for a in range(r0, r0 + r):
-                    velocity_rows[a] = 1.0
+        if velocity_rows.size == 0:
+            if worst <= dyn.PROJECTION_TOLERANCE:
+                break
+            velocity_rows = np.zeros(rows)  # no equality: no velocity row
         worst, _speed = dyn.project(p, y, position_rows, velocity_rows)
     if worst > 1e3 * dyn.PROJECTION_TOLERANCE:
         return 2, worst, m
