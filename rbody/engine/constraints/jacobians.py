@@ -233,6 +233,37 @@ def _contact_frame_rows(p, w, acc, u, r, J, jdot, g, row, with_bias, normal, poi
         contact_bias(p, w, acc, u, g[row], frame, r, jdot, row)  # the gap's and the rolling point's own terms
 
 
+@njit(cache=True, inline="always")
+def _dof_row(p, u, kind, q, J, jdot, g, row):
+    """The one row of a joint's stop (LOWER, UPPER) or dry friction (FRICTION) at unit record u into J[row] (+-1 on
+    its dof, 0 elsewhere), jdot[row] (0) and g[row] (the stop's gap q - lower or upper - q [m or rad]; 0)."""
+    for c in range(J.shape[1]):
+        J[row, c] = 0.0
+    jdot[row] = 0.0
+    d = int(p[u + U_DOF])
+    if kind == LOWER:
+        J[row, d] = 1.0
+        g[row] = q[int(p[u + U_QADR])] - p[u + U_BOUND]
+    elif kind == UPPER:
+        J[row, d] = -1.0
+        g[row] = p[u + U_BOUND] - q[int(p[u + U_QADR])]
+    else:
+        J[row, d] = 1.0
+        g[row] = 0.0
+
+
+@njit(cache=True, inline="always")
+def rows_of(p, k, q, v, w, acc, J, jdot, g, row, with_bias):
+    """unit_rows, a joint's stop or friction written here without the call: a call per unit costs numba's
+    reference counts of its eight arrays, more than the row itself (a quadruped's 36 such units, twice a step)."""
+    u = unit_at(p, k)
+    kind = int(p[u + U_KIND])
+    if kind == LOWER or kind == UPPER or kind == FRICTION:
+        _dof_row(p, u, kind, q, J, jdot, g, row)
+        return 1
+    return unit_rows(p, k, q, v, w, acc, J, jdot, g, row, with_bias)
+
+
 @njit(cache=True)
 def unit_rows(p, k, q, v, w, acc, J, jdot, g, row, with_bias=True):
     """Rows of unit k into J[row:row + r] (zeroed here, r its rows, over all nv columns), jdot[row:] (J' v) and
@@ -241,6 +272,9 @@ def unit_rows(p, k, q, v, w, acc, J, jdot, g, row, with_bias=True):
     bias_accelerations (with_bias False: a contact's J' v is left 0, acc unread by it). Returns r."""
     u = unit_at(p, k)
     kind = int(p[u + U_KIND])
+    if kind == LOWER or kind == UPPER or kind == FRICTION:
+        _dof_row(p, u, kind, q, J, jdot, g, row)
+        return 1
     r = int(p[u + U_ROWS])
     nv = J.shape[1]
     for a in range(r):
@@ -250,15 +284,7 @@ def unit_rows(p, k, q, v, w, acc, J, jdot, g, row, with_bias=True):
         g[row + a] = 0.0
     d = int(p[u + U_DOF])
     qa = int(p[u + U_QADR])
-    if kind == LOWER:
-        J[row, d] = 1.0
-        g[row] = q[qa] - p[u + U_BOUND]
-    elif kind == UPPER:
-        J[row, d] = -1.0
-        g[row] = p[u + U_BOUND] - q[qa]
-    elif kind == FRICTION:
-        J[row, d] = 1.0
-    elif kind == CONE:
+    if kind == CONE:
         qw, qx, qy, qz = q[qa], q[qa + 1], q[qa + 2], q[qa + 3]
         norm = np.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
         s = np.sqrt(qx * qx + qy * qy + qz * qz) / norm
@@ -359,7 +385,7 @@ def all_rows(p, q, v, w, acc, J, jdot, g, with_bias=True, contacts=True):
     False: the units before the contacts only (their rows are the first; the contacts' rows are left as they were)."""
     row = 0
     for k in range(unit_count(p) if contacts else contact0(p)):
-        row += unit_rows(p, k, q, v, w, acc, J, jdot, g, row, with_bias)
+        row += rows_of(p, k, q, v, w, acc, J, jdot, g, row, with_bias)
 
 
 @njit(cache=True)
@@ -369,7 +395,7 @@ def some_rows(p, q, v, w, acc, J, jdot, g, rows_wanted, with_bias=True):
     for k in range(contact0(p)):
         row = int(p[unit_at(p, k) + U_ROW0])
         if rows_wanted[row] != 0.0:
-            unit_rows(p, k, q, v, w, acc, J, jdot, g, row, with_bias)
+            rows_of(p, k, q, v, w, acc, J, jdot, g, row, with_bias)
     for i in range(pair_count(p)):
         first, slots, row0, width = pair_span(p, pair_at(p, i))
         for j in range(slots):
@@ -377,6 +403,6 @@ def some_rows(p, q, v, w, acc, J, jdot, g, rows_wanted, with_bias=True):
                 unit_rows(p, first + j, q, v, w, acc, J, jdot, g, row0 + j * width, with_bias)
 
 
-__all__ = ["block_offset", "unit_count", "row_count", "unit_at", "mode_at", "bias_accelerations", "unit_rows",
+__all__ = ["block_offset", "unit_count", "row_count", "unit_at", "mode_at", "bias_accelerations", "unit_rows", "rows_of",
            "contact_unit_rows",
            "all_rows", "some_rows", "rotation_vector", "C_MODE"]

@@ -240,16 +240,17 @@ def _drop_null_equalities(A, index, lo, hi, b, role, mu, m, rates):
 def near_contacts(p, w, vfree, h, J, g, formed, kept, reuse):
     """The gaps g of the candidates of every pair whose bounding spheres may meet within the step, and the rows J of
     the contacts a step can involve: touching (g <= TOUCH_TOLERANCE) or closing within it (g + h n . (v_b - v_a) < 0
-    at the contact point, the bodies moving with the free velocities vfree (nv,)), each such unit flagged 1 in
-    formed (units,). The others' rows of J and g are left as they were (the step reads the formed ones only): a
+    at the contact point, the bodies moving with the free velocities vfree (nv,)), each such unit listed in formed
+    (units - contact0,) int64, in unit order (a pair's candidates follow the last pair's). The others' rows of J and g are left as they were (the step reads the formed ones only): a
     model's far candidates (a humanoid's limbs against the floor in the air) cost a distance each, not a row of nv
     numbers, and a pair whose bounding spheres cannot meet within the step (contacts.broadphase.pair_reaches) not
     even that, nor a read of its candidates' unit records. After the step's kinematics in the workspace w (its
     velocities are then vfree's). kept: the geometry the last step's end found (rows.kept_geometry_size); reuse:
-    whether it was found at this configuration, its exact candidates then read, not found again. Returns the rows
-    of the units it formed (the step's problem has at most these and the rows before the contacts)."""
+    whether it was found at this configuration, its exact candidates then read, not found again. Returns (the rows
+    of the units it formed, their count): the step's problem has at most these rows and those before the contacts."""
     nq = int(p[mb.H_NQ])
     count = 0
+    units = 0
     mb.velocities(p, vfree, w)
     normal, point, v_a, v_b = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
     work = np.empty(GEOMETRY_WORK)
@@ -274,9 +275,10 @@ def near_contacts(p, w, vfree, h, J, g, formed, kept, reuse):
                        + normal[2] * (v_b[2] - v_a[2]))
             if gap <= TOUCH_TOLERANCE or gap + h * closing < 0.0:  # its rows from the geometry just found
                 contact_unit_rows(p, k, w, J, g, row, gap, normal, point)
-                formed[k] = 1
+                formed[units] = k
+                units += 1
                 count += int(p[u + U_ROWS])
-    return count
+    return count, units
 
 
 @njit(cache=True, inline="always")
@@ -342,18 +344,18 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
     else:
         L = np.empty((nv, nv))
         mujoco_free_velocity(p, y, h, mode, M, f, vfree, L)
-    formed = np.zeros(unit_count(p), dtype=np.int64)
-    bound = contact_row0(p) + near_contacts(p, w, vfree, h, J, g, formed, end_geometry, kept_for(end_geometry, q))
+    c0 = contact0(p)
+    formed = np.empty(unit_count(p) - c0, dtype=np.int64)  # the contacts formed (a list: a model's far candidates
+    more, touching = near_contacts(p, w, vfree, h, J, g, formed, end_geometry, kept_for(end_geometry, q))  # unread)
+    bound = contact_row0(p) + more
     jfree = np.empty(bound)  # the problem's rows (sized by the rows formed, not the model's): their rates at the
     index = np.empty(bound, dtype=np.int64)  # free velocities, rows, bounds, b, roles and friction coefficients
     lo, hi, b = np.empty(bound), np.empty(bound), np.empty(bound)
     role, mu = np.zeros(bound, dtype=np.int64), np.zeros(bound)
     cones = False
     m = 0
-    c0 = contact0(p)
-    for k in range(unit_count(p)):
-        if k >= c0 and formed[k] == 0:
-            continue  # a contact neither touching nor closing within the step: its rows are not formed
+    for c in range(c0 + touching):  # the units before the contacts, then the contacts formed, in unit order
+        k = c if c < c0 else formed[c - c0]
         u = unit_at(p, k)
         kind = int(p[u + U_KIND])
         r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])
@@ -474,7 +476,9 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
         next_activations(p, y[at:at + na], rates, h)
     # positions onto the equalities and onto every stop passed or touched (a projection in the metric of M moves
     # every dof: a stop it pushes past joins the set, and the projection is repeated), velocities onto the equalities
-    position_rows = np.zeros(rows)
+    position_rows = np.empty(rows)  # 1 on a flagged row, 0 on the others the flagging reads: those before the
+    position_rows[:contact_row0(p)] = 0.0  # contacts, and a near pair's normal rows, zeroed where it is first near
+    near = np.zeros(pair_count(p), dtype=np.bool_)  # (not a model's far candidates' rows: 24,822 on a quadruped)
     flagged = np.empty(rows, dtype=np.int64)  # the rows flagged in position_rows, in the order flagged
     count = 0
     velocity_rows = np.zeros(0)  # the equalities' rows (rows,), from the first equality met (most models have none)
@@ -506,6 +510,10 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
             if least[i] > FLAGGED_GAP:
                 continue
             _first, slots, row0, width = pair_span(p, pair_at(p, i))
+            if not near[i]:
+                near[i] = True
+                for j in range(slots):
+                    position_rows[row0 + j * width] = 0.0
             for j in range(slots):
                 if _newly_flagged(g, P, position_rows, row0 + j * width):
                     position_rows[row0 + j * width] = 1.0
@@ -526,7 +534,12 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
             if worst <= dyn.PROJECTION_TOLERANCE:
                 break
             velocity_rows = np.zeros(rows)  # no equality: no velocity row
-        worst, _speed = dyn.project(p, y, position_rows, velocity_rows)
+        dense = np.zeros(rows)  # the flagged rows as project reads them, every row set
+        for c in range(count):
+            dense[flagged[c]] = 1.0
+        worst, _speed = dyn.project(p, y, dense, velocity_rows)
+        for c in range(count):  # a row the projection found apart (geometry.APART) is no longer flagged
+            position_rows[flagged[c]] = dense[flagged[c]]
     if worst > 1e3 * dyn.PROJECTION_TOLERANCE:
         return 2, worst, m
     return 0, residual, m

@@ -99,11 +99,13 @@ def geom_spheres(p, w, h, spheres):
     a plane's normal (its third axis) and, for h > 0, the centre's velocity and |omega| of its body (the workspace's
     velocities; the world's: 0)."""
     ws = _views(p, w)
-    for i in range(geom_count(p)):
+    centre, velocity = np.empty(3), np.empty(3)  # (written here, then copied: a view of a row of spheres and a call
+    for i in range(geom_count(p)):               # per geom cost numba's reference counts, more than the sphere)
         at = geom_at(p, i)
         body, kind, pose = int(p[at + G_BODY]), int(p[at + G_TYPE]), int(p[at + G_POSE])
-        centre = spheres[i, S_CENTRE:S_CENTRE + 3]
         _geom_centre(p, w, body, pose, centre)
+        for a in range(3):
+            spheres[i, S_CENTRE + a] = centre[a]
         spheres[i, S_RADIUS] = bounding_radius(kind, p, pose + SIZE_AT)
         if kind == PLANE:  # its normal: the geom's third axis in the world (geom_pose's, in its order)
             for a in range(3):
@@ -116,7 +118,9 @@ def geom_spheres(p, w, h, spheres):
                     spheres[i, S_NORMAL + a] = value
         spheres[i, S_KIND] = kind
         if h > 0.0:  # the fastest any of its points moves about its centre: |omega| r
-            point_velocity(p, w, body, centre, spheres[i, S_VELOCITY:S_VELOCITY + 3])
+            point_velocity(p, w, body, centre, velocity)
+            for a in range(3):
+                spheres[i, S_VELOCITY + a] = velocity[a]
             sweep = 0.0
             if body >= 0 and kind != PLANE and kind != HFIELD:  # (their radius: inf)
                 omega = ws.vel[body]

@@ -230,7 +230,7 @@ def _dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-@njit(cache=True)
+@njit(cache=True, inline="always")
 def point_velocity(p, w, body, x, velocity):
     """velocity (3,) [m/s] of the world point x (3,) fixed on `body` (-1: the world, at rest), v_O + omega x r with r
     from the origin of the body's tree, from the workspace's body velocities (world axes)."""
