@@ -35,7 +35,7 @@ from rbody.engine.spatial import quat_exp, quat_multiply
 from rbody.engine.elements import X_ACTIVE, X_NA, X_NTEN, extension_start
 from rbody.engine.system import actuator_rates, add_element_forces, clamp_activations
 from rbody.engine.constraints.jacobians import (all_rows, bias_accelerations, some_rows, mode_at, row_count, unit_at,
-                                                rows_of, unit_count)
+                                                unit_count)
 from rbody.engine.contacts.broadphase import (contact0, contact_row0, first_unit_at, pair_at, pair_count, pair_reaches,
                                              pair_span)
 from rbody.engine.contacts.rows import (GEOMETRY_WORK, candidate, exact_within, forget_geometry, keep_geometry,
@@ -578,9 +578,7 @@ def state_gaps(p, y, g, beyond=np.inf, kept=None, least=None):
     if kept is not None:
         kept[0] = 1.0
         kept[1:1 + nq] = q
-    v = y[nq:nq + nv]
-    for k in range(contact0(p)):  # the contacts follow every other unit
-        rows_of(p, k, q, v, w, acc, J, jdot, g, int(p[unit_at(p, k) + U_ROW0]), False)
+    all_rows(p, q, y[nq:nq + nv], w, acc, J, jdot, g, False, False)  # the units before the contacts
     reach, motion = np.empty(pair_count(p)), np.empty(pair_count(p))
     pair_reaches(p, w, 0.0, reach, motion)
     if least is None:

@@ -234,34 +234,21 @@ def _contact_frame_rows(p, w, acc, u, r, J, jdot, g, row, with_bias, normal, poi
 
 
 @njit(cache=True, inline="always")
-def _dof_row(p, u, kind, q, J, jdot, g, row):
-    """The one row of a joint's stop (LOWER, UPPER) or dry friction (FRICTION) at unit record u into J[row] (+-1 on
-    its dof, 0 elsewhere), jdot[row] (0) and g[row] (the stop's gap q - lower or upper - q [m or rad]; 0)."""
-    for c in range(J.shape[1]):
-        J[row, c] = 0.0
-    jdot[row] = 0.0
-    d = int(p[u + U_DOF])
-    if kind == LOWER:
-        J[row, d] = 1.0
-        g[row] = q[int(p[u + U_QADR])] - p[u + U_BOUND]
-    elif kind == UPPER:
-        J[row, d] = -1.0
-        g[row] = p[u + U_BOUND] - q[int(p[u + U_QADR])]
-    else:
-        J[row, d] = 1.0
-        g[row] = 0.0
+def is_dof_kind(kind):
+    """A unit of one row on one dof: a joint's stop (LOWER, UPPER) or dry friction (FRICTION)."""
+    return kind == LOWER or kind == UPPER or kind == FRICTION
 
 
 @njit(cache=True, inline="always")
-def rows_of(p, k, q, v, w, acc, J, jdot, g, row, with_bias):
-    """unit_rows, a joint's stop or friction written here without the call: a call per unit costs numba's
-    reference counts of its eight arrays, more than the row itself (a quadruped's 36 such units, twice a step)."""
-    u = unit_at(p, k)
-    kind = int(p[u + U_KIND])
-    if kind == LOWER or kind == UPPER or kind == FRICTION:
-        _dof_row(p, u, kind, q, J, jdot, g, row)
-        return 1
-    return unit_rows(p, k, q, v, w, acc, J, jdot, g, row, with_bias)
+def dof_row(kind, bound, position):
+    """(J's entry on its dof, g) of a joint's stop or dry friction (its row is 0 elsewhere, its J' v 0), bound its
+    stop's position or its frictionloss, position the joint's q [m or rad]: LOWER (1, q - lower), UPPER (-1,
+    upper - q), FRICTION (1, 0)."""
+    if kind == LOWER:
+        return 1.0, position - bound
+    if kind == UPPER:
+        return -1.0, bound - position
+    return 1.0, 0.0
 
 
 @njit(cache=True)
@@ -272,9 +259,6 @@ def unit_rows(p, k, q, v, w, acc, J, jdot, g, row, with_bias=True):
     bias_accelerations (with_bias False: a contact's J' v is left 0, acc unread by it). Returns r."""
     u = unit_at(p, k)
     kind = int(p[u + U_KIND])
-    if kind == LOWER or kind == UPPER or kind == FRICTION:
-        _dof_row(p, u, kind, q, J, jdot, g, row)
-        return 1
     r = int(p[u + U_ROWS])
     nv = J.shape[1]
     for a in range(r):
@@ -284,7 +268,9 @@ def unit_rows(p, k, q, v, w, acc, J, jdot, g, row, with_bias=True):
         g[row + a] = 0.0
     d = int(p[u + U_DOF])
     qa = int(p[u + U_QADR])
-    if kind == CONE:
+    if is_dof_kind(kind):
+        J[row, d], g[row] = dof_row(kind, p[u + U_BOUND], q[qa])
+    elif kind == CONE:
         qw, qx, qy, qz = q[qa], q[qa + 1], q[qa + 2], q[qa + 3]
         norm = np.sqrt(qw * qw + qx * qx + qy * qy + qz * qz)
         s = np.sqrt(qx * qx + qy * qy + qz * qz) / norm
@@ -384,8 +370,18 @@ def all_rows(p, q, v, w, acc, J, jdot, g, with_bias=True, contacts=True):
     """Every unit's rows, in unit order, into J (rows, nv), jdot (rows,), g (rows,) (see unit_rows); contacts
     False: the units before the contacts only (their rows are the first; the contacts' rows are left as they were)."""
     row = 0
+    nv = J.shape[1]
     for k in range(unit_count(p) if contacts else contact0(p)):
-        row += rows_of(p, k, q, v, w, acc, J, jdot, g, row, with_bias)
+        u = unit_at(p, k)
+        kind = int(p[u + U_KIND])
+        if is_dof_kind(kind):  # written here: a call per unit (or a helper given the arrays) costs numba's reference
+            for c in range(nv):  # counts of its eight arrays, more than the row (a quadruped's 36 such units)
+                J[row, c] = 0.0
+            J[row, int(p[u + U_DOF])], g[row] = dof_row(kind, p[u + U_BOUND], q[int(p[u + U_QADR])])
+            jdot[row] = 0.0
+            row += 1
+        else:
+            row += unit_rows(p, k, q, v, w, acc, J, jdot, g, row, with_bias)
 
 
 @njit(cache=True)
@@ -395,7 +391,7 @@ def some_rows(p, q, v, w, acc, J, jdot, g, rows_wanted, with_bias=True):
     for k in range(contact0(p)):
         row = int(p[unit_at(p, k) + U_ROW0])
         if rows_wanted[row] != 0.0:
-            rows_of(p, k, q, v, w, acc, J, jdot, g, row, with_bias)
+            unit_rows(p, k, q, v, w, acc, J, jdot, g, row, with_bias)
     for i in range(pair_count(p)):
         first, slots, row0, width = pair_span(p, pair_at(p, i))
         for j in range(slots):
@@ -403,6 +399,6 @@ def some_rows(p, q, v, w, acc, J, jdot, g, rows_wanted, with_bias=True):
                 unit_rows(p, first + j, q, v, w, acc, J, jdot, g, row0 + j * width, with_bias)
 
 
-__all__ = ["block_offset", "unit_count", "row_count", "unit_at", "mode_at", "bias_accelerations", "unit_rows", "rows_of",
+__all__ = ["block_offset", "unit_count", "row_count", "unit_at", "mode_at", "bias_accelerations", "unit_rows",
            "contact_unit_rows",
            "all_rows", "some_rows", "rotation_vector", "C_MODE"]

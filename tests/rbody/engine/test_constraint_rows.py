@@ -91,6 +91,40 @@ def test_rows_match_finite_differences_of_their_residuals(seed):
     assert [u.kind for u in table.units].count("friction") == 7  # hinges, slide, and the ball's three dofs
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_every_units_rows_at_once_are_each_units_own(seed):
+    """all_rows (which writes a joint's stop and friction rows in its own loop, not by unit_rows) and state_gaps give
+    every unit's rows exactly as unit_rows gives them one unit at a time: limits, a cone, friction, connect, weld
+    and a coupling, on random states of a random tree."""
+    from rbody.engine import multibody
+    from rbody.engine.constraints.jacobians import unit_at, unit_count, unit_rows
+    from rbody.engine.constraints.table import U_ROW0
+
+    rng = np.random.default_rng(seed)
+    layout = constrained_tree(rng)
+    model = Multibody(layout)
+    table = build_table(layout, model)
+    p = np.array(table.row(model.params))
+    nq, nv, n = dyn.sizes(p)
+    q, v = random_state(rng, model)
+    M, f = np.empty((nv, nv)), np.empty(nv)
+    J, jdot, g = np.full((table.rows, nv), np.nan), np.full(table.rows, np.nan), np.full(table.rows, np.nan)
+    w = np.empty(multibody.workspace_size(p))
+    acc = np.empty((int(p[multibody.H_BODIES]), 6))
+    dyn.snapshot(p, q, v, np.zeros(0), M, f, J, jdot, g, w, acc)
+    Ju, jdotu, gu = np.full_like(J, np.nan), np.full_like(jdot, np.nan), np.full_like(g, np.nan)
+    for k in range(unit_count(p)):
+        unit_rows(p, k, q, v, w, acc, Ju, jdotu, gu, int(p[unit_at(p, k) + U_ROW0]))
+    assert np.array_equal(J, Ju) and np.array_equal(jdot, jdotu) and np.array_equal(g, gu)
+    kinds = [u.kind for u in table.units]
+    assert kinds.count("friction") == 7 and kinds.count("limit") == 9  # two stops on each hinge and slide, a cone
+    y = np.zeros(n)
+    y[:nq], y[nq:nq + nv] = q, v
+    gaps = np.full(table.rows, np.nan)
+    dyn.state_gaps(p, y, gaps)
+    assert np.array_equal(gaps, g)
+
+
 def test_weld_rotation_rows_are_the_rate_of_its_error_where_it_holds():
     """At a state where the weld holds (E = identity), d/dt of E's rotation vector is omega1 - omega2 = J v."""
     rng = np.random.default_rng(7)
