@@ -530,14 +530,15 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
                 live += 1
                 worst = max(worst, abs(g[a]))
         count = live
-        if velocity_rows.size == 0:
+        held = velocity_rows
+        if velocity_rows.size == 0:  # no equality
             if worst <= dyn.PROJECTION_TOLERANCE:
                 break
-            velocity_rows = np.zeros(rows)  # no equality: no velocity row
+            held = np.zeros(rows)  # no velocity row
         dense = np.zeros(rows)  # the flagged rows as project reads them, every row set
         for c in range(count):
             dense[flagged[c]] = 1.0
-        worst, _speed = dyn.project(p, y, dense, velocity_rows)
+        worst, _speed = dyn.project(p, y, dense, held)
         for c in range(count):  # a row the projection found apart (geometry.APART) is no longer flagged
             position_rows[flagged[c]] = dense[flagged[c]]
     if worst > 1e3 * dyn.PROJECTION_TOLERANCE:
