@@ -241,13 +241,14 @@ def near_contacts(p, w, vfree, h, J, g, formed, kept, reuse):
     """The gaps g of the candidates of every pair whose bounding spheres may meet within the step, and the rows J of
     the contacts a step can involve: touching (g <= TOUCH_TOLERANCE) or closing within it (g + h n . (v_b - v_a) < 0
     at the contact point, the bodies moving with the free velocities vfree (nv,)), each such unit listed in formed
-    (units - contact0,) int64, in unit order (a pair's candidates follow the last pair's). The others' rows of J and g are left as they were (the step reads the formed ones only): a
-    model's far candidates (a humanoid's limbs against the floor in the air) cost a distance each, not a row of nv
-    numbers, and a pair whose bounding spheres cannot meet within the step (contacts.broadphase.pair_reaches) not
-    even that, nor a read of its candidates' unit records. After the step's kinematics in the workspace w (its
-    velocities are then vfree's). kept: the geometry the last step's end found (rows.kept_geometry_size); reuse:
-    whether it was found at this configuration, its exact candidates then read, not found again. Returns (the rows
-    of the units it formed, their count): the step's problem has at most these rows and those before the contacts."""
+    (units - contact0,) int64, in unit order (a pair's candidates follow the last pair's). The others' rows of J and
+    g are left as they were (the step reads the formed ones only): a model's far candidates (a humanoid's limbs
+    against the floor in the air) cost a distance each, not a row of nv numbers, and a pair whose bounding spheres
+    cannot meet within the step (contacts.broadphase.pair_reaches) not even that, nor a read of its candidates'
+    unit records. After the step's kinematics in the workspace w (its velocities are then vfree's). kept: the
+    geometry the last step's end found (rows.kept_geometry_size); reuse: whether it was found at this configuration,
+    its exact candidates then read, not found again. Returns (the rows of the units it formed, their count): the
+    step's problem has at most these rows and those before the contacts."""
     nq = int(p[mb.H_NQ])
     count = 0
     units = 0
