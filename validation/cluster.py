@@ -32,6 +32,7 @@ from typing import Any, Callable, Iterator, Sequence
 TIMING = "timing"  # the worker resource a timed task holds (one per worker)
 CONNECT_TIMEOUT = "10s"
 HANDSHAKE_SECONDS = 15.0  # the whole first exchange with a scheduler (connect, handshake, identity) is bounded by this
+WORKER_WAIT_SECONDS = 30.0  # a timed run on a cluster with no worker yet (starting, or restarted by its nanny) waits this
 
 
 class ClusterUnavailable(ValueError):
@@ -209,7 +210,13 @@ def _run_on_cluster(client: Any, tasks: Sequence[Task], *, what: str, timed: boo
 
 def _check_timing_resource(client: Any, address: str) -> None:
     """Refuse a timed run on a cluster none of whose workers has the "timing" resource (its tasks would wait
-    forever)."""
+    forever). A cluster with no worker at all is given WORKER_WAIT_SECONDS for one to join: workers that are still
+    starting, or that their nanny is restarting after a crash, are not yet listed."""
+    if not client.scheduler_info(n_workers=-1)["workers"]:
+        try:
+            client.wait_for_workers(1, timeout=WORKER_WAIT_SECONDS)
+        except TimeoutError:
+            pass  # refused below, naming the 0 workers
     workers = client.scheduler_info(n_workers=-1)["workers"]
     if not any(info.get("resources", {}).get(TIMING) for info in workers.values()):
         raise ClusterUnavailable(f"the Dask cluster at {address} has {len(workers)} workers and none with the resource "

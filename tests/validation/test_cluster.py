@@ -16,9 +16,16 @@ from validation.__main__ import main  # noqa: E402
 
 
 @pytest.fixture(scope="module")
-def client():
+def shared_cluster():
     with cluster.connect(workers=2) as client:  # 2 processes, one thread and one "timing" resource each
         yield client
+
+
+@pytest.fixture
+def client(shared_cluster):
+    """The module's cluster with both its workers up: a test kills one on purpose, and its nanny restarts it."""
+    shared_cluster.wait_for_workers(2, timeout=60)
+    return shared_cluster
 
 
 def _square(x: float) -> float:
@@ -101,6 +108,23 @@ def test_timed_runs_refuse_a_cluster_without_the_timing_resource():
         with distributed.Client(plain) as client:
             with pytest.raises(ValueError, match="none with the resource 'timing'.*--resources timing=1"):
                 cluster.run_tasks(client, [("one", _square, (1,))], what="bench", timed=True)
+
+
+def test_timed_runs_wait_for_a_worker_to_join_and_refuse_a_cluster_that_has_none(monkeypatch):
+    import threading
+
+    with distributed.LocalCluster(n_workers=0, processes=False, threads_per_worker=1, resources={cluster.TIMING: 1},
+                                  dashboard_address=":0") as empty, distributed.Client(empty) as client:
+        monkeypatch.setattr(cluster, "WORKER_WAIT_SECONDS", 0.5)
+        with pytest.raises(ValueError, match="has 0 workers and none with the resource 'timing'"):
+            cluster.run_tasks(client, [("one", _square, (3,))], what="bench", timed=True)
+        monkeypatch.setattr(cluster, "WORKER_WAIT_SECONDS", 60.0)
+        joins = threading.Timer(1.0, empty.scale, (1,))  # a worker that joins while the run waits
+        joins.start()
+        try:
+            assert cluster.run_tasks(client, [("one", _square, (3,))], what="bench", timed=True) == [9]
+        finally:
+            joins.join()
 
 
 def _table(text: str) -> list[list[str]]:
