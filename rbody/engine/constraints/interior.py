@@ -33,7 +33,7 @@ from numba import njit
 
 from rbody.engine.constraints.cone import (NORMAL, ROLL, ROW, SPIN, TANGENT, cone_polish, is_disc,
                                            normal_of)
-from rbody.engine.constraints.natural_newton import NATURAL, newton_polish
+from rbody.engine.constraints.natural_newton import NATURAL, newton_polish, read_newton
 from rbody.engine.constraints.solver import cholesky_factor, lower_solve, symmetric_solve, upper_solve
 
 BARRIER_START = 0.1        # the first barrier weight t, of the problem's scale max(|b|, 1) max(lambda_n^0)
@@ -313,8 +313,9 @@ def snapped(role, mu, lo, hi, lam, near):
 def _read_states(W, b, lo, hi, role, mu, inside, goal, levels, lam):
     """The states read from the barrier's impulses inside (m,) at the first `levels` of SNAP_LEVELS, each finished
     exactly (cone_polish) until one reaches `goal`; where none does, Newton's method on the natural map from the best
-    (natural_newton: a sliding contact's direction, which cone_polish's fixed point approaches linearly). The best
-    written into lam (m,). Returns its residual."""
+    (natural_newton: a sliding contact's direction, which cone_polish's fixed point approaches linearly), and where
+    that falls short, on the best's pieces read more widely (read_newton). The best written into lam (m,). Returns
+    its residual."""
     best = np.inf
     for level in range(levels):
         trial = snapped(role, mu, lo, hi, inside, SNAP_LEVELS[level])
@@ -324,7 +325,10 @@ def _read_states(W, b, lo, hi, role, mu, inside, goal, levels, lam):
             lam[:] = trial
         if best <= goal:
             return best
-    return newton_polish(W, b, lo, hi, role, mu, lam, goal, NATURAL)
+    best = newton_polish(W, b, lo, hi, role, mu, lam, goal, NATURAL)
+    if best > goal:  # a disc on its edge at a slip near round-off, read as sticking: the pieces read more widely
+        best = read_newton(W, b, lo, hi, role, mu, lam, goal)
+    return best
 
 
 @njit(cache=True)

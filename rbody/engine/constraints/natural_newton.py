@@ -48,6 +48,8 @@ ARMIJO = 1e-4       # sufficient decrease of |G|^2 / 2, of the step's slope
 # a block's piece (read_pieces): a one-row block free (w = 0), on its lower or upper bound; a disc sticking or sliding
 FREE, LOWER, UPPER, STICKS, SLIDES = 0, 1, 2, 3, 4
 ON_BOUND = 1e-9     # read_pieces: an impulse within this (relative) of its bound is on it
+# read_newton: the widening readings of an iterate near a solution (the interior finish's best), each tried in turn
+READ_LEVELS = np.array([1e-6, 1e-4, 1e-3, 1e-2])
 SLIP_FLOOR = 1e3    # states_newton: a friction on its bound must slip faster than this many times w's round-off
 NATURAL = np.empty(0, dtype=np.int64)  # natural_map's pieces where none are held: each block's own
 
@@ -190,10 +192,10 @@ def newton_polish(W, b, lo, hi, role, mu, lam, goal, pieces):
 
 
 @njit(cache=True)
-def read_pieces(role, mu, lo, hi, lam):
+def read_pieces(role, mu, lo, hi, lam, near=ON_BOUND):
     """Each block's piece (m,) as lam (a solution: the last step's impulses) lies: a one-row block on its lower or
-    upper bound (within ON_BOUND of it; a spin's +-mu_s lambda_n), else free; a disc sliding on its edge (a contact
-    that does not push: r = 0), else sticking."""
+    upper bound (within a relative `near` of it; a spin's +-mu_s lambda_n), else free; a disc sliding on its edge
+    (within `near` of its radius; a contact that does not push: r = 0), else sticking."""
     m = lam.shape[0]
     pieces = np.zeros(m, dtype=np.int64)
     for i in range(m):
@@ -203,12 +205,12 @@ def read_pieces(role, mu, lo, hi, lam):
         if is_disc(r):
             radius = mu[i] * max(lam[normal_of(role, i)], 0.0)
             length = np.sqrt(lam[i] * lam[i] + lam[i + 1] * lam[i + 1])
-            pieces[i] = SLIDES if length >= (1.0 - ON_BOUND) * radius else STICKS
+            pieces[i] = SLIDES if length >= (1.0 - near) * radius else STICKS
             continue
         low, high = _bounds(role, mu, lo, hi, lam, i)
-        if low > -np.inf and lam[i] <= low + ON_BOUND * abs(low):
+        if low > -np.inf and lam[i] <= low + near * abs(low):
             pieces[i] = LOWER
-        elif high < np.inf and lam[i] >= high - ON_BOUND * abs(high):
+        elif high < np.inf and lam[i] >= high - near * abs(high):
             pieces[i] = UPPER
         else:
             pieces[i] = FREE
@@ -234,6 +236,34 @@ def states_newton(W, b, lo, hi, role, mu, lam, goal):
 
 
 @njit(cache=True)
+def read_newton(W, b, lo, hi, role, mu, lam, goal):
+    """Newton's method from lam (m,), an iterate near a solution, on its pieces read at each of READ_LEVELS in turn
+    (read_pieces), until one reaches `goal`; the least residual found written into lam (lam unchanged where none is
+    below its own). Returns lam's residual. Where a contact's disc slides on its edge at a slip near w's round-off
+    (a foot's rolling friction at 6e-13 rad/s as a quadruped lands), the iterate's impulses lie just inside it, a
+    reading at ON_BOUND holds it sticking, and the load shared between that foot and another (W's null space) is
+    then fixed only through a singular value of 1e-10: Newton's method stalls at 1e-12. Read as sliding, it reaches
+    round-off in a few steps."""
+    best = cone_residual(W, b, lo, hi, role, mu, lam)
+    trial, kept = np.empty_like(lam), lam.copy()
+    last = np.full(lam.shape[0], -1)
+    for near in READ_LEVELS:
+        if best <= goal:
+            break
+        pieces = read_pieces(role, mu, lo, hi, lam, near)
+        if np.array_equal(pieces, last):  # the wider reading changed no block's piece
+            continue
+        last = pieces
+        trial[:] = lam
+        residual = newton_polish(W, b, lo, hi, role, mu, trial, goal, pieces)
+        if residual < best:
+            best = residual
+            kept[:] = trial
+    lam[:] = kept
+    return best
+
+
+@njit(cache=True)
 def _slips_clear(W, b, lo, hi, role, mu, lam):
     """Whether every friction on its bound at lam (read_pieces) slips faster than SLIP_FLOOR times w's round-off."""
     pieces = read_pieces(role, mu, lo, hi, lam)
@@ -254,4 +284,5 @@ def _slips_clear(W, b, lo, hi, role, mu, lam):
     return True
 
 
-__all__ = ["natural_map", "newton_polish", "read_pieces", "states_newton", "NATURAL", "NEWTON_STEPS"]
+__all__ = ["natural_map", "newton_polish", "read_pieces", "read_newton", "states_newton", "NATURAL", "NEWTON_STEPS",
+           "READ_LEVELS"]

@@ -9,7 +9,7 @@ from rbody.engine.constraints.cone import (NORMAL, ROLL, ROLL2, ROW, SPIN, TANGE
                                            cone_residual, magnitude, ROUND_OFF)
 from rbody.engine.constraints.interior import interior_finish
 from rbody.engine.constraints.natural_newton import (FREE, LOWER, NATURAL, SLIDES, STICKS, UPPER, natural_map,
-                                                     newton_polish, read_pieces, states_newton)
+                                                     newton_polish, read_newton, read_pieces, states_newton)
 from rbody.engine.constraints.stepping import solve_cones
 
 from tests.rbody.engine.test_cone_drift import MU as CRAWL_MU, ROLES as CRAWL_ROLES, crawling_problem
@@ -224,3 +224,43 @@ def test_a_friction_on_its_edge_that_does_not_slip_is_left_to_the_finishes():
     assert states_newton(W, b, lo, hi, role, mu, lam, 1e-13) <= 1e-13
     np.testing.assert_allclose(lam, [1.0, 0.5, 0.0], atol=1e-15)
     assert (b + W @ lam)[1] == pytest.approx(-0.1)
+
+
+def edge_slip_problem(slip):
+    """One contact (condim 3, mu 0.5, W coupling its rows) whose solution slides on its cone's edge at `slip` [m/s]:
+    lambda = (1, 0.5 cos 0.7, 0.5 sin 0.7), w = (0, -slip cos 0.7, -slip sin 0.7), b = w - W lambda."""
+    A = np.array([[1.0, 0.2, -0.1], [0.3, 1.1, 0.2], [-0.2, 0.1, 0.9]])
+    W = A.T @ A
+    role, mu = np.array([NORMAL, TANGENT, TANGENT2]), np.array([0.0, 0.5, 0.0])
+    lo, hi = np.array([0.0, -np.inf, -np.inf]), np.full(3, np.inf)
+    exact = np.array([1.0, 0.5 * np.cos(0.7), 0.5 * np.sin(0.7)])
+    w = np.array([0.0, -slip * np.cos(0.7), -slip * np.sin(0.7)])
+    return W, w - W @ exact, lo, hi, role, mu, exact
+
+
+def test_a_disc_just_inside_its_edge_that_slides_at_a_tiny_slip_is_read_as_sliding():
+    """The landing quadruped's stall: an iterate whose friction lies just inside its disc (1e-5 of the radius) where
+    the solution slides on the edge at 1e-11 m/s. Read at ON_BOUND the disc sticks, and Newton's method on that piece
+    ends at the sticking point just outside the disc (residual 1e-11, the slip's size); read_newton's wider readings
+    hold it sliding and reach the closed form, slip included, to round-off."""
+    W, b, lo, hi, role, mu, exact = edge_slip_problem(1e-11)
+    goal = ROUND_OFF * magnitude(W, b, exact)
+    start = exact * np.array([1.0, 1.0 - 1e-5, 1.0 - 1e-5])
+    tight = read_pieces(role, mu, lo, hi, start)
+    assert tight[1] == STICKS and read_pieces(role, mu, lo, hi, start, 1e-4)[1] == SLIDES
+    held = start.copy()
+    assert newton_polish(W, b, lo, hi, role, mu, held, 0.0, tight) > 100 * goal
+    lam = start.copy()
+    residual = read_newton(W, b, lo, hi, role, mu, lam, goal)
+    assert residual == cone_residual(W, b, lo, hi, role, mu, lam) <= goal
+    np.testing.assert_allclose(lam, exact, rtol=0, atol=1e-15)
+    slip = (b + W @ lam)[1:]
+    np.testing.assert_allclose(slip, -1e-11 * exact[1:] / 0.5, rtol=1e-3)  # against the friction, at 1e-11 m/s
+
+
+def test_read_newton_keeps_a_start_that_solves_as_it_is():
+    W, b, lo, hi, role, mu, exact = edge_slip_problem(1e-3)
+    lam = exact.copy()
+    goal = 1e-13
+    assert read_newton(W, b, lo, hi, role, mu, lam, goal) == cone_residual(W, b, lo, hi, role, mu, exact) <= goal
+    np.testing.assert_array_equal(lam, exact)
