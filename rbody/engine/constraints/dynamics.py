@@ -45,7 +45,7 @@ from rbody.engine.constraints.solver import (RANK_RTOL, cholesky_factor, lower_s
 from rbody.engine.constraints.sliding import general_held_solve, sliding_columns
 from rbody.engine.constraints.table import (CONE, CONNECT, CONTACT, CONTACT1, COUPLING, FRICTION, LOWER,
                                             TENDON_EQUALITY, TENDON_FRICTION, TENDON_LOWER, TENDON_UPPER, U_BOUND,
-                                            U_DOF, U_KIND, U_ROW0, U_ROWS, U_TENDON, UPPER, WELD)
+                                            PAIR_SIZE, U_DOF, U_KIND, U_ROW0, U_ROWS, U_TENDON, UPPER, WELD)
 
 PROJECTION_TOLERANCE = 1e-13   # |g| [m or rad] a projection aims for on the held rows (round-off of metre-scale trees)
 PROJECTION_ITERATIONS = 8      # Newton iterations of a projection at most
@@ -583,8 +583,9 @@ def state_gaps(p, y, g, beyond=np.inf, kept=None, least=None):
     pair_reaches(p, w, 0.0, reach, motion)
     if least is None:
         g[contact_row0(p):] = 0.0  # the contacts' rows (one fill: a far pair's tangent rows are then set)
+    pairs = pair_at(p, 0)
     for i in range(pair_count(p)):
-        at = pair_at(p, i)
+        at = pairs + i * PAIR_SIZE  # (from the first record: pair_at's reads from the header, redone each pass)
         first, slots, row0, width = pair_span(p, at)
         if reach[i] > 0.0:  # apart by the broad phase's bound: a lower bound will do, one per pair
             if least is None or reach[i] <= beyond:

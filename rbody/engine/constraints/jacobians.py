@@ -371,8 +371,9 @@ def all_rows(p, q, v, w, acc, J, jdot, g, with_bias=True, contacts=True):
     False: the units before the contacts only (their rows are the first; the contacts' rows are left as they were)."""
     row = 0
     nv = J.shape[1]
+    units = unit_at(p, 0)  # (unit k's record from the first's: unit_at's reads from the header, redone each pass)
     for k in range(unit_count(p) if contacts else contact0(p)):
-        u = unit_at(p, k)
+        u = units + k * UNIT_SIZE
         kind = int(p[u + U_KIND])
         if is_dof_kind(kind):  # written here: a call per unit (or a helper given the arrays) costs numba's reference
             for c in range(nv):  # counts of its eight arrays, more than the row (a quadruped's 36 such units)

@@ -355,9 +355,10 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
     role, mu = np.zeros(bound, dtype=np.int64), np.zeros(bound)
     cones = False
     m = 0
+    units = unit_at(p, 0)  # (unit k's record from the first's: unit_at's reads from the header, redone each pass)
     for c in range(c0 + touching):  # the units before the contacts, then the contacts formed, in unit order
         k = c if c < c0 else formed[c - c0]
-        u = unit_at(p, k)
+        u = units + k * UNIT_SIZE
         kind = int(p[u + U_KIND])
         r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])
         if dyn.is_equality_kind(kind):
@@ -489,7 +490,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
         dyn.state_gaps(p, y, g, FLAGGED_GAP, end_geometry, least)
         grown = False  # a row newly flagged (nothing flagged at all: no projection, the step stands as it is)
         for k in range(c0):
-            u = unit_at(p, k)
+            u = units + k * UNIT_SIZE
             kind = int(p[u + U_KIND])
             r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])
             if dyn.is_equality_kind(kind):

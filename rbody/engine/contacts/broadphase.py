@@ -100,8 +100,9 @@ def geom_spheres(p, w, h, spheres):
     velocities; the world's: 0)."""
     ws = _views(p, w)
     centre, velocity = np.empty(3), np.empty(3)  # (written here, then copied: a view of a row of spheres and a call
-    for i in range(geom_count(p)):               # per geom cost numba's reference counts, more than the sphere)
-        at = geom_at(p, i)
+    geoms = geom_at(p, 0)                        # per geom cost numba's reference counts, more than the sphere)
+    for i in range(geom_count(p)):  # (geom i's record from the first's: geom_at's chain of reads from the header,
+        at = geoms + i * GEOM_SIZE  # redone each pass, since a store to the spheres may alias p, cost as much)
         body, kind, pose = int(p[at + G_BODY]), int(p[at + G_TYPE]), int(p[at + G_POSE])
         _geom_centre(p, w, body, pose, centre)
         for a in range(3):
@@ -139,8 +140,9 @@ def pair_reaches(p, w, h, reach, motion):
     spheres = np.empty((geom_count(p), SPHERE_SIZE))
     geom_spheres(p, w, h, spheres)
     work = np.empty(GEOMETRY_WORK)
-    for i in range(pair_count(p)):
-        at = pair_at(p, i)
+    pairs = pair_at(p, 0)
+    for i in range(pair_count(p)):  # (pair i's record from the first's: pair_at's chain of reads from the header,
+        at = pairs + i * PAIR_SIZE  # redone each pass since a store to reach may alias p, was two thirds of the loop)
         a, b = int(p[at + P_GEOM_A]), int(p[at + P_GEOM_B])
         ta, tb = int(spheres[a, S_KIND]), int(spheres[b, S_KIND])
         if ta == HFIELD:
