@@ -26,7 +26,7 @@ import numpy as np
 from numba import njit
 
 from rbody.engine.contacts.geometry import PLANE, bounding_radius
-from rbody.engine.contacts.kinematics import TIGHTEN_BELOW, _geom_centre, clearance, needs_axes, point_velocity
+from rbody.engine.contacts.kinematics import TIGHTEN_BELOW, clearance, needs_axes
 from rbody.engine.contacts.rows import GEOMETRY_WORK
 from rbody.engine.contacts.terrain import HFIELD
 from rbody.engine.elements import block_offset
@@ -99,14 +99,19 @@ def geom_spheres(p, w, h, spheres):
     a plane's normal (its third axis) and, for h > 0, the centre's velocity and |omega| of its body (the workspace's
     velocities; the world's: 0)."""
     ws = _views(p, w)
-    centre, velocity = np.empty(3), np.empty(3)  # (written here, then copied: a view of a row of spheres and a call
-    geoms = geom_at(p, 0)                        # per geom cost numba's reference counts, more than the sphere)
+    geoms = geom_at(p, 0)
     for i in range(geom_count(p)):  # (geom i's record from the first's: geom_at's chain of reads from the header,
         at = geoms + i * GEOM_SIZE  # redone each pass, since a store to the spheres may alias p, cost as much)
         body, kind, pose = int(p[at + G_BODY]), int(p[at + G_TYPE]), int(p[at + G_POSE])
-        _geom_centre(p, w, body, pose, centre)
+        # Its centre, kinematics._geom_centre's sum, and below its velocity, point_velocity's, written here on the
+        # workspace's arrays: those helpers given p and w cost numba's reference counts of both per geom, inlined or
+        # not (the inliner binds each argument to a new variable), more than the sphere's arithmetic.
         for a in range(3):
-            spheres[i, S_CENTRE + a] = centre[a]
+            if body < 0:
+                spheres[i, S_CENTRE + a] = p[pose + a]
+            else:
+                spheres[i, S_CENTRE + a] = (ws.xorigin[body, a] + ws.xpos[body, a] + ws.xmat[body, a, 0] * p[pose]
+                                            + ws.xmat[body, a, 1] * p[pose + 1] + ws.xmat[body, a, 2] * p[pose + 2])
         spheres[i, S_RADIUS] = bounding_radius(kind, p, pose + SIZE_AT)
         if kind == PLANE:  # its normal: the geom's third axis in the world (geom_pose's, in its order)
             for a in range(3):
@@ -118,14 +123,21 @@ def geom_spheres(p, w, h, spheres):
                         value += ws.xmat[body, a, e] * p[pose + AXES_AT + 3 * e + 2]
                     spheres[i, S_NORMAL + a] = value
         spheres[i, S_KIND] = kind
-        if h > 0.0:  # the fastest any of its points moves about its centre: |omega| r
-            point_velocity(p, w, body, centre, velocity)
-            for a in range(3):
-                spheres[i, S_VELOCITY + a] = velocity[a]
-            sweep = 0.0
-            if body >= 0 and kind != PLANE and kind != HFIELD:  # (their radius: inf)
-                omega = ws.vel[body]
-                sweep = np.sqrt(omega[0] ** 2 + omega[1] ** 2 + omega[2] ** 2) * spheres[i, S_RADIUS]
+        if h > 0.0:  # v_O + omega x r, r from the origin of the body's tree; the fastest any of its points moves
+            sweep = 0.0  # about its centre: |omega| r
+            if body < 0:
+                for a in range(3):
+                    spheres[i, S_VELOCITY + a] = 0.0
+            else:
+                r0 = spheres[i, S_CENTRE] - ws.xorigin[body, 0]
+                r1 = spheres[i, S_CENTRE + 1] - ws.xorigin[body, 1]
+                r2 = spheres[i, S_CENTRE + 2] - ws.xorigin[body, 2]
+                spheres[i, S_VELOCITY] = ws.vel[body, 3] + ws.vel[body, 1] * r2 - ws.vel[body, 2] * r1
+                spheres[i, S_VELOCITY + 1] = ws.vel[body, 4] + ws.vel[body, 2] * r0 - ws.vel[body, 0] * r2
+                spheres[i, S_VELOCITY + 2] = ws.vel[body, 5] + ws.vel[body, 0] * r1 - ws.vel[body, 1] * r0
+                if kind != PLANE and kind != HFIELD:  # (their radius: inf)
+                    sweep = np.sqrt(ws.vel[body, 0] ** 2 + ws.vel[body, 1] ** 2 + ws.vel[body, 2] ** 2) * \
+                        spheres[i, S_RADIUS]
             spheres[i, S_SWEEP] = sweep
 
 
