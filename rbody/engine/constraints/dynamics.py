@@ -43,9 +43,10 @@ from rbody.engine.contacts.rows import (GEOMETRY_WORK, candidate, exact_within, 
 from rbody.engine.constraints.solver import (RANK_RTOL, cholesky_factor, lower_solve, lower_solve_rows,
                                             symmetric_solve, upper_solve)
 from rbody.engine.constraints.sliding import general_held_solve, sliding_columns
-from rbody.engine.constraints.table import (CONE, CONNECT, CONTACT, CONTACT1, COUPLING, FRICTION, LOWER,
-                                            TENDON_EQUALITY, TENDON_FRICTION, TENDON_LOWER, TENDON_UPPER, U_BOUND,
-                                            PAIR_SIZE, U_DOF, U_KIND, U_ROW0, U_ROWS, U_TENDON, UPPER, WELD)
+from rbody.engine.constraints.kinds import is_equality_kind, is_tendon_kind
+from rbody.engine.constraints.table import (CONE, CONTACT, CONTACT1, FRICTION, LOWER, PAIR_SIZE, TENDON_FRICTION,
+                                            TENDON_LOWER, TENDON_UPPER, U_BOUND, U_DOF, U_KIND, U_ROW0, U_ROWS,
+                                            U_TENDON, UPPER)
 
 PROJECTION_TOLERANCE = 1e-13   # |g| [m or rad] a projection aims for on the held rows (round-off of metre-scale trees)
 PROJECTION_ITERATIONS = 8      # Newton iterations of a projection at most
@@ -106,23 +107,6 @@ def add_sliding_friction(p, f, J):
             row = int(p[u + U_ROW0])
             for d in range(f.shape[0]):
                 f[d] -= force * J[row, d]
-
-
-@njit(cache=True, inline="always")
-def is_equality_kind(kind):
-    """An equality unit: its rows held at g = 0 always (bilateral, unbounded impulses)."""
-    return kind == CONNECT or kind == WELD or kind == COUPLING or kind == TENDON_EQUALITY
-
-
-@njit(cache=True, inline="always")
-def is_stop_kind(kind):
-    """A unit of one unilateral row (g >= 0, impulse >= 0): a joint's or a tendon's limit, a ball's cone."""
-    return kind == LOWER or kind == UPPER or kind == CONE or kind == TENDON_LOWER or kind == TENDON_UPPER
-
-
-@njit(cache=True, inline="always")
-def is_tendon_kind(kind):
-    return kind == TENDON_LOWER or kind == TENDON_UPPER or kind == TENDON_FRICTION or kind == TENDON_EQUALITY
 
 
 @njit(cache=True, inline="always")

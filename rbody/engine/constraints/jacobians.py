@@ -31,6 +31,7 @@ from rbody.engine.contacts.broadphase import contact0, pair_at, pair_count, pair
 from rbody.engine.contacts.rows import contact_geometry
 from rbody.engine.contacts.kinematics import contact_bias
 from rbody.engine.constraints.tendon_rows import tendon_row
+from rbody.engine.constraints.kinds import is_dof_kind
 from rbody.engine.constraints.table import (C_MODE, C_ROWS, C_UNIT, C_UNITS, CONE, CONTACT, CONTACT1, COUPLING,
                                             FRICTION,
                                             LOWER, TENDON_EQUALITY, TENDON_FRICTION, TENDON_LOWER, TENDON_UPPER,
@@ -231,12 +232,6 @@ def _contact_frame_rows(p, w, acc, u, r, J, jdot, g, row, with_bias, normal, poi
                 J[row + e, c] = f[0] * Jw[0, c] + f[1] * Jw[1, c] + f[2] * Jw[2, c]
     if with_bias:
         contact_bias(p, w, acc, u, g[row], frame, r, jdot, row)  # the gap's and the rolling point's own terms
-
-
-@njit(cache=True, inline="always")
-def is_dof_kind(kind):
-    """A unit of one row on one dof: a joint's stop (LOWER, UPPER) or dry friction (FRICTION)."""
-    return kind == LOWER or kind == UPPER or kind == FRICTION
 
 
 @njit(cache=True, inline="always")

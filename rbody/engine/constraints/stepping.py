@@ -67,6 +67,7 @@ from rbody.engine.constraints.interior import interior_finish
 from rbody.engine.constraints.natural_newton import states_newton
 from rbody.engine.constraints.solver import (RANK_RTOL, cholesky_factor, lower_solve_rows, mlcp_exact_from,
                                              mlcp_pgs, natural_residual)
+from rbody.engine.constraints.kinds import is_equality_kind, is_stop_kind
 from rbody.engine.constraints.table import (C_HEADER, CONTACT, CONTACT1, CONTACT_KINDS, FRICTION, FRICTION_KINDS,
                                             TENDON_FRICTION, U_BODY1, U_BODY2, U_BOUND, U_KIND, UNILATERAL, UNIT_SIZE,
                                             U_RESTITUTION, U_ROLL, U_ROW0, U_ROWS, U_SPIN, ConstraintTable)
@@ -361,12 +362,12 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
         u = units + k * UNIT_SIZE
         kind = int(p[u + U_KIND])
         r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])
-        if dyn.is_equality_kind(kind):
+        if is_equality_kind(kind):
             for a in range(r0, r0 + r):
                 jfree[m] = _row_dot(J, a, vfree)
                 index[m], lo[m], hi[m], b[m] = a, -np.inf, np.inf, jfree[m]
                 m += 1
-        elif dyn.is_stop_kind(kind):
+        elif is_stop_kind(kind):
             e = p[u + U_RESTITUTION]
             rate = _row_dot(J, r0, vfree)
             jfree[m] = rate
@@ -493,7 +494,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
             u = units + k * UNIT_SIZE
             kind = int(p[u + U_KIND])
             r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])
-            if dyn.is_equality_kind(kind):
+            if is_equality_kind(kind):
                 if velocity_rows.size == 0:
                     velocity_rows = np.zeros(rows)
                 for a in range(r0, r0 + r):
@@ -503,7 +504,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
                         position_rows[a] = 1.0
                         flagged[count] = a
                         count += 1
-            elif dyn.is_stop_kind(kind) and _newly_flagged(g, P, position_rows, r0):
+            elif is_stop_kind(kind) and _newly_flagged(g, P, position_rows, r0):
                 position_rows[r0] = 1.0
                 flagged[count] = r0
                 count += 1
