@@ -327,7 +327,7 @@ def _read_states(W, b, lo, hi, role, mu, inside, goal, levels, lam):
             return best
     best = newton_polish(W, b, lo, hi, role, mu, lam, goal, NATURAL)
     if best > goal:  # a disc on its edge at a slip near round-off, read as sticking: the pieces read more widely
-        best = read_newton(W, b, lo, hi, role, mu, lam, goal)
+        best = read_newton(W, b, lo, hi, role, mu, lam, goal, best)
     return best
 
 

@@ -251,7 +251,7 @@ def test_a_disc_just_inside_its_edge_that_slides_at_a_tiny_slip_is_read_as_slidi
     held = start.copy()
     assert newton_polish(W, b, lo, hi, role, mu, held, 0.0, tight) > 100 * goal
     lam = start.copy()
-    residual = read_newton(W, b, lo, hi, role, mu, lam, goal)
+    residual = read_newton(W, b, lo, hi, role, mu, lam, goal, cone_residual(W, b, lo, hi, role, mu, lam))
     assert residual == cone_residual(W, b, lo, hi, role, mu, lam) <= goal
     np.testing.assert_allclose(lam, exact, rtol=0, atol=1e-15)
     slip = (b + W @ lam)[1:]
@@ -262,5 +262,6 @@ def test_read_newton_keeps_a_start_that_solves_as_it_is():
     W, b, lo, hi, role, mu, exact = edge_slip_problem(1e-3)
     lam = exact.copy()
     goal = 1e-13
-    assert read_newton(W, b, lo, hi, role, mu, lam, goal) == cone_residual(W, b, lo, hi, role, mu, exact) <= goal
+    own = cone_residual(W, b, lo, hi, role, mu, exact)
+    assert read_newton(W, b, lo, hi, role, mu, lam, goal, own) == own <= goal
     np.testing.assert_array_equal(lam, exact)
