@@ -3,12 +3,13 @@
 An evaluation of a tree's right-hand side runs millions of times per simulation; an array allocated in it
 (np.empty: the allocator, reference counting) would cost more than the arithmetic of a small tree. These numba
 intrinsics let a kernel work in memory it never allocates on the heap (stack_floats), read arrays through raw
-pointers (address, data), and keep an array of its own alive while it reads it through one (keep_alive).
+pointers (address, data) or through views numba does not count (unowned), and keep an array of its own alive while
+it reads it through one (keep_alive).
 """
 
 from __future__ import annotations
 
-from numba import types
+from numba import carray, njit, types
 from numba.extending import intrinsic
 
 F64P = types.CPointer(types.float64)
@@ -64,3 +65,14 @@ def keep_alive(typingctx, array):
     def codegen(context, builder, signature, args):
         return context.get_dummy_value()
     return types.none(array), codegen
+
+
+@njit(cache=True, inline="always")
+def unowned(array):
+    """The C-contiguous float64 array `array` (any rank) as a view numba does not reference-count. numba counts
+    the references to an array's memory with an atomic add wherever a function receives it, binds a view of it or
+    hands it on (about 6 ns each, twice: increment and decrement); a view over raw memory has no count, and each of
+    those is a test of a null pointer. For a kernel that hands the same arrays to many small helpers per item (a
+    step's near contacts); the array itself must outlive the view (an argument does; an array of the kernel's own
+    needs keep_alive after its last use)."""
+    return carray(data(array), array.shape)

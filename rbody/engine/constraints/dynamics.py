@@ -25,7 +25,7 @@ frictionloss s v, and of the dampers, damping v^2).
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import carray, njit
 
 from rbody.engine.multibody import (D_DAMPING, DOF_SIZE, FREE, H_BODIES, H_DOF, H_DOFS, H_JOINT, H_JOINTS, H_NQ,
                                     H_ROT, HINGE, J_DADR, J_KIND, J_QADR, JOINT_SIZE, ROLL, SLIDE, _effective_qpos, _frames,
@@ -33,6 +33,7 @@ from rbody.engine.multibody import (D_DAMPING, DOF_SIZE, FREE, H_BODIES, H_DOF, 
                                     workspace_size)
 from rbody.engine.spatial import quat_exp, quat_multiply
 from rbody.engine.elements import X_ACTIVE, X_NA, X_NTEN, extension_start
+from rbody.engine.memory import keep_alive, stack_floats, unowned
 from rbody.engine.system import actuator_rates, add_element_forces, clamp_activations
 from rbody.engine.constraints.jacobians import (all_rows, bias_accelerations, some_rows, mode_at, row_count, unit_at,
                                                 unit_count)
@@ -549,16 +550,19 @@ def state_gaps(p, y, g, beyond=np.inf, kept=None, least=None):
     None: each contact pair's least gap [m] (a bound where its spheres are apart), that a caller reads in place of
     its rows: only its candidates' normal rows are then written, and not even those where the broad phase's bound
     is above `beyond` (the rest are left as they were: a quadruped's far candidates, 24,822 rows each step)."""
+    # p, w, g and the scratch, handed to helpers for each near pair, as views numba does not count (memory.unowned)
+    p, y, g = unowned(p), unowned(y), unowned(g)
     nq, nv, _n = sizes(p)
     q = np.empty(nq)
     _effective_qpos(p, y, q, 0)
-    w = np.empty(workspace_size(p))
+    w_owned = np.empty(workspace_size(p))
+    w = unowned(w_owned)
     _frames(p, q, y[nq:nq + nv], w)
     J = np.empty((contact_row0(p), nv))  # the rows of the units before the contacts (their gaps come without J)
     jdot = np.empty(contact_row0(p))
     acc = np.empty((int(p[H_BODIES]), 6))
-    normal, point = np.empty(3), np.empty(3)
-    work = np.empty(GEOMETRY_WORK)
+    normal, point = carray(stack_floats(3), 3), carray(stack_floats(3), 3)
+    work = carray(stack_floats(GEOMETRY_WORK), GEOMETRY_WORK)
     if kept is not None:
         kept[0] = 1.0
         kept[1:1 + nq] = q
@@ -592,6 +596,7 @@ def state_gaps(p, y, g, beyond=np.inf, kept=None, least=None):
                 keep_geometry(kept, nq, first + j, exact, g[row], normal, point)
         if least is not None:
             least[i] = lowest
+    keep_alive(w_owned)  # read through a view only
 
 
 @njit(cache=True)

@@ -178,14 +178,23 @@ def _contact_rows(p, w, acc, u, r, J, jdot, g, row, with_bias):
     g[row] = contact_geometry(p, w, u, normal, point)
     if g[row] == np.inf:  # APART: not a contact point in this configuration, no rows (its normal and point unset)
         return
-    _contact_frame_rows(p, w, acc, u, r, J, jdot, g, row, with_bias, normal, point)
+    _contact_frame_rows(p, w, acc, u, r, J, jdot, g, row, with_bias, normal, point,
+                        np.empty(contact_work_size(J.shape[1])))
+
+
+@njit(cache=True, inline="always")
+def contact_work_size(nv):
+    """The floats _contact_frame_rows' scratch holds: the frame (3, 3), a bias (3) and a point (3), then the rows of
+    the contact point's velocity and of the bodies' relative angular velocity (3, nv) each."""
+    return 15 + 6 * nv
 
 
 @njit(cache=True)
-def contact_unit_rows(p, k, w, J, g, row, gap, normal, point):
+def contact_unit_rows(p, k, w, J, g, row, gap, normal, point, work):
     """unit_rows of the contact unit k without J' v (the time-stepping's) from its candidate's gap [m], normal (3,)
     and point (3,) [m] as a pass over its pair's candidates found them (rbody.engine.contacts.rows.pair_candidates),
-    not from its geometry again: J[row:row + r] (zeroed here), g[row] = gap."""
+    not from its geometry again: J[row:row + r] (zeroed here), g[row] = gap. work: scratch of contact_work_size(nv)
+    floats, which a caller forming many contacts allocates once."""
     u = unit_at(p, k)
     r = int(p[u + U_ROWS])
     for a in range(r):
@@ -195,19 +204,23 @@ def contact_unit_rows(p, k, w, J, g, row, gap, normal, point):
     g[row] = gap
     if gap == np.inf:
         return
-    _contact_frame_rows(p, w, np.empty((0, 6)), u, r, J, np.empty(0), g, row, False, normal, point)
+    _contact_frame_rows(p, w, work[0:0].reshape((0, 6)), u, r, J, work[0:0], g, row, False, normal, point, work)
 
 
 @njit(cache=True)
-def _contact_frame_rows(p, w, acc, u, r, J, jdot, g, row, with_bias, normal, point):
-    """_contact_rows after its geometry: the rows in the frame of the normal (3,) at the point (3,)."""
-    frame = np.empty((3, 3))
+def _contact_frame_rows(p, w, acc, u, r, J, jdot, g, row, with_bias, normal, point, work):
+    """_contact_rows after its geometry: the rows in the frame of the normal (3,) at the point (3,); work: scratch
+    of contact_work_size(nv) floats."""
+    nv = J.shape[1]
+    frame = work[0:9].reshape((3, 3))
     frame[0] = normal
     tangents(normal, frame[1], frame[2])
-    nv = J.shape[1]
-    Jp = np.zeros((3, nv))
-    bias = np.zeros(3)
-    local = np.empty(3)
+    bias, local = work[9:12], work[12:15]
+    Jp = work[15:15 + 3 * nv].reshape((3, nv))
+    for a in range(3):
+        bias[a] = 0.0
+        for c in range(nv):
+            Jp[a, c] = 0.0
     for body, sign in ((int(p[u + U_BODY2]), 1.0), (int(p[u + U_BODY1]), -1.0)):
         if body < 0:
             continue
@@ -222,7 +235,10 @@ def _contact_frame_rows(p, w, acc, u, r, J, jdot, g, row, with_bias, normal, poi
         if with_bias:
             jdot[row + e] = frame[e, 0] * bias[0] + frame[e, 1] * bias[1] + frame[e, 2] * bias[2]
     if r > 3:  # spin (n) and rolling (t1, t2): (n; t1; t2) . (W_b - W_a), the relative angular velocity
-        Jw = np.zeros((3, nv))
+        Jw = work[15 + 3 * nv:15 + 6 * nv].reshape((3, nv))
+        for a in range(3):
+            for c in range(nv):
+                Jw[a, c] = 0.0
         for body, sign in ((int(p[u + U_BODY2]), 1.0), (int(p[u + U_BODY1]), -1.0)):
             if body >= 0:
                 _add_point_rows(p, w, body, local, sign, Jw, 0, True)
@@ -396,5 +412,5 @@ def some_rows(p, q, v, w, acc, J, jdot, g, rows_wanted, with_bias=True):
 
 
 __all__ = ["block_offset", "unit_count", "row_count", "unit_at", "mode_at", "bias_accelerations", "unit_rows",
-           "contact_unit_rows",
+           "contact_unit_rows", "contact_work_size",
            "all_rows", "some_rows", "rotation_vector", "C_MODE"]

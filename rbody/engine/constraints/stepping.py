@@ -45,7 +45,7 @@ time, the constraints and the residual). Stable, like symplectic Euler, on oscil
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import carray, njit
 
 from rbody.engine import multibody as mb
 from rbody.engine.actuation import next_activation
@@ -53,13 +53,14 @@ from rbody.engine.constraints import dynamics as dyn
 from rbody.engine.elements import A_ACTADR, ACT_SIZE, X_ACT, X_ACTIVE, X_NU, extension_start
 from rbody.engine.mujoco_steps import EULER, IMPLICIT, IMPLICITFAST, MUJOCO_METHODS, integrate_positions, \
     solve_general, step_matrices
-from rbody.engine.constraints.jacobians import contact_unit_rows, row_count, unit_at, unit_count
+from rbody.engine.constraints.jacobians import contact_unit_rows, contact_work_size, row_count, unit_at, unit_count
 from rbody.engine.contacts.broadphase import (contact0, contact_row0, first_unit_at, pair_at, pair_count,
                                               pair_reaches, pair_span)
 from rbody.engine.contacts.kinematics import point_velocity
 from rbody.engine.contacts.rows import (GEOMETRY_WORK, candidate, kept_candidate, kept_exact, kept_for,
                                         kept_geometry_size, pair_candidates)
 from rbody.engine.multibody import _effective_qpos
+from rbody.engine.memory import keep_alive, stack_floats, unowned
 from rbody.engine.constraints.cone import (NORMAL, ROLL, ROUND_OFF, ROW, SPIN, TANGENT, cone_pgs, cone_polish,
                                            cone_residual, follow_drift, hold_states, inside_cones, magnitude,
                                            slide_polish, stick_polish, sticking_qp)
@@ -250,13 +251,20 @@ def near_contacts(p, w, vfree, h, J, g, formed, kept, reuse):
     geometry the last step's end found (rows.kept_geometry_size); reuse: whether it was found at this configuration,
     its exact candidates then read, not found again. Returns (the rows of the units it formed, their count): the
     step's problem has at most these rows and those before the contacts."""
+    # Every array below is handed to a helper for each near contact: as views numba does not count (memory.unowned,
+    # the scratch on this function's stack), not an atomic add and its undoing per array and call.
+    p, w, vfree, J, g, kept = unowned(p), unowned(w), unowned(vfree), unowned(J), unowned(g), unowned(kept)
     nq = int(p[mb.H_NQ])
     count = 0
     units = 0
     mb.velocities(p, vfree, w)
-    normal, point, v_a, v_b = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
-    work = np.empty(GEOMETRY_WORK)
-    reach, motion = np.empty(pair_count(p)), np.empty(pair_count(p))
+    normal, point = carray(stack_floats(3), 3), carray(stack_floats(3), 3)
+    v_a, v_b = carray(stack_floats(3), 3), carray(stack_floats(3), 3)
+    work = carray(stack_floats(GEOMETRY_WORK), GEOMETRY_WORK)
+    size = contact_work_size(J.shape[1])
+    rows_work = carray(stack_floats(size), size) if size <= mb.STACK_FLOATS else np.empty(size)  # (huge trees)
+    reach_owned, motion_owned = np.empty(pair_count(p)), np.empty(pair_count(p))
+    reach, motion = unowned(reach_owned), unowned(motion_owned)
     pair_reaches(p, w, h, reach, motion)  # every geom's bounding sphere once; then each pair's bound from two of them
     for i in range(pair_count(p)):
         if reach[i] > TOUCH_TOLERANCE:  # the broad phase: the pair can neither touch nor close within the step
@@ -276,10 +284,12 @@ def near_contacts(p, w, vfree, h, J, g, formed, kept, reuse):
             closing = (normal[0] * (v_b[0] - v_a[0]) + normal[1] * (v_b[1] - v_a[1])   # n . (v_b - v_a) there
                        + normal[2] * (v_b[2] - v_a[2]))
             if gap <= TOUCH_TOLERANCE or gap + h * closing < 0.0:  # its rows from the geometry just found
-                contact_unit_rows(p, k, w, J, g, row, gap, normal, point)
+                contact_unit_rows(p, k, w, J, g, row, gap, normal, point, rows_work)
                 formed[units] = k
                 units += 1
                 count += int(p[u + U_ROWS])
+    keep_alive(reach_owned)  # read through views only
+    keep_alive(motion_owned)
     return count, units
 
 
@@ -318,6 +328,8 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
     exact_rows rows, else at most `sweeps` Gauss-Seidel sweeps to `tolerance` (relative to max(|b|, 1)).
     end_geometry (rows.kept_geometry_size): the contacts' geometry the last step's end found, read where this step
     starts at its configuration, and this step's, kept for the next (zeros before the first step)."""
+    # The arguments, handed to most helpers of the step, as views numba does not count (memory.unowned)
+    p, y, P, end_geometry = unowned(p), unowned(y), unowned(P), unowned(end_geometry)
     nq, nv, n = dyn.sizes(p)
     rows = row_count(p)
     M = np.empty((nv, nv))

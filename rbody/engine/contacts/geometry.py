@@ -898,6 +898,9 @@ def _general(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point, beyond
     return -1
 
 
+COLLIDE_WORK = 12  # the floats of collide's scratch
+
+
 @njit(cache=True, inline="always")
 def answers_beyond(ta, tb):
     """Whether collide computes the pair of types ta <= tb by _general (an ellipsoid's or a mesh's pairs), which
@@ -906,7 +909,7 @@ def answers_beyond(ta, tb):
 
 
 @njit(cache=True)
-def collide(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point, only=-1, beyond=np.inf):
+def collide(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point, only=-1, beyond=np.inf, scratch=None):
     """The candidate contacts of geom a (type ta <= tb, centre pa (3,) [m], axes Ra (3, 3), size sa (3,) [m]; ha a
     mesh's packed convex hull, rbody.engine.contacts.convex.pack_hull, else empty) and geom b, into dist
     (MAX_SLOTS,) [m], normal (MAX_SLOTS, 3) from a to b and point (MAX_SLOTS, 3) [m]; returns their count (SLOTS of
@@ -914,10 +917,12 @@ def collide(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point, only=-1
     (a contact unit is one candidate: a box pair's other 15 corners cost nothing; the pairs of an ellipsoid or a
     mesh write all of theirs). beyond [m]: a mesh's pair whose least distance is above it gives that least distance,
     normal and point for every slot (each slot's distance is at least the least: a caller asking which candidates
-    come within `beyond` learns it from one distance, not 17)."""
+    come within `beyond` learns it from one distance, not 17). scratch: None, or COLLIDE_WORK floats for the small
+    vectors below (a caller colliding many pairs passes it, sparing an allocation each)."""
     if answers_beyond(ta, tb):
         return _general(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point, beyond)
-    scratch = np.empty(12)  # the small vectors below, one allocation
+    if scratch is None:
+        scratch = np.empty(COLLIDE_WORK)  # the small vectors below, one allocation
     if ta == PLANE:
         n = scratch[0:3]
         for a in range(3):
@@ -1188,5 +1193,5 @@ def bounding_radius(kind, p, size_at):
 
 
 __all__ = ["collide", "collide_pair", "bounding_radius", "point_distance", "hull_points", "MESH", "ELLIPSOID", "tangents", "segment_closest", "segment_box_closest", "capsule_box_slot", "segment_in_box", "APART", "TIME_STEPPED", "LYING_SPAN", "cylinder_distance", "segment_cylinder_closest",
-           "pairs_text", "CYLINDER", "SLOTS", "MAX_SLOTS", "TYPE_CODES", "PLANE",
+           "pairs_text", "COLLIDE_WORK", "CYLINDER", "SLOTS", "MAX_SLOTS", "TYPE_CODES", "PLANE",
            "SPHERE", "CAPSULE", "BOX"]

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from rbody.engine.contacts.geometry import MAX_SLOTS, answers_beyond, collide
+from rbody.engine.contacts.geometry import COLLIDE_WORK, MAX_SLOTS, answers_beyond, collide
 from rbody.engine.contacts.terrain import FIELD_HEADER, HFIELD, collide_field
 from rbody.engine.multibody import _views
 from rbody.engine.constraints.table import (U_BODY1, U_BODY2, U_DOF, U_GMAT_A, U_GMAT_B, U_GPOS_A, U_GPOS_B,
@@ -45,7 +45,7 @@ def geom_pose(p, w, body, pos_at, mat_at, pos, mat):
     return
 
 
-GEOMETRY_WORK = 24 + 7 * MAX_SLOTS  # the floats contact_geometry's scratch holds
+GEOMETRY_WORK = 24 + 7 * MAX_SLOTS + COLLIDE_WORK  # the floats contact_geometry's scratch holds
 
 
 @njit(cache=True, inline="always")
@@ -69,8 +69,8 @@ def field_at(p, at):
 def _candidates(p, w, u, work, only, beyond=np.inf):
     """collide on the contact unit at u's pair of geoms, posed after the tree's kinematics, into work (GEOMETRY_WORK
     floats: the poses, then gaps work[24:24 + MAX_SLOTS] (the distances less the pair's margin), normals and
-    points); only: one slot, or -1 for all; beyond [m]: a pair whose least gap exceeds it may give that least gap
-    for every slot (collide)."""
+    points, then collide's scratch); only: one slot, or -1 for all; beyond [m]: a pair whose least gap exceeds it
+    may give that least gap for every slot (collide)."""
     pa, pb = work[0:3], work[3:6]
     Ra, Rb = work[6:15].reshape((3, 3)), work[15:24].reshape((3, 3))
     geom_pose(p, w, int(p[u + U_BODY1]), u + U_GPOS_A, u + U_GMAT_A, pa, Ra)
@@ -87,7 +87,7 @@ def _candidates(p, w, u, work, only, beyond=np.inf):
         count = collide(int(p[u + U_GTYPE_A]), pa, Ra, p[u + U_GSIZE_A:u + U_GSIZE_A + 3],
                         hull_at(p, int(p[u + U_HULL_A])), int(p[u + U_GTYPE_B]), pb, Rb,
                         p[u + U_GSIZE_B:u + U_GSIZE_B + 3], hull_at(p, int(p[u + U_HULL_B])), dist, normals, points,
-                        only, beyond + p[u + U_MARGIN])
+                        only, beyond + p[u + U_MARGIN], work[24 + 7 * MAX_SLOTS:GEOMETRY_WORK])
     margin = p[u + U_MARGIN]
     if margin != 0.0:
         for k in range(count):
