@@ -44,10 +44,9 @@ from rbody.engine.contacts.rows import (GEOMETRY_WORK, candidate, exact_within, 
 from rbody.engine.constraints.solver import (RANK_RTOL, cholesky_factor, lower_solve, lower_solve_rows,
                                             symmetric_solve, upper_solve)
 from rbody.engine.constraints.sliding import general_held_solve, sliding_columns
-from rbody.engine.constraints.kinds import is_equality_kind, is_tendon_kind
-from rbody.engine.constraints.table import (CONE, CONTACT, CONTACT1, FRICTION, LOWER, PAIR_SIZE, TENDON_FRICTION,
-                                            TENDON_LOWER, TENDON_UPPER, U_BOUND, U_DOF, U_KIND, U_ROW0, U_ROWS,
-                                            U_TENDON, UPPER)
+from rbody.engine.constraints.kinds import is_equality_kind, is_friction_kind, is_limit_kind, is_tendon_kind
+from rbody.engine.constraints.table import (CONE, CONTACT, CONTACT1, FRICTION, PAIR_SIZE, TENDON_FRICTION, U_BOUND,
+                                            U_DOF, U_KIND, U_ROW0, U_ROWS, U_TENDON)
 
 PROJECTION_TOLERANCE = 1e-13   # |g| [m or rad] a projection aims for on the held rows (round-off of metre-scale trees)
 PROJECTION_ITERATIONS = 8      # Newton iterations of a projection at most
@@ -130,13 +129,12 @@ def dof_states(p):
     for k in range(unit_count(p)):
         u = unit_at(p, k)
         kind = int(p[u + U_KIND])
-        if not (kind == LOWER or kind == UPPER or kind == FRICTION or kind == TENDON_LOWER
-                or kind == TENDON_UPPER or kind == TENDON_FRICTION):
+        if not (is_limit_kind(kind) or is_friction_kind(kind)):
             continue
         d = coordinate_key(p, u)
-        if (kind == LOWER or kind == UPPER or kind == TENDON_LOWER or kind == TENDON_UPPER) and p[modes + k] == 1.0:
+        if is_limit_kind(kind) and p[modes + k] == 1.0:
             stop_held[d] = 1.0
-        elif (kind == FRICTION or kind == TENDON_FRICTION) and p[modes + k] == 0.0:
+        elif is_friction_kind(kind) and p[modes + k] == 0.0:
             sticking[d] = p[u + U_BOUND]
     return stop_held, sticking
 
@@ -162,10 +160,10 @@ def held_rows(p, rows_held):
         mode = p[modes + k]
         d = coordinate_key(p, u)
         on = (is_equality_kind(kind) or
-              ((kind == LOWER or kind == UPPER or kind == TENDON_LOWER or kind == TENDON_UPPER) and mode == 1.0) or
+              (is_limit_kind(kind) and mode == 1.0) or
               (kind == CONE and mode == 1.0 and not (sticking[d] > 0.0 and sticking[d + 1] > 0.0
                                                      and sticking[d + 2] > 0.0)) or
-              ((kind == FRICTION or kind == TENDON_FRICTION) and mode == 0.0 and stop_held[d] == 0.0))
+              (is_friction_kind(kind) and mode == 0.0 and stop_held[d] == 0.0))
         r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])
         if (kind == CONTACT or kind == CONTACT1) and mode != 0.0:  # sticking: every row; sliding: the normal
             for a in range(r0, r0 + r):
@@ -309,7 +307,7 @@ def mode_accel(p, q, v, act, qacc, lam_rows, g, every_row=True, power=None, rate
     for k in range(unit_count(p)):
         u = unit_at(p, k)
         kind = int(p[u + U_KIND])
-        if (kind == FRICTION or kind == TENDON_FRICTION) and p[modes + k] != 0.0:
+        if is_friction_kind(kind) and p[modes + k] != 0.0:
             lam_rows[int(p[u + U_ROW0])] = -p[u + U_BOUND] * p[modes + k]
     return residual, scale
 
@@ -527,12 +525,12 @@ def guards(p, y, out):
         kind = int(p[u + U_KIND])
         row = int(p[u + U_ROW0])
         mode = p[modes + k]
-        if kind == LOWER or kind == UPPER or kind == TENDON_LOWER or kind == TENDON_UPPER:
+        if is_limit_kind(kind):
             # a held stop with friction on its dof (tendon): friction can pull up to F too
             out[k] = lam[row] + sticking[coordinate_key(p, u)] if mode == 1.0 else g[row]
         elif kind == CONE:
             out[k] = lam[row] if mode == 1.0 else g[row]
-        elif kind == FRICTION or kind == TENDON_FRICTION:
+        elif is_friction_kind(kind):
             out[k] = p[u + U_BOUND] - abs(lam[row]) if mode == 0.0 else mode * rates[row]
         else:
             out[k] = np.inf

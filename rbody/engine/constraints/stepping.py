@@ -68,10 +68,10 @@ from rbody.engine.constraints.interior import interior_finish
 from rbody.engine.constraints.natural_newton import states_newton
 from rbody.engine.constraints.solver import (RANK_RTOL, cholesky_factor, lower_solve_rows, mlcp_exact_from,
                                              mlcp_pgs, natural_residual)
-from rbody.engine.constraints.kinds import is_equality_kind, is_stop_kind
-from rbody.engine.constraints.table import (C_HEADER, CONTACT, CONTACT1, CONTACT_KINDS, FRICTION, FRICTION_KINDS,
-                                            TENDON_FRICTION, U_BODY1, U_BODY2, U_BOUND, U_KIND, UNILATERAL, UNIT_SIZE,
-                                            U_RESTITUTION, U_ROLL, U_ROW0, U_ROWS, U_SPIN, ConstraintTable)
+from rbody.engine.constraints.kinds import is_equality_kind, is_friction_kind, is_stop_kind
+from rbody.engine.constraints.table import (C_HEADER, CONTACT, CONTACT1, CONTACT_KINDS, FRICTION_KINDS, U_BODY1,
+                                            U_BODY2, U_BOUND, U_KIND, UNILATERAL, UNIT_SIZE, U_RESTITUTION, U_ROLL,
+                                            U_ROW0, U_ROWS, U_SPIN, ConstraintTable)
 from rbody.errors import SimulationError
 
 EXACT_ROWS = 64          # a step's problem with at most this many rows is solved exactly
@@ -390,7 +390,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
             elif g[r0] + h * rate < 0.0:
                 index[m], lo[m], hi[m], b[m] = r0, 0.0, np.inf, rate + g[r0] / h
                 m += 1
-        elif kind == FRICTION or kind == TENDON_FRICTION:
+        elif is_friction_kind(kind):
             box = p[u + U_BOUND] * h
             jfree[m] = _row_dot(J, r0, vfree)
             index[m], lo[m], hi[m], b[m] = r0, -box, box, jfree[m]
