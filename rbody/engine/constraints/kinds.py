@@ -1,7 +1,8 @@
 """The classes of the constraint table's unit kinds (rbody.engine.constraints.table's codes), compiled for the
 kernels that walk the units: a unit whose rows are held at g = 0 always, a coordinate's limit or dry friction, one
-unilateral row, one row on one dof, rows along a tendon. table.py holds no compiled code (it builds the table's records in Python); these sit beside
-its codes for the kernels of jacobians.py, dynamics.py and stepping.py, which import one another in that order."""
+unilateral row, one row on one dof, rows along a tendon. table.py holds no compiled code (it builds the table's
+records in Python); these sit beside its codes for the kernels of jacobians.py, dynamics.py and stepping.py, which
+import one another in that order."""
 
 from __future__ import annotations
 
