@@ -23,7 +23,7 @@ finish of rbody.engine.constraints.cone (cone_polish: the held rows solved, the 
 their velocity, the Coulomb radii moving with the normals) taken from there; several `near` (SNAP_LEVELS), the best
 kept, and Newton's method on the natural map from it where none reaches the goal (rbody.engine.constraints.
 natural_newton: cone_polish's fixed point on a sliding contact's direction is linear and can stall). The states
-are read already after each of the last centrings, and the barrier stops where they reach the goal.
+are read once before the last centrings, and the barrier stops there where they reach the goal.
 """
 
 from __future__ import annotations
@@ -46,7 +46,8 @@ ROUNDING_DECREMENT = 1e-12  # where the decrement is below this of |q| (q's roun
 TO_BOUNDARY = 0.99         # a Newton step goes at most this share of the way to the nearest bound
 SNAP_LEVELS = (1e-2, 1e-3, 1e-4, 1e-5, 1e-6)  # the `near` of the states read from the barrier's impulses
 POLISH_ROUNDS = 4
-TRY_BELOW = 1e-12          # interior_finish reads the states after each centring below this weight (of the scale)
+TRY_BELOW = 1e-12          # interior_finish reads the states once, after the first centring below this weight (of
+                           # the scale): where they are wrong there, they stay wrong until the path's end
 
 
 @njit(cache=True)
@@ -245,27 +246,29 @@ def _problem_scale(b, top):
 
 @njit(cache=True)
 def _barrier_path(W, b, lo, hi, role, mu, normals, goal, lam, read_early):
-    """The barrier down its path (tresca_barrier) from the centre of each set; where read_early, once its weight is
-    below TRY_BELOW of the problem's scale the states are read after each centring (_read_states at the first of
-    SNAP_LEVELS, into lam (m,)) and the path is left where they reach `goal`. Returns (the last iterate (m,), Newton
-    steps, the residual of lam: inf where no early reading reached goal)."""
+    """The barrier down its path (tresca_barrier) from the centre of each set; where read_early, the states are read
+    once, after the first centring whose weight is below TRY_BELOW of the problem's scale (_read_states at the first
+    of SNAP_LEVELS, into lam (m,)), and the path is left there where they reach `goal`. Returns (the last iterate
+    (m,), Newton steps, the residual of lam: inf where the early reading did not reach goal, the readings taken)."""
     radius = friction_radii(role, mu, normals)
     inside, top = _barrier_start(lo, hi, role, normals)
     scale = _problem_scale(b, top)
     t = BARRIER_START * scale
     steps = 0
+    readings = 0
     while True:
         steps += _centre(W, b, lo, hi, role, radius, inside, t)
         if t <= BARRIER_END * scale:
             break
-        if read_early and t <= TRY_BELOW * scale:
+        if read_early and readings == 0 and t <= TRY_BELOW * scale:
+            readings = 1
             trial = lam.copy()
             early = _read_states(W, b, lo, hi, role, mu, inside, goal, 1, trial)
             if early <= goal:
                 lam[:] = trial
-                return inside, steps, early
+                return inside, steps, early, readings
         t *= BARRIER_SHRINK
-    return inside, steps, np.inf
+    return inside, steps, np.inf, readings
 
 
 @njit(cache=True)
@@ -273,7 +276,7 @@ def tresca_barrier(W, b, lo, hi, role, mu, normals):
     """The solution (m,) of Tresca's problem (module docstring) with the radii friction_radii(role, mu, normals), by
     the log barrier, from the centre of each set (normals at max(normals, 1e-3 of their largest)). W (m, m), b (m,)
     as in cone_pgs. Returns (lambda, Newton steps)."""
-    inside, steps, _early = _barrier_path(W, b, lo, hi, role, mu, normals, 0.0, np.empty(0), False)
+    inside, steps, _early, _readings = _barrier_path(W, b, lo, hi, role, mu, normals, 0.0, np.empty(0), False)
     return inside, steps
 
 
@@ -335,11 +338,13 @@ def _read_states(W, b, lo, hi, role, mu, inside, goal, levels, lam):
 def interior_finish(W, b, lo, hi, role, mu, normals, lam, goal):
     """One round of the fixed point on the normals: Tresca's problem with the radii of `normals` (m,) by the barrier,
     its states read and finished exactly (_read_states), written into lam (m,), and the barrier's impulses into
-    normals (the next round's radii). Once the barrier's weight is below TRY_BELOW of the problem's scale, the
-    states are read after each centring (at the first of SNAP_LEVELS), and the barrier stops where they reach
-    `goal`: the last centrings (down to BARRIER_END) take half its steps, and most problems' states are right
-    before them. Returns the residual of lam."""
-    inside, _steps, early = _barrier_path(W, b, lo, hi, role, mu, normals, goal, lam, True)
+    normals (the next round's radii). After the first centring whose weight is below TRY_BELOW of the problem's
+    scale, the states are read once (at the first of SNAP_LEVELS), and the barrier stops there where they reach
+    `goal`: the last centrings (down to BARRIER_END) take half its steps, and where the radii are right (a robot
+    settling) the states are right before them. Where the radii are not yet Coulomb's (a landing, its normals from
+    Gauss-Seidel's first round), the states read further down the path were no better, and each reading cost as
+    much as two centrings. Returns the residual of lam."""
+    inside, _steps, early, _readings = _barrier_path(W, b, lo, hi, role, mu, normals, goal, lam, True)
     normals[:] = inside
     if early <= goal:
         return early

@@ -38,6 +38,29 @@ def test_the_barrier_reaches_a_sliding_contact_and_the_finish_makes_it_exact():
     np.testing.assert_allclose(lam, exact, rtol=1e-15, atol=1e-16)
 
 
+def test_the_states_are_read_once_on_the_way_down():
+    """Where the states read early miss the goal (here a goal no reading meets), they are read once, not after each
+    further centring (each reading costs as much as two centrings, and on a landing quadruped, its radii from
+    Gauss-Seidel's first round, the readings further down the path missed too): the path goes on to its end
+    unchanged. Where they meet it (the solution's own radii), the path is left at that first reading."""
+    from rbody.engine.constraints.interior import _barrier_path
+
+    p = SLIDING
+    args = (p["W"], p["b"], p["lo"], p["hi"], p["role"], p["mu"])
+    normals = sliding_solution()
+    full, full_steps, _early, readings = _barrier_path(*args, normals, 0.0, np.zeros(3), False)
+    assert readings == 0
+    lam = np.zeros(3)
+    inside, steps, early, readings = _barrier_path(*args, normals, -1.0, lam, True)
+    assert readings == 1 and early == np.inf
+    assert steps == full_steps
+    np.testing.assert_array_equal(inside, full)
+    inside, steps, early, readings = _barrier_path(*args, normals, 1e-15, lam, True)
+    assert readings == 1 and early <= 1e-15
+    assert steps < full_steps  # left before the last centrings
+    np.testing.assert_allclose(lam, sliding_solution(), rtol=1e-15, atol=1e-16)
+
+
 def test_friction_radii_follow_the_normals():
     role = np.array([NORMAL, TANGENT, TANGENT2, SPIN, ROLL, ROLL2, ROW])
     mu = np.array([0.0, 0.8, 0.0, 0.02, 0.01, 0.0, 0.0])
