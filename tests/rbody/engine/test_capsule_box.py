@@ -249,3 +249,10 @@ def test_slide_polish_finds_the_sliding_solution_the_stick_states_miss():
     w = b + W @ lam
     assert lam[4] == pytest.approx(mu[4] * lam[3], rel=1e-12) and w[4] < 0  # the end slides against its slip
     assert abs(lam[1]) < mu[1] * lam[0] and abs(w[1]) <= 1e-13              # the edge contact sticks
+    # the step's own schedule (cone_solve, which tries slide_polish after the interior finish) from that start
+    from rbody.engine.constraints.stepping import cone_solve
+
+    scheduled = start.copy()
+    assert cone_solve(W, b, lo, hi, role, mu, scheduled, 1e-10, 2000) <= 1e-13
+    w = b + W @ scheduled
+    assert scheduled[4] == pytest.approx(mu[4] * scheduled[3], rel=1e-12) and w[4] < 0
