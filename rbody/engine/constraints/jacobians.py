@@ -204,6 +204,7 @@ def contact_unit_rows(p, k, w, J, g, row, gap, normal, point, work):
     g[row] = gap
     if gap == np.inf:
         return
+    # without the bias (with_bias False) its arrays are not read: empty views of the scratch stand for them
     _contact_frame_rows(p, w, work[0:0].reshape((0, 6)), u, r, J, work[0:0], g, row, False, normal, point, work)
 
 

@@ -240,11 +240,11 @@ def read_newton(W, b, lo, hi, role, mu, lam, goal, residual):
     """Newton's method from lam (m,), an iterate near a solution, on its pieces read at each of READ_LEVELS in turn
     (read_pieces), until one reaches `goal`; the least residual found written into lam (lam unchanged where none is
     below its own). residual: lam's own (cone_residual), as the caller's Newton's method returned it. Returns lam's
-    residual. Where a contact's disc slides on its edge at a slip near w's round-off
-    (a foot's rolling friction at 6e-13 rad/s as a quadruped lands), the iterate's impulses lie just inside it, a
-    reading at ON_BOUND holds it sticking, and the load shared between that foot and another (W's null space) is
-    then fixed only through a singular value of 1e-10: Newton's method stalls at 1e-12. Read as sliding, it reaches
-    round-off in a few steps."""
+    residual. Where a contact's disc slides on its edge at a slip near w's round-off (a foot's rolling friction at
+    6e-13 rad/s as a quadruped lands), the iterate's impulses lie just inside it, a reading at ON_BOUND holds it
+    sticking, and the load shared between that foot and another (W's null space) is then fixed only through a
+    singular value of 1e-10: Newton's method stalls at 1e-12. Read as sliding, it reaches round-off in a few
+    steps."""
     best = residual
     trial, kept = np.empty_like(lam), lam.copy()
     last = np.full(lam.shape[0], -1)
