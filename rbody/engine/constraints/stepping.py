@@ -126,15 +126,16 @@ def mujoco_free_velocity(p, y, h, mode, M, f, vfree, L):
 def cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
     """The step's problem with contacts' cones (rbody.engine.constraints.cone) from lam (a start, solved in place):
     CONE_ROUND Gauss-Seidel sweeps at a time, each round finished exactly (every contact sticking; the states read
-    from lam; a crawl along dependent rows taken to its end; then, where the interior finish below misses, some
-    sticking contacts made to slide), until the residual is 1e-3 of `tolerance`, or `sweeps` are spent, or a round
-    within `tolerance` moves nothing (each after it would be the same); a start that already solves it (the last
-    step's impulses, themselves finished) is kept, after one sweep. From the INTERIOR_AFTER-th round on, each round
-    not yet at 1e-3 of `tolerance` also solves Tresca's problem from inside and finishes from its states
-    (interior_finish: where dependent rows leave Gauss-Seidel crawling along W's null space), kept where that lowers
-    the residual, the round then not counted as one that moved nothing. A start that no longer solves it is first
-    tried on its own pieces (states_newton: a robot settling on its feet, the last step's sliding and sticking
-    holding while b moves), kept where that reaches 1e-3 of `tolerance`. Returns the residual."""
+    from lam; a crawl along dependent rows taken to its end; then, where the interior finish below does not lower
+    the residual, some sticking contacts made to slide), until the residual is 1e-3 of `tolerance`, or `sweeps`
+    are spent, or a round within `tolerance` moves nothing (each after it would be the same); a start that already
+    solves it (the last step's impulses, themselves finished) is kept, after one sweep. From the INTERIOR_AFTER-th
+    round on, each round not yet at 1e-3 of `tolerance` also solves Tresca's problem from inside and finishes from
+    its states (interior_finish: where dependent rows leave Gauss-Seidel crawling along W's null space), kept where
+    that lowers the residual, the round then not counted as one that moved nothing and the next round going on
+    from there. A start that no longer solves it is first tried on its own pieces (states_newton: a robot settling
+    on its feet, the last step's sliding and sticking holding while b moves), kept where that reaches 1e-3 of
+    `tolerance`. Returns the residual."""
     start = -1.0  # the warm start's residual, where taken (cone_pgs's first round starts from it)
     if np.any(lam != 0.0):
         start = cone_residual(W, b, lo, hi, role, mu, lam)
@@ -173,7 +174,6 @@ def cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
         if residual <= 1e-3 * tolerance:                          # the next round finishes from there
             break
         rounds += 1
-        gained_inside = False
         # Gauss-Seidel crawls (dependent rows): Tresca's problem from inside, its normals the next round's radii
         # (rbody.engine.constraints.interior); tried within `tolerance` too, where the drift's rounds would halve
         # the residual a round (the Go1 landing from its qpos0: 2e-11 to 7e-14 in 13 rounds, 20 ms; from inside,
@@ -187,17 +187,15 @@ def cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
             if inside < residual:
                 lam[:] = trial
                 residual = inside
-                gained_inside = True
                 if residual <= 1e-3 * tolerance:
                     break
-        # no stick state holds: some contacts slide (a capsule pivoting on a box's edge), tried after the interior
-        # finish: on the quadrupeds' hard steps it never reached the goal (0 of 69 tries on five captured suites)
-        # and cost a third to a half of their rounds' finishes, where the interior finish does
+                continue  # the next round goes on from the interior finish's impulses
+        # no stick state holds: some contacts slide (a capsule pivoting on a box's edge), tried where the interior
+        # finish did not gain: on the quadrupeds' hard steps it never reached the goal (0 of 69 tries on five
+        # captured suites) and cost a third to a half of their rounds' finishes, where the interior finish does
         residual = slide_polish(W, b, lo, hi, role, mu, lam, 4)
         if residual <= 1e-3 * tolerance:
             break
-        if gained_inside:
-            continue
         if spent == 0 and np.array_equal(lam, unswept):  # within `tolerance`, and neither Gauss-Seidel nor a finish
             break                                        # moved lam: every round after would repeat this one
     return residual
