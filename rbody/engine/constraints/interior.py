@@ -47,7 +47,7 @@ TO_BOUNDARY = 0.99         # a Newton step goes at most this share of the way to
 SNAP_LEVELS = (1e-2, 1e-3, 1e-4, 1e-5, 1e-6)  # the `near` of the states read from the barrier's impulses
 POLISH_ROUNDS = 4
 TRY_BELOW = 1e-12          # interior_finish reads the states once, after the first centring below this weight (of
-                           # the scale): where they are wrong there, they stay wrong until the path's end
+                           # the scale): on the captured landing problems, readings further down were no better
 
 
 @njit(cache=True)
