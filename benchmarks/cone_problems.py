@@ -67,10 +67,8 @@ def _native_run(path: Path, steps: int, lift: float):
     import mujoco
 
     import rbody
-    from rbody.engine import multibody
     from rbody.engine.constraints import stepping
-    from rbody.engine.constraints.jacobians import row_count, unit_count
-    from rbody.engine.contacts.rows import kept_geometry_size
+    from rbody.engine.constraints.jacobians import row_count
 
     if not path.is_file():
         raise ValueError(f"model={str(path)!r}: no such file")
@@ -94,7 +92,7 @@ def _native_run(path: Path, steps: int, lift: float):
                              problem_rows, run.mode, end_geometry)
 
     first = (np.array(prepared.y0[0]), np.zeros(row_count(p)),
-             np.zeros(kept_geometry_size(int(p[multibody.H_NQ]), unit_count(p))),
+             np.zeros(_kept_size(p)),
              np.zeros(row_count(p) + 1, dtype=np.int64))  # (a checkout before its step listed its problem's rows
     # took a dense flag per row here: this array serves it as well)
     return scene, dt, step, first
@@ -177,6 +175,18 @@ def load(path: Path) -> tuple[dict, list[dict]]:
         meta = json.loads(str(data["meta"]))
         problems = [{name: data[f"{name}_{n}"] for name in FIELDS} for n in range(len(meta["kept"]))]
     return meta, problems
+
+
+def _kept_size(p: np.ndarray) -> int:
+    """The length of the step's kept memory (moreau_step's end_geometry) in the checkout imported: broadphase.kept_size,
+    or in a checkout before the broad phase's neighbour list (2026-11-30) the kept geometry alone."""
+    from rbody.engine.contacts import broadphase, rows
+
+    if hasattr(broadphase, "kept_size"):
+        return broadphase.kept_size(p)
+    from rbody.engine import multibody
+    from rbody.engine.constraints.jacobians import unit_count
+    return rows.kept_geometry_size(int(p[multibody.H_NQ]), unit_count(p))
 
 
 def _solve_before_solve_cones(cone_solve):

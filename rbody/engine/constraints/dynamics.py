@@ -37,8 +37,8 @@ from rbody.engine.memory import keep_alive, stack_floats, unowned
 from rbody.engine.system import actuator_rates, add_element_forces, clamp_activations
 from rbody.engine.constraints.jacobians import (all_rows, bias_accelerations, some_rows, mode_at, row_count, unit_at,
                                                 unit_count)
-from rbody.engine.contacts.broadphase import (contact0, contact_row0, first_unit_at, pair_at, pair_count, pair_reaches,
-                                             pair_span)
+from rbody.engine.contacts.broadphase import (contact0, contact_row0, first_unit_at, kept_neighbours, pair_at,
+                                              pair_count, pair_reaches, pair_span)
 from rbody.engine.contacts.rows import (GEOMETRY_WORK, candidate, exact_within, forget_geometry, keep_geometry,
                                        pair_candidates)
 from rbody.engine.constraints.solver import (RANK_RTOL, cholesky_factor, lower_solve, lower_solve_rows,
@@ -543,8 +543,9 @@ def state_gaps(p, y, g, beyond=np.inf, kept=None, least=None):
     kinematics alone: a contact by its candidate's signed distance (no Jacobian; a pair the broad phase finds apart
     by its bound, broadphase.pair_reaches, a positive lower bound), the other units by their rows. beyond [m]: a caller
     that reads no contact gap above it (the projection's flags, the errors' min(g, 0)) lets a pair whose least gap
-    is above it give that (rows.pair_candidates). kept (rows.kept_geometry_size(nq, units),) or None: the
-    contacts' geometry found here, kept for the next step's start at the same configuration. least (pairs,) or
+    is above it give that (rows.pair_candidates). kept (broadphase.kept_size(p),) or None: the contacts' geometry
+    found here, kept for the next step's start at the same configuration, and the broad phase's neighbour list (read
+    and kept: a far pair's bound is then a lower bound above TIGHTEN_BELOW, not its spheres' own). least (pairs,) or
     None: each contact pair's least gap [m] (a bound where its spheres are apart), that a caller reads in place of
     its rows: only its candidates' normal rows are then written, and not even those where the broad phase's bound
     is above `beyond` (the rest are left as they were: a quadruped's far candidates, 24,822 rows each step)."""
@@ -566,7 +567,10 @@ def state_gaps(p, y, g, beyond=np.inf, kept=None, least=None):
         kept[1:1 + nq] = q
     all_rows(p, q, y[nq:nq + nv], w, acc, J, jdot, g, False, False)  # the units before the contacts
     reach, motion = np.empty(pair_count(p)), np.empty(pair_count(p))
-    pair_reaches(p, w, 0.0, reach, motion)
+    neighbours = np.empty(0)  # (a caller that keeps nothing: every pair bounded)
+    if kept is not None:
+        neighbours = kept_neighbours(p, kept)
+    pair_reaches(p, w, 0.0, reach, motion, neighbours)
     if least is None:
         g[contact_row0(p):] = 0.0  # the contacts' rows (one fill: a far pair's tangent rows are then set)
     pairs = pair_at(p, 0)

@@ -54,11 +54,10 @@ from rbody.engine.elements import A_ACTADR, ACT_SIZE, X_ACT, X_ACTIVE, X_NU, ext
 from rbody.engine.mujoco_steps import EULER, IMPLICIT, IMPLICITFAST, MUJOCO_METHODS, integrate_positions, \
     solve_general, step_matrices
 from rbody.engine.constraints.jacobians import contact_unit_rows, contact_work_size, row_count, unit_at, unit_count
-from rbody.engine.contacts.broadphase import (contact0, contact_row0, first_unit_at, pair_at, pair_count,
-                                              pair_reaches, pair_span)
+from rbody.engine.contacts.broadphase import (contact0, contact_row0, first_unit_at, kept_neighbours, kept_size,
+                                              pair_at, pair_count, pair_reaches, pair_span)
 from rbody.engine.contacts.kinematics import point_velocity
-from rbody.engine.contacts.rows import (GEOMETRY_WORK, candidate, kept_candidate, kept_exact, kept_for,
-                                        kept_geometry_size, pair_candidates)
+from rbody.engine.contacts.rows import GEOMETRY_WORK, candidate, kept_candidate, kept_exact, kept_for, pair_candidates
 from rbody.engine.multibody import _effective_qpos
 from rbody.engine.memory import keep_alive, stack_floats, unowned
 from rbody.engine.constraints.cone import (NORMAL, ROLL, ROUND_OFF, ROW, SPIN, TANGENT, cone_pgs, cone_polish,
@@ -252,9 +251,9 @@ def near_contacts(p, w, vfree, h, J, g, formed, kept, reuse):
     against the floor in the air) cost a distance each, not a row of nv numbers, and a pair whose bounding spheres
     cannot meet within the step (contacts.broadphase.pair_reaches) not even that, nor a read of its candidates'
     unit records. After the step's kinematics in the workspace w (its velocities are then vfree's). kept: the
-    geometry the last step's end found (rows.kept_geometry_size); reuse: whether it was found at this configuration,
-    its exact candidates then read, not found again. Returns (the rows of the units it formed, their count): the
-    step's problem has at most these rows and those before the contacts."""
+    geometry the last step's end found and the broad phase's neighbour list (broadphase.kept_size); reuse: whether
+    the geometry was found at this configuration, its exact candidates then read, not found again. Returns (the rows
+    of the units it formed, their count): the step's problem has at most these rows and those before the contacts."""
     # Every array below is handed to a helper for each near contact: as views numba does not count (memory.unowned,
     # the scratch on this function's stack), not an atomic add and its undoing per array and call.
     p, w, vfree, J, g, kept = unowned(p), unowned(w), unowned(vfree), unowned(J), unowned(g), unowned(kept)
@@ -269,7 +268,7 @@ def near_contacts(p, w, vfree, h, J, g, formed, kept, reuse):
     rows_work = carray(stack_floats(size), size) if size <= mb.STACK_FLOATS else np.empty(size)  # (huge trees)
     reach_owned, motion_owned = np.empty(pair_count(p)), np.empty(pair_count(p))
     reach, motion = unowned(reach_owned), unowned(motion_owned)
-    pair_reaches(p, w, h, reach, motion)  # every geom's bounding sphere once; then each pair's bound from two of them
+    pair_reaches(p, w, h, reach, motion, kept_neighbours(p, kept))  # every geom's sphere; then the listed pairs'
     for i in range(pair_count(p)):
         if reach[i] > TOUCH_TOLERANCE:  # the broad phase: the pair can neither touch nor close within the step
             continue
@@ -330,8 +329,9 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
     the complementarity problem left a residual above the tolerance, 2 the configuration could not be projected
     onto the equalities, UNBOUNDED (-1) the equalities contradict. The budget: exactly when it has at most
     exact_rows rows, else at most `sweeps` Gauss-Seidel sweeps to `tolerance` (relative to max(|b|, 1)).
-    end_geometry (rows.kept_geometry_size): the contacts' geometry the last step's end found, read where this step
-    starts at its configuration, and this step's, kept for the next (zeros before the first step)."""
+    end_geometry (broadphase.kept_size): the contacts' geometry the last step's end found, read where this step
+    starts at its configuration, and this step's, kept for the next, then the broad phase's neighbour list (zeros
+    before the first step)."""
     # The arguments, handed to most helpers of the step, as views numba does not count (memory.unowned)
     p, y, P, end_geometry = unowned(p), unowned(y), unowned(P), unowned(end_geometry)
     nq, nv, n = dyn.sizes(p)
@@ -615,7 +615,7 @@ def moreau_loop(p, y0, h, nsteps, save_every, out, exact_rows, sweeps, tolerance
     y = y0.copy()
     rows = row_count(p)
     P = np.zeros(rows)
-    end_geometry = np.zeros(kept_geometry_size(int(p[mb.H_NQ]), unit_count(p)))
+    end_geometry = np.zeros(kept_size(p))
     out[0] = y
     starts = np.zeros(out.shape[0] + 1, dtype=np.int64)
     kept, values, used = np.empty(max(64, 4 * out.shape[0]), dtype=np.int64), np.empty(max(64, 4 * out.shape[0])), 0
@@ -735,7 +735,7 @@ class MoreauRun:
         """moreau_loop's steps one by one, before_step called before each (the same steps, the impulses carried and
         recorded as the loop carries and records them)."""
         P = np.zeros(self.table.rows)
-        end_geometry = np.zeros(kept_geometry_size(int(self.p[mb.H_NQ]), len(self.table.units)))
+        end_geometry = np.zeros(kept_size(self.p))
         out[0] = y
         starts = np.zeros(out.shape[0] + 1, dtype=np.int64)
         kept, values, used = np.empty(max(64, 4 * out.shape[0]), dtype=np.int64), np.empty(max(64, 4 * out.shape[0])), 0

@@ -9,18 +9,19 @@ import rbody
 from rbody.engine import multibody as mb
 from rbody.engine.constraints import dynamics as dyn
 from rbody.engine.constraints.jacobians import row_count, unit_at, unit_count
-from rbody.engine.constraints.stepping import MoreauRun
+from rbody.engine.constraints.stepping import EXACT_ROWS, MODES, PGS_SWEEPS, STEP_TOLERANCE, MoreauRun, moreau_step
 from rbody.engine.constraints.table import (C_GEOM, CONTACT_KINDS, G_TYPE, GEOM_SIZE, P_GEOM_A, P_GEOM_B, P_MARGIN,
                                             PAIR_SIZE,
                                             U_BODY1, U_BODY2, U_DOF, U_GPOS_A, U_GPOS_B, U_GSIZE_A, U_GSIZE_B,
                                             U_GTYPE_A, U_GTYPE_B, U_KIND, U_MARGIN, U_ROW0, U_ROWS, UNIT_SIZE)
-from rbody.engine.contacts.broadphase import (S_NORMAL, S_RADIUS, SPHERE_SIZE, contact0, contact_row0,
-                                              first_unit_at, geom_at, geom_count, geom_spheres, pair_at, pair_count,
-                                              pair_reaches, pair_span)
+from rbody.engine.contacts.broadphase import (N_BUILT, N_CENTRES, N_COUNT, NEIGHBOUR_SKIN, S_NORMAL, S_RADIUS,
+                                              SPHERE_SIZE, contact0, contact_row0, first_unit_at, geom_at,
+                                              geom_count, geom_spheres, kept_size, neighbours_size, pair_at,
+                                              pair_count, pair_reaches, pair_span)
 from rbody.engine.contacts.geometry import TYPE_CODES
-from rbody.engine.contacts.kinematics import clearance
+from rbody.engine.contacts.kinematics import TIGHTEN_BELOW, clearance
 from rbody.engine.contacts.terrain import HFIELD
-from rbody.engine.contacts.rows import GEOMETRY_WORK, candidate, pair_candidates
+from rbody.engine.contacts.rows import GEOMETRY_WORK, candidate, kept_geometry_size, pair_candidates
 from rbody.engine.multibody import _effective_qpos
 
 CUBE = " ".join(f"{v:g}" for x in (-0.1, 0.1) for y in (-0.07, 0.07) for z in (-0.05, 0.05) for v in (x, y, z))
@@ -124,7 +125,7 @@ def test_a_pairs_bound_is_clearances_to_the_bit(model, seed, h):
     y[nq:nq + nv] = rng.normal(scale=2.0, size=nv)
     w = _workspace(p, y)
     reach, motion = np.full(pair_count(p), np.nan), np.full(pair_count(p), np.nan)
-    pair_reaches(p, w, h, reach, motion)
+    pair_reaches(p, w, h, reach, motion, np.empty(0))
     scratch = np.empty(GEOMETRY_WORK)
     near = 0
     for i in range(pair_count(p)):
@@ -133,6 +134,113 @@ def test_a_pairs_bound_is_clearances_to_the_bit(model, seed, h):
         assert got == expected, (i, got, expected)
         near += got[0] <= 0.0
     assert 0 < near < pair_count(p)  # the draw has pairs on both sides of the bound
+
+
+def _gathered(p, y0, rng, spread):
+    """A state with the seven free bodies placed at random within `spread` [m] of a point above the origin, turned
+    at random, the hinge anywhere in its range; velocities 0."""
+    nq, _nv, _n = dyn.sizes(p)
+    y = y0.copy()
+    for body in range(7):
+        at = 1 + 7 * body
+        y[at:at + 3] = rng.uniform(-spread, spread, 3) + (0.0, 0.0, spread)
+        quat = rng.normal(size=4)
+        y[at + 3:at + 7] = quat / np.linalg.norm(quat)
+    y[0] = rng.uniform(-1, 1)
+    y[nq:] = 0.0
+    return y
+
+
+def _nudged(p, y, rng, shift, speed):
+    """y with each free body moved by up to `shift` [m] along each axis (orientation kept) and given velocities of
+    about `speed` [m/s, rad/s]."""
+    nq, nv, _n = dyn.sizes(p)
+    z = y.copy()
+    for body in range(7):
+        z[1 + 7 * body:4 + 7 * body] += rng.uniform(-shift, shift, 3)
+    z[nq:nq + nv] = rng.normal(scale=speed, size=nv)
+    return z
+
+
+@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("h", [0.0, 0.002])
+def test_the_neighbour_list_gives_every_near_pair_to_the_bit(model, seed, h):
+    """The list built at a gathered configuration, then the bodies nudged by at most 2 mm an axis with speeds of
+    about 0.3 m/s: within the skin, so the list is read, not built again (its centres stay the first
+    configuration's). Every pair the full pass bounds at most TIGHTEN_BELOW is listed and bounded to the same bits;
+    every other pair gets a lower bound of its own, above TIGHTEN_BELOW; and some pairs are not listed at all."""
+    _scene, table, p, y0 = model
+    rng = np.random.default_rng(20 + seed)
+    y = _gathered(p, y0, rng, 0.35)
+    neighbours = np.zeros(neighbours_size(p))
+    reach, motion = np.empty(pair_count(p)), np.empty(pair_count(p))
+    pair_reaches(p, _workspace(p, y), h, reach, motion, neighbours)
+    assert neighbours[N_BUILT] == 1.0
+    built = neighbours.copy()
+    z = _nudged(p, y, rng, 0.002, 0.3)
+    w = _workspace(p, z)
+    full_reach, full_motion = np.empty(pair_count(p)), np.empty(pair_count(p))
+    pair_reaches(p, w, h, full_reach, full_motion, np.empty(0))
+    pair_reaches(p, w, h, reach, motion, neighbours)
+    assert np.array_equal(neighbours, built)  # read, not built again
+    listed = neighbours[N_CENTRES + 3 * geom_count(p):][:int(neighbours[N_COUNT])].astype(int)
+    same = (reach == full_reach) & (motion == full_motion)
+    assert same[listed].all()
+    assert (full_reach[~same] > TIGHTEN_BELOW).all() and (reach[~same] <= full_reach[~same]).all()
+    assert (reach[~same] > TIGHTEN_BELOW).all()
+    assert 0 < len(listed) < pair_count(p) and (full_reach <= TIGHTEN_BELOW).any()
+
+
+def test_the_neighbour_list_is_built_again_when_a_geom_moves_beyond_the_skin(model):
+    """Two bodies moved by 0.6 of the skin each (together more than it: they may have closed by that, though each
+    alone is within it): the list is built again at the new configuration (its centres the new ones) and every pair
+    is bounded as the full pass bounds it; a list of NaN centres is never read."""
+    _scene, table, p, y0 = model
+    rng = np.random.default_rng(3)
+    y = _gathered(p, y0, rng, 0.35)
+    neighbours = np.zeros(neighbours_size(p))
+    reach, motion = np.empty(pair_count(p)), np.empty(pair_count(p))
+    pair_reaches(p, _workspace(p, y), 0.0, reach, motion, neighbours)
+    z = y.copy()
+    z[1:4] += (0.6 * NEIGHBOUR_SKIN, 0.0, 0.0)  # the ball (the first free body)
+    z[8:11] -= (0.6 * NEIGHBOUR_SKIN, 0.0, 0.0)  # the rod
+    w = _workspace(p, z)
+    full_reach, full_motion = np.empty(pair_count(p)), np.empty(pair_count(p))
+    pair_reaches(p, w, 0.0, full_reach, full_motion, np.empty(0))
+    before = neighbours.copy()
+    pair_reaches(p, w, 0.0, reach, motion, neighbours)
+    assert not np.array_equal(neighbours, before)
+    assert np.array_equal(reach, full_reach) and np.array_equal(motion, full_motion)
+    ball = [int(p[geom_at(p, i) + G_TYPE]) for i in range(geom_count(p))].index(TYPE_CODES["sphere"])
+    centre = slice(N_CENTRES + 3 * ball, N_CENTRES + 3 * ball + 3)
+    neighbours[centre] = np.nan
+    pair_reaches(p, w, 0.0, reach, motion, neighbours)
+    assert np.array_equal(reach, full_reach) and not np.isnan(neighbours[centre]).any()
+
+
+def test_a_step_with_the_neighbour_list_is_the_step_without_it(model):
+    """The bodies dropped from their places onto the floor and each other for 0.6 s: moreau_step given the whole
+    kept memory (kept_size: the list read while they start and rest, built again as they fall) and given the kept
+    geometry alone (no list: every pair bounded each call) give the same states, bit for bit."""
+    _scene, table, p, y_start = model
+    nq, rows = int(p[mb.H_NQ]), row_count(p)
+    states = []
+    for size in (kept_size(p), kept_geometry_size(nq, unit_count(p))):
+        y, P = y_start.copy(), np.zeros(rows)
+        problem_rows, kept = np.zeros(rows + 1, dtype=np.int64), np.zeros(size)
+        trajectory, lists = [], []
+        for _ in range(60):
+            status, _residual, _m = moreau_step(p, y, 0.01, P, EXACT_ROWS, PGS_SWEEPS, STEP_TOLERANCE, problem_rows,
+                                                MODES["moreau"], kept)
+            assert status == 0
+            trajectory.append(y.copy())
+            lists.append(kept[kept_geometry_size(nq, unit_count(p)):].copy())
+        states.append(np.array(trajectory))
+        if size == kept_size(p):
+            kept_again = sum(np.array_equal(a, b) for a, b in zip(lists, lists[1:]))
+            assert 0 < kept_again < len(lists) - 1  # the list read over some steps, built again in others
+    assert np.array_equal(states[0], states[1])
+    assert not np.array_equal(states[0][0], states[0][-1])  # (they fell)
 
 
 @pytest.mark.parametrize("beyond", [np.inf, 0.05])
@@ -235,5 +343,5 @@ def test_spheres_within_the_margin_are_tightened_by_the_axes():
     apart = np.linalg.norm(spheres[1, :3] - spheres[0, :3]) - spheres[0, S_RADIUS] - spheres[1, S_RADIUS]
     assert abs(apart - 0.005) < 1e-12 and p[pair_at(p, 0) + P_MARGIN] == 0.02
     reach, motion = np.empty(1), np.empty(1)
-    pair_reaches(p, w, 0.0, reach, motion)
+    pair_reaches(p, w, 0.0, reach, motion, np.empty(0))
     assert abs(reach[0] - (0.245 - 0.04 - 0.02)) < 1e-12

@@ -1,5 +1,5 @@
 """The time-stepping finds each touching pair's candidates once a step: a step's end finds them for its projection
-(dynamics.state_gaps) and keeps them (contacts.rows.kept_geometry_size); the next step starts at that configuration
+(dynamics.state_gaps) and keeps them (contacts.broadphase.kept_size); the next step starts at that configuration
 and reads them instead of finding them again. Reading them must change nothing: the runs below, each step given
 the kept geometry or an empty one, agree to the bit, over pairs whose candidates are always exact (boxes) and pairs
 that may answer with a bound (an ellipsoid's, a mesh's). Each step also lists its problem's rows, ascending, and
@@ -15,10 +15,10 @@ import pytest
 import rbody
 from rbody import Scene, from_mjcf
 from rbody.engine import multibody as mb
-from rbody.engine.constraints.jacobians import unit_count
 from rbody.engine.constraints.stepping import (EXACT_ROWS, MODES, PGS_SWEEPS, STEP_TOLERANCE, MoreauRun,
                                                moreau_step)
-from rbody.engine.contacts.rows import kept_for, kept_geometry_size
+from rbody.engine.contacts.broadphase import kept_size
+from rbody.engine.contacts.rows import kept_for
 
 sys.path.insert(0, str(Path(__file__).parent))
 from test_contact_closed_forms import stack_layout  # noqa: E402
@@ -56,7 +56,7 @@ def step_run(scene: Scene, dt: float, steps: int, keep: bool):
     p, y = run.p, np.array(np.asarray(model.y0)[0], dtype=np.float64)
     rows = model.constraints.rows
     P, problem_rows = np.zeros(rows), np.zeros(rows + 1, dtype=np.int64)
-    size = kept_geometry_size(int(p[mb.H_NQ]), unit_count(p))
+    size = kept_size(p)
     kept = np.zeros(size)
     states, read = [y.copy()], []
     nq = int(p[mb.H_NQ])
