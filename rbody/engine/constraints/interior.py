@@ -44,7 +44,8 @@ CENTRING_STEPS = 60        # Newton steps at most per t
 CENTRING_STALL = 3         # Newton steps that do not halve the least decrement so far end a centring,
 ROUNDING_DECREMENT = 1e-12  # where the decrement is below this of |q| (q's rounding, not the damped phase)
 TO_BOUNDARY = 0.99         # a Newton step goes at most this share of the way to the nearest bound
-SNAP_LEVELS = (1e-2, 1e-3, 1e-4, 1e-5, 1e-6)  # the `near` of the states read from the barrier's impulses
+SNAP_LEVELS = (1e-2, 1e-3, 1e-4)  # the `near` of the states read from the barrier's impulses (1e-5 and 1e-6 too
+                                  # until 2026-11-30: where the first three miss, Newton's method finishes as well)
 POLISH_ROUNDS = 4
 TRY_BELOW = 1e-12          # interior_finish reads the states once, after the first centring below this weight (of
                            # the scale): on the captured landing problems, readings further down were no better
