@@ -198,13 +198,19 @@ class ConstraintTable:
     section: np.ndarray | None = None
     events_refused: str = ""  # why the event-driven scheme (rk4) does not run these constraints, if it does not
 
-    @property
+    @cached_property
     def rows(self) -> int:
+        """The rows of every unit (found once: a quadruped's file has 8,152 units)."""
         return sum(unit.rows for unit in self.units)
 
     def labels(self) -> list[tuple[str, str, int]]:
-        """(kind, name, component) of every row, in row order: the columns of the constraint_force observable."""
-        return [(unit.kind, unit.name, k) for unit in self.units for k in range(unit.rows)]
+        """(kind, name, component) of every row, in row order: the columns of the constraint_force observable (a
+        new list of the labels found once: a run's meta gives them, and a robot's file has tens of thousands)."""
+        return list(self._labels)
+
+    @cached_property
+    def _labels(self) -> tuple[tuple[str, str, int], ...]:
+        return tuple((unit.kind, unit.name, k) for unit in self.units for k in range(unit.rows))
 
     def row(self, params: np.ndarray) -> np.ndarray:
         """The tree's params row (p,), with its force-element section or without one (the empty section is then

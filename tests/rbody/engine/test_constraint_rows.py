@@ -169,3 +169,16 @@ def test_exact_and_gauss_seidel_solve_the_mixed_complementarity_problem(seed):
     sweeps, residual = mlcp_pgs(W, b, lo, hi, gs, 1e-11, 200000)
     assert residual <= 1e-11
     np.testing.assert_allclose(W @ gs + b, w, rtol=0, atol=1e-7 * (1 + np.abs(b).max()))
+
+
+def test_the_row_labels_are_found_once_and_handed_out_anew():
+    """The table's labels (a run's meta["constraint_rows"]) and row count are found once: each call hands out a new
+    list with a label per row, each unit's rows in order, so that a caller's change to one list leaves the next."""
+    layout = constrained_tree(np.random.default_rng(0))
+    table = build_table(layout, Multibody(layout))
+    first = table.labels()
+    expected = [(unit.kind, unit.name, k) for unit in table.units for k in range(unit.rows)]
+    assert first == expected and len(first) == table.rows == sum(unit.rows for unit in table.units)
+    first.append(("weld", "changed", 0))
+    first[0] = ("limit", "changed", 0)
+    assert table.labels() == expected and table.labels() is not table.labels()
