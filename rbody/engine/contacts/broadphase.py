@@ -163,14 +163,14 @@ def kept_size(p):
     """The length of what a step keeps for the next (stepping.moreau_step's end_geometry): the contacts' geometry
     (rows.kept_geometry_size), then the broad phase's neighbour list (neighbours_size). Both hold for the geoms of p
     as they were: a caller that changes a geom's size, pose or margin in p starts from a new one (zeros)."""
-    return kept_geometry_size(int(p[H_NQ]), int(p[block_offset(p) + C_UNITS])) + neighbours_size(p)
+    return _neighbours_from(p) + neighbours_size(p)
 
 
 @njit(cache=True, inline="always")
 def kept_neighbours(p, kept):
     """The neighbour list within a step's kept memory (kept_size): a view of its tail; empty where kept holds the
     geometry only (pair_reaches then bounds every pair)."""
-    start = kept_geometry_size(int(p[H_NQ]), int(p[block_offset(p) + C_UNITS]))
+    start = _neighbours_from(p)
     if kept.shape[0] < start + neighbours_size(p):
         return kept[:0]
     return kept[start:start + neighbours_size(p)]
@@ -267,6 +267,12 @@ def pair_reaches(p, w, h, reach, motion, neighbours):
         for i in range(geom_count(p)):
             for e in range(3):
                 neighbours[N_CENTRES + 3 * i + e] = spheres[i, e]
+
+
+@njit(cache=True, inline="always")
+def _neighbours_from(p):
+    """Where the neighbour list starts in a step's kept memory: after the kept geometry (rows.kept_geometry_size)."""
+    return kept_geometry_size(int(p[H_NQ]), int(p[block_offset(p) + C_UNITS]))
 
 
 @njit(cache=True, inline="always")
