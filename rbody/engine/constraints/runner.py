@@ -40,7 +40,7 @@ def sample_rows(table: ConstraintTable, params: np.ndarray, samples: np.ndarray,
     errors = np.empty((samples.shape[0], table.rows))
     qacc = np.empty(nv)
     q = np.empty(nq)
-    codes = np.repeat(table.codes, [unit.rows for unit in table.units])  # each row's unit's
+    codes = np.repeat(table.codes, table.unit_rows)  # each row's unit's
     from rbody.engine.multibody import _effective_qpos
 
     from rbody.engine.constraints.table import C_HEADER, U_SLIP, UNIT_SIZE
@@ -59,9 +59,9 @@ def sample_rows(table: ConstraintTable, params: np.ndarray, samples: np.ndarray,
     limits = np.isin(codes, UNILATERAL)
     errors[:, limits] = np.minimum(errors[:, limits], 0.0)
     errors[:, np.isin(codes, FRICTION_KINDS)] = 0.0
-    normals = np.array([unit.code in CONTACT_KINDS for unit in table.units], dtype=bool)
+    normals = table.of_kinds(CONTACT_KINDS)
     if normals.any():  # a contact's normal row: its penetration min(g, 0); its tangent rows 0
-        first = np.array([unit.row0 for unit in table.units])[normals]
+        first = table.first_rows[normals]
         contact_rows = np.isin(codes, CONTACT_KINDS)
         kept = errors[:, first]
         errors[:, contact_rows] = 0.0
@@ -152,9 +152,8 @@ def run_constrained(description: str, model, method: str, dt: float, nsteps: int
 
         data.update(contact_observables(table, params, out, rows_force, contact_units, pushing))
     meta = {"events": len(events["time"]), "impacts": impacts, "mode_changes": changes,
-            "constraint_rows": table.labels(), "limits": [table.units[k].name for k in limits],
-            "frictions": [table.units[k].name for k in frictions],
-            "contacts": [table.units[k].name for k in contact_units],
+            "constraint_rows": table.labels(), "limits": table.names(limits), "frictions": table.names(frictions),
+            "contacts": table.names(contact_units),
             "scheme": SCHEMES.get(method, "event-driven (rk4 between events)")}
     arrays = {"time": np.array(events["time"], dtype=float), "element": np.array(events["element"], dtype=int),
               "what": np.array(events["what"], dtype=str), "constraints": np.array(events["constraints"], dtype=str),

@@ -712,21 +712,20 @@ class MoreauRun:
             raise SimulationError(f"scene {self.description}: method {self.method!r} with dt={dt}: at t={failed * dt:.9g} s, "
                                   f"constraints {names}: {what}; residual {residual:.3g}")
         self.forces = StepForces(starts, rows, values, self.table.rows, dt)
-        units = self.table.units
-        modes = np.zeros((count, len(units)), dtype=np.int8)  # small integers (a hand's 3,954 units over 10 s)
+        table = self.table
+        modes = np.zeros((count, len(table.units)), dtype=np.int8)  # small integers (a hand's 3,954 units over 10 s)
         # stops and contacts: held (1) where their first row pushes, read from the nonzeros alone
-        first_of = np.full(self.table.rows, -1, dtype=np.int64)
-        first_of[self.table.first_rows] = np.arange(len(units))
-        unit_of = first_of[rows]
-        stops = self.table.of_kinds(UNILATERAL + CONTACT_KINDS)
-        frictions = self.table.of_kinds(FRICTION_KINDS)
+        unit_of = table.unit_of_first_row[rows]
+        stops = table.of_kinds(UNILATERAL + CONTACT_KINDS)
+        frictions = table.of_kinds(FRICTION_KINDS)
         pushes = (unit_of >= 0) & (values > 0)
         pushes[pushes] = stops[unit_of[pushes]]
         modes[self.forces.sample_of[pushes], unit_of[pushes]] = 1
-        for k in np.flatnonzero(frictions):  # sticking (0) inside the bound, else sliding against the impulse
-            value = self.forces.columns([units[k].row0], impulses=True)[:, 0]
-            bound = unit_bound(self.p, self.table, k) * dt
-            modes[:, k] = np.where(np.abs(value) < bound * (1 - 1e-9), 0.0, -np.sign(value))
+        sliding = np.flatnonzero(frictions)  # sticking (0) inside the bound, else sliding against the impulse
+        if sliding.size:
+            value = self.forces.columns(table.first_rows[sliding], impulses=True)  # (S, frictions)
+            bound = np.array([unit_bound(self.p, table, k) for k in sliding]) * dt
+            modes[:, sliding] = np.where(np.abs(value) < bound * (1 - 1e-9), 0.0, -np.sign(value))
         modes[:, ~(stops | frictions)] = 1  # equalities: always held
         return out, modes
 

@@ -241,6 +241,26 @@ class ConstraintTable:
         """(units,) the row each unit's rows start at, read-only."""
         return _read_only(np.array([unit.row0 for unit in self.units], dtype=np.int64))
 
+    @cached_property
+    def unit_rows(self) -> np.ndarray:
+        """(units,) each unit's row count (a contact's condim), read-only."""
+        return _read_only(np.array([unit.rows for unit in self.units], dtype=np.int64))
+
+    @cached_property
+    def unit_of_first_row(self) -> np.ndarray:
+        """(rows,) the unit whose first row each row is, -1 for a unit's later rows, read-only."""
+        first_of = np.full(self.rows, -1, dtype=np.int64)
+        first_of[self.first_rows] = np.arange(len(self.units))
+        return _read_only(first_of)
+
+    def names(self, which: np.ndarray) -> list[str]:
+        """The names of units `which` (indices), in order (a run's meta lists its contacts': thousands)."""
+        return [self._names[k] for k in np.asarray(which, dtype=np.int64).tolist()]
+
+    @cached_property
+    def _names(self) -> tuple[str, ...]:
+        return tuple(unit.name for unit in self.units)
+
     def of_kinds(self, kinds: tuple[int, ...]) -> np.ndarray:
         """(units,) bool, read-only: True for the units whose code is one of `kinds` (e.g. FRICTION_KINDS), kept per
         kinds."""

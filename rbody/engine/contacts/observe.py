@@ -89,7 +89,7 @@ def contact_observables(table, params: np.ndarray, out: np.ndarray, rows_force, 
         return value
 
     first = table.first_rows[index]
-    counts = np.array([table.units[u].rows for u in units], dtype=np.int64)  # condim: normal, tangents, spin, rolling
+    counts = table.unit_rows[index]  # condim: normal, tangents, spin, rolling
     loads: dict = {}
 
     def load(name: str):
