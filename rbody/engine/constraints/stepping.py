@@ -129,13 +129,13 @@ def cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
     its end; then, where the interior finish below does not lower the residual, some sticking contacts made to
     slide), until the residual is 1e-3 of `tolerance`, or `sweeps` are spent, or a round within `tolerance` moves
     nothing (each after it would be the same); a start that already solves it (the last step's impulses,
-    themselves finished) is kept, after one sweep. From the INTERIOR_AFTER-th
-    round on, each round not yet at 1e-3 of `tolerance` also solves Tresca's problem from inside and finishes from
-    its states (interior_finish: where dependent rows leave Gauss-Seidel crawling along W's null space), kept where
-    that lowers the residual, the round then not counted as one that moved nothing and the next round going on
-    from there. A start that no longer solves it is first tried on its own pieces (states_newton: a robot settling
-    on its feet, the last step's sliding and sticking holding while b moves), kept where that reaches 1e-3 of
-    `tolerance`. Returns the residual."""
+    themselves finished) is kept, after one sweep. From the INTERIOR_AFTER-th round on, each round not yet at 1e-3
+    of `tolerance` also solves Tresca's problem from inside and finishes from its states (interior_finish: where
+    dependent rows leave Gauss-Seidel crawling along W's null space), kept where that lowers the residual, the
+    round then not counted as one that moved nothing and the next round going on from there. A start that no
+    longer solves it is first tried on its own pieces (states_newton: a robot settling on its feet, the last step's
+    sliding and sticking holding while b moves), kept where that reaches 1e-3 of `tolerance`. Returns the
+    residual."""
     start = -1.0  # the warm start's residual, where taken (cone_pgs's first round starts from it)
     if np.any(lam != 0.0):
         start = cone_residual(W, b, lo, hi, role, mu, lam)

@@ -182,3 +182,23 @@ def test_the_row_labels_are_found_once_and_handed_out_anew():
     first.append(("weld", "changed", 0))
     first[0] = ("limit", "changed", 0)
     assert table.labels() == expected and table.labels() is not table.labels()
+
+
+def test_the_units_maps_kept_by_the_table_agree_with_its_units():
+    """unit_rows, unit_of_first_row and names(which), found once per table for a run's observables, agree with the
+    units they are read from: each unit's row count, the unit whose first row each row is (-1 for the others), the
+    names of the units asked for, in the order asked; the arrays are read-only, the lists new each call."""
+    layout = constrained_tree(np.random.default_rng(0))
+    table = build_table(layout, Multibody(layout))
+    assert table.unit_rows.tolist() == [unit.rows for unit in table.units]
+    expected = [-1] * table.rows
+    for k, unit in enumerate(table.units):
+        expected[unit.row0] = k
+    assert table.unit_of_first_row.tolist() == expected and max(unit.rows for unit in table.units) > 1
+    which = np.arange(len(table.units))[::-2]
+    assert table.names(which) == [table.units[k].name for k in which] and table.names([]) == []
+    names = table.names(which)
+    names.append("changed")
+    assert table.names(which) == [table.units[k].name for k in which]
+    with pytest.raises(ValueError):
+        table.unit_rows[0] = 7
