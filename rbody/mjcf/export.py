@@ -764,8 +764,10 @@ def to_mjcf(scene: Scene, *, dt: float | None = None, min_inertia: float | None 
         for shape in meshes:
             if shape.kind == "hfield":
                 elevation, size, _pos = _hfield_as_mujoco(shape)
+                # elevation lists the rows from y = +size[1] down (MuJoCo's compiler reverses them): the shape's
+                # row 0, at y = -size[1], last
                 attrs = _attrs(name=shape.name, nrow=elevation.shape[0], ncol=elevation.shape[1], size=_vec(size),
-                               elevation=_vec(elevation.ravel()))
+                               elevation=_vec(elevation[::-1].ravel()))
                 out.append(f"    <hfield {attrs}/>")
                 continue
             if shape.vertices:  # the points whose convex hull collides, as MuJoCo collides a mesh: written out

@@ -581,9 +581,11 @@ class _Reader:
                 self.read_default(child, parent_name)
 
     def read_hfield(self, element: Element) -> None:
-        """A <hfield> asset: nrow x ncol elevations (elevation, row 0 at y = -size[1]; none given: all 0) normalised
-        to [0, 1] as MuJoCo's compiler does (less the least, over the range where it exceeds 1e-14), and its size
-        (sx, sy, sz, base) [m], all > 0. A height field from a file (PNG or MuJoCo's binary) is refused."""
+        """A <hfield> asset: nrow x ncol elevations (elevation; none given: all 0) normalised to [0, 1] as MuJoCo's
+        compiler does (less the least, over the range where it exceeds 1e-14), kept with row 0 at y = -size[1], and
+        its size (sx, sy, sz, base) [m], all > 0. elevation lists its rows from y = +size[1] down, as an image's
+        from its top: MuJoCo's compiler reverses them (its hfield_data's row 0 is at -size[1]). A height field
+        from a file (PNG or MuJoCo's binary) is refused."""
         self.check_attrs(element, _HFIELD_ATTRS)
         attrib = element.attrib
         if "file" in attrib:
@@ -612,7 +614,7 @@ class _Reader:
         data = data - data.min()
         if data.max() > 1e-14:
             data = data / data.max()
-        self.hfields[name] = (data.reshape(nrow, ncol), size)
+        self.hfields[name] = (data.reshape(nrow, ncol)[::-1].copy(), size)  # elevation's last row at y = -size[1]
         self.note("hfield", "height fields: world-fixed terrain, collided by its triangles' faces and convex edges "
                             "(rbody.engine.contacts.terrain)")
 

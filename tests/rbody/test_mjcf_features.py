@@ -171,7 +171,7 @@ def test_a_mesh_whose_mass_an_inertial_makes_unused_is_never_read(tmp_path, monk
 
 
 def test_a_world_fixed_height_field_is_static_terrain_and_one_on_a_body_is_refused():
-    asset = '<asset><hfield name="h" nrow="3" ncol="3" size="1 1 0.1 0.1" elevation="0 1 0 1 0 1 0 1 0"/></asset>'
+    asset = '<asset><hfield name="h" nrow="3" ncol="3" size="1 1 0.1 0.1" elevation="0 1 0 1 0 1 1 1 0"/></asset>'
     xml = f"""<mujoco>{asset}{OFF}<worldbody><geom type="hfield" hfield="h"/>
       <body pos="0 0 1"><joint/><geom size="0.1"/></body></worldbody></mujoco>"""
     model = mujoco.MjModel.from_xml_string(xml)
@@ -179,7 +179,9 @@ def test_a_world_fixed_height_field_is_static_terrain_and_one_on_a_body_is_refus
     assert any("height field" in note for note in read.notes)
     (terrain,) = read.layout.fixed
     assert terrain.kind == "hfield" and terrain.size == (1.0, 1.0, 0.1, 0.1)
-    np.testing.assert_array_equal(np.ravel(terrain.heights), model.hfield_data)  # MuJoCo's normalised data
+    # MuJoCo's normalised data, row 0 at y = -1: elevation's last row (its rows are listed from y = +1 down)
+    np.testing.assert_array_equal(np.ravel(terrain.heights), model.hfield_data)
+    np.testing.assert_array_equal(terrain.heights[0], [1.0, 1.0, 0.0])
     assert len(layout_from_mjcf(xml.replace(OFF, "")).layout.contacts) == 1  # the terrain and the body's sphere
     with pytest.raises(ValueError, match=r"line 2, <geom>: hfield geoms are not supported on a body"):
         layout_from_mjcf(f"""<mujoco>{asset}{OFF}<worldbody><body><joint/><geom size="0.1"/>

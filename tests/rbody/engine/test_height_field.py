@@ -43,13 +43,21 @@ def surface_distance(point, shape):
         for c in range(ncol - 1):
             for tri in ((V(r + 1, c), V(r, c), V(r + 1, c + 1)), (V(r, c), V(r + 1, c + 1), V(r, c + 1))):
                 best = min(best, np.linalg.norm(point - closest_on_triangle(point, *tri)))
-    # the surface's height under the point: its cell's triangle (T0 above the diagonal, T1 below), interpolated
+    return -best if point[2] < surface_height(point, shape) else best
+
+
+def surface_height(point, shape):
+    """The height [m] of the field's surface, in its frame, under point (x, y, ...): its cell's triangle (T0 above
+    the diagonal (r, c)-(r+1, c+1), T1 below), interpolated."""
+    heights = np.asarray(shape.heights)
+    nrow, ncol = heights.shape
+    sx, sy, sz, _ = shape.size
+    x, y = np.linspace(-sx, sx, ncol), np.linspace(-sy, sy, nrow)
     c = min(int((point[0] + sx) / (x[1] - x[0])), ncol - 2)
     r = min(int((point[1] + sy) / (y[1] - y[0])), nrow - 2)
     u, v = (point[0] - x[c]) / (x[1] - x[0]), (point[1] - y[r]) / (y[1] - y[0])
     z00, z01, z10, z11 = sz * heights[r, c], sz * heights[r, c + 1], sz * heights[r + 1, c], sz * heights[r + 1, c + 1]
-    height = z00 + u * (z11 - z10) + v * (z10 - z00) if v >= u else z00 + u * (z01 - z00) + v * (z11 - z01)
-    return -best if point[2] < height else best
+    return z00 + u * (z11 - z10) + v * (z10 - z00) if v >= u else z00 + u * (z01 - z00) + v * (z11 - z01)
 
 
 def closest_on_triangle(p, a, b, c):
@@ -197,7 +205,7 @@ def test_a_sphere_rolls_down_a_ramp_of_many_cells_at_five_sevenths_g_sin_alpha()
 
 FIELD_MJCF = """<mujoco>
   <asset>
-    <hfield name="bumps" nrow="3" ncol="4" size="1.5 1 0.4 0.1" elevation="2 3 2 1  3 5 3 1  2 3 2 1"/>
+    <hfield name="bumps" nrow="3" ncol="4" size="1.5 1 0.4 0.1" elevation="2 3 2 1  3 5 3 1  1 2 1 1"/>
   </asset>
   <worldbody>
     <geom name="ground" type="hfield" hfield="bumps" pos="0.1 0 -0.05"/>
@@ -216,8 +224,18 @@ def test_an_mjcf_height_field_loads_runs_and_exports_to_mujoco(tmp_path):
     scene = rbody.from_mjcf(path)
     ground = next(s for s in scene.layout.fixed if s.name == "ground")
     heights = np.asarray(ground.heights)
-    np.testing.assert_allclose(heights, (np.array([[2, 3, 2, 1], [3, 5, 3, 1], [2, 3, 2, 1]]) - 1) / 4, atol=0)
+    # elevation lists its rows from y = +1 down, as MuJoCo's compiler reads them: row 0 (y = -1) is its last
+    np.testing.assert_allclose(heights, (np.array([[1, 2, 1, 1], [3, 5, 3, 1], [2, 3, 2, 1]]) - 1) / 4, atol=0)
     assert ground.pos == (0.1, 0.0, -0.05)
+    # the same surface as MuJoCo's: a ray cast straight down onto its field meets rbody's triangles' height
+    model = mujoco.MjModel.from_xml_path(str(path))
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    ball = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "ball")
+    for x, y in ((-1.2, -0.7), (-0.4, 0.8), (0.5, -0.3), (1.3, 0.6), (0.0, -0.9), (0.0, 0.9)):
+        distance = mujoco.mj_ray(model, data, np.array([0.1 + x, y, 5.0]), np.array([0.0, 0.0, -1.0]), None, 1, ball,
+                                 np.zeros(1, np.int32))
+        assert abs((5.0 - distance) - (-0.05 + surface_height((x, y), ground))) <= 1e-6  # single precision
     run = rbody.simulate(scene, dt=2e-3, t_end=0.6, progress=False)
     # it lands on the bump and rolls off it: never into the surface, on it from the landing
     gaps = np.array([field_candidates(ground, "sphere", centre, I3, (0.1,))[0].min()
