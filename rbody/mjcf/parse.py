@@ -48,7 +48,8 @@ equal MuJoCo's body_mass, body_ipos and body_inertia/body_iquat to round-off):
   (disable: g = 0), spring and damper (disable: the joints' and tendons' stiffness or damping become 0),
   actuation (disable: actuators apply no force), clampctrl (disable: controls are not clamped), each noted;
 - ``<keyframe>``: qpos, qvel, act and ctrl of a key chosen by name or index (``keyframe=``);
-- a world-fixed height field (<hfield> with nrow, ncol, size and elevation; not from a file), as a "hfield" Shape
+- a world-fixed height field (<hfield> with nrow, ncol, size and elevation, or from a PNG or binary file read by
+  MuJoCo's compiler), as a "hfield" Shape
   that collides (rbody.engine.contacts.terrain);
 - one rbody Body per MJCF body, with its name (an unnamed body is called ``body<id>``, id as MuJoCo's;
   unnamed joints ``<body>_joint<i>``, geoms ``<body>_geom<i>``), except that a body with neither mass
@@ -581,28 +582,34 @@ class _Reader:
                 self.read_default(child, parent_name)
 
     def read_hfield(self, element: Element) -> None:
-        """A <hfield> asset: nrow x ncol elevations (elevation; none given: all 0) normalised to [0, 1] as MuJoCo's
-        compiler does (less the least, over the range where it exceeds 1e-14), kept with row 0 at y = -size[1], and
-        its size (sx, sy, sz, base) [m], all > 0. elevation lists its rows from y = +size[1] down, as an image's
-        from its top: MuJoCo's compiler reverses them (its hfield_data's row 0 is at -size[1]). A height field
-        from a file (PNG or MuJoCo's binary) is refused."""
+        """A <hfield> asset: nrow x ncol elevations (elevation, or a file; none given: all 0) normalised to [0, 1]
+        as MuJoCo's compiler does (less the least, over the range where it exceeds 1e-14), kept with row 0 at y =
+        -size[1], and its size (sx, sy, sz, base) [m], all > 0. elevation lists its rows from y = +size[1] down, as
+        an image's from its top: MuJoCo's compiler reverses them (its hfield_data's row 0 is at -size[1]). A file
+        (a PNG or MuJoCo's binary, found in meshdir as MuJoCo looks for it) is read by MuJoCo's compiler itself
+        (_hfield_file)."""
         self.check_attrs(element, _HFIELD_ATTRS)
         attrib = element.attrib
-        if "file" in attrib:
-            raise element.error(f"file={attrib['file']!r}: height fields from files are not read; give nrow, ncol "
-                                "and elevation")
         name = attrib.get("name")
         if not name:
             raise element.error("a <hfield> needs a name")
         if name in self.hfields:
             raise element.error(f"two height fields are called {name!r}")
-        nrow, ncol = integer(element, "nrow", attrib, 0), integer(element, "ncol", attrib, 0)
-        if nrow < 2 or ncol < 2:
-            raise element.error(f"nrow={nrow}, ncol={ncol}: a height field needs at least 2 of each")
         size = numbers(element, "size", attrib, 4) if "size" in attrib else np.zeros(4)
         if not np.all(size > 0):
             raise element.error(f"size={attrib.get('size', '')!r}: a height field needs 4 sizes > 0 (MuJoCo: size "
                                 "parameter is not positive in hfield)")
+        if "file" in attrib:
+            if "elevation" in attrib:
+                raise element.error(f"file={attrib['file']!r} and elevation: give one of them")
+            heights = self._hfield_file(element, attrib)
+            self.hfields[name] = (heights, size)
+            self.note("hfield", "height fields: world-fixed terrain, collided by its triangles' faces and convex "
+                                "edges (rbody.engine.contacts.terrain)")
+            return
+        nrow, ncol = integer(element, "nrow", attrib, 0), integer(element, "ncol", attrib, 0)
+        if nrow < 2 or ncol < 2:
+            raise element.error(f"nrow={nrow}, ncol={ncol}: a height field needs at least 2 of each")
         if "elevation" in attrib:
             data = numbers(element, "elevation", attrib)
             if data.size != nrow * ncol:
@@ -617,6 +624,35 @@ class _Reader:
         self.hfields[name] = (data.reshape(nrow, ncol)[::-1].copy(), size)  # elevation's last row at y = -size[1]
         self.note("hfield", "height fields: world-fixed terrain, collided by its triangles' faces and convex edges "
                             "(rbody.engine.contacts.terrain)")
+
+    def _hfield_file(self, element: Element, attrib: dict) -> np.ndarray:
+        """The elevations (nrow, ncol) in [0, 1], row 0 at y = -size[1], of a <hfield>'s file as MuJoCo's compiler
+        reads and normalises them (a PNG's rows from its top at y = +size[1], its pixels' grey levels; MuJoCo's
+        binary: int32 nrow, int32 ncol, then nrow x ncol float32 from y = -size[1]): the asset alone compiled by
+        MuJoCo, whose reading is then the same to the bit. A missing file, or one MuJoCo cannot read, is refused
+        naming it."""
+        import mujoco
+        from xml.sax.saxutils import quoteattr
+
+        file = os.path.basename(attrib["file"]) if self.strippath else attrib["file"]
+        path = (self.meshdir / file).resolve()
+        if not path.is_file():
+            raise element.error(f"height field file {str(path)!r} does not exist")
+        given = {key: attrib[key] for key in ("content_type", "nrow", "ncol") if key in attrib}
+        attrs = " ".join(f"{key}={quoteattr(value)}" for key, value in {**given, "file": str(path)}.items())
+        xml = (f'<mujoco><asset><hfield name="field" size="1 1 1 1" {attrs}/></asset><worldbody>'
+               '<geom type="hfield" hfield="field"/></worldbody></mujoco>')
+        try:
+            model = mujoco.MjModel.from_xml_string(xml)
+        except ValueError as error:
+            message = str(error).splitlines()[0].removeprefix("Error: ")
+            raise element.error(f"height field file {str(path)!r}: MuJoCo's compiler cannot read it ({message})") \
+                from None
+        nrow, ncol = int(model.hfield_nrow[0]), int(model.hfield_ncol[0])
+        if nrow < 2 or ncol < 2:
+            raise element.error(f"height field file {str(path)!r} holds {nrow} x {ncol} elevations: a height "
+                                "field needs at least 2 of each")
+        return np.array(model.hfield_data, dtype=float).reshape(nrow, ncol)
 
     def read_assets(self, element: Element) -> None:
         self.check_attrs(element, set())

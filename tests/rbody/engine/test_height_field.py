@@ -217,6 +217,22 @@ FIELD_MJCF = """<mujoco>
 </mujoco>"""
 
 
+def assert_surface_is_mujocos(mujoco, path, ground):
+    """A ray cast straight down onto the field of the model at path, in MuJoCo, meets rbody's triangles' height
+    (the field's shape `ground`, placed without rotation), to MuJoCo's single precision, at points over every
+    quarter of the field."""
+    model = mujoco.MjModel.from_xml_path(str(path))
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    ball = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "ball")
+    sx, sy = ground.size[:2]
+    for u, v in ((-0.8, -0.7), (-0.27, 0.8), (0.33, -0.3), (0.87, 0.6), (0.0, -0.9), (0.0, 0.9)):
+        x, y = u * sx, v * sy
+        start = np.array([ground.pos[0] + x, ground.pos[1] + y, 5.0])
+        distance = mujoco.mj_ray(model, data, start, np.array([0.0, 0.0, -1.0]), None, 1, ball, np.zeros(1, np.int32))
+        assert abs((5.0 - distance) - (ground.pos[2] + surface_height((x, y), ground))) <= 1e-6 * ground.size[2]
+
+
 def test_an_mjcf_height_field_loads_runs_and_exports_to_mujoco(tmp_path):
     mujoco = pytest.importorskip("mujoco")
     path = tmp_path / "field.xml"
@@ -227,15 +243,7 @@ def test_an_mjcf_height_field_loads_runs_and_exports_to_mujoco(tmp_path):
     # elevation lists its rows from y = +1 down, as MuJoCo's compiler reads them: row 0 (y = -1) is its last
     np.testing.assert_allclose(heights, (np.array([[1, 2, 1, 1], [3, 5, 3, 1], [2, 3, 2, 1]]) - 1) / 4, atol=0)
     assert ground.pos == (0.1, 0.0, -0.05)
-    # the same surface as MuJoCo's: a ray cast straight down onto its field meets rbody's triangles' height
-    model = mujoco.MjModel.from_xml_path(str(path))
-    data = mujoco.MjData(model)
-    mujoco.mj_forward(model, data)
-    ball = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "ball")
-    for x, y in ((-1.2, -0.7), (-0.4, 0.8), (0.5, -0.3), (1.3, 0.6), (0.0, -0.9), (0.0, 0.9)):
-        distance = mujoco.mj_ray(model, data, np.array([0.1 + x, y, 5.0]), np.array([0.0, 0.0, -1.0]), None, 1, ball,
-                                 np.zeros(1, np.int32))
-        assert abs((5.0 - distance) - (-0.05 + surface_height((x, y), ground))) <= 1e-6  # single precision
+    assert_surface_is_mujocos(mujoco, path, ground)
     run = rbody.simulate(scene, dt=2e-3, t_end=0.6, progress=False)
     # it lands on the bump and rolls off it: never into the surface, on it from the landing
     gaps = np.array([field_candidates(ground, "sphere", centre, I3, (0.1,))[0].min()
@@ -249,6 +257,52 @@ def test_an_mjcf_height_field_loads_runs_and_exports_to_mujoco(tmp_path):
     low = heights.min()
     np.testing.assert_allclose(low * ground.size[2] + data * model.hfield_size[0, 2], heights * ground.size[2],
                                atol=1e-7)  # MuJoCo's single precision
+
+
+FILE_MJCF = """<mujoco>
+  <compiler meshdir="terrain"/>
+  <asset>
+    <hfield name="field" file="{file}" size="1.5 1 0.4 0.1"/>
+  </asset>
+  <worldbody>
+    <geom name="ground" type="hfield" hfield="field" pos="0.1 0 -0.05"/>
+    <body name="ball" pos="0.2 0.1 0.8">
+      <freejoint/>
+      <geom name="ball" type="sphere" size="0.1" mass="1"/>
+    </body>
+  </worldbody>
+</mujoco>"""
+
+
+@pytest.mark.parametrize("kind", ["png", "bin"])
+def test_a_height_field_from_a_file_is_read_as_mujoco_reads_it(tmp_path, kind):
+    """A <hfield file=...> in meshdir, a PNG (its rows from its top at y = +size[1], its grey levels) or MuJoCo's
+    binary (int32 nrow, ncol, float32 elevations from y = -size[1]), neither symmetric: rbody's heights are MuJoCo's
+    hfield_data to the bit, its surface MuJoCo's, and a ball dropped on it lands without entering it."""
+    mujoco = pytest.importorskip("mujoco")
+    rows = np.array([[0, 40, 80, 120, 90], [30, 200, 250, 60, 20], [10, 70, 150, 100, 0], [0, 0, 60, 30, 10]])
+    (tmp_path / "terrain").mkdir()
+    if kind == "png":
+        import matplotlib.image
+
+        matplotlib.image.imsave(tmp_path / "terrain" / "field.png", rows.astype(np.uint8), cmap="gray", vmin=0,
+                                vmax=255)
+    else:
+        with open(tmp_path / "terrain" / "field.bin", "wb") as out:
+            np.array(rows.shape, dtype=np.int32).tofile(out)
+            rows.astype(np.float32).tofile(out)
+    path = tmp_path / "field.xml"
+    path.write_text(FILE_MJCF.format(file=f"field.{kind}"))
+    scene = rbody.from_mjcf(path)
+    ground = next(s for s in scene.layout.fixed if s.name == "ground")
+    model = mujoco.MjModel.from_xml_path(str(path))
+    np.testing.assert_array_equal(np.asarray(ground.heights), np.asarray(model.hfield_data).reshape(rows.shape))
+    # the row at y = -1: the binary's first, the PNG's last (its top row lies at +y)
+    np.testing.assert_allclose(np.asarray(ground.heights)[0], rows[0 if kind == "bin" else -1] / rows.max(), atol=1e-6)
+    assert_surface_is_mujocos(mujoco, path, ground)
+    run = rbody.simulate(scene, dt=2e-3, t_end=0.5, progress=False)
+    gaps = np.array([field_candidates(ground, "sphere", centre, I3, (0.1,))[0].min() for centre in run["ball.com"]])
+    assert gaps.min() >= -1e-12 and gaps[-1] <= 1e-12  # it lands, never into the surface
 
 
 def test_bad_height_fields_are_refused(tmp_path):
@@ -268,7 +322,10 @@ def test_bad_height_fields_are_refused(tmp_path):
                     contacts=(Contact("ground", "b"),))
     with pytest.raises(ValueError, match="spans up to .* cells of height field 'ground'"):
         rbody.simulate(Scene.from_layout(layout, t_end=0.01), dt=1e-3)
-    for text, match in (('file="terrain.png"', "from files are not read"),
+    (tmp_path / "broken.png").write_bytes(b"not a PNG")
+    for text, match in (('file="terrain.png" size="1 1 1 1"', "height field file .*terrain.png' does not exist"),
+                        ('file="broken.png" size="1 1 1 1"', "broken.png': MuJoCo's compiler cannot read it"),
+                        ('file="broken.png" size="1 1 1 1" elevation="1 2 3 4"', "give one of them"),
                         ('nrow="3" ncol="3" size="1 1 1 1" elevation="1 2"', "must match nrow\\*ncol"),
                         ('nrow="3" ncol="3" size="1 1 0 1"', "4 sizes > 0")):
         path = tmp_path / "bad.xml"
