@@ -259,19 +259,10 @@ def test_an_mjcf_height_field_loads_runs_and_exports_to_mujoco(tmp_path):
                                atol=1e-7)  # MuJoCo's single precision
 
 
-FILE_MJCF = """<mujoco>
-  <compiler meshdir="terrain"/>
-  <asset>
-    <hfield name="field" file="{file}" size="1.5 1 0.4 0.1"/>
-  </asset>
-  <worldbody>
-    <geom name="ground" type="hfield" hfield="field" pos="0.1 0 -0.05"/>
-    <body name="ball" pos="0.2 0.1 0.8">
-      <freejoint/>
-      <geom name="ball" type="sphere" size="0.1" mass="1"/>
-    </body>
-  </worldbody>
-</mujoco>"""
+# FIELD_MJCF's scene on a field read from a file in meshdir
+FILE_MJCF = FIELD_MJCF.replace("<mujoco>", '<mujoco>\n  <compiler meshdir="terrain"/>').replace(
+    '<hfield name="bumps" nrow="3" ncol="4" size="1.5 1 0.4 0.1" elevation="2 3 2 1  3 5 3 1  1 2 1 1"/>',
+    '<hfield name="bumps" file="{file}" size="1.5 1 0.4 0.1"/>')
 
 
 @pytest.mark.parametrize("kind", ["png", "bin"])
