@@ -264,6 +264,27 @@ class MJCFModel:
     ctrl0: np.ndarray = field(default_factory=lambda: np.zeros(0))
 
 
+def _hfield_elevation(element: Element, attrib: dict) -> np.ndarray:
+    """A <hfield>'s nrow x ncol elevations given in the XML (elevation; none given: all 0), normalised to [0, 1] as
+    MuJoCo's compiler does (less the least, over the range where it exceeds 1e-14), with row 0 at y = -size[1]:
+    elevation lists its rows from y = +size[1] down, and MuJoCo's compiler reverses them."""
+    nrow, ncol = integer(element, "nrow", attrib, 0), integer(element, "ncol", attrib, 0)
+    if nrow < 2 or ncol < 2:
+        raise element.error(f"nrow={nrow}, ncol={ncol}: a height field needs at least 2 of each")
+    if "elevation" in attrib:
+        data = numbers(element, "elevation", attrib)
+        if data.size != nrow * ncol:
+            raise element.error(f"elevation has {data.size} numbers: nrow x ncol = {nrow * ncol} expected "
+                                "(MuJoCo: elevation data length must match nrow*ncol)")
+        data = data.astype(np.float32).astype(float)  # MuJoCo keeps them as floats
+    else:
+        data = np.zeros(nrow * ncol)
+    data = data - data.min()
+    if data.max() > 1e-14:
+        data = data / data.max()
+    return data.reshape(nrow, ncol)[::-1].copy()  # elevation's last row at y = -size[1]
+
+
 class _Reader:
     def __init__(self, root: Element, folder: Path | None, overlapping_geoms: str):
         self.root = root
@@ -582,12 +603,9 @@ class _Reader:
                 self.read_default(child, parent_name)
 
     def read_hfield(self, element: Element) -> None:
-        """A <hfield> asset: nrow x ncol elevations (elevation, or a file; none given: all 0) normalised to [0, 1]
-        as MuJoCo's compiler does (less the least, over the range where it exceeds 1e-14), kept with row 0 at y =
-        -size[1], and its size (sx, sy, sz, base) [m], all > 0. elevation lists its rows from y = +size[1] down, as
-        an image's from its top: MuJoCo's compiler reverses them (its hfield_data's row 0 is at -size[1]). A file
-        (a PNG or MuJoCo's binary, found in meshdir as MuJoCo looks for it) is read by MuJoCo's compiler itself
-        (_hfield_file)."""
+        """A <hfield> asset: its elevations in [0, 1] as MuJoCo's compiler keeps them, row 0 at y = -size[1] (given
+        in the XML: _hfield_elevation; a PNG or MuJoCo's binary file, found in meshdir as MuJoCo looks for it:
+        _hfield_file), and its size (sx, sy, sz, base) [m], all > 0."""
         self.check_attrs(element, _HFIELD_ATTRS)
         attrib = element.attrib
         name = attrib.get("name")
@@ -603,25 +621,9 @@ class _Reader:
             if "elevation" in attrib:
                 raise element.error(f"file={attrib['file']!r} and elevation: give one of them")
             heights = self._hfield_file(element, attrib)
-            self.hfields[name] = (heights, size)
-            self.note("hfield", "height fields: world-fixed terrain, collided by its triangles' faces and convex "
-                                "edges (rbody.engine.contacts.terrain)")
-            return
-        nrow, ncol = integer(element, "nrow", attrib, 0), integer(element, "ncol", attrib, 0)
-        if nrow < 2 or ncol < 2:
-            raise element.error(f"nrow={nrow}, ncol={ncol}: a height field needs at least 2 of each")
-        if "elevation" in attrib:
-            data = numbers(element, "elevation", attrib)
-            if data.size != nrow * ncol:
-                raise element.error(f"elevation has {data.size} numbers: nrow x ncol = {nrow * ncol} expected "
-                                    "(MuJoCo: elevation data length must match nrow*ncol)")
-            data = data.astype(np.float32).astype(float)  # MuJoCo keeps them as floats
         else:
-            data = np.zeros(nrow * ncol)
-        data = data - data.min()
-        if data.max() > 1e-14:
-            data = data / data.max()
-        self.hfields[name] = (data.reshape(nrow, ncol)[::-1].copy(), size)  # elevation's last row at y = -size[1]
+            heights = _hfield_elevation(element, attrib)
+        self.hfields[name] = (heights, size)
         self.note("hfield", "height fields: world-fixed terrain, collided by its triangles' faces and convex edges "
                             "(rbody.engine.contacts.terrain)")
 
