@@ -627,6 +627,16 @@ class _Reader:
         self.note("hfield", "height fields: world-fixed terrain, collided by its triangles' faces and convex edges "
                             "(rbody.engine.contacts.terrain)")
 
+    def asset_file(self, element: Element, file: str, kind: str) -> Path:
+        """The absolute path of a mesh's or height field's `file` (kind names it), where MuJoCo looks for it: in
+        meshdir, its folders stripped under strippath; a file that does not exist is refused naming it."""
+        if self.strippath:
+            file = os.path.basename(file)
+        path = (self.meshdir / file).resolve()
+        if not path.is_file():
+            raise element.error(f"{kind} file {str(path)!r} does not exist")
+        return path
+
     def _hfield_file(self, element: Element, attrib: dict) -> np.ndarray:
         """The elevations (nrow, ncol) in [0, 1], row 0 at y = -size[1], of a <hfield>'s file as MuJoCo's compiler
         reads and normalises them (a PNG's rows from its top at y = +size[1], its pixels' grey levels; MuJoCo's
@@ -636,10 +646,7 @@ class _Reader:
         import mujoco
         from xml.sax.saxutils import quoteattr
 
-        file = os.path.basename(attrib["file"]) if self.strippath else attrib["file"]
-        path = (self.meshdir / file).resolve()
-        if not path.is_file():
-            raise element.error(f"height field file {str(path)!r} does not exist")
+        path = self.asset_file(element, attrib["file"], "height field")
         given = {key: attrib[key] for key in ("content_type", "nrow", "ncol") if key in attrib}
         attrs = " ".join(f"{key}={quoteattr(value)}" for key, value in {**given, "file": str(path)}.items())
         xml = (f'<mujoco><asset><hfield name="field" size="1 1 1 1" {attrs}/></asset><worldbody>'
@@ -989,12 +996,7 @@ class _Reader:
             raise element.error("a <mesh> needs a file or its vertices (vertex)")
         if "builtin" in attrib:
             raise element.error("builtin meshes are not supported")
-        file = attrib["file"]
-        if self.strippath:
-            file = os.path.basename(file)
-        path = (self.meshdir / file).resolve()
-        if not path.is_file():
-            raise element.error(f"mesh file {str(path)!r} does not exist")
+        path = self.asset_file(element, attrib["file"], "mesh")
         self.mesh_paths[name] = str(path)
         return str(path)
 
