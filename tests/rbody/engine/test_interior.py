@@ -43,22 +43,70 @@ def test_the_states_are_read_once_on_the_way_down():
     further centring (each reading costs as much as two centrings, and on a landing quadruped, its radii from
     Gauss-Seidel's first round, the readings further down the path missed too): the path goes on to its end
     unchanged. Where they meet it (the solution's own radii), the path is left at that first reading."""
-    from rbody.engine.constraints.interior import _barrier_path
+    from rbody.engine.constraints.interior import _central_path
 
     p = SLIDING
     args = (p["W"], p["b"], p["lo"], p["hi"], p["role"], p["mu"])
     normals = sliding_solution()
-    full, full_steps, _early, readings = _barrier_path(*args, normals, 0.0, np.zeros(3), False)
+    full, full_steps, _early, readings = _central_path(*args, normals, 0.0, np.zeros(3), False)
     assert readings == 0
     lam = np.zeros(3)
-    inside, steps, early, readings = _barrier_path(*args, normals, -1.0, lam, True)
+    inside, steps, early, readings = _central_path(*args, normals, -1.0, lam, True)
     assert readings == 1 and early == np.inf
     assert steps == full_steps
     np.testing.assert_array_equal(inside, full)
-    inside, steps, early, readings = _barrier_path(*args, normals, 1e-15, lam, True)
+    inside, steps, early, readings = _central_path(*args, normals, 1e-15, lam, True)
     assert readings == 1 and early <= 1e-15
     assert steps < full_steps  # left before the last centrings
     np.testing.assert_allclose(lam, sliding_solution(), rtol=1e-15, atol=1e-16)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3, 4])
+def test_the_central_path_is_followed_by_primal_dual_steps(seed):
+    """Tresca's problem down its central path to a gap of 1e-18 of its scale: the sliding contact (seed 0) and the
+    crawls of test_cone_drift from 50 sweeps (seeds 1 to 4) in at most 40 Newton steps (17, 24, 30, 29 and 31), where
+    the log barrier's centrings (t shrunk 50 times between two) took 52, 66, 57, 67 and 68; and the end is Tresca's
+    solution: the sliding contact's closed form, and for each its natural map at 0."""
+    if seed == 0:
+        p = SLIDING
+        W, b, lo, hi, role, mu = p["W"], p["b"], p["lo"], p["hi"], p["role"], p["mu"]
+        normals = sliding_solution()
+    else:
+        W, b, lo, hi = crawling_problem(seed)
+        role, mu = ROLES, MU
+        lam = np.zeros(8)
+        cone_pgs(W, b, lo, hi, role, mu, lam, 0.0, 50)
+        normals = lam
+    inside, steps = tresca_barrier(W, b, lo, hi, role, mu, normals.copy())
+    assert 0 < steps <= 40
+    if seed == 0:
+        np.testing.assert_allclose(inside, sliding_solution(), rtol=1e-9, atol=1e-12)
+    radius = friction_radii(role, mu, normals)
+    for i, r in enumerate(role):  # inside every set (a disc's slack as the barrier takes it: within t / |w| of 0)
+        if r == SPIN:
+            assert abs(inside[i]) < radius[i]
+        elif r in (TANGENT, ROLL):
+            assert radius[i] * radius[i] - inside[i] * inside[i] - inside[i + 1] * inside[i + 1] > 0.0
+        elif np.isfinite(lo[i]):
+            assert inside[i] > lo[i]
+    np.testing.assert_allclose(tresca_natural_map(W, b, lo, hi, role, radius, inside), 0.0, atol=1e-9)
+
+
+def tresca_natural_map(W, b, lo, hi, role, radius, lam):
+    """lam - P_K(lam - (W lam + b)), K the boxes and half-lines, the intervals [-r, r] and the discs of radius r
+    (Tresca's law): 0 exactly at Tresca's solution."""
+    z = lam - (W @ lam + b)
+    projected = z.copy()
+    for i, r in enumerate(role):
+        if r in (ROW, NORMAL):
+            projected[i] = np.clip(z[i], lo[i], hi[i])
+        elif r == SPIN:
+            projected[i] = np.clip(z[i], -radius[i], radius[i])
+        elif r in (TANGENT, ROLL):
+            length = np.hypot(z[i], z[i + 1])
+            if length > radius[i]:
+                projected[i:i + 2] = z[i:i + 2] * (radius[i] / length if radius[i] > 0.0 else 0.0)
+    return lam - projected
 
 
 def test_friction_radii_follow_the_normals():
@@ -123,3 +171,15 @@ def test_a_residual_of_impulses_that_are_not_finite_is_infinite():
     p = SLIDING
     lam = np.array([np.nan, 0.0, 0.0])
     assert cone_residual(p["W"], p["b"], p["lo"], p["hi"], p["role"], p["mu"], lam) == np.inf
+
+
+def test_a_box_of_width_zero_has_no_path_and_is_still_finished():
+    """A row boxed in [0.5, 0.5] has no inside: the path is not followed (no division by its zero slack), and the
+    states read from the start solve the problem: the row on its bound, the normal lambda_n = -b_n / W_nn."""
+    W, b = np.diag([2.0, 3.0]), np.array([0.4, -1.5])
+    role, mu = np.array([ROW, NORMAL]), np.zeros(2)
+    lo, hi = np.array([0.5, 0.0]), np.array([0.5, np.inf])
+    lam = np.zeros(2)
+    residual = interior_finish(W, b, lo, hi, role, mu, lam.copy(), lam, 0.0)
+    assert residual <= 1e-15
+    np.testing.assert_allclose(lam, [0.5, 0.5], rtol=1e-15)
