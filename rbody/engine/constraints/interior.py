@@ -1,4 +1,4 @@
-"""The step's problem with Coulomb cones approached from inside: Tresca's problem along its central path, then the states.
+"""The step's problem with Coulomb cones approached from inside: Tresca's problem down its central path, then states.
 
 Where rows are dependent (a quadruped standing on four condim 6 feet with dry friction in its twelve joints: 36 rows
 of rank 18), Gauss-Seidel (rbody.engine.constraints.cone) settles in tens of sweeps on the velocities but then

@@ -12,7 +12,8 @@ candidate's slot, e.g. "floor/box[3]" for a box's fourth corner), geoms in MuJoC
                                                feature is flat (a plane, a box's face, a cylinder's cap), else
                                                midway between the surfaces (MuJoCo's con.pos is midway: the two
                                                differ by half the distance, 0 at touch)
-    contact_normal (T, *batch, k, 3)           its unit normal, from geom a towards geom b, world frame
+    contact_normal (T, *batch, k, 3)           its unit normal, from geom a towards geom b, world frame; point
+                                               and normal NaN where contact_distance is +inf
     contact_normal_force (T, *batch, k) [N]    the force geom a exerts on geom b along the normal (>= 0)
     contact_friction_force (T, *batch, k, 2) [N]  the friction force on geom b along the contact frame's
                                                tangents (rbody.engine.contacts.geometry.tangents); 0 for condim 1
@@ -31,6 +32,7 @@ from numba import njit
 
 from rbody.engine.constraints import dynamics as dyn
 from rbody.engine.constraints.jacobians import row_count, unit_at
+from rbody.engine.contacts.geometry import APART
 from rbody.engine.contacts.rows import GEOMETRY_WORK, candidate, pair_candidates
 from rbody.engine.constraints.table import U_DOF
 from rbody.engine.multibody import H_BODIES, _effective_qpos, workspace_size
@@ -61,6 +63,9 @@ def contact_frames(p, y, units, dist, point, normal):
             pair_candidates(p, w, u, work)
             pair = units[i] - k
         dist[i] = candidate(work, k, normal[i], point[i])
+        if dist[i] == APART:  # not a contact point: the pair's work holds nothing of it (was left unwritten there)
+            point[i, :] = np.nan
+            normal[i, :] = np.nan
 
 
 def contact_observables(table, params: np.ndarray, out: np.ndarray, rows_force, units: np.ndarray,

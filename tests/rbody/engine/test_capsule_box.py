@@ -256,3 +256,24 @@ def test_slide_polish_finds_the_sliding_solution_the_stick_states_miss():
     assert cone_solve(W, b, lo, hi, role, mu, scheduled, 1e-10, 2000) <= 1e-13
     w = b + W @ scheduled
     assert scheduled[4] == pytest.approx(mu[4] * scheduled[3], rel=1e-12) and w[4] < 0
+
+
+def test_a_slot_that_is_not_a_contact_point_has_no_point_or_normal(tmp_path):
+    """A capsule tilted 5 degrees above a box, its lower end 1 mm from the face: slot 0 (the axis's closest point,
+    here that end) is APART, and its point and normal are NaN, not whatever the pair's work held before (they were
+    left unwritten, and differed from run to run); the other slots' are the ends' points on the face."""
+    path = tmp_path / "rod.xml"
+    path.write_text("""<mujoco><option timestep="0.002"/><worldbody>
+<geom name="table" type="box" size="0.5 0.5 0.05" pos="0 0 -0.05"/>
+<body name="rod" pos="0 0 0.0297" euler="0 85 0"><freejoint/><geom name="rod" type="capsule" size="0.02 0.1"/></body>
+</worldbody></mujoco>""")
+    scene = rbody.from_mjcf(path, t_end=0.02)
+    run = rbody.simulate(scene, dt=scene.timestep, method=scene.file_method)
+    dist, point, normal = run["contact_distance"], run["contact_point"], run["contact_normal"]
+    apart = dist == APART
+    assert apart[:, 0].all() and not apart[:, 1:].any()
+    assert np.isnan(point[apart]).all() and np.isnan(normal[apart]).all()
+    assert np.isfinite(point[~apart]).all()
+    down = np.broadcast_to([0.0, 0.0, -1.0], normal[~apart].shape)  # from geom a (the rod) towards b (the table)
+    np.testing.assert_allclose(normal[~apart], down, atol=1e-9)
+    np.testing.assert_allclose(np.abs(point[0, 1:, 0]), 0.1 * np.cos(np.radians(5)), rtol=1e-9)
