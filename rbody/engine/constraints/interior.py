@@ -17,9 +17,10 @@ u_k (-f_k) = t. A primal-dual interior point follows it (Boyd and Vandenberghe, 
 step on those equations in (lambda, u), t aimed at the duality gap -f.u over GAP_SHRINK K at every step, the step
 kept inside K with u > 0 and backtracked on the equations' residual. On the 45 interior finishes met in four
 captured quadruped suites it took 970 Newton steps where the log barrier's centrings (t shrunk 50 times between
-two, each centred by Newton's method on q - t sum log) took 2,950 (2026-11-30). The barrier's Hessian makes every Newton system definite,
-and on the path the rows free to move on the solution set (the null space's crawl) are at its centre, not
-wherever Gauss-Seidel stopped, and a row that the solution holds at its bound is within t / |w| of it. The
+two, each centred by Newton's method on q - t sum log) took 2,950 (2026-11-30). The barrier's Hessian makes every
+Newton system definite, and on the path the rows free to move on the solution set (the null space's crawl) are at
+its centre, not wherever Gauss-Seidel stopped, and a row that the solution holds at its bound is within t / |w| of
+it. The
 primal-dual iterates only follow the path within a neighbourhood (a long step leaves some pairs u_k (-f_k) far
 from t), so where the states are read the iterate is first centred by the barrier's Newton steps at t = gap / K
 (_centre: a few steps). Its normal impulses are the next lambda_n^0 (the fixed point is Coulomb's problem:

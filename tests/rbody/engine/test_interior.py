@@ -39,10 +39,11 @@ def test_the_barrier_reaches_a_sliding_contact_and_the_finish_makes_it_exact():
 
 
 def test_the_states_are_read_once_on_the_way_down():
-    """Where the states read early miss the goal (here a goal no reading meets), they are read once, not after each
-    further centring (each reading costs as much as two centrings, and on a landing quadruped, its radii from
-    Gauss-Seidel's first round, the readings further down the path missed too): the path goes on to its end
-    unchanged. Where they meet it (the solution's own radii), the path is left at that first reading."""
+    """Where the states read early miss the goal (here a goal no reading meets), they are read once, not again
+    further down the path (on a landing quadruped, its radii from Gauss-Seidel's first round, the readings further
+    down missed too): the path goes on to its end unchanged (the iterate is centred where the gap first falls below
+    TRY_BELOW whether or not it is read). Where they meet it (the solution's own radii), the path is left at that
+    first reading."""
     from rbody.engine.constraints.interior import _central_path
 
     p = SLIDING
@@ -57,7 +58,7 @@ def test_the_states_are_read_once_on_the_way_down():
     np.testing.assert_array_equal(inside, full)
     inside, steps, early, readings = _central_path(*args, normals, 1e-15, lam, True)
     assert readings == 1 and early <= 1e-15
-    assert steps < full_steps  # left before the last centrings
+    assert steps < full_steps  # left before the path's last steps
     np.testing.assert_allclose(lam, sliding_solution(), rtol=1e-15, atol=1e-16)
 
 
