@@ -148,14 +148,65 @@ class MeshMass:
         """(moments (3,) per unit density, quat (4,)): the mesh frame MuJoCo moves the mesh to."""
         return mujoco_principal(self.tensor, MESH_EIG_RTOL)
 
+    def inertia_box(self) -> list[float]:
+        """Half sizes [m] of MuJoCo's equivalent inertia box (boxsz): the box of the mesh's volume and principal
+        moments I, along its principal axes, 0.5 sqrt(6 (I_j + I_k - I_i) / V)."""
+        eig = self.principal()[0]
+        return [0.5 * math.sqrt(6 * (eig[1] + eig[2] - eig[0]) / self.volume),
+                0.5 * math.sqrt(6 * (eig[0] + eig[2] - eig[1]) / self.volume),
+                0.5 * math.sqrt(6 * (eig[0] + eig[1] - eig[2]) / self.volume)]
+
     def moments(self, mass: float) -> np.ndarray:
         """(3,) principal moments [kg m^2] of the mesh with `mass`, by MuJoCo's equivalent inertia box."""
-        eig = self.principal()[0]
-        box = [0.5 * math.sqrt(6 * (eig[1] + eig[2] - eig[0]) / self.volume),
-               0.5 * math.sqrt(6 * (eig[0] + eig[2] - eig[1]) / self.volume),
-               0.5 * math.sqrt(6 * (eig[0] + eig[1] - eig[2]) / self.volume)]
+        box = self.inertia_box()
         return np.array([mass * (box[1] ** 2 + box[2] ** 2) / 3, mass * (box[0] ** 2 + box[2] ** 2) / 3,
                          mass * (box[0] ** 2 + box[1] ** 2) / 3])
+
+    def principal_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """(centre (3,), half sizes (3,)) [m] of the vertices' axis-aligned box in the mesh's principal frame (the
+        frame principal() gives, at com): MuJoCo's aamm."""
+        rotation = quat_matrix(self.principal()[1])
+        local = (self.vertices - self.com) @ rotation      # each row R^T (v - com)
+        low, high = local.min(axis=0), local.max(axis=0)
+        centre = (low + high) / 2
+        return centre, high - centre
+
+
+FITTED_KINDS = ("sphere", "capsule", "cylinder", "ellipsoid", "box")
+
+
+def fitted_size(kind: str, mesh: MeshMass, aabb: bool, fitscale: float) -> tuple[np.ndarray, np.ndarray]:
+    """MuJoCo's primitive fitted to a mesh (mjCMesh::FitGeom): (size (3,) [m], centre (3,) [m] of the primitive in
+    the mesh's principal frame).
+
+    aabb False (compiler fitaabb="false", MuJoCo's default): from the equivalent inertia box b, centred at the
+    centre of mass: a sphere of radius (b0 + b1 + b2)/3, a capsule of radius r = (b0 + b1)/2 and half length
+    max(0, b2 - r/2), a cylinder (b0 + b1)/2 and b2, a box or an ellipsoid b. aabb True: the smallest primitive whose
+    own box holds the vertices' box a in the principal frame, centred on it: a sphere max(a), a cylinder max(a0, a1)
+    and a2, a capsule the same with its cap taken off the length, a box or an ellipsoid a. Every size times fitscale.
+    """
+    if kind not in FITTED_KINDS:
+        raise ValueError(f"a {kind} cannot be fitted to a mesh: MuJoCo fits a {', '.join(FITTED_KINDS)}")
+    size, centre = np.zeros(3), np.zeros(3)
+    if not aabb:
+        box = mesh.inertia_box()
+        if kind == "sphere":
+            size[0] = (box[0] + box[1] + box[2]) / 3
+        elif kind in ("capsule", "cylinder"):
+            size[0] = (box[0] + box[1]) / 2
+            size[1] = max(0.0, box[2] - size[0] / 2) if kind == "capsule" else box[2]
+        else:
+            size[:] = box
+    else:
+        centre, half = mesh.principal_bounds()
+        if kind == "sphere":
+            size[0] = max(half)
+        elif kind in ("capsule", "cylinder"):
+            size[0] = max(half[0], half[1])
+            size[1] = half[2] - size[0] if kind == "capsule" else half[2]
+        else:
+            size[:] = half
+    return size * fitscale, centre
 
 
 def _triangles(vertices: np.ndarray, faces: np.ndarray):

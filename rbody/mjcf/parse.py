@@ -13,8 +13,8 @@ equal MuJoCo's body_mass, body_ipos and body_inertia/body_iquat to round-off):
 - ``<include file>`` (relative to the including file), ``<default>`` classes (nested, inherited), ``class``
   and ``childclass``;
 - ``<compiler>``: angle (degree, MJCF's default, or radian), eulerseq, inertiafromgeom (true, false,
-  auto), inertiagrouprange, autolimits, meshdir, assetdir, strippath; balanceinertia only where no body
-  needs it;
+  auto), inertiagrouprange, autolimits, meshdir, assetdir, strippath, fitaabb; balanceinertia only where no
+  body needs it;
 - frames: pos and every orientation (quat, axisangle, euler, xyaxes, zaxis; at most one per element),
   geom ``fromto``;
 - ``<inertial>``: pos, orientation, mass, diaginertia or fullinertia;
@@ -24,6 +24,9 @@ equal MuJoCo's body_mass, body_ipos and body_inertia/body_iquat to round-off):
   legacy (MuJoCo's default), exact, convex or shell; vertices are rounded to float32 as MuJoCo does;
   meshdir/assetdir relative to the model file's folder (the working folder for an XML string); the Shape
   holds the mesh file's absolute path (a scale applies to the mass properties only, noted);
+- a primitive given a mesh (type sphere, capsule, cylinder, ellipsoid or box with mesh=): fitted to the mesh as
+  MuJoCo fits it (geoms.fitted_size: the equivalent inertia box, or with fitaabb the vertices' box; fitscale),
+  placed in the mesh's principal frame; from then on it is that primitive (mass, contacts);
 - principal axes as MuJoCo's compiler finds them (its Jacobi solver, geoms.mujoco_principal): for a body
   of several geoms, a fullinertia or a mesh, MuJoCo's compiled tensor can differ from the exact one by
   more than round-off (a small rotation left undone); rbody takes MuJoCo's, noting any difference
@@ -123,8 +126,8 @@ from rbody.mjcf.constraints import (EQUALITY_ATTRS, Frames, equality_from, equal
                                     restitution_of, softness_note, unknown_restitutions)
 from rbody.mjcf.grammar import ATTRIBUTES, CHILDLESS, NUMERIC, UNIQUE_CHILDREN, check_value
 from rbody.mjcf.frames import MJ_EPS, frame_to_quat, normalize, quat_matrix, quat_product, z_to_quat
-from rbody.mjcf.geoms import (MESH_INERTIA_MODES, GeomMass, MeshMass, mesh_mass, mujoco_principal, primitive_moments,
-                              primitive_volume, principal_tensor, sum_geoms)
+from rbody.mjcf.geoms import (MESH_INERTIA_MODES, GeomMass, MeshMass, fitted_size, mesh_mass, mujoco_principal,
+                              primitive_moments, primitive_volume, principal_tensor, sum_geoms)
 from rbody.layout import WORLD, Body, Joint, Layout, Shape
 from rbody.mjcf import actuators as mjcf_actuators
 from rbody.scene import TreeScene
@@ -488,6 +491,7 @@ class _Reader:
             self.group_range = (low, high)
         self.autolimits = boolean(where, "autolimits", attrib, True)
         self.balanceinertia = boolean(where, "balanceinertia", attrib, False)
+        self.fitaabb = boolean(where, "fitaabb", attrib, False)  # a fitted primitive: by the mesh's box, not inertia
         self.strippath = boolean(where, "strippath", attrib, False)
         base = self.folder if self.folder is not None else Path.cwd()
         assetdir = attrib.get("assetdir", "")
@@ -855,6 +859,9 @@ class _Reader:
         else:
             size, pos, quat, fluidshape = self.primitive_shape(element, attrib, kind)
             mesh = attrib.get("mesh")
+            if mesh is not None and kind != "mesh":  # MuJoCo fits the primitive to the mesh and forgets the mesh
+                size, pos, quat = self.fitted_shape(element, attrib, kind, mesh, pos, quat)
+                mesh = None
         if any(key in attrib for key in ("rgba", "material")):
             self.note("appearance", "geoms' appearance (rgba, material) ignored")
         if frame is not None:
@@ -887,10 +894,14 @@ class _Reader:
         if fluidshape == "ellipsoid" and kind in ("mesh", "plane"):
             raise element.error(f'fluidshape="ellipsoid" on a {kind} geom (MuJoCo sizes its ellipsoid from the '
                                 "geom's size, which rbody does not form for meshes and planes) is not modelled")
-        if "mesh" in attrib and kind != "mesh":
-            raise element.error(f"a {kind} fitted to a mesh is not supported: use type=\"mesh\" or give its size")
         fromto = numbers(element, "fromto", attrib, 6) if "fromto" in attrib else None
-        if kind == "mesh":
+        fitted = "mesh" in attrib and kind != "mesh"
+        if fitted and (kind == "plane" or fromto is not None):
+            raise element.error(f"a {kind} fitted to a mesh" + (" cannot have fromto (MuJoCo: fromto cannot be used "
+                                                               "with mesh geom)" if kind != "plane" else
+                                                               ": MuJoCo fits a sphere, capsule, cylinder, ellipsoid "
+                                                               "or box"))
+        if kind == "mesh" or fitted:  # a fitted primitive's size comes from its mesh (fitted_shape)
             size = np.zeros(3)
         else:
             size = numbers(element, "size", attrib, (1, 2, 3)) if "size" in attrib else np.zeros(0)
@@ -923,9 +934,28 @@ class _Reader:
             quat = z_to_quat(vector)
         else:
             quat = self.orientation(element, attrib)
-        if kind != "plane" and kind != "mesh" and np.any(size[:_SIZES[kind]] <= 0):
+        if kind != "plane" and kind != "mesh" and not fitted and np.any(size[:_SIZES[kind]] <= 0):
             raise element.error(f"size={attrib.get('size', '')!r}: a {kind} needs sizes > 0")
         return size, pos, quat, fluidshape
+
+    def fitted_shape(self, element: Element, attrib: dict, kind: str, mesh: str, pos: np.ndarray,
+                     quat: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(size (3,) [m], pos (3,) [m], quat (4,)) of a primitive that MuJoCo fits to mesh asset `mesh` (a geom with
+        both a primitive type and mesh=): sized by fitted_size (compiler fitaabb, the geom's fitscale), placed in the
+        mesh's principal frame as MuJoCo moves a mesh geom there. Its mass and contacts are then the primitive's."""
+        if mesh not in self.meshes:
+            raise element.error(f"mesh={mesh!r} is not a <mesh> asset of the model")
+        fitscale = number(element, "fitscale", attrib, 1.0)
+        if not fitscale > 0:
+            raise element.error(f"fitscale={fitscale!r}: must be > 0 (the fitted {kind}'s sizes are scaled by it)")
+        fit = self.mesh_named(mesh)
+        size, centre = fitted_size(kind, fit, self.fitaabb, fitscale)
+        if np.any(size[:_SIZES[kind]] <= 0):
+            raise element.error(f"the {kind} fitted to mesh {mesh!r} has size {size[:_SIZES[kind]].tolist()}: MuJoCo "
+                                f"needs sizes > 0 (size must be positive in geom); use another type or fitscale")
+        axes = fit.principal()[1]
+        rotation = quat_matrix(quat)
+        return size, pos + rotation @ (fit.com + quat_matrix(axes) @ centre), quat_product(quat, axes)
 
     # ----- other sections -----
 
@@ -1001,7 +1031,10 @@ class _Reader:
         return str(path)
 
     def mesh_of(self, geom: _Geom) -> MeshMass:
-        name = geom.mesh
+        return self.mesh_named(geom.mesh)
+
+    def mesh_named(self, name: str) -> MeshMass:
+        """The mass properties (per unit density) of mesh asset `name`, read once."""
         if name in self.mesh_cache:
             return self.mesh_cache[name]
         file = self.mesh_path(name)

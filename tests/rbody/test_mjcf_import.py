@@ -241,6 +241,74 @@ def test_meshdir_is_relative_to_the_model_file(tmp_path):
     assert_same_bodies(read, mujoco.MjModel.from_xml_path(str(main)))
 
 
+# a cloud of points with no symmetry: its principal frame is turned and offset from the file's
+CLOUD = np.random.default_rng(3).normal(size=(30, 3)) * [0.3, 0.15, 0.08] + [0.1, -0.2, 0.05]
+
+
+def fitted_xml(kind: str, fitaabb: str, extra: str = 'fitscale="1.2"', vertices: np.ndarray = CLOUD) -> str:
+    vert = " ".join(f"{v:.6f}" for v in vertices.ravel())
+    return f"""<mujoco><compiler fitaabb="{fitaabb}"/>{OFF}
+    <asset><mesh name="m" vertex="{vert}" scale="1 1.5 1" refquat="0.9 0.1 0.3 0"/></asset><worldbody>
+    <body name="b" pos="0 0 1"><joint/><geom name="g" type="{kind}" mesh="m" pos="0.1 0.2 0" euler="10 20 30" {extra}/>
+    </body></worldbody></mujoco>"""
+
+
+@pytest.mark.parametrize("fitaabb", ["false", "true"])
+@pytest.mark.parametrize("kind", ["sphere", "capsule", "cylinder", "ellipsoid", "box"])
+def test_a_primitive_fitted_to_a_mesh_is_mujocos(kind, fitaabb):
+    """A geom with a primitive type and mesh= is the primitive MuJoCo fits to the mesh (by its equivalent inertia
+    box, or with fitaabb by its vertices' box in its principal frame; times fitscale): the same size, pose, mass and
+    inertia as MuJoCo's compiled geom and body, to round-off."""
+    read, model = check(fitted_xml(kind, fitaabb))
+    shape = read.layout.bodies[0].shapes[0]
+    assert shape.kind == kind and shape.mesh is None and shape.vertices == ()
+    np.testing.assert_allclose(shape.size, model.geom_size[0][:len(shape.size)], rtol=1e-14, atol=0)
+    np.testing.assert_allclose(shape.pos, model.geom_pos[0], rtol=0, atol=1e-15)
+    assert abs(abs(np.dot(shape.quat, model.geom_quat[0])) - 1) < 1e-14
+    unscaled = layout_from_mjcf(fitted_xml(kind, fitaabb, extra="")).layout.bodies[0].shapes[0]
+    np.testing.assert_allclose(np.array(shape.size), 1.2 * np.array(unscaled.size), rtol=1e-15)
+
+
+def test_a_fitted_sphere_rests_on_the_floor_at_its_fitted_radius():
+    """The fitted primitive is what collides: a sphere fitted to a cube's vertices by their box (fitaabb) is the
+    cube's half width in radius, and dropped on a floor it rests there, its centre that high above it."""
+    cube = np.array([[x, y, z] for x in (-0.1, 0.1) for y in (-0.1, 0.1) for z in (-0.1, 0.1)])
+    vert = " ".join(f"{v:g}" for v in cube.ravel())
+    xml = f"""<mujoco><compiler fitaabb="true"/><asset><mesh name="cube" vertex="{vert}"/></asset><worldbody>
+    <geom type="plane" size="1 1 0.1"/><body name="ball" pos="0 0 0.2"><freejoint/>
+    <geom type="sphere" mesh="cube"/></body></worldbody></mujoco>"""
+    import rbody
+
+    scene = rbody.from_mjcf(xml, t_end=0.5)
+    radius = scene.layout.bodies[0].shapes[0].size[0]
+    assert radius == pytest.approx(float(np.float32(0.1)), rel=1e-15)
+    run = rbody.simulate(scene, dt=2e-3)
+    height = run["ball.com"][:, 2]
+    assert height.min() >= radius - 1e-12           # never into the floor
+    assert abs(height[-1] - radius) <= 1e-12        # landed (a 0.1 m fall takes 0.14 s) and resting at its radius
+
+
+@pytest.mark.parametrize("kind, extra, match", [
+    ("capsule", 'fromto="0 0 0 0 0 1" size="0.1"', "fitted to a mesh cannot have fromto"),
+    ("plane", "", "a plane fitted to a mesh: MuJoCo fits a sphere"),
+    ("box", 'fitscale="0"', r"fitscale=0.0: must be > 0"),
+])
+def test_a_fitted_primitive_that_cannot_be_is_refused(kind, extra, match):
+    with pytest.raises(MJCFError, match=match):
+        layout_from_mjcf(fitted_xml(kind, "false", extra=extra))
+
+
+def test_a_fitted_capsule_of_no_length_is_refused_as_mujoco_refuses_it():
+    # a cube's vertices' box: a capsule of radius 0.1 whose cap takes its whole half length, 0.1 - 0.1 = 0
+    cube = " ".join(f"{v:g}" for x in (-0.1, 0.1) for y in (-0.1, 0.1) for z in (-0.1, 0.1) for v in (x, y, z))
+    xml = f"""<mujoco><compiler fitaabb="true"/><asset><mesh name="m" vertex="{cube}"/></asset><worldbody>
+    <body><joint/><geom type="capsule" mesh="m"/></body></worldbody></mujoco>"""
+    with pytest.raises(ValueError, match="size 1 must be positive"):
+        mujoco.MjModel.from_xml_string(xml)
+    with pytest.raises(MJCFError, match=r"capsule fitted to mesh 'm' has size \[0.1.*, 0.0\]: MuJoCo needs sizes > 0"):
+        layout_from_mjcf(xml)
+
+
 # ----- the exporter reads back -----------------------------------------------------------------------------
 
 @dataclasses.dataclass(frozen=True, kw_only=True)
