@@ -28,14 +28,25 @@ Every candidate is then an exact distance of a point of the geom from a feature 
 below the true distance and equals it at the touching feature. An internal prism wall never appears (MuJoCo
 collides prisms, whose side walls between cells are inside the terrain; their rigid-limit normals would be
 horizontal walls at every cell boundary). A point found twice (a corner over the edge two coplanar triangles share)
-is APART after its first slot. The field's side walls and base are not collided: a geom beside the field, below
-its rim, passes by it (MuJoCo's prisms have walls there).
+is APART after its first slot.
+
+The terrain is a solid, as MuJoCo's prisms are: under the surface down to its base (z = -base), over the rectangle
+[-sx, sx] x [-sy, sy]. Its sides are faces too, for a geom beside or under the field: the four walls (x = -+sx,
+y = -+sy; each from the base up to the rim, the surface's boundary), the base, the walls' bottom edges and the
+vertical edges at the corners. A wall's or the base's candidates are the plane's, kept where the foot lies on the
+face (a wall's up to the rim's height there) or, the core point behind the face's plane, where the core lies in
+the solid nearer that face than any other (a face's candidate above likewise: a corner at round-off inside a wall
+is not 0.2 m under the surface); the edges' as above, their wedges between a wall's outward normal and the next
+wall's or the base's. They are computed where the geom's bounding sphere reaches the wall's plane (the base's), so
+that a geom over the field's middle costs nothing more.
 
 Slots: the window of (mx + 1) x (my + 1) grid vertices from the cell under the geom's bounding circle's low corner
 (mx = floor(2 radius / dx) + 2 cells along x hold any circle of that radius; the table computes them), each vertex
 (r, c) owning the faces of cell (r, c) and its three edges (r, c)-(r, c+1), (r, c)-(r+1, c) and the diagonal, in
 the slots of its residue (r mod (my + 1), c mod (mx + 1)): a feature keeps its slots while it stays under the geom.
-Height-field pairs run by the time-stepping only (their candidates change identity as the geom moves).
+The sides' slots (side_slots) follow the window's: the four walls' and the base's faces, the four bottom edges, the
+four vertical edges. Height-field pairs run by the time-stepping only (their candidates change identity as the geom
+moves).
 
 The field's record in the params row: [nrow, ncol, sx, sy, sz, base, e (nrow ncol, row-major: e[r ncol + c])].
 """
@@ -78,7 +89,15 @@ def field_slots(kind_b: int, radius: float, dx: float, dy: float) -> tuple[int, 
     mx = int(np.floor(2.0 * radius / dx)) + 2
     my = int(np.floor(2.0 * radius / dy)) + 2
     face, edge = vertex_slots(kind_b)
-    return mx, my, (mx + 1) * (my + 1) * (2 * face + 3 * edge)
+    return mx, my, (mx + 1) * (my + 1) * (2 * face + 3 * edge) + side_slots(kind_b)
+
+
+@njit(cache=True, inline="always")
+def side_slots(kind_b):
+    """The slots after the window's for the field's sides and base (module docstring): each of the four walls' and
+    the base's plane candidates (F each), each wall's bottom edge and each vertical corner edge (E each)."""
+    face, edge = vertex_slots(kind_b)
+    return 5 * face + 8 * edge
 
 
 def bounding_radius_of(code: int, size) -> float:
@@ -197,6 +216,76 @@ def _inside(field, pf, Rf, r, c, which, x):
 
 
 @njit(cache=True)
+def _height(field, lx, ly):
+    """The surface's height [m] in the field's frame over (lx, ly) [m] (clamped to the grid's last cell): its
+    cell's triangle, T0 where v >= u, interpolated."""
+    nrow, ncol = int(field[0]), int(field[1])
+    dx, dy = 2.0 * field[2] / (ncol - 1), 2.0 * field[3] / (nrow - 1)
+    c = min(max(int(np.floor((lx + field[2]) / dx)), 0), ncol - 2)
+    r = min(max(int(np.floor((ly + field[3]) / dy)), 0), nrow - 2)
+    u, v = (lx + field[2] - c * dx) / dx, (ly + field[3] - r * dy) / dy
+    at = FIELD_HEADER + r * ncol + c
+    z00, z01, z10, z11 = field[at], field[at + 1], field[at + ncol], field[at + ncol + 1]
+    if v >= u:
+        return field[4] * (z00 + u * (z11 - z10) + v * (z10 - z00))
+    return field[4] * (z00 + u * (z01 - z00) + v * (z11 - z01))
+
+
+@njit(cache=True)
+def _local(pf, Rf, x, out):
+    """out (3,): the point x (3,) [m] in the field's frame."""
+    for a in range(3):
+        out[a] = Rf[0, a] * (x[0] - pf[0]) + Rf[1, a] * (x[1] - pf[1]) + Rf[2, a] * (x[2] - pf[2])
+
+
+@njit(cache=True)
+def _nearest_face(field, local, face):
+    """True when the point (3,) in the field's frame lies in the terrain's solid (boundaries included) and nearer
+    face `face`'s plane than any other face's (0: the surface over it; 1 to 4: the walls x = -sx, x = sx, y = -sy,
+    y = sy; 5: the base), ties included: the face a point inside the solid leaves by."""
+    depth = (_height(field, local[0], local[1]) - local[2], local[0] + field[2], field[2] - local[0],
+             local[1] + field[3], field[3] - local[1], local[2] + field[5])
+    least = min(depth)
+    return least >= 0.0 and depth[face] <= least
+
+
+@njit(cache=True)
+def _on_side(field, side, local):
+    """True when the point (3,) in the field's frame lies on side `side`'s face, read across it (0 to 3: the walls
+    x = -sx, x = sx, y = -sy, y = sy, from the base up to the rim; 4: the base, under the rectangle)."""
+    if side == 4:
+        return abs(local[0]) <= field[2] and abs(local[1]) <= field[3]
+    if local[2] < -field[5]:
+        return False
+    if side < 2:
+        x = field[2] if side == 1 else -field[2]
+        return abs(local[1]) <= field[3] and local[2] <= _height(field, x, local[1])
+    y = field[3] if side == 3 else -field[3]
+    return abs(local[0]) <= field[2] and local[2] <= _height(field, local[0], y)
+
+
+@njit(cache=True)
+def _side_normal(Rf, side, n):
+    """n (3,): the outward normal of side `side` (_on_side) in the world."""
+    for a in range(3):
+        if side == 4:
+            n[a] = -Rf[a, 2]
+        else:
+            n[a] = (1.0 if side % 2 == 1 else -1.0) * Rf[a, side // 2]
+
+
+@njit(cache=True)
+def _corner(field, pf, Rf, sign_x, sign_y, low, out):
+    """out (3,) [m]: the field's corner (sign_x sx, sign_y sy) at its base (low) or on its rim, in the world."""
+    nrow, ncol = int(field[0]), int(field[1])
+    r = nrow - 1 if sign_y > 0 else 0
+    c = ncol - 1 if sign_x > 0 else 0
+    z = -field[5] if low else field[4] * field[FIELD_HEADER + r * ncol + c]
+    for a in range(3):
+        out[a] = pf[a] + Rf[a, 0] * sign_x * field[2] + Rf[a, 1] * sign_y * field[3] + Rf[a, 2] * z
+
+
+@njit(cache=True)
 def _edge_sides(field, pf, Rf, r, c, kind, n1, n2, scratch):
     """The outward normals n1, n2 (3,) of the two faces meeting at edge `kind` of vertex (r, c) (0: to (r, c+1), 1:
     to (r+1, c), 2: the diagonal to (r+1, c+1)); the field's rim stands for a missing face, its normal horizontal
@@ -304,7 +393,9 @@ def field_window(field, pf, Rf, pb, radius):
 def field_reach(field, pf, Rf, pb, radius):
     """A lower bound [m] on the distance between the field's surface and a geom centred at pb (3,) [m] within the
     bounding radius [m]: its lowest height above the highest vertex under its footprint (window's cells), or its
-    distance beside the field's footprint (the field's sides are not collided: +inf there)."""
+    distance beside the field's footprint (+inf where its bounding sphere misses the field's rectangle: no wall is
+    within its reach; a geom beside the field below its highest vertex there has a bound <= 0, and its walls'
+    candidates are computed)."""
     r_lo, c_lo, lowest, lx, ly = field_window(field, pf, Rf, pb, radius)
     return _reach(field, radius, r_lo, c_lo, lowest, lx, ly)
 
@@ -327,6 +418,120 @@ def _reach(field, radius, r_lo, c_lo, lowest, lx, ly):
 
 
 @njit(cache=True)
+def _edge_candidates(v0, v1, n1, n2, tb, pb, Rb, sb, hb, k0, dist, normal, point, axis, centre, t1, t2, edge, esize,
+                     empty, sub_d, sub_n, sub_p):
+    """Geom b's candidates against the convex edge v0-v1 (3,) [m] whose two faces' outward normals are n1, n2, into
+    slots k0 on: the edge as a capsule of radius 0 (collide's capsule pairs), a candidate kept where its normal lies
+    in the edge's wedge or its closest point is an end (a vertex). The other arrays are scratch."""
+    length = 0.0
+    for a in range(3):
+        axis[a] = v1[a] - v0[a]
+        length += axis[a] * axis[a]
+    length = np.sqrt(length)
+    for a in range(3):
+        axis[a] /= length
+        centre[a] = 0.5 * (v0[a] + v1[a])
+    tangents(axis, t1, t2)
+    for a in range(3):
+        edge[a, 0], edge[a, 1], edge[a, 2] = t1[a], t2[a], axis[a]
+    esize[1] = 0.5 * length
+    if tb == SPHERE:  # the sphere is geom a of that pair: its normals turned
+        got = collide(SPHERE, pb, Rb, sb, hb, CAPSULE, centre, edge, esize, empty, sub_d, sub_n, sub_p, -1, np.inf)
+        for j in range(got):
+            for a in range(3):
+                sub_n[j, a] = -sub_n[j, a]
+    else:
+        got = collide(CAPSULE, centre, edge, esize, empty, tb, pb, Rb, sb, hb, sub_d, sub_n, sub_p, -1, np.inf)
+    for j in range(got):
+        if sub_d[j] == APART:
+            continue
+        # the edge's point: the stored point (midway) less half the distance along the normal
+        t = 0.0
+        for a in range(3):
+            t += (sub_p[j, a] - 0.5 * sub_d[j] * sub_n[j, a] - v0[a]) * axis[a]
+        interior = SAME < t < length - SAME
+        if interior and not _in_wedge(sub_n[j], axis, n1, n2):
+            continue
+        dist[k0 + j] = sub_d[j]
+        for a in range(3):
+            normal[k0 + j, a], point[k0 + j, a] = sub_n[j, a], sub_p[j, a]
+
+
+@njit(cache=True)
+def _side_candidates(field, pf, Rf, tb, pb, Rb, sb, hb, radius, lowest, lx, ly, k0, dist, normal, point):
+    """Geom b's candidates against the field's four walls and its base, their bottom edges and the vertical edges at
+    its corners, into the side_slots from k0 (module docstring), each where geom b's bounding sphere (radius [m];
+    lowest [m], lx, ly [m] as field_window gives them) reaches it. A face's candidate is kept where its foot lies on
+    the face, or, the core point behind the face's plane, where the core lies in the terrain's solid nearer this
+    face than any other (_nearest_face)."""
+    F, E = vertex_slots(tb)
+    reach = (lx - radius <= -field[2], lx + radius >= field[2], ly - radius <= -field[3], ly + radius >= field[3],
+             lowest <= -field[5])
+    if not (reach[0] or reach[1] or reach[2] or reach[3] or reach[4]):
+        return
+    core = sb[0] if (tb == SPHERE or tb == CAPSULE) else 0.0
+    empty = np.empty(0)
+    zero = np.zeros(3)
+    n, t1, t2, at, local = np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    n2, v0, v1, axis, centre = np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    plane, edge = np.empty((3, 3)), np.empty((3, 3))
+    esize = np.zeros(3)
+    sub_d, sub_n, sub_p = np.empty(17), np.empty((17, 3)), np.empty((17, 3))
+    for side in range(5):  # the faces: a plane each, through the side's centre (the base's: under the origin)
+        if not reach[side]:
+            continue
+        _side_normal(Rf, side, n)
+        tangents(n, t1, t2)
+        for a in range(3):
+            plane[a, 0], plane[a, 1], plane[a, 2] = t1[a], t2[a], n[a]
+            at[a] = pf[a] + (field[5] * n[a] if side == 4 else
+                             (field[2] if side < 2 else field[3]) * n[a])
+        got = collide(PLANE, at, plane, zero, empty, tb, pb, Rb, sb, hb, sub_d, sub_n, sub_p, -1, np.inf)
+        for j in range(got):
+            if sub_d[j] == APART:
+                continue
+            if sub_d[j] + core < 0.0:  # the core behind the face's plane: a contact only from inside the solid
+                for a in range(3):
+                    v0[a] = sub_p[j, a] + (sub_d[j] + core) * sub_n[j, a]
+                _local(pf, Rf, v0, local)
+                if not _nearest_face(field, local, side + 1):
+                    continue
+            else:
+                _local(pf, Rf, sub_p[j], local)
+                if not _on_side(field, side, local):
+                    continue
+            k = k0 + side * F + j
+            dist[k] = sub_d[j]
+            for a in range(3):
+                normal[k, a], point[k, a] = sub_n[j, a], sub_p[j, a]
+    for side in range(4):  # each wall's bottom edge: between it and the base
+        if not (reach[side] and reach[4]):
+            continue
+        sign = 1.0 if side % 2 == 1 else -1.0
+        if side < 2:
+            _corner(field, pf, Rf, sign, -1.0, True, v0)
+            _corner(field, pf, Rf, sign, 1.0, True, v1)
+        else:
+            _corner(field, pf, Rf, -1.0, sign, True, v0)
+            _corner(field, pf, Rf, 1.0, sign, True, v1)
+        _side_normal(Rf, side, n)
+        _side_normal(Rf, 4, n2)
+        _edge_candidates(v0, v1, n, n2, tb, pb, Rb, sb, hb, k0 + 5 * F + side * E, dist, normal, point, axis, centre,
+                         t1, t2, edge, esize, empty, sub_d, sub_n, sub_p)
+    for corner in range(4):  # the vertical edges where two walls meet, from the base to the rim
+        across, along = corner % 2, 2 + corner // 2
+        if not (reach[across] and reach[along]):
+            continue
+        sign_x, sign_y = (1.0 if across == 1 else -1.0), (1.0 if along == 3 else -1.0)
+        _corner(field, pf, Rf, sign_x, sign_y, True, v0)
+        _corner(field, pf, Rf, sign_x, sign_y, False, v1)
+        _side_normal(Rf, across, n)
+        _side_normal(Rf, along, n2)
+        _edge_candidates(v0, v1, n, n2, tb, pb, Rb, sb, hb, k0 + 5 * F + 4 * E + corner * E, dist, normal, point,
+                         axis, centre, t1, t2, edge, esize, empty, sub_d, sub_n, sub_p)
+
+
+@njit(cache=True)
 def collide_field(pf, Rf, field, tb, pb, Rb, sb, hb, radius, mx, my, dist, normal, point, beyond=np.inf):
     """The candidates of a height field (geom a: centre pf (3,) [m], axes Rf (3, 3), its record `field`) and geom b
     (type tb, pose pb, Rb, size sb, hull hb as collide takes them; radius [m] its bounding sphere's) in the window
@@ -336,7 +541,7 @@ def collide_field(pf, Rf, field, tb, pb, Rb, sb, hb, radius, mx, my, dist, norma
     F, E = vertex_slots(tb)
     core = sb[0] if (tb == SPHERE or tb == CAPSULE) else 0.0  # the radius about a face candidate's core point
     per = 2 * F + 3 * E
-    count = (mx + 1) * (my + 1) * per
+    count = (mx + 1) * (my + 1) * per + side_slots(tb)
     if count > dist.shape[0]:  # the table refuses such a pair (field_slots); never written past the arrays
         return -1
     for k in range(count):
@@ -345,7 +550,7 @@ def collide_field(pf, Rf, field, tb, pb, Rb, sb, hb, radius, mx, my, dist, norma
             normal[k, a] = Rf[a, 2]
             point[k, a] = pb[a]
     r_lo, c_lo, lowest, lx, ly = field_window(field, pf, Rf, pb, radius)
-    if r_lo < 0:  # beside the field: nothing (its sides are not collided)
+    if r_lo < 0:  # its footprint misses the field's rectangle: nothing within its reach
         return count
     bound = _reach(field, radius, r_lo, c_lo, lowest, lx, ly)
     if bound > beyond:
@@ -357,6 +562,7 @@ def collide_field(pf, Rf, field, tb, pb, Rb, sb, hb, radius, mx, my, dist, norma
     scratch = np.empty(15)
     v0, v1, v2 = np.empty(3), np.empty(3), np.empty(3)
     n1, n2, axis, centre, up = np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    local = np.empty(3)
     plane = np.empty((3, 3))
     t1, t2 = np.empty(3), np.empty(3)
     edge = np.empty((3, 3))
@@ -384,6 +590,9 @@ def collide_field(pf, Rf, field, tb, pb, Rb, sb, hb, radius, mx, my, dist, norma
                                 v1[a] = sub_p[j, a] + (sub_d[j] + core) * sub_n[j, a]  # foot (beyond a ridge)
                             if not _inside(field, pf, Rf, r, c, which, v1):
                                 continue
+                            _local(pf, Rf, v1, local)  # and in the solid, nearer the surface than its sides
+                            if not _nearest_face(field, local, 0):
+                                continue
                         elif not _inside(field, pf, Rf, r, c, which, sub_p[j]):
                             continue
                         dist[k] = sub_d[j]
@@ -399,44 +608,13 @@ def collide_field(pf, Rf, field, tb, pb, Rb, sb, hb, radius, mx, my, dist, norma
                     continue
                 _vertex(field, pf, Rf, r, c, v0)
                 _vertex(field, pf, Rf, r2, c2, v1)
-                length = 0.0
-                for a in range(3):
-                    axis[a] = v1[a] - v0[a]
-                    length += axis[a] * axis[a]
-                length = np.sqrt(length)
-                for a in range(3):
-                    axis[a] /= length
-                    centre[a] = 0.5 * (v0[a] + v1[a])
-                tangents(axis, t1, t2)
-                for a in range(3):
-                    edge[a, 0], edge[a, 1], edge[a, 2] = t1[a], t2[a], axis[a]
-                esize[1] = 0.5 * length
-                if tb == SPHERE:  # the sphere is geom a of that pair: its normals turned
-                    got = collide(SPHERE, pb, Rb, sb, hb, CAPSULE, centre, edge, esize, empty, sub_d, sub_n, sub_p,
-                                  -1, np.inf)
-                    for j in range(got):
-                        for a in range(3):
-                            sub_n[j, a] = -sub_n[j, a]
-                else:
-                    got = collide(CAPSULE, centre, edge, esize, empty, tb, pb, Rb, sb, hb, sub_d, sub_n, sub_p, -1,
-                                  np.inf)
-                for j in range(got):
-                    if sub_d[j] == APART:
-                        continue
-                    # the edge's point: the stored point (midway) less half the distance along the normal
-                    t = 0.0
-                    for a in range(3):
-                        t += (sub_p[j, a] - 0.5 * sub_d[j] * sub_n[j, a] - v0[a]) * axis[a]
-                    interior = SAME < t < length - SAME
-                    if interior and not _in_wedge(sub_n[j], axis, n1, n2):
-                        continue
-                    k = base + 2 * F + kind * E + j
-                    dist[k] = sub_d[j]
-                    for a in range(3):
-                        normal[k, a], point[k, a] = sub_n[j, a], sub_p[j, a]
+                _edge_candidates(v0, v1, n1, n2, tb, pb, Rb, sb, hb, base + 2 * F + kind * E, dist, normal, point,
+                                 axis, centre, t1, t2, edge, esize, empty, sub_d, sub_n, sub_p)
+    _side_candidates(field, pf, Rf, tb, pb, Rb, sb, hb, radius, lowest, lx, ly, (mx + 1) * (my + 1) * per, dist,
+                     normal, point)
     _drop_repeats(dist, normal, point, count)  # two coplanar faces' common edge, two edges' common end
     return count
 
 
-__all__ = ["HFIELD", "FIELD_HEADER", "FIELD_KINDS", "vertex_slots", "field_slots", "pack_field", "collide_field",
-           "field_reach", "field_candidates", "bounding_radius_of"]
+__all__ = ["HFIELD", "FIELD_HEADER", "FIELD_KINDS", "vertex_slots", "side_slots", "field_slots", "pack_field",
+           "collide_field", "field_reach", "field_candidates", "bounding_radius_of"]

@@ -106,6 +106,76 @@ def test_a_sphere_over_a_random_field_is_its_exact_distance_from_the_surface():
     assert checked > 30
 
 
+def solid_boundary(shape):
+    """The triangles (T, 3, 3) [m] of the terrain solid's closed boundary in the field's frame: the surface's, each
+    wall's two per rim segment (from the rim down to the base), the base's two."""
+    heights = np.asarray(shape.heights)
+    nrow, ncol = heights.shape
+    sx, sy, sz, base = shape.size
+    x, y = np.linspace(-sx, sx, ncol), np.linspace(-sy, sy, nrow)
+    V = lambda r, c: np.array([x[c], y[r], sz * heights[r, c]])  # noqa: E731
+    B = lambda r, c: np.array([x[c], y[r], -base])  # noqa: E731
+    triangles = []
+    for r in range(nrow - 1):
+        for c in range(ncol - 1):
+            triangles += [(V(r + 1, c), V(r, c), V(r + 1, c + 1)), (V(r, c), V(r + 1, c + 1), V(r, c + 1))]
+    rims = [[(r, 0) for r in range(nrow)], [(r, ncol - 1) for r in range(nrow)], [(0, c) for c in range(ncol)],
+            [(nrow - 1, c) for c in range(ncol)]]
+    for rim in rims:
+        for (r0, c0), (r1, c1) in zip(rim[:-1], rim[1:]):
+            triangles += [(V(r0, c0), V(r1, c1), B(r1, c1)), (V(r0, c0), B(r1, c1), B(r0, c0))]
+    triangles += [(B(0, 0), B(0, ncol - 1), B(nrow - 1, ncol - 1)), (B(0, 0), B(nrow - 1, ncol - 1), B(nrow - 1, 0))]
+    return np.array(triangles)
+
+
+def solid_distance(point, shape):
+    """Brute force: the distance [m] of point (3,) outside the terrain's solid from it (every boundary triangle's
+    closest point); None for a point inside the solid."""
+    sx, sy, _, base = shape.size
+    if abs(point[0]) <= sx and abs(point[1]) <= sy and -base <= point[2] <= surface_height(point, shape):
+        return None
+    return min(np.linalg.norm(point - closest_on_triangle(point, *tri)) for tri in solid_boundary(shape))
+
+
+def test_a_sphere_beside_or_under_a_field_is_its_exact_distance_from_the_solid():
+    """The terrain is a solid (MuJoCo's prisms, from the surface down to the base): a sphere beside the field, below
+    its rim, or under its base meets its walls, their edges and its base at their exact distance, never below it."""
+    rng = np.random.default_rng(5)
+    shape = field(rng.uniform(0, 1, size=(7, 7)), (1.0, 0.8, 0.3, 0.1))
+    checked = {"wall": 0, "base": 0}
+    for _ in range(1000):
+        r = rng.uniform(0.02, 0.12)
+        centre = np.array([rng.uniform(-1.2, 1.2), rng.uniform(-1.0, 1.0), rng.uniform(-0.3, 0.35)])
+        if abs(centre[0]) <= 1.0 and abs(centre[1]) <= 0.8 and centre[2] >= -0.1:
+            continue  # over the rectangle above the base: the surface's test above
+        truth = solid_distance(centre, shape)
+        if truth is None or truth <= r * 0.01:
+            continue
+        dist, normal, _ = field_candidates(shape, "sphere", centre, I3, (r,))
+        assert np.all(dist >= truth - r - 1e-14)  # never below the true distance
+        np.testing.assert_allclose(np.linalg.norm(normal, axis=1), 1.0, atol=1e-14)
+        if truth <= r:  # touching or overlapping: the solid's nearest point is within the sphere's reach
+            assert dist.size and dist.min() == pytest.approx(truth - r, abs=1e-14)
+            checked["base" if centre[2] < -0.1 else "wall"] += 1
+    assert checked["wall"] > 40 and checked["base"] > 10
+
+
+def test_a_box_beside_a_wall_touches_it_by_its_four_corners():
+    # a plateau 0.3 m high on a base 0.1 m deep; a 0.2 m cube 1 mm from its +x wall, below the rim: the cube's four
+    # corners facing the wall, at 1 mm, the wall's outward normal
+    plateau = field(np.ones((5, 5)), (1.0, 1.0, 0.3, 0.1))
+    dist, normal, point = field_candidates(plateau, "box", [1.0 + 0.1 + 1e-3, 0.3, 0.05], I3, (0.1, 0.1, 0.1))
+    close = dist < 0.05
+    assert close.sum() == 4
+    np.testing.assert_allclose(dist[close], 1e-3, atol=1e-15)
+    np.testing.assert_allclose(normal[close], np.tile([1.0, 0, 0], (4, 1)), atol=1e-15)
+    np.testing.assert_allclose(np.sort(point[close, 2]), [-0.05, -0.05, 0.15, 0.15], atol=1e-15)
+    # lifted above the rim it clears the wall and meets the rim's edge instead: the wall is only below the rim
+    dist, normal, _ = field_candidates(plateau, "box", [1.0 + 0.1 + 1e-3, 0.3, 0.3 + 0.1 + 1e-3], I3,
+                                       (0.1, 0.1, 0.1))
+    assert dist.min() == pytest.approx(np.sqrt(2) * 1e-3, abs=1e-15)  # the box's lower edge from the rim's edge
+
+
 def test_a_sphere_in_a_valley_touches_both_faces_and_on_a_ridge_its_edge():
     xs = np.linspace(-3, 3, 21)
     valley = field(np.tile(np.abs(xs) / 3, (21, 1)), (3.0, 3.0, 3.0, 0.1))  # faces at 45 degrees
@@ -169,6 +239,27 @@ def test_a_sphere_rests_in_a_valley_at_the_closed_form_height():
     end = run["body.com"][-1]
     assert end[2] == pytest.approx(r * np.sqrt(2), abs=1e-13)  # r / cos(45 degrees) above the valley's floor
     assert abs(end[0]) <= 1e-13
+
+
+def test_a_sphere_sliding_into_a_fields_wall_stops_at_it():
+    """A sphere sliding on a frictionless floor (restitution 0) into the side of a plateau field standing on that
+    floor: it stops at the wall at once, its centre r from it, and stays there, never into the terrain (before the
+    field's sides were faces it slid under the plateau's rim into the solid)."""
+    r, v0 = 0.1, 1.0
+    floor = Shape("floor", "plane", (0.0, 0.0))
+    plateau = field(np.ones((5, 5)), (1.0, 1.0, 0.3, 0.1), pos=(2.0, 0.0, 0.1))  # its base on the floor
+    ball = Shape("s", "sphere", (r,))
+    body = Body("body", Inertia.solid_sphere(1.0, r), shapes=(ball,), pos=(0.0, 0.0, r))
+    layout = Layout(bodies=(body,), joints=(Joint("free", "free", "body"),), fixed=(floor, plateau),
+                    contacts=(Contact("floor", "s", friction=0.0), Contact("ground", "s", friction=0.0)))
+    run = rbody.simulate(Scene.from_layout(layout, t_end=1.5, qvel0=[v0, 0, 0, 0, 0, 0]), dt=2e-3)
+    x, z = run["body.com"][:, 0], run["body.com"][:, 2]
+    wall = 2.0 - 1.0 - r
+    assert x.max() <= wall + 1e-12                      # never into the wall
+    hit = run.t >= (wall - 0.0) / v0 + 2e-3             # a step after it reaches the wall
+    np.testing.assert_allclose(x[hit], wall, rtol=0, atol=1e-12)
+    assert np.abs(run["body.velocity"][hit]).max() <= 1e-12
+    assert np.abs(z - r).max() <= 1e-14                 # on the floor throughout
 
 
 @pytest.mark.parametrize("ratio", [1 + 1e-6, 0.5])
