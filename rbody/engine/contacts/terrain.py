@@ -239,14 +239,18 @@ def _local(pf, Rf, x, out):
 
 
 @njit(cache=True)
-def _nearest_face(field, local, face):
-    """True when the point (3,) in the field's frame lies in the terrain's solid (boundaries included) and nearer
-    face `face`'s plane than any other face's (0: the surface over it; 1 to 4: the walls x = -sx, x = sx, y = -sy,
-    y = sy; 5: the base), ties included: the face a point inside the solid leaves by."""
+def _nearest_face(field, local, face, own):
+    """True when the point (3,) in the field's frame, `own` [m] behind face `face`'s plane (its plane candidate's
+    measure of it), lies within every other face of the terrain's solid (boundaries included) and no deeper behind
+    any of them: the face a point inside the solid leaves by (0: the surface over it; 1 to 4: the walls x = -sx,
+    x = sx, y = -sy, y = sy; 5: the base). The face's own depth is its candidate's, not recomputed, so that the two
+    agree at round-off (the surface's height here and its triangle's plane there can differ in the last bit)."""
     depth = (_height(field, local[0], local[1]) - local[2], local[0] + field[2], field[2] - local[0],
              local[1] + field[3], field[3] - local[1], local[2] + field[5])
-    least = min(depth)
-    return least >= 0.0 and depth[face] <= least
+    for other in range(6):
+        if other != face and (depth[other] < 0.0 or depth[other] < own):
+            return False
+    return True
 
 
 @njit(cache=True)
@@ -494,7 +498,7 @@ def _side_candidates(field, pf, Rf, tb, pb, Rb, sb, hb, radius, lowest, lx, ly, 
                 for a in range(3):
                     v0[a] = sub_p[j, a] + (sub_d[j] + core) * sub_n[j, a]
                 _local(pf, Rf, v0, local)
-                if not _nearest_face(field, local, side + 1):
+                if not _nearest_face(field, local, side + 1, -(sub_d[j] + core)):
                     continue
             else:
                 _local(pf, Rf, sub_p[j], local)
@@ -591,7 +595,7 @@ def collide_field(pf, Rf, field, tb, pb, Rb, sb, hb, radius, mx, my, dist, norma
                             if not _inside(field, pf, Rf, r, c, which, v1):
                                 continue
                             _local(pf, Rf, v1, local)  # and in the solid, nearer the surface than its sides
-                            if not _nearest_face(field, local, 0):
+                            if not _nearest_face(field, local, 0, -(sub_d[j] + core)):
                                 continue
                         elif not _inside(field, pf, Rf, r, c, which, sub_p[j]):
                             continue
