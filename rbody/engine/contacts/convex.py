@@ -37,10 +37,15 @@ sphere and a box or a cylinder by the centre's closed-form signed distance (poin
 GJK (Gilbert, Johnson and Keerthi) keeps a simplex of up to 4 points of C and its point v nearest the origin, from
 the signed-volumes sub-algorithm (Montanari, Petrinic and Barbieri, ACM ToG 2017: the origin's barycentric
 coordinates in the simplex by signed volumes and areas, computed relative to a vertex so that only the simplex's
-own size enters the round-off, and the nearest face or edge where one is not positive). Each step adds the support
-point w along -v. |v| is an upper bound on the distance and -n.s_C(n) a lower bound for any unit n (C lies beyond
-the plane through s_C(n) normal to n); with n = -v/|v| it is v.w/|v|, and the duality gap |v| - v.w/|v| ends the
-iteration:
+own size enters the round-off, and the nearest face or edge where one is not positive). Where the nearest point is
+inside a segment or a triangle, v itself is the origin's projection on its line or plane, not the weights'
+combination: the weights of a thin triangle (two support points of a curved surface close together and a far one:
+GJK's simplex near a rim or a cylinder's side) carry a round-off that the combination turns into v's direction,
+while the plane's normal, from the triangle's two shortest edges, is exact to round-off in them; a triangle is a
+sliver (plane ill-conditioned, its edges taken instead) when its largest angle's sine is below 1e-6. Each step adds
+the support point w along -v. |v| is an upper bound on the distance and -n.s_C(n) a lower bound for any unit n (C
+lies beyond the plane through s_C(n) normal to n); with n = -v/|v| it is v.w/|v|, and the duality gap
+|v| - v.w/|v| ends the iteration:
 
   - polytope pairs (points, segments, boxes, meshes: the support point is a vertex, named by its index): when w is
     already in the simplex (in exact arithmetic v is then the answer: the support points are finitely many vertices
@@ -52,38 +57,51 @@ iteration:
 Where a step does not decrease |v| (to round-off) before the gap closes: on a curved surface |v| converges
 quadratically faster than its direction, so up to STALL_STEPS such steps are taken (v still turns); the candidate
 normals of _certify are tried (v's direction made normal to the simplex's edge, the simplex triangle's normal, a
-cylinder's axis near a cap contact, whose support points are rim points and whose triangles turn into slivers),
-and the best certificate may close the gap; else GJK starts again from the last support point with a fresh simplex
-(a sliver's nearest point, or a triangle across a polytope's nearly coplanar faces, is blurred by round-off), up to
-GJK_RESTARTS times, and then reports STALLED with its gap. The same candidates pick the final normal: the one whose
+cylinder's axis near a cap contact, whose support points are rim points and whose triangles turn into slivers, and
+the normal made perpendicular to a cylinder's axis near a side contact), and the best certificate may close the
+gap; else the next support point is taken along that best normal (near a side contact, the other rim's point at
+the current angle, which -v's direction, tilted along the axis by round-off, never reaches), and after STALL_STEPS
+GJK starts again from the last support point with a fresh simplex (a sliver's nearest point, or a triangle across
+a polytope's nearly coplanar faces, is blurred by round-off), up to GJK_RESTARTS times, and then reports STALLED
+with its gap; a gap larger than |v| (the sign of the distance undecided: a thin tetrahedron's signed volumes lose
+theirs to round-off) goes to EPA instead, as does a curved pair's |v| within the curved tolerance. The same
+candidates pick the final normal: the one whose
 certificate -n.s_C(n) is largest, so that the reported gap (|v| less it) bounds the distance and the normal
 together. A gap g leaves the normal of a curved pair free by about sqrt(2 g / rho) (rho: the curvature radius of C
 where it is nearest the origin, at least the distance), about 1e-6 rad for g = 1e-12 m; for polytope pairs the
 normal is a face's, exact to round-off.
 
 When the simplex comes to hold the origin (a tetrahedron with four positive coordinates, or |v| within round-off of
-0), the geoms overlap or touch, and EPA (the expanding polytope algorithm, van den Bergen) takes the simplex, grown
-to a tetrahedron by support points across it where it is smaller, as a polytope P inside C holding the origin. Its
-face nearest the origin gives a lower bound on the depth (P lies inside C), the support along that face's normal
-an upper bound for that normal (C lies behind the plane through it); the support point is added to P (the faces it
-sees removed, the horizon's edges joined to it) until the two meet: within round-off or on a repeated vertex for
-polytope pairs, within the curved tolerance otherwise. P lives in fixed arrays, EPA_VERTICES vertices and EPA_FACES
-= 2 EPA_VERTICES faces (a closed triangulated surface of V vertices has 2V - 4 faces); running out is status
-EPA_CAPACITY, with the result of the last nearest face (a depth that is a lower bound, the gap reported): deep
-overlaps about a symmetry (coincident ellipsoids: a ring or a sphere of equally deep directions) need more vertices
-than a curved minimum does.
+0), the geoms overlap or touch (or, where GJK hands over an undecided sign, lie apart by less than its gap: P below
+may then miss the origin by that little, its nearest face one the origin lies outside, of negative offset, and the
+least offset is still the depth, negative: a distance), and EPA (the expanding polytope algorithm, van den Bergen)
+takes the simplex, grown to a tetrahedron by support points across it where it is smaller, as a polytope P inside C
+holding the origin. Its face nearest the origin gives a lower bound on the depth (P lies inside C), the support
+along that face's normal an upper bound for that normal (C lies behind the plane through it); the support point is
+added to P (the faces it sees removed, the horizon's edges joined to it) until the two meet: within round-off or on
+a repeated vertex for polytope pairs, within the curved tolerance otherwise. P lives in fixed arrays, EPA_VERTICES
+vertices and EPA_FACES = 2 EPA_VERTICES faces (a closed triangulated surface of V vertices has 2V - 4 faces);
+running out is status EPA_CAPACITY, with the result of the last nearest face (a depth that is a lower bound, the gap
+reported): deep overlaps about a symmetry (coincident ellipsoids: a ring or a sphere of equally deep directions)
+need more vertices than a curved minimum does.
 
 The result: the signed distance [m] (the distance when separated, minus the depth when overlapping), the unit normal
 from geom a towards geom b (the outward normal of C at its boundary point nearest the origin: B moved along it
 separates, or moves further away, at unit rate), and the witness points xa, xb on the two surfaces (the barycentric
 combination of the final simplex's or face's support points; where the projection falls outside the nearest face,
 the coplanar face holding it), xb - xa = dist * normal exactly (a remainder across the normal, round-off or, where a
-curved pair's normal was turned from v's direction by theta for a better certificate, |dist| theta, is split
-between the two). The optional `info` (INFO,) array receives the status (CONVERGED 0, ITERATION_LIMIT 1,
-EPA_CAPACITY 2, STALLED 3: the gap still open after the restarts, or EPA unable to grow its polytope, BAD_INPUT 4: a
-mesh without a hull, NaN returned), the iterations of GJK and of EPA, the final duality gap [m] (0 for the closed
-forms), and the hint vertices of the two geoms (read as the hill climbs' starts when >= 0, written with the last
-support vertices: a caller that keeps info from step to step warm starts both meshes).
+curved pair's normal was turned from v's direction by theta for a better certificate, |dist| theta, is moved onto
+the witness freer to move along the surface, _freedom: an edge's or a face's, or a cylinder's side or cap, rather
+than a rim's or a curved surface's, rather than a vertex's; split between two as free). A curved surface (an
+ellipsoid, a cylinder's rim) against a face whose normal the result is exactly (a box's face, a mesh's face plane, a
+cylinder's cap or side: _certify's candidates) touches at its own support point along the normal, exact, and the
+face's witness lies dist along the normal from it (_place_witnesses), where the combination of support points spread
+about the contact would put the point, a torque arm, off by up to sqrt(2 gap rho). The optional `info` (INFO,) array
+receives the status (CONVERGED 0, ITERATION_LIMIT 1, EPA_CAPACITY 2, STALLED 3: the gap still open after the
+restarts, or EPA unable to grow its polytope, BAD_INPUT 4: a mesh without a hull, NaN returned), the iterations of
+GJK and of EPA, the final duality gap [m] (0 for the closed forms), and the hint vertices of the two geoms (read as
+the hill climbs' starts when >= 0, written with the last support vertices: a caller that keeps info from step to
+step warm starts both meshes).
 
 `point_signed_distance` is closed form for spheres, capsules, boxes and cylinders, the largest excess over the face
 planes inside a mesh (exact: the nearest boundary point of an inner point is on the nearest face plane), and the
@@ -268,31 +286,47 @@ def _norm2_of(s, i, li, j, lj, k, lk):
 
 
 @njit(cache=True, **LEAF)
+def _triangle_normal(s, i, j, k):
+    """(n0, n1, n2, sliver): the triangle's normal n = (s_j - s_i) x (s_k - s_i) (|n| twice its area), computed
+    from the two edges at the vertex opposite the longest edge: the two shortest, the least round-off (a triangle
+    with one short edge, two support points of a curved surface close together, keeps a normal exact to round-off
+    in the short edge, where the long edges' product would lose it to cancellation); and whether the triangle is a
+    sliver, its largest angle's sine below 1e-6 (three points nearly on a line: the plane is ill-conditioned)."""
+    jk = (s[k, 0] - s[j, 0]) ** 2 + (s[k, 1] - s[j, 1]) ** 2 + (s[k, 2] - s[j, 2]) ** 2  # opposite i
+    ki = (s[i, 0] - s[k, 0]) ** 2 + (s[i, 1] - s[k, 1]) ** 2 + (s[i, 2] - s[k, 2]) ** 2  # opposite j
+    ij = (s[j, 0] - s[i, 0]) ** 2 + (s[j, 1] - s[i, 1]) ** 2 + (s[j, 2] - s[i, 2]) ** 2  # opposite k
+    if jk >= ki and jk >= ij:  # (s_j - s_i) x (s_k - s_i) = (s_k - s_j) x (s_i - s_j) = (s_i - s_k) x (s_j - s_k)
+        o, p, q, pp, qq = i, j, k, ij, ki
+    elif ki >= ij:
+        o, p, q, pp, qq = j, k, i, jk, ij
+    else:
+        o, p, q, pp, qq = k, i, j, ki, jk
+    a0, a1, a2 = s[p, 0] - s[o, 0], s[p, 1] - s[o, 1], s[p, 2] - s[o, 2]
+    b0, b1, b2 = s[q, 0] - s[o, 0], s[q, 1] - s[o, 1], s[q, 2] - s[o, 2]
+    n0 = a1 * b2 - a2 * b1
+    n1 = a2 * b0 - a0 * b2
+    n2 = a0 * b1 - a1 * b0
+    return n0, n1, n2, not n0 * n0 + n1 * n1 + n2 * n2 > 1e-12 * pp * qq
+
+
+@njit(cache=True, **LEAF)
 def _s2d(s, i, j, k):
     """(l_i, l_j, l_k, squared distance): the point of the triangle s[i] s[j] s[k] nearest the origin. The
-    origin's projection p = (n.s_i / n.n) n on the plane (n = e1 x e2) and its barycentric coordinates as signed
-    areas, n.((s_j - p) x (s_k - p)) / n.n and cyclic (differences of nearby points: only the triangle's size enters
-    the round-off); all positive: p; else the nearest point of the edges opposite a coordinate <= 0 (all three
-    edges when the triangle is a sliver, sin(angle) < 1e-6, whose plane is ill-conditioned)."""
-    e10, e11, e12 = s[j, 0] - s[i, 0], s[j, 1] - s[i, 1], s[j, 2] - s[i, 2]
-    e20, e21, e22 = s[k, 0] - s[i, 0], s[k, 1] - s[i, 1], s[k, 2] - s[i, 2]
-    n0 = e11 * e22 - e12 * e21
-    n1 = e12 * e20 - e10 * e22
-    n2 = e10 * e21 - e11 * e20
+    origin's projection p = (n.s_i / n.n) n on the plane (n: _triangle_normal) and its barycentric coordinates as
+    signed areas, n.((s_k - s_j) x (p - s_j)) / n.n and cyclic (each from an edge and a difference of nearby points:
+    only the triangle's size enters the round-off, and a thin triangle's short edge is used as it is, not as the
+    difference of two long ones); all positive: p; else the nearest point of the edges opposite a coordinate <= 0
+    (all three edges when the triangle is a sliver, whose plane is ill-conditioned)."""
+    n0, n1, n2, sliver = _triangle_normal(s, i, j, k)
     nn = n0 * n0 + n1 * n1 + n2 * n2
-    big = (e10 * e10 + e11 * e11 + e12 * e12) * (e20 * e20 + e21 * e21 + e22 * e22)
     li, lj, lk = -1.0, -1.0, -1.0
     best, bi, bj, bk = np.inf, 1.0, 0.0, 0.0
-    sliver = not nn > 1e-12 * big
-    if nn > 1e-30 * big and nn > 0.0:
+    if nn > 0.0:
         t = (n0 * s[i, 0] + n1 * s[i, 1] + n2 * s[i, 2]) / nn
         p0, p1, p2 = t * n0, t * n1, t * n2
-        a0, a1, a2 = s[i, 0] - p0, s[i, 1] - p1, s[i, 2] - p2
-        b0, b1, b2 = s[j, 0] - p0, s[j, 1] - p1, s[j, 2] - p2
-        c0, c1, c2 = s[k, 0] - p0, s[k, 1] - p1, s[k, 2] - p2
-        li = (n0 * (b1 * c2 - b2 * c1) + n1 * (b2 * c0 - b0 * c2) + n2 * (b0 * c1 - b1 * c0)) / nn
-        lj = (n0 * (c1 * a2 - c2 * a1) + n1 * (c2 * a0 - c0 * a2) + n2 * (c0 * a1 - c1 * a0)) / nn
-        lk = (n0 * (a1 * b2 - a2 * b1) + n1 * (a2 * b0 - a0 * b2) + n2 * (a0 * b1 - a1 * b0)) / nn
+        li = _edge_area(s, j, k, n0, n1, n2, p0, p1, p2) / nn
+        lj = _edge_area(s, k, i, n0, n1, n2, p0, p1, p2) / nn
+        lk = _edge_area(s, i, j, n0, n1, n2, p0, p1, p2) / nn
         if li > 0.0 and lj > 0.0 and lk > 0.0:
             total = li + lj + lk
             li, lj, lk = li / total, lj / total, lk / total
@@ -317,6 +351,34 @@ def _s2d(s, i, j, k):
         if d < best:
             best, bi, bj, bk = d, x, y, 0.0
     return bi, bj, bk, best
+
+
+@njit(cache=True, **LEAF)
+def _edge_area(s, j, k, n0, n1, n2, p0, p1, p2):
+    """n.((s_k - s_j) x (p - s_j)): twice the signed area of the triangle s_j s_k p (times |n|), the weight of the
+    vertex opposite the edge s_j s_k."""
+    e0, e1, e2 = s[k, 0] - s[j, 0], s[k, 1] - s[j, 1], s[k, 2] - s[j, 2]
+    q0, q1, q2 = p0 - s[j, 0], p1 - s[j, 1], p2 - s[j, 2]
+    return n0 * (e1 * q2 - e2 * q1) + n1 * (e2 * q0 - e0 * q2) + n2 * (e0 * q1 - e1 * q0)
+
+
+@njit(cache=True, **LEAF)
+def _nearest_point(s, n):
+    """(x, y, z): the point of the simplex s[0:n] (n <= 3) nearest the origin, where it lies inside the simplex
+    (every weight positive): the origin's projection on the segment's line or the triangle's plane, whose direction
+    is exact to round-off in the simplex's edges, where the weights' combination would carry their round-off (a thin
+    triangle's: the curved pair's normal turned by it); a sliver's, by its weights, is left to the caller (NaN)."""
+    if n == 1:
+        return s[0, 0], s[0, 1], s[0, 2]
+    if n == 2:
+        e0, e1, e2 = s[1, 0] - s[0, 0], s[1, 1] - s[0, 1], s[1, 2] - s[0, 2]
+        mu = -(s[0, 0] * e0 + s[0, 1] * e1 + s[0, 2] * e2) / (e0 * e0 + e1 * e1 + e2 * e2)
+        return s[0, 0] + mu * e0, s[0, 1] + mu * e1, s[0, 2] + mu * e2
+    n0, n1, n2, sliver = _triangle_normal(s, 0, 1, 2)
+    if sliver:
+        return np.nan, np.nan, np.nan
+    t = (n0 * s[0, 0] + n1 * s[0, 1] + n2 * s[0, 2]) / (n0 * n0 + n1 * n1 + n2 * n2)
+    return t * n0, t * n1, t * n2
 
 
 @njit(cache=True, **LEAF)
@@ -368,14 +430,10 @@ def _s3d(s, lam):
 
 @njit(cache=True, **LEAF)
 def _face_plane(vert, fv, planes, f):
-    """planes[f] = (n, d): the unit normal of face f (vertices fv[f], counter-clockwise seen from outside) and its
-    offset (the mean of n.v over its vertices); returns False for a face of no area."""
+    """planes[f] = (n, d): the unit normal of face f (vertices fv[f], counter-clockwise seen from outside;
+    _triangle_normal's) and its offset (the mean of n.v over its vertices); returns False for a face of no area."""
     i, j, k = fv[f, 0], fv[f, 1], fv[f, 2]
-    e10, e11, e12 = vert[j, 0] - vert[i, 0], vert[j, 1] - vert[i, 1], vert[j, 2] - vert[i, 2]
-    e20, e21, e22 = vert[k, 0] - vert[i, 0], vert[k, 1] - vert[i, 1], vert[k, 2] - vert[i, 2]
-    n0 = e11 * e22 - e12 * e21
-    n1 = e12 * e20 - e10 * e22
-    n2 = e10 * e21 - e11 * e20
+    n0, n1, n2, _sliver = _triangle_normal(vert, i, j, k)
     length = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
     if not length > 0.0:
         return False
@@ -390,13 +448,10 @@ def _face_plane(vert, fv, planes, f):
 @njit(cache=True, **LEAF)
 def _face_weights(vert, fv, f, n0, n1, n2, p0, p1, p2):
     """(l0, l1, l2): the barycentric coordinates of the point p (in face f's plane, unit normal n) in face f, as
-    signed areas n.((v_j - p) x (v_k - p)) over their sum (thirds for a face of no area)."""
+    signed areas n.((v_k - v_j) x (p - v_j)) (_edge_area) over their sum (thirds for a face of no area)."""
     l0 = l1 = l2 = 0.0
     for m in range(3):
-        b, c = fv[f, (m + 1) % 3], fv[f, (m + 2) % 3]
-        b0, b1, b2 = vert[b, 0] - p0, vert[b, 1] - p1, vert[b, 2] - p2
-        c0, c1, c2 = vert[c, 0] - p0, vert[c, 1] - p1, vert[c, 2] - p2
-        area = n0 * (b1 * c2 - b2 * c1) + n1 * (b2 * c0 - b0 * c2) + n2 * (b0 * c1 - b1 * c0)
+        area = _edge_area(vert, fv[f, (m + 1) % 3], fv[f, (m + 2) % 3], n0, n1, n2, p0, p1, p2)
         if m == 0:
             l0 = area
         elif m == 1:
@@ -410,7 +465,8 @@ def _face_weights(vert, fv, f, n0, n1, n2, p0, p1, p2):
 
 
 @njit(cache=True, **LEAF)
-def _face_result(vert, fv, planes, state, high, f, floor, normal, xa, xb):
+def _face_result(vert, vid, fv, planes, state, high, f, floor, ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, normal, xa,
+                 xb):
     """normal, xa, xb (3,): face f's normal and the witness points of the origin's projection d n on it (its
     barycentric coordinates applied to the vertices' A and B points); returns the depth d. Where the projection
     falls outside f (a tie: P's faces coplanar on a flat face of C, two boxes face to face), the witnesses are
@@ -438,10 +494,8 @@ def _face_result(vert, fv, planes, state, high, f, floor, normal, xa, xb):
             xa[a] += weight * vert[v, 3 + a]
             xb[a] += weight * vert[v, 6 + a]
     normal[0], normal[1], normal[2] = n0, n1, n2
-    for a in range(3):  # xa - xb = d n exactly: the round-off of the weights (a sliver face's), split
-        residual = 0.5 * (xa[a] - xb[a] - d * normal[a])
-        xa[a] -= residual
-        xb[a] += residual
+    _place_witnesses(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, vid, fv[face, 0], fv[face, 1], fv[face, 2], 3, -d,
+                     normal, xa, xb)  # xa - xb = d n exactly
     return d
 
 
@@ -583,7 +637,8 @@ def _epa(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, simp, ids, n, tol, polytope, bi
         for f in range(high):
             if state[f] == 1 and planes[f, 3] < lower:
                 closest, lower = f, planes[f, 3]
-        depth = _face_result(vert, fv, planes, state, high, closest, floor, normal, xa, xb)
+        depth = _face_result(vert, vid, fv, planes, state, high, closest, floor, ka, pa, Ra, sa, ha, kb, pb, Rb, sb,
+                             hb, normal, xa, xb)
         n0, n1, n2 = planes[closest, 0], planes[closest, 1], planes[closest, 2]
         big = max(big, _minkowski(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, n0, n1, n2, hints, vert, vid, nv))
         floor = ROUNDOFF * big
@@ -868,13 +923,45 @@ def _sphere_closed_form(c, r, kind, p, R, s, flip, normal, xa, xb):
 
 
 @njit(cache=True, **LEAF)
+def _mesh_face(hull, axes, d0, d1, d2, least):
+    """The index of the hull's face plane whose outward normal is nearest the world direction (d0, d1, d2) (unit),
+    where its cosine is at least `least`; -1 where none is. Every face is read (F of them)."""
+    nv, nf = int(hull[0]), int(hull[1])
+    l0 = axes[0, 0] * d0 + axes[1, 0] * d1 + axes[2, 0] * d2
+    l1 = axes[0, 1] * d0 + axes[1, 1] * d1 + axes[2, 1] * d2
+    l2 = axes[0, 2] * d0 + axes[1, 2] * d1 + axes[2, 2] * d2
+    best, face = least, -1
+    for f in range(nf):
+        k = 3 + 3 * nv + 4 * f
+        cosine = hull[k] * l0 + hull[k + 1] * l1 + hull[k + 2] * l2
+        if cosine >= best:
+            best, face = cosine, f
+    return face
+
+
+@njit(cache=True, **LEAF)
+def _face_axis(hull, axes, face):
+    """(x, y, z): the world outward normal of the hull's face plane `face`."""
+    k = 3 + 3 * int(hull[0]) + 4 * face
+    m0, m1, m2 = hull[k], hull[k + 1], hull[k + 2]
+    return (axes[0, 0] * m0 + axes[0, 1] * m1 + axes[0, 2] * m2, axes[1, 0] * m0 + axes[1, 1] * m1 + axes[1, 2] * m2,
+            axes[2, 0] * m0 + axes[2, 1] * m1 + axes[2, 2] * m2)
+
+
+@njit(cache=True, **LEAF)
 def _certify(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, simp, ids, n, n0, n1, n2, hints, normal, big, row):
     """(bound, big): the normal of separated cores, written to normal (3,), and the lower bound on their distance
     it certifies, -n.s_C(n) (C lies beyond the plane through s_C(n) normal to n: true for any unit n). Candidates:
     v's direction (n0, n1, n2), made normal to the simplex's edge when v is inside one (v's part along it is
     round-off); the simplex triangle's normal when v is inside one (exact to round-off in the triangle's size on a
     flat face of C, where v's direction is off by round-off over the distance); a cylinder's axis when the normal
-    is within 0.1 rad of it (a cap's face: its support points are rim points, whose triangles turn into slivers).
+    is within 0.1 rad of it (a cap's face: its support points are rim points, whose triangles turn into slivers),
+    and the normal made perpendicular to the axis when it is within 0.1 rad of that (the side's: along the axis
+    the side is straight, and a normal tilted along it by theta certifies theta times the half-length less); a
+    box's face axis within 0.1 rad of the normal (a face on a curved surface: C is curved there, by the other
+    geom, and no other candidate is the face's normal exactly), and against an ellipsoid or a cylinder a mesh's
+    face plane nearest the normal, within 0.1 rad (every face read: the polytope pairs, whose triangle normal is
+    already the face's, do not pay for it).
     The one certifying most wins. simp[row] is the scratch for the support points."""
     normal[0], normal[1], normal[2] = n0, n1, n2
     if n == 2:
@@ -889,27 +976,50 @@ def _certify(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, simp, ids, n, n0, n1, n2, h
     big = max(big, _minkowski(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, normal[0], normal[1], normal[2], hints, simp,
                               ids, row))
     bound = -(normal[0] * simp[row, 0] + normal[1] * simp[row, 1] + normal[2] * simp[row, 2])
-    for candidate in range(3):
+    for candidate in range(9):
         b0, b1, b2 = normal[0], normal[1], normal[2]
         c0, c1, c2 = b0, b1, b2
         if candidate == 0:
             if n != 3:
                 continue
-            e10, e11, e12 = simp[1, 0] - simp[0, 0], simp[1, 1] - simp[0, 1], simp[1, 2] - simp[0, 2]
-            e20, e21, e22 = simp[2, 0] - simp[0, 0], simp[2, 1] - simp[0, 1], simp[2, 2] - simp[0, 2]
-            c0, c1, c2 = e11 * e22 - e12 * e21, e12 * e20 - e10 * e22, e10 * e21 - e11 * e20
+            c0, c1, c2, _sliver = _triangle_normal(simp, 0, 1, 2)
+        elif candidate >= 7:  # a mesh's face plane against a curved geom, the one nearest the normal, within 0.1 rad
+            kind, axes, hull, other = (ka, Ra, ha, kb) if candidate == 7 else (kb, Rb, hb, ka)
+            if kind != MESH or not (other == ELLIPSOID or other == CYLINDER):
+                continue
+            sign = 1.0 if candidate == 7 else -1.0  # a's outward normal at the contact is +n, b's -n
+            face = _mesh_face(hull, axes, sign * b0, sign * b1, sign * b2, 0.995)
+            if face < 0:
+                continue
+            c0, c1, c2 = _face_axis(hull, axes, face)
+        elif candidate >= 5:  # a box's face axis, the one nearest the normal, within 0.1 rad of it
+            kind, axes = (ka, Ra) if candidate == 5 else (kb, Rb)
+            if kind != BOX:
+                continue
+            best = 0.0
+            for i in range(3):
+                along = axes[0, i] * b0 + axes[1, i] * b1 + axes[2, i] * b2
+                if abs(along) > abs(best):
+                    best, c0, c1, c2 = along, axes[0, i], axes[1, i], axes[2, i]
+            if abs(best) < 0.995:
+                continue
         else:
-            kind, axes = (ka, Ra) if candidate == 1 else (kb, Rb)
+            kind, axes = (ka, Ra) if candidate % 2 == 1 else (kb, Rb)
             if kind != CYLINDER:
                 continue
             c0, c1, c2 = axes[0, 2], axes[1, 2], axes[2, 2]
+            along = c0 * b0 + c1 * b1 + c2 * b2
+            if candidate <= 2:  # the cap's normal, the axis
+                if abs(along) < 0.995:
+                    continue
+            else:  # the side's: the normal less its part along the axis
+                if abs(along) > 0.1:
+                    continue
+                c0, c1, c2 = b0 - along * c0, b1 - along * c1, b2 - along * c2
         length = np.sqrt(c0 * c0 + c1 * c1 + c2 * c2)
         if not length > 0.0:
             continue
-        along = (c0 * b0 + c1 * b1 + c2 * b2) / length
-        if candidate > 0 and abs(along) < 0.995:
-            continue
-        if along < 0.0:
+        if c0 * b0 + c1 * b1 + c2 * b2 < 0.0:
             length = -length
         c0, c1, c2 = c0 / length, c1 / length, c2 / length
         big = max(big, _minkowski(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, c0, c1, c2, hints, simp, ids, row))
@@ -918,6 +1028,102 @@ def _certify(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, simp, ids, n, n0, n1, n2, h
             bound = other
             normal[0], normal[1], normal[2] = c0, c1, c2
     return bound, big
+
+
+@njit(cache=True, **LEAF)
+def _freedom(kind, axes, normal, ids, r0, r1, r2, n, side):
+    """How freely a witness on `side` (0: a, 1: b) may move across the normal and stay on its surface, from the
+    simplex's features (rows r0, r1, r2 of ids, the first n) and, for a cylinder, the normal against its axis:
+    0 on a polytope's vertex (every point the same feature: any move leaves the surface at once); 1 on a curved
+    surface (a smooth one is left only to second order; a cylinder's rim is a curved edge, left at once across it,
+    and is ranked here with the smooth ones); 2 on a polytope's edge or face (two features or more) or a cylinder's
+    side or cap (the normal within 1e-9 of perpendicular or parallel to its axis): flat along the move."""
+    if kind == CYLINDER:
+        along = abs(normal[0] * axes[0, 2] + normal[1] * axes[1, 2] + normal[2] * axes[2, 2])
+        return 2 if (along < 1e-9 or along > 1.0 - 1e-9) else 1
+    first = ids[r0, side]
+    if first < 0:
+        return 1
+    for i in range(1, n):
+        other = ids[r1 if i == 1 else r2, side]
+        if other < 0:
+            return 1
+        if other != first:
+            return 2
+    return 0
+
+
+@njit(cache=True, **LEAF)
+def _face_normal(kind, axes, hull, sign, normal):
+    """True where the normal is a flat face's of the geom to round-off (1e-12): a box's face axis, a mesh's face
+    plane's (sign * normal its outward one), a cylinder's axis (its cap) or a direction perpendicular to it (its side),
+    as _certify's candidates make them."""
+    if kind == MESH:
+        return _mesh_face(hull, axes, sign * normal[0], sign * normal[1], sign * normal[2], 1.0 - 1e-12) >= 0
+    if kind == BOX:
+        for i in range(3):
+            if abs(normal[0] * axes[0, i] + normal[1] * axes[1, i] + normal[2] * axes[2, i]) > 1.0 - 1e-12:
+                return True
+    elif kind == CYLINDER:
+        along = abs(normal[0] * axes[0, 2] + normal[1] * axes[1, 2] + normal[2] * axes[2, 2])
+        return along < 1e-12 or along > 1.0 - 1e-12
+    return False
+
+
+@njit(cache=True, **LEAF)
+def _within(kind, pos, axes, size, hull, x0, x1, x2):
+    """True where the point (x0, x1, x2) lies in the box's, the cylinder's or the mesh's hull's solid, to round-off
+    of its size."""
+    d0, d1, d2 = x0 - pos[0], x1 - pos[1], x2 - pos[2]
+    l0 = axes[0, 0] * d0 + axes[1, 0] * d1 + axes[2, 0] * d2
+    l1 = axes[0, 1] * d0 + axes[1, 1] * d1 + axes[2, 1] * d2
+    l2 = axes[0, 2] * d0 + axes[1, 2] * d1 + axes[2, 2] * d2
+    slack = 1.0 + 1e-12
+    if kind == MESH:  # inside every face plane, n.x <= d, to 1e-12 of the plane's offset (at least 1e-12 m)
+        nv = int(hull[0])
+        for f in range(int(hull[1])):
+            k = 3 + 3 * nv + 4 * f
+            if hull[k] * l0 + hull[k + 1] * l1 + hull[k + 2] * l2 > hull[k + 3] + 1e-12 * max(1.0, abs(hull[k + 3])):
+                return False
+        return True
+    if kind == BOX:
+        return abs(l0) <= size[0] * slack and abs(l1) <= size[1] * slack and abs(l2) <= size[2] * slack
+    return l0 * l0 + l1 * l1 <= (size[0] * slack) ** 2 and abs(l2) <= size[1] * slack
+
+
+@njit(cache=True, **LEAF)
+def _place_witnesses(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, ids, r0, r1, r2, n, dist, normal, xa, xb):
+    """xa, xb (3,): the witnesses, the weights' combinations, made to satisfy xb - xa = dist * normal exactly (the
+    simplex's or face's features: rows r0, r1, r2 of ids, the first n). Where one geom is curved at the contact
+    (an ellipsoid, a cylinder's rim) and the other flat there (a polytope's edge or face, a cylinder's side or
+    cap: _freedom) with the normal its face's exactly (_face_normal: a box's or a mesh's face, a cylinder's side
+    or cap), the curved one's witness is its support point along the normal, the point of its surface with that
+    normal, and the flat one's lies dist along the normal from it (where that is on the face, not beyond its
+    edge: _within): the weights' combination of support points spread about the contact (sqrt(2 gap rho), 1e-6 m
+    for a gap of 1e-12 m) puts a torque arm off by as much. Else the residual across the normal (round-off, or
+    |dist| theta where the normal was turned by theta for a better certificate) moves the freer witness, both as
+    free: half each."""
+    fa = _freedom(ka, Ra, normal, ids, r0, r1, r2, n, 0)
+    fb = _freedom(kb, Rb, normal, ids, r0, r1, r2, n, 1)
+    curved_b = fa == 2 and fb == 1 and _face_normal(ka, Ra, ha, 1.0, normal)
+    if curved_b or (fb == 2 and fa == 1 and _face_normal(kb, Rb, hb, -1.0, normal)):
+        if curved_b:  # the support point of b along -n, a's witness dist back along n
+            x0, x1, x2, _index = _support(kb, pb, Rb, sb, hb, -normal[0], -normal[1], -normal[2], True, -1)
+            f0, f1, f2 = x0 - dist * normal[0], x1 - dist * normal[1], x2 - dist * normal[2]
+            inside = _within(ka, pa, Ra, sa, ha, f0, f1, f2)
+        else:
+            f0, f1, f2, _index = _support(ka, pa, Ra, sa, ha, normal[0], normal[1], normal[2], True, -1)
+            x0, x1, x2 = f0 + dist * normal[0], f1 + dist * normal[1], f2 + dist * normal[2]
+            inside = _within(kb, pb, Rb, sb, hb, x0, x1, x2)
+        if inside:  # else the curved point is beyond the face's edge: the contact is at that edge
+            xa[0], xa[1], xa[2] = f0, f1, f2
+            xb[0], xb[1], xb[2] = x0, x1, x2
+            return
+    share = 0.5 if fa == fb else (1.0 if fa > fb else 0.0)  # the part a's witness takes
+    for a in range(3):
+        residual = xb[a] - xa[a] - dist * normal[a]
+        xa[a] += share * residual
+        xb[a] -= (1.0 - share) * residual
 
 
 @njit(cache=True)
@@ -966,19 +1172,25 @@ def _signed_distance(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, guess, normal, xa, 
     iterations = 0
     stalls = 0
     restarts = 0
+    steer = False
     for iteration in range(GJK_ITERATIONS):
         iterations = iteration + 1
         vv = v0 * v0 + v1 * v1 + v2 * v2
         floor = ROUNDOFF * big
-        if vv <= floor * floor:  # the origin on the simplex within round-off: touching, or overlapping
+        if vv <= max(floor, tol) ** 2:  # the origin on the simplex within round-off (or the tolerance): touching
             contact = True
             status = CONVERGED
             break
-        big = max(big, _minkowski(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, -v0, -v1, -v2, hints, simp, ids, n))
-        floor = ROUNDOFF * big
         norm = np.sqrt(vv)
-        vw = v0 * simp[n, 0] + v1 * simp[n, 1] + v2 * simp[n, 2]
-        lower = vw / norm  # C lies beyond the plane through w normal to v: a lower bound for v's direction
+        if steer:  # after a stall: along the normal that certified most
+            d0, d1, d2 = normal[0], normal[1], normal[2]
+            steer = False
+        else:
+            d0, d1, d2 = -v0 / norm, -v1 / norm, -v2 / norm
+        big = max(big, _minkowski(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, d0, d1, d2, hints, simp, ids, n))
+        floor = ROUNDOFF * big
+        # C lies beyond the plane through w normal to d: -d.w a lower bound on the distance
+        lower = -(d0 * simp[n, 0] + d1 * simp[n, 1] + d2 * simp[n, 2])
         gap = norm - lower
         if gap <= max(tol, floor):
             status = CONVERGED
@@ -1025,11 +1237,13 @@ def _signed_distance(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, guess, normal, xa, 
         for i in range(m, 4):
             lam[i] = 0.0
         n = m
-        u0 = u1 = u2 = 0.0
-        for i in range(n):
-            u0 += lam[i] * simp[i, 0]
-            u1 += lam[i] * simp[i, 1]
-            u2 += lam[i] * simp[i, 2]
+        u0, u1, u2 = _nearest_point(simp, n)
+        if u0 != u0:  # a sliver: its weights' combination
+            u0 = u1 = u2 = 0.0
+            for i in range(n):
+                u0 += lam[i] * simp[i, 0]
+                u1 += lam[i] * simp[i, 1]
+                u2 += lam[i] * simp[i, 2]
         uu = u0 * u0 + u1 * u1 + u2 * u2
         # no progress in |v|: on a curved surface |v| converges quadratically faster than its direction (which
         # the gap measures), so a step that keeps |v| to round-off may still turn v: STALL_STEPS of them in a row
@@ -1038,8 +1252,9 @@ def _signed_distance(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, guess, normal, xa, 
         # last support point with a fresh simplex, GJK_RESTARTS times; else the last simplex is the answer
         level = not uu > vv * (1.0 + 4.0 * EPS)
         stalls = stalls + 1 if not uu < vv else 0
-        if level and stalls == 1 and not gap <= max(tol, floor):
-            # the first step without progress: another normal may close the gap already (a flat face's, a cap's)
+        if level and stalls >= 1 and not gap <= max(tol, floor):
+            # a step without progress: another normal may close the gap already (a flat face's, a cap's), else the
+            # next support point is taken along the best of them
             un = np.sqrt(uu)
             bound, big = _certify(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, simp, ids, n, -u0 / un, -u1 / un, -u2 / un,
                                   hints, normal, big, 9)
@@ -1048,6 +1263,7 @@ def _signed_distance(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, guess, normal, xa, 
                 gap = un - bound
                 status = CONVERGED
                 break
+            steer = True  # the next support point along that normal (a cylinder side's: from the other rim)
         if not (level and stalls <= STALL_STEPS):
             if not level:  # worse: back to the last simplex
                 n = count
@@ -1067,6 +1283,7 @@ def _signed_distance(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, guess, normal, xa, 
             if restarts < GJK_RESTARTS and not gap <= max(tol, floor):
                 restarts += 1
                 stalls = 0
+                steer = False
                 n = 1
                 for a in range(9):
                     simp[0, a] = simp[4, a]
@@ -1076,6 +1293,7 @@ def _signed_distance(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, guess, normal, xa, 
                 continue
             v0, v1, v2 = u0, u1, u2
             status = CONVERGED if gap <= max(tol, floor) else STALLED
+            contact = status == STALLED and uu <= gap * gap  # the gap spans 0: EPA decides the sign
             break
         v0, v1, v2 = u0, u1, u2
     out[1] = iterations
@@ -1097,7 +1315,7 @@ def _signed_distance(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, guess, normal, xa, 
             for i in range(n):
                 xa[a] += lam[i] * simp[i, 3 + a]
                 xb[a] += lam[i] * simp[i, 6 + a]
-        w0, w1, w2 = xa[0] - xb[0], xa[1] - xb[1], xa[2] - xb[2]  # v = xa - xb
+        w0, w1, w2 = v0, v1, v2  # v = xa - xb to round-off in the weights
         dist = np.sqrt(w0 * w0 + w1 * w1 + w2 * w2)
         if dist > ROUNDOFF * big:
             bound, big = _certify(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, simp, ids, n, -w0 / dist, -w1 / dist,
@@ -1106,10 +1324,7 @@ def _signed_distance(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, guess, normal, xa, 
             out[3] = gap
             if status == STALLED and gap <= max(tol, ROUNDOFF * big):
                 status = CONVERGED
-            for a in range(3):  # xb - xa = dist * normal: the part of -v across the normal chosen, split
-                residual = 0.5 * (xb[a] - xa[a] - dist * normal[a])
-                xa[a] += residual
-                xb[a] -= residual
+            _place_witnesses(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, ids, 0, 1, 2, n, dist, normal, xa, xb)
         else:  # EPA failed on a touching pair: the guess
             length = np.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
             normal[0], normal[1], normal[2] = g0 / length, g1 / length, g2 / length

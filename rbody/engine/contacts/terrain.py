@@ -163,15 +163,20 @@ def pack_field(heights: np.ndarray, size) -> np.ndarray:
 
 
 @njit(cache=True, inline="always")
-def _vertex(field, pf, Rf, r, c, out):
-    """out (3,) [m]: grid vertex (r, c) in the world (the field at pf with axes Rf)."""
-    ncol = int(field[1])
-    sx, sy, sz = field[2], field[3], field[4]
-    x = c * (2.0 * sx / (ncol - 1)) - sx
+def _grid_point(field, pf, Rf, r, c, z, out):
+    """out (3,) [m]: the point over grid vertex (r, c) at height z [m] in the field's frame, in the world (the field
+    at pf with axes Rf)."""
+    sx, sy = field[2], field[3]
+    x = c * (2.0 * sx / (int(field[1]) - 1)) - sx
     y = r * (2.0 * sy / (int(field[0]) - 1)) - sy
-    z = field[FIELD_HEADER + r * ncol + c] * sz
     for a in range(3):
         out[a] = pf[a] + Rf[a, 0] * x + Rf[a, 1] * y + Rf[a, 2] * z
+
+
+@njit(cache=True, inline="always")
+def _vertex(field, pf, Rf, r, c, out):
+    """out (3,) [m]: grid vertex (r, c) in the world (the field at pf with axes Rf)."""
+    _grid_point(field, pf, Rf, r, c, field[FIELD_HEADER + r * int(field[1]) + c] * field[4], out)
 
 
 @njit(cache=True, inline="always")
@@ -280,13 +285,15 @@ def _side_normal(Rf, side, n):
 
 @njit(cache=True)
 def _corner(field, pf, Rf, sign_x, sign_y, low, out):
-    """out (3,) [m]: the field's corner (sign_x sx, sign_y sy) at its base (low) or on its rim, in the world."""
-    nrow, ncol = int(field[0]), int(field[1])
-    r = nrow - 1 if sign_y > 0 else 0
-    c = ncol - 1 if sign_x > 0 else 0
-    z = -field[5] if low else field[4] * field[FIELD_HEADER + r * ncol + c]
-    for a in range(3):
-        out[a] = pf[a] + Rf[a, 0] * sign_x * field[2] + Rf[a, 1] * sign_y * field[3] + Rf[a, 2] * z
+    """out (3,) [m]: the field's corner (sign_x sx, sign_y sy) at its base (low) or on its rim (its grid vertex), in
+    the world; both over the corner vertex as _vertex places it, so that the vertical edge between them ends where
+    the rim's edges end, to the last bit."""
+    r = int(field[0]) - 1 if sign_y > 0 else 0
+    c = int(field[1]) - 1 if sign_x > 0 else 0
+    if low:
+        _grid_point(field, pf, Rf, r, c, -field[5], out)
+    else:
+        _vertex(field, pf, Rf, r, c, out)
 
 
 @njit(cache=True)

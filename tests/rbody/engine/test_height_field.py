@@ -176,6 +176,27 @@ def test_a_box_beside_a_wall_touches_it_by_its_four_corners():
     assert dist.min() == pytest.approx(np.sqrt(2) * 1e-3, abs=1e-15)  # the box's lower edge from the rim's edge
 
 
+def test_a_corner_edge_ends_at_the_rim_vertex_to_the_last_bit():
+    # 0.45 m half-wide on 7 columns: the grid's last x, 6 * (0.9 / 6) - 0.45, is 0.4499999999999999, not 0.45. The
+    # vertical edge at each corner runs from the base to the rim's corner vertex as the rim's own edges place it
+    # (their common end is where _drop_repeats matches their candidates), and straight down from it
+    from rbody.engine.contacts.terrain import _corner, _vertex, pack_field
+    heights = np.random.default_rng(5).uniform(0.2, 1.0, (5, 7))
+    record = pack_field(heights, (0.45, 0.3, 0.2, 0.1))
+    for pf, Rf in ((np.zeros(3), I3), (np.array([0.1, -0.2, 0.3]), quat_to_matrix(np.array([0.9, 0.1, -0.3, 0.2])))):
+        top, bottom, vertex = np.empty(3), np.empty(3), np.empty(3)
+        for sign_x, sign_y in ((-1.0, -1.0), (1.0, -1.0), (-1.0, 1.0), (1.0, 1.0)):
+            r, c = (4 if sign_y > 0 else 0), (6 if sign_x > 0 else 0)
+            _vertex(record, pf, Rf, r, c, vertex)
+            _corner(record, pf, Rf, sign_x, sign_y, False, top)
+            _corner(record, pf, Rf, sign_x, sign_y, True, bottom)
+            assert np.array_equal(top, vertex)
+            drop = Rf.T @ (top - bottom)
+            np.testing.assert_allclose(drop, [0.0, 0.0, 0.2 * heights[r, c] + 0.1], atol=1e-15)
+            if pf @ pf == 0.0:  # the field's own frame: the edge is vertical to the last bit
+                assert bottom[0] == top[0] and bottom[1] == top[1]
+
+
 def test_a_sphere_in_a_valley_touches_both_faces_and_on_a_ridge_its_edge():
     xs = np.linspace(-3, 3, 21)
     valley = field(np.tile(np.abs(xs) / 3, (21, 1)), (3.0, 3.0, 3.0, 0.1))  # faces at 45 degrees
