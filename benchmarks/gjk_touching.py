@@ -53,17 +53,10 @@ def shapes() -> list[tuple]:
             (BOX, np.array([0.1, 0.06, 0.08]), none), (MESH, np.zeros(3), hull)]
 
 
-def rotation(q: np.ndarray) -> np.ndarray:
-    """The rotation matrix of the quaternion q (4,), normalised."""
-    w, x, y, z = q / np.linalg.norm(q)
-    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
-
-
 def poses(count: int, regime: str, seed: int) -> dict[str, np.ndarray]:
     """count poses per ordered pair of kinds: kinds (P, 2), positions (P, 2, 3) [m], rotations (P, 2, 3, 3)."""
     from rbody.engine.contacts.convex import INFO, signed_distance
+    from rbody.motion import quat_to_matrix
     low, high, overlapping = REGIMES[regime]
     geoms = shapes()
     rng = np.random.default_rng(seed)
@@ -73,7 +66,7 @@ def poses(count: int, regime: str, seed: int) -> dict[str, np.ndarray]:
     for i in range(len(geoms)):
         for j in range(len(geoms)):
             for _ in range(count):
-                Ra, Rb = rotation(rng.normal(size=4)), rotation(rng.normal(size=4))
+                Ra, Rb = quat_to_matrix(rng.normal(size=4)), quat_to_matrix(rng.normal(size=4))
                 u = rng.normal(size=3)
                 u /= np.linalg.norm(u)
                 target = 10.0 ** rng.uniform(low, high) * (-1.0 if rng.random() < overlapping else 1.0)

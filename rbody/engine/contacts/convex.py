@@ -465,12 +465,12 @@ def _face_weights(vert, fv, f, n0, n1, n2, p0, p1, p2):
 
 
 @njit(cache=True, **LEAF)
-def _face_result(vert, vid, fv, planes, state, high, f, floor, ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, normal, xa,
-                 xb):
+def _face_result(vert, vid, fv, planes, state, high, f, floor, normal, xa, xb, ids):
     """normal, xa, xb (3,): face f's normal and the witness points of the origin's projection d n on it (its
-    barycentric coordinates applied to the vertices' A and B points); returns the depth d. Where the projection
-    falls outside f (a tie: P's faces coplanar on a flat face of C, two boxes face to face), the witnesses are
-    taken from the coplanar live face (within `floor`) that holds it, so that they lie on the surfaces."""
+    barycentric coordinates applied to the vertices' A and B points), ids[0:3] the features of the face they come
+    from (for _place_witnesses, once EPA ends); returns the depth d. Where the projection falls outside f (a tie:
+    P's faces coplanar on a flat face of C, two boxes face to face), the witnesses are taken from the coplanar live
+    face (within `floor`) that holds it, so that they lie on the surfaces."""
     n0, n1, n2, d = planes[f, 0], planes[f, 1], planes[f, 2], planes[f, 3]
     p0, p1, p2 = d * n0, d * n1, d * n2
     l0, l1, l2 = _face_weights(vert, fv, f, n0, n1, n2, p0, p1, p2)
@@ -494,8 +494,8 @@ def _face_result(vert, vid, fv, planes, state, high, f, floor, ka, pa, Ra, sa, h
             xa[a] += weight * vert[v, 3 + a]
             xb[a] += weight * vert[v, 6 + a]
     normal[0], normal[1], normal[2] = n0, n1, n2
-    _place_witnesses(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, vid, fv[face, 0], fv[face, 1], fv[face, 2], 3, -d,
-                     normal, xa, xb)  # xa - xb = d n exactly
+    for m in range(3):
+        ids[m, 0], ids[m, 1] = vid[fv[face, m], 0], vid[fv[face, m], 1]
     return d
 
 
@@ -583,7 +583,8 @@ def _grow_simplex(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, vert, vid, n, hints, f
 @njit(cache=True)
 def _epa(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, simp, ids, n, tol, polytope, big, hints, normal, xa, xb, out):
     """The penetration depth [m] of the cores (C = A - B holding the origin), from GJK's final simplex simp[0:n]
-    (rows w, a, b; ids their features): normal, xa, xb (3,) as signed_distance's for the cores; out (3,): status,
+    (rows w, a, b; ids their features): normal, xa, xb (3,) as signed_distance's for the cores, the witnesses the
+    last face's weights' combinations, its features in ids[0:3] (untouched where NaN is returned); out (3,): status,
     iterations, duality gap [m]. Returns NaN when no polytope can be built (C flat about the origin)."""
     nv_max, nf_max = EPA_VERTICES, EPA_FACES
     vert = np.empty((nv_max + 1, 9))  # the last row: the candidate support point when P is full
@@ -637,8 +638,7 @@ def _epa(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, simp, ids, n, tol, polytope, bi
         for f in range(high):
             if state[f] == 1 and planes[f, 3] < lower:
                 closest, lower = f, planes[f, 3]
-        depth = _face_result(vert, vid, fv, planes, state, high, closest, floor, ka, pa, Ra, sa, ha, kb, pb, Rb, sb,
-                             hb, normal, xa, xb)
+        depth = _face_result(vert, vid, fv, planes, state, high, closest, floor, normal, xa, xb, ids)
         n0, n1, n2 = planes[closest, 0], planes[closest, 1], planes[closest, 2]
         big = max(big, _minkowski(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, n0, n1, n2, hints, vert, vid, nv))
         floor = ROUNDOFF * big
@@ -1303,8 +1303,9 @@ def _signed_distance(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, guess, normal, xa, 
         epa_out = np.empty(3)
         depth = _epa(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, simp, ids, n, tol, polytope, big, hints, normal, xa,
                      xb, epa_out)
-        if depth == depth:  # not NaN: EPA built its polytope
+        if depth == depth:  # not NaN: EPA built its polytope; its last face's witnesses placed once
             dist = -depth
+            _place_witnesses(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, ids, 0, 1, 2, 3, dist, normal, xa, xb)
             status = int(epa_out[0])
             out[2] = epa_out[1]
             out[3] = epa_out[2]
