@@ -57,17 +57,18 @@ parallel stretch. A plane and a cylinder: 8, each cap's rim at its point lowest 
 and 270 degrees from it (the rim's points along the plane's normal projected onto the caps, which is smooth in
 rolling: a drum on its side touches at its two lowest rim points, and 4 more points of each rim lie a radius or a
 diameter above). Standing upright (the axis within UPRIGHT of the normal) the four points of the lower cap, along
-the cylinder's own axes, hold it. A cylinder and a box: 17 candidates, each an exact distance of a point of one
+the cylinder's own axes, hold it. A cylinder and a box: 19 candidates, each an exact distance of a point of one
 surface from the other geom: each cap's rim at its point closest to the box and at 90, 180 and 270 degrees from it
 (slots 0-7; the closest rim point by RIM_SAMPLES samples around the rim, then the zero of the distance's slope by
 false position to the last bit: the distance along a circle need not be convex), the box's 8 corners against the
-cylinder (8-15), and the point of the box's edges closest to the cylinder (16: exact, segment_cylinder_closest on
-each edge), APART where another slot holds the same contact to 1e-12 m. Two cylinders: 17, each one's rim
-candidates against the other (0-7, 8-15) and the closest points of their sides (16: the axes' closest points, as
-two capsules, APART unless both lie within the sides, or where a rim slot holds it). Every candidate being a point
-of one surface, the least distance is never below the true distance, and reaches it (tested against MuJoCo's
-mj_geomDistance on random poses). These pairs run by the time-stepping only (TIME_STEPPED): their contact points
-move along a rim, a curve the event-driven scheme's curvature terms do not cover.
+cylinder (8-15), the point of the box's edges closest to the cylinder (16: exact, segment_cylinder_closest on
+each edge), APART where another slot holds the same contact to 1e-12 m, and the ends of the line along which a
+face lying on the side touches it (17, 18: _side_line; a crate on a log, which one point would let tip). Two
+cylinders: 17, each one's rim candidates against the other (0-7, 8-15) and the closest points of their sides (16:
+the axes' closest points, as two capsules, APART unless both lie within the sides, or where a rim slot holds it).
+Every candidate being a point of one surface, the least distance is never below the true distance, and reaches it
+(tested against MuJoCo's mj_geomDistance on random poses). These pairs run by the time-stepping only (TIME_STEPPED):
+their contact points move along a rim, a curve the event-driven scheme's curvature terms do not cover.
 
 Ellipsoids (strictly convex: one point of contact with any convex geom): with a plane, its lowest point in closed
 form (plane_ellipsoid); with a sphere, the centre's exact distance (Eberly's root, rbody.engine.contacts.ellipsoid);
@@ -77,7 +78,8 @@ rbody.engine.contacts.convex). Meshes collide by their convex hull, as MuJoCo's 
 hull's vertex lowest towards it and its supports along -n tilted by TILT at 45 degree steps (a face lying on the
 plane: its extreme vertices; exact heights); with a sphere, the centre's exact distance from the hull (its face
 planes inside, its nearest point outside); with a capsule, 3 (the closest points of segment and hull, and the
-ends); with a cylinder, a box or a mesh, 17 (_patch): their closest points (slot 16) and, around that normal n,
+ends); with a cylinder, a box or a mesh, 17 (_patch; a cylinder's 19, its slots 17 and 18 a hull's face's line
+along the side, as a box's): their closest points (slot 16) and, around that normal n,
 each geom's supports tilted towards the other (slots 0-7 geom b's along -n, 8-15 geom a's along +n), each point's
 exact signed distance from the other geom, so that a face lying on a face rests on the extreme vertices of both; a
 point found twice is APART, and slot 16 where a vertex slot holds it. All of these run by the time-stepping only:
@@ -99,12 +101,12 @@ TYPE_CODES = {"plane": PLANE, "sphere": SPHERE, "capsule": CAPSULE, "ellipsoid":
 # candidates per pair of type codes (type_a <= type_b): the pairs rbody computes
 SLOTS = {(PLANE, SPHERE): 1, (PLANE, CAPSULE): 2, (PLANE, CYLINDER): 8, (PLANE, BOX): 8, (SPHERE, SPHERE): 1,
          (SPHERE, CAPSULE): 1, (SPHERE, CYLINDER): 1, (SPHERE, BOX): 1, (CAPSULE, CAPSULE): 1,
-         (CAPSULE, CYLINDER): 3, (CAPSULE, BOX): 3, (CYLINDER, CYLINDER): 17, (CYLINDER, BOX): 17, (BOX, BOX): 17,
+         (CAPSULE, CYLINDER): 3, (CAPSULE, BOX): 3, (CYLINDER, CYLINDER): 17, (CYLINDER, BOX): 19, (BOX, BOX): 17,
          # ellipsoids: strictly convex, one point of contact with any convex geom
          (PLANE, ELLIPSOID): 1, (SPHERE, ELLIPSOID): 1, (CAPSULE, ELLIPSOID): 3, (ELLIPSOID, ELLIPSOID): 1,
          (ELLIPSOID, CYLINDER): 1, (ELLIPSOID, BOX): 1, (ELLIPSOID, MESH): 1,
          # meshes (their convex hulls): a plane's lowest vertices, a patch of tilted supports against a polytope
-         (PLANE, MESH): 9, (SPHERE, MESH): 1, (CAPSULE, MESH): 3, (CYLINDER, MESH): 17,
+         (PLANE, MESH): 9, (SPHERE, MESH): 1, (CAPSULE, MESH): 3, (CYLINDER, MESH): 19,
          (BOX, MESH): 17, (MESH, MESH): 17}
 APART = np.inf  # the distance of a candidate that is not a contact point in this configuration (a capsule's end slots)
 # pairs the event-driven scheme, which holds a contact's candidate from event to event with closed-form curvature
@@ -531,14 +533,121 @@ def _box_edge_candidate(pc, Rc, sc, pb, Rb, sb, k, dist, normal, point, work):
 
 
 @njit(cache=True, inline="always")
-def _unless_held(dist, k):
-    """Slot k APART where one of the slots before it comes within 1e-12 m of its distance: that slot holds the same
-    contact (a box's edge closest to a cylinder at a corner, or at the rim point a rim slot found), and two
-    candidates of one contact would make the step's problem singular."""
-    for j in range(k):
-        if dist[j] <= dist[k] + 1e-12:
+def _unless_held(dist, k, count):
+    """Slot k APART where another of the pair's count slots comes within 1e-12 m of its distance: that slot holds
+    the same contact (a box's edge closest to a cylinder at a corner, at the rim point a rim slot found, or at an end
+    of a face's line along the side), and two candidates of one contact would make the step's problem singular."""
+    for j in range(count):
+        if j != k and dist[j] <= dist[k] + 1e-12:
             dist[k] = APART
             return
+
+
+@njit(cache=True, inline="always")
+def _polytope_plane(kind, size, hull, f, m):
+    """Face plane f of a box (kind BOX: 0-5, +-x, +-y, +-z; size its half sizes) or of a mesh's hull (its F face
+    planes): m (3,) its unit outward normal and the returned offset d [m], inside m.x <= d, in the geom's frame."""
+    if kind == BOX:
+        axis, sign = f // 2, (1.0 if f % 2 == 0 else -1.0)
+        m[0], m[1], m[2] = 0.0, 0.0, 0.0
+        m[axis] = sign
+        return size[axis]
+    at = 3 + 3 * int(hull[0]) + 4 * f
+    m[0], m[1], m[2] = hull[at], hull[at + 1], hull[at + 2]
+    return hull[at + 3]
+
+
+@njit(cache=True)
+def _side_line(pc, Rc, sc, kind, po, Ro, so, ho, k, dist, normal, point):
+    """Slots k, k + 1 of a cylinder (pc, Rc, sc: geom a) and a polytope (kind BOX or MESH at po, axes Ro, size so,
+    hull ho: geom b): a face of the polytope lying along the cylinder's side touches it along a segment of the side's
+    line nearest that face; these are the segment's ends, the points of the face's boundary over that line, each
+    with its exact signed distance from the cylinder (a point of the polytope's surface against the other geom),
+    the normal the side's. The face is the polytope's separating one (the greatest of min over the cylinder of
+    m.x - d, m its outward normal); the line: the side's points along -m made perpendicular to the axis (w), at t in
+    [-half, half] along the axis, each carried along w onto the face's plane, and kept inside every other face's
+    half-space. An end within LYING_SPAN of the half-length from a rim is APART (the rim's slots hold it), and both
+    where the span is shorter than that (a corner or an edge holds the contact) or the face meets the caps (no
+    line). Returns the span's length [m] along the axis (0 where there is none)."""
+    nf = 6 if kind == BOX else int(ho[1])
+    radius, half = sc[0], sc[1]
+    q, u, m, w, c = np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    for e in range(3):  # the cylinder's centre and axis in the polytope's frame
+        q[e] = Ro[0, e] * (pc[0] - po[0]) + Ro[1, e] * (pc[1] - po[1]) + Ro[2, e] * (pc[2] - po[2])
+        u[e] = Ro[0, e] * Rc[0, 2] + Ro[1, e] * Rc[1, 2] + Ro[2, e] * Rc[2, 2]
+    face, best = -1, -np.inf
+    for f in range(nf):  # the separating face: the cylinder's least m.x less d, m.x = m.q - r |m_perp| - half |m.u|
+        d = _polytope_plane(kind, so, ho, f, m)
+        along = m[0] * u[0] + m[1] * u[1] + m[2] * u[2]
+        gap = (m[0] * q[0] + m[1] * q[1] + m[2] * q[2] - radius * np.sqrt(max(1.0 - along * along, 0.0))
+               - half * abs(along) - d)
+        if gap > best:
+            face, best = f, gap
+    dist[k], dist[k + 1] = APART, APART
+    d = _polytope_plane(kind, so, ho, face, m)
+    along = m[0] * u[0] + m[1] * u[1] + m[2] * u[2]
+    across = 0.0
+    for e in range(3):
+        w[e] = along * u[e] - m[e]  # the side's direction towards the face, perpendicular to the axis
+        across += w[e] * w[e]
+    across = np.sqrt(across)
+    if across < 1e-12:  # the face meets a cap: no line
+        return 0.0
+    for e in range(3):
+        w[e] /= across
+    # the side's line q + r w + t u carried along w onto the face's plane m.x = d (m.w = -across): c + t v
+    offset = (m[0] * q[0] + m[1] * q[1] + m[2] * q[2] - radius * across - d) / across
+    v = np.empty(3)
+    for e in range(3):
+        c[e] = q[e] + (radius + offset) * w[e]
+        v[e] = u[e] + along / across * w[e]
+    lo, hi = -half, half
+    for f in range(nf):  # the face's line inside every other face's half-space: m.(c + t v) <= d
+        if f == face:
+            continue
+        d = _polytope_plane(kind, so, ho, f, m)
+        rate = m[0] * v[0] + m[1] * v[1] + m[2] * v[2]
+        room = d - (m[0] * c[0] + m[1] * c[1] + m[2] * c[2])
+        if rate > 0.0:
+            hi = min(hi, room / rate)
+        elif rate < 0.0:
+            lo = max(lo, room / rate)
+        elif room < 0.0:
+            return 0.0
+    if not hi - lo > LYING_SPAN * half:
+        return 0.0
+    x = np.empty(3)
+    for end in range(2):
+        t = lo if end == 0 else hi
+        if abs(t) > (1.0 - LYING_SPAN) * half:  # at a rim: its slots hold it
+            continue
+        for a in range(3):
+            x[a] = po[a] + Ro[a, 0] * (c[0] + t * v[0]) + Ro[a, 1] * (c[1] + t * v[1]) + Ro[a, 2] * (c[2] + t * v[2])
+        _point_cylinder(x, 0.0, pc, Rc, sc, k + end, dist, normal, point)
+        for a in range(3):  # from the face's point (b) towards the cylinder: turned to point from a to b
+            normal[k + end, a] = -normal[k + end, a]
+    return hi - lo
+
+
+@njit(cache=True)
+def _line_ends_hold(dist, point, k, first, last, reach):
+    """A line end (slot k, k + 1 of _side_line) and another slot, first to last - 1, within reach [m] of each other
+    hold one contact: the lower keeps it (the end where they tie within 1e-12 m), the other is APART."""
+    for end in range(k, k + 2):
+        for j in range(first, last):
+            if dist[end] == APART:
+                break
+            if dist[j] == APART:
+                continue
+            near = True
+            for a in range(3):
+                if abs(point[j, a] - point[end, a]) > reach:
+                    near = False
+            if near:
+                if dist[end] <= dist[j] + 1e-12:
+                    dist[j] = APART
+                else:
+                    dist[end] = APART
 
 
 @njit(cache=True, inline="always")
@@ -793,14 +902,17 @@ def _patch(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point, beyond):
     one the exact signed distance of a point of one surface from the other geom. Slot 16 their closest points
     (GJK/EPA), its normal n from a to b; slots 0-7 geom b's supports along -n tilted by TILT around n at 45 degree
     steps against geom a, slots 8-15 geom a's along +n against geom b: a face lying on a face rests on both faces'
-    extreme vertices (the patch), an edge on a face on its ends. A point found twice is APART, and slot 16 where a
-    vertex slot holds it (as close to 1e-12 m). Returns 17. Closest points beyond `beyond`: every slot those.
+    extreme vertices (the patch), an edge on a face on its ends; against a cylinder (geom a) slots 17 and 18, the
+    ends of a hull's face's line along its side (_side_line). A point found twice is APART, and slot 16 where
+    another slot holds it (as close to 1e-12 m). Returns 17, or 19 with a cylinder. Closest points beyond `beyond`:
+    every slot those.
     """
+    count = 19 if ta == CYLINDER else 17
     n, xa, xb, t1, t2 = np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty(3)
     direction, x, grad = np.empty(3), np.empty(3), np.empty(3)
     if _closest_pair(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, 16, dist, normal, point, n, xa, xb) > beyond:
-        _fill(dist, normal, point, 16, 17)
-        return 17
+        _fill(dist, normal, point, 16, count)
+        return count
     tangents(n, t1, t2)
     for k in range(16):
         own_is_b = k < PATCH
@@ -817,8 +929,11 @@ def _patch(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point, beyond):
         # the vertex itself, for the repeat test: the point stored is on the other surface, x - d grad
         if _same_support(point, dist, normal, k, 0 if own_is_b else PATCH, own_is_b):
             dist[k] = APART
-    _unless_held(dist, 16)
-    return 17
+    if ta == CYLINDER:  # a hull's face lying along the side: the ends of their line (17, 18)
+        span = _side_line(pa, Ra, sa, MESH, pb, Rb, sb, hb, 17, dist, normal, point)
+        _line_ends_hold(dist, point, 17, 0, 17, LYING_SPAN * span)
+    _unless_held(dist, 16, count)
+    return count
 
 
 @njit(cache=True, inline="always")
@@ -1004,7 +1119,7 @@ def collide(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point, only=-1
                     normal[k, a] = -normal[k, a]
         if only < 0:  # edges crossing: their closest points, unless a corner holds the contact
             _box_edge_pair(pa, Ra, sa, pb, Rb, sb, 16, dist, normal, point)
-            _unless_held(dist, 16)
+            _unless_held(dist, 16, 17)
         return 17
     if ta == CAPSULE and tb == BOX:  # the segment's closest point (2) and its ends, or a lying span's (0, 1)
         c, u = scratch[3:6], scratch[6:9]  # the segment in the box's axes
@@ -1036,9 +1151,9 @@ def collide(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point, only=-1
             if k < 2 and abs(t - closest) < LYING_SPAN * sa[1]:  # that end is the closest point
                 dist[k] = APART
         return 3
-    if ta == CYLINDER and tb == BOX:  # the cylinder's rims (0-7), the box's corners (8-15), its nearest edge (16)
-        if only == 16:
-            only = -1  # whether another slot holds the edge's contact: every slot
+    if ta == CYLINDER and tb == BOX:  # the cylinder's rims (0-7), the box's corners (8-15), its nearest edge (16),
+        if only >= 8:                 # a face's line along the side (17, 18)
+            only = -1  # whether another slot holds a corner's, the edge's or a line end's contact: every slot
         work = np.empty(12)
         _rim_candidates(pa, Ra, sa, BOX, pb, Rb, sb, 0, False, only, dist, normal, point, work)
         corner = scratch[0:3]
@@ -1051,8 +1166,10 @@ def collide(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point, only=-1
                 normal[k, a] = -normal[k, a]
         if only < 0:
             _box_edge_candidate(pa, Ra, sa, pb, Rb, sb, 16, dist, normal, point, work)
-            _unless_held(dist, 16)
-        return 17
+            span = _side_line(pa, Ra, sa, BOX, pb, Rb, sb, hb, 17, dist, normal, point)
+            _line_ends_hold(dist, point, 17, 8, 17, LYING_SPAN * span)  # a rim point is 1% of half off an end
+            _unless_held(dist, 16, 19)
+        return 19
     if ta == CYLINDER and tb == CYLINDER:  # each one's rims against the other (0-7, 8-15), the sides' (16)
         if only == 16:
             only = -1  # whether another slot holds the sides' contact: every slot
@@ -1070,7 +1187,7 @@ def collide(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point, only=-1
             if not (abs(s) < sa[1] and abs(t) < sb[1]):  # not two sides: a rim is nearer, the rims' slots hold it
                 dist[16] = APART
             else:
-                _unless_held(dist, 16)
+                _unless_held(dist, 16, 17)
         return 17
     if ta == CAPSULE and tb == CAPSULE:
         ua = scratch[0:3]

@@ -280,7 +280,10 @@ def test_symmetric_methods_are_time_reversible(method):
     integrators.run_composed_flow(step, weights, turned, params, 0.01, nsteps, nsteps, out)
     back = out[-1].copy()
     back[:, 4:] *= -1
-    np.testing.assert_allclose(back, y0, atol=1e-12)
+    # round-off only: a few units of the last bit of the state's size for each of the 2 nsteps x stages flows
+    # (the forward and backward errors do not cancel: 4.5e-12 for splitting and 3.3e-11 for yoshida6)
+    budget = 4 * EPS * np.abs(y0).max() * 2 * nsteps * len(weights)
+    np.testing.assert_allclose(back, y0, rtol=0, atol=budget)
 
 
 def test_tennis_racket_flips_with_the_exact_period():
