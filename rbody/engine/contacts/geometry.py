@@ -77,13 +77,13 @@ ellipsoid, a cylinder, a box or a mesh, their closest points (GJK, or EPA where 
 rbody.engine.contacts.convex). Meshes collide by their convex hull, as MuJoCo's do: with a plane, 9 candidates, the
 hull's vertex lowest towards it and its supports along -n tilted by TILT at 45 degree steps (a face lying on the
 plane: its extreme vertices; exact heights); with a sphere, the centre's exact distance from the hull (its face
-planes inside, its nearest point outside); with a capsule, 3 (the closest points of segment and hull, and the
-ends); with a cylinder, a box or a mesh, 17 (_patch; a cylinder's 19, its slots 17 and 18 a hull's face's line
-along the side, as a box's): their closest points (slot 16) and, around that normal n,
-each geom's supports tilted towards the other (slots 0-7 geom b's along -n, 8-15 geom a's along +n), each point's
-exact signed distance from the other geom, so that a face lying on a face rests on the extreme vertices of both; a
-point found twice is APART, and slot 16 where a vertex slot holds it. All of these run by the time-stepping only:
-their candidates change identity with the configuration.
+planes inside, its nearest point outside); with a capsule, 5 (the closest points of segment and hull, the ends, and
+the ends of a face's line along the side: _side_line, as a cylinder's); with a cylinder, a box or a mesh, 17
+(_patch; a cylinder's 19, its slots 17 and 18 a hull's face's line along the side, as a box's): their closest points
+(slot 16) and, around that normal n, each geom's supports tilted towards the other (slots 0-7 geom b's along -n,
+8-15 geom a's along +n), each point's exact signed distance from the other geom, so that a face lying on a face
+rests on the extreme vertices of both; a point found twice is APART, and slot 16 where a vertex slot holds it. All
+of these run by the time-stepping only: their candidates change identity with the configuration.
 """
 
 from __future__ import annotations
@@ -106,7 +106,7 @@ SLOTS = {(PLANE, SPHERE): 1, (PLANE, CAPSULE): 2, (PLANE, CYLINDER): 8, (PLANE, 
          (PLANE, ELLIPSOID): 1, (SPHERE, ELLIPSOID): 1, (CAPSULE, ELLIPSOID): 3, (ELLIPSOID, ELLIPSOID): 1,
          (ELLIPSOID, CYLINDER): 1, (ELLIPSOID, BOX): 1, (ELLIPSOID, MESH): 1,
          # meshes (their convex hulls): a plane's lowest vertices, a patch of tilted supports against a polytope
-         (PLANE, MESH): 9, (SPHERE, MESH): 1, (CAPSULE, MESH): 3, (CYLINDER, MESH): 19,
+         (PLANE, MESH): 9, (SPHERE, MESH): 1, (CAPSULE, MESH): 5, (CYLINDER, MESH): 19,
          (BOX, MESH): 17, (MESH, MESH): 17}
 APART = np.inf  # the distance of a candidate that is not a contact point in this configuration (a capsule's end slots)
 # pairs the event-driven scheme, which holds a contact's candidate from event to event with closed-form curvature
@@ -558,17 +558,18 @@ def _polytope_plane(kind, size, hull, f, m):
 
 
 @njit(cache=True)
-def _side_line(pc, Rc, sc, kind, po, Ro, so, ho, k, dist, normal, point):
-    """Slots k, k + 1 of a cylinder (pc, Rc, sc: geom a) and a polytope (kind BOX or MESH at po, axes Ro, size so,
-    hull ho: geom b): a face of the polytope lying along the cylinder's side touches it along a segment of the side's
-    line nearest that face; these are the segment's ends, the points of the face's boundary over that line, each
-    with its exact signed distance from the cylinder (a point of the polytope's surface against the other geom),
-    the normal the side's. The face is the polytope's separating one (the greatest of min over the cylinder of
-    m.x - d, m its outward normal); the line: the side's points along -m made perpendicular to the axis (w), at t in
-    [-half, half] along the axis, each carried along w onto the face's plane, and kept inside every other face's
-    half-space. An end within LYING_SPAN of the half-length from a rim is APART (the rim's slots hold it), and both
-    where the span is shorter than that (a corner or an edge holds the contact) or the face meets the caps (no
-    line). Returns the span's length [m] along the axis (0 where there is none)."""
+def _side_line(ta, pc, Rc, sc, kind, po, Ro, so, ho, k, dist, normal, point):
+    """Slots k, k + 1 of a cylinder or a capsule (ta; pc, Rc, sc: geom a) and a polytope (kind BOX or MESH at po,
+    axes Ro, size so, hull ho: geom b): a face of the polytope lying along the round geom's side touches it along a
+    segment of the side's line nearest that face; these are the segment's ends, the points of the face's boundary
+    over that line, each with its exact signed distance from the round geom (a point of the polytope's surface
+    against the other geom), the normal the side's. The face is the polytope's separating one (the greatest of min
+    over the round geom of m.x - d, m its outward normal); the line: the side's points along -m made perpendicular
+    to the axis (w), at t in [-half, half] along the axis, each carried along w onto the face's plane, and kept
+    inside every other face's half-space. An end within LYING_SPAN of the half-length from a rim (a capsule's end
+    sphere) is APART (that rim's or end's slots hold it), and both where the span is shorter than that (a corner or
+    an edge holds the contact) or the face meets the caps (no line). Returns the span's length [m] along the axis
+    (0 where there is none)."""
     nf = 6 if kind == BOX else int(ho[1])
     radius, half = sc[0], sc[1]
     q, u, m, w, c = np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty(3)
@@ -576,11 +577,11 @@ def _side_line(pc, Rc, sc, kind, po, Ro, so, ho, k, dist, normal, point):
         q[e] = Ro[0, e] * (pc[0] - po[0]) + Ro[1, e] * (pc[1] - po[1]) + Ro[2, e] * (pc[2] - po[2])
         u[e] = Ro[0, e] * Rc[0, 2] + Ro[1, e] * Rc[1, 2] + Ro[2, e] * Rc[2, 2]
     face, best = -1, -np.inf
-    for f in range(nf):  # the separating face: the cylinder's least m.x less d, m.x = m.q - r |m_perp| - half |m.u|
-        d = _polytope_plane(kind, so, ho, f, m)
+    for f in range(nf):  # the separating face: the least m.x less d, m.x = m.q - r |m_perp| - half |m.u| on a
+        d = _polytope_plane(kind, so, ho, f, m)  # cylinder, m.q - r - half |m.u| on a capsule
         along = m[0] * u[0] + m[1] * u[1] + m[2] * u[2]
-        gap = (m[0] * q[0] + m[1] * q[1] + m[2] * q[2] - radius * np.sqrt(max(1.0 - along * along, 0.0))
-               - half * abs(along) - d)
+        across = np.sqrt(max(1.0 - along * along, 0.0)) if ta == CYLINDER else 1.0
+        gap = m[0] * q[0] + m[1] * q[1] + m[2] * q[2] - radius * across - half * abs(along) - d
         if gap > best:
             face, best = f, gap
     dist[k], dist[k + 1] = APART, APART
@@ -616,16 +617,25 @@ def _side_line(pc, Rc, sc, kind, po, Ro, so, ho, k, dist, normal, point):
             return 0.0
     if not hi - lo > LYING_SPAN * half:
         return 0.0
-    x = np.empty(3)
+    x, centre = np.empty(3), np.empty(3)
     for end in range(2):
         t = lo if end == 0 else hi
-        if abs(t) > (1.0 - LYING_SPAN) * half:  # at a rim: its slots hold it
+        if abs(t) > (1.0 - LYING_SPAN) * half:  # at a rim or a capsule's end: its slots hold it
             continue
         for a in range(3):
             x[a] = po[a] + Ro[a, 0] * (c[0] + t * v[0]) + Ro[a, 1] * (c[1] + t * v[1]) + Ro[a, 2] * (c[2] + t * v[2])
-        _point_cylinder(x, 0.0, pc, Rc, sc, k + end, dist, normal, point)
-        for a in range(3):  # from the face's point (b) towards the cylinder: turned to point from a to b
-            normal[k + end, a] = -normal[k + end, a]
+        if ta == CYLINDER:
+            _point_cylinder(x, 0.0, pc, Rc, sc, k + end, dist, normal, point)
+            for a in range(3):  # from the face's point (b) towards the cylinder: turned to point from a to b
+                normal[k + end, a] = -normal[k + end, a]
+        else:  # a capsule: the point's distance from its segment, less the radius
+            along = 0.0
+            for a in range(3):
+                along += (x[a] - pc[a]) * Rc[a, 2]
+            along = min(max(along, -half), half)
+            for a in range(3):
+                centre[a] = pc[a] + along * Rc[a, 2]
+            _sphere_sphere(centre, radius, x, 0.0, k + end, dist, normal, point)
     return hi - lo
 
 
@@ -930,7 +940,7 @@ def _patch(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point, beyond):
         if _same_support(point, dist, normal, k, 0 if own_is_b else PATCH, own_is_b):
             dist[k] = APART
     if ta == CYLINDER:  # a hull's face lying along the side: the ends of their line (17, 18)
-        span = _side_line(pa, Ra, sa, MESH, pb, Rb, sb, hb, 17, dist, normal, point)
+        span = _side_line(CYLINDER, pa, Ra, sa, MESH, pb, Rb, sb, hb, 17, dist, normal, point)
         _line_ends_hold(dist, point, 17, 0, 17, LYING_SPAN * span)
     _unless_held(dist, 16, count)
     return count
@@ -980,14 +990,14 @@ def _general(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point, beyond
             normal[0, a] = -grad[a]
             point[0, a] = pa[a] - grad[a] * (sa[0] + 0.5 * dist[0])  # midway
         return 1
-    if ta == CAPSULE:  # the segment's closest point (2), its ends (0, 1) APART within LYING_SPAN of it
-        u = Ra[:, 2]
+    if ta == CAPSULE:  # the segment's closest point (2), its ends (0, 1) APART within LYING_SPAN of it; with a
+        u = Ra[:, 2]   # mesh, a face's line along the side (3, 4)
         if tb == ELLIPSOID:
             closest, _lo, _hi = segment_ellipsoid_closest(pa, u, sa[1], pb, Rb, sb)
         else:  # a mesh: the closest points of the capsule's segment and the hull
             if _closest_pair(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, 2, dist, normal, point, n, xa, xb) > beyond:
-                _fill(dist, normal, point, 2, 3)
-                return 3
+                _fill(dist, normal, point, 2, 5)
+                return 5
             closest = 0.0
             for a in range(3):
                 closest += (xa[a] - sa[0] * n[a] - pa[a]) * u[a]  # the segment's point: the witness less r n
@@ -1004,7 +1014,13 @@ def _general(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point, beyond
                 point[k, a] = centre[a] - grad[a] * (sa[0] + 0.5 * dist[k])
             if k < 2 and abs(t - closest) < LYING_SPAN * sa[1]:
                 dist[k] = APART
-        return 3
+        if tb == ELLIPSOID:
+            return 3
+        span = _side_line(CAPSULE, pa, Ra, sa, MESH, pb, Rb, sb, hb, 3, dist, normal, point)
+        _line_ends_hold(dist, point, 3, 0, 3, LYING_SPAN * span)
+        if dist[3] <= dist[2] + 1e-12 and dist[4] <= dist[2] + 1e-12:  # the closest point along a face's line,
+            dist[2] = APART  # its two ends held (where one is at an end sphere, 0, 1 or 2 holds that one)
+        return 5
     if ta == ELLIPSOID:  # strictly convex: one point of contact
         _closest_pair(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, 0, dist, normal, point, n, xa, xb)
         return 1
@@ -1166,7 +1182,7 @@ def collide(ta, pa, Ra, sa, ha, tb, pb, Rb, sb, hb, dist, normal, point, only=-1
                 normal[k, a] = -normal[k, a]
         if only < 0:
             _box_edge_candidate(pa, Ra, sa, pb, Rb, sb, 16, dist, normal, point, work)
-            span = _side_line(pa, Ra, sa, BOX, pb, Rb, sb, hb, 17, dist, normal, point)
+            span = _side_line(CYLINDER, pa, Ra, sa, BOX, pb, Rb, sb, hb, 17, dist, normal, point)
             _line_ends_hold(dist, point, 17, 8, 17, LYING_SPAN * span)  # a rim point is 1% of half off an end
             _unless_held(dist, 16, 19)
         return 19

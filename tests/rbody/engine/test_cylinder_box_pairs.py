@@ -1,9 +1,10 @@
-"""Box-cylinder and cylinder-cylinder contacts (rbody.engine.contacts.geometry): 17 candidates each, every one an
+"""Box-cylinder and cylinder-cylinder contacts (rbody.engine.contacts.geometry): 19 and 17 candidates, every one an
 exact distance of a point from the other geom (a rim's closest point found by sampling and bisection on the slope,
 a box's corner, a box's edge's closest point, two sides' closest points); their least against MuJoCo's distance on
 random separated poses, and closed forms in the rigid limit: a cylinder standing and a drum lying on a box, a drum
 thrown sliding on a box's top (rolls at 2/3 v0 from t* = v0 / (3 mu g)), a box resting on a cylinder's cap, coins
-stacked, a cylinder dropped tilted onto a box."""
+stacked, a cylinder dropped tilted onto a box; a box's or a mesh's face lying along a cylinder's (or a capsule's)
+side touches at the ends of their line: a cube rests on a log and rocks on it as rolling without slipping."""
 
 import numpy as np
 import pytest
@@ -142,27 +143,31 @@ A = 0.1  # a cube's half side [m], as a box and as a mesh
 R_LOG = 0.3  # the lying cylinder (a log) under it: radius [m], half-length 0.5 m, its axis along y
 CUBE = tuple((x, y, z) for x in (-A, A) for y in (-A, A) for z in (-A, A))
 ROUND = 4 * np.finfo(float).eps * (R_LOG + 2 * A)  # round-off in positions of this size [m]
-LOG = Shape("log", "cylinder", (R_LOG, 0.5), quat=(np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0))
+LYING_Y = (np.cos(np.pi / 4), np.sin(np.pi / 4), 0.0, 0.0)  # a geom's z axis along -y
+LOG = Shape("log", "cylinder", (R_LOG, 0.5), quat=LYING_Y)
+# the pairs whose face lies along a round side: a cylinder's with a box and a mesh, a capsule's with a mesh (a
+# capsule and a box rest on the span they lie along: test_capsule_box.py)
+ALONG_SIDES = [("cylinder", "box"), ("cylinder", "mesh"), ("capsule", "mesh")]
 
 
 def cube(kind):
     return Shape("cube", "box", (A, A, A)) if kind == "box" else Shape("cube", "mesh", vertices=CUBE)
 
 
-def on_log(kind, mat, centre):
-    """collide_pair of the log and the cube (box or mesh) with axes mat at centre."""
-    return collide_pair("cylinder", np.zeros(3), quat_to_matrix(np.array(LOG.quat)), (R_LOG, 0.5), kind,
+def on_log(kind, mat, centre, round_kind="cylinder"):
+    """collide_pair of the log (a cylinder or a capsule) and the cube (box or mesh) with axes mat at centre."""
+    return collide_pair(round_kind, np.zeros(3), quat_to_matrix(np.array(LYING_Y)), (R_LOG, 0.5), kind,
                         np.asarray(centre, dtype=float), mat, (A, A, A), vertices_b=CUBE if kind == "mesh" else None)
 
 
-@pytest.mark.parametrize("kind", ["box", "mesh"])
+@pytest.mark.parametrize("round_kind,kind", ALONG_SIDES)
 @pytest.mark.parametrize("yaw", [0.0, 0.3, np.pi / 4, 1.2])
-def test_a_face_along_a_cylinders_side_touches_at_the_ends_of_their_line(kind, yaw):
+def test_a_face_along_a_cylinders_side_touches_at_the_ends_of_their_line(round_kind, kind, yaw):
     """A cube's face lying on a log's top line (the cube turned by yaw about the vertical) touches it along the
     line's chord across the face, |y| <= A / max(|cos yaw|, |sin yaw|): exactly two candidates touch, at its ends
     (at yaw = pi/4 two corners, held by the line's ends alone), with the side's normal +z."""
     mat = quat_to_matrix(np.array([np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)]))
-    dist, normal, point = on_log(kind, mat, (0.0, 0.0, R_LOG + A))
+    dist, normal, point = on_log(kind, mat, (0.0, 0.0, R_LOG + A), round_kind)
     touching = np.flatnonzero(dist <= 1e-9)
     assert len(touching) == 2, dist
     chord = A / max(abs(np.cos(yaw)), abs(np.sin(yaw)))
@@ -172,8 +177,8 @@ def test_a_face_along_a_cylinders_side_touches_at_the_ends_of_their_line(kind, y
     np.testing.assert_allclose(normal[touching], [[0.0, 0.0, 1.0]] * 2, rtol=0, atol=1e-15)
 
 
-@pytest.mark.parametrize("kind", ["box", "mesh"])
-def test_a_face_tipped_along_a_cylinders_side_has_its_line_ends_exact_distances(kind):
+@pytest.mark.parametrize("round_kind,kind", ALONG_SIDES)
+def test_a_face_tipped_along_a_cylinders_side_has_its_line_ends_exact_distances(round_kind, kind):
     """The cube tipped by 0.01 rad about x (the log's line runs along y): the face's points over the line,
     (0, +-A, -A) in the cube's frame, are the line's ends; their distances from the log, sqrt(x^2 + z^2) - R, are
     the candidates' to round-off, the lower end touching."""
@@ -181,7 +186,7 @@ def test_a_face_tipped_along_a_cylinders_side_has_its_line_ends_exact_distances(
     mat = quat_to_matrix(np.array([np.cos(tip / 2), np.sin(tip / 2), 0.0, 0.0]))
     ends = np.array([[0.0, -A, -A], [0.0, A, -A]]) @ mat.T
     centre = np.array([0.0, 0.0, R_LOG - ends[:, 2].min()])  # the lower end on the log's top line
-    dist, _, point = on_log(kind, mat, centre)
+    dist, _, point = on_log(kind, mat, centre, round_kind)
     ends += centre
     expected = np.hypot(ends[:, 0], ends[:, 2]) - R_LOG
     assert abs(expected.min()) <= ROUND and expected.max() > 1e-3
@@ -191,19 +196,21 @@ def test_a_face_tipped_along_a_cylinders_side_has_its_line_ends_exact_distances(
     assert dist.min() >= -ROUND
 
 
-@pytest.mark.parametrize("kind", ["box", "mesh"])
+@pytest.mark.parametrize("round_kind,kind", ALONG_SIDES + [("capsule", "box")])
 @pytest.mark.parametrize("yaw", [0.0, 0.3])
-def test_a_cube_rests_on_a_lying_cylinder(kind, yaw):
-    """A cube resting on a log's top line, on the two ends of their line, stays put to round-off (one point of
-    contact, as before, let it tip: 1.1e-5 m and 0.08 rad/s in 1 s, or the step failed to project)."""
+def test_a_cube_rests_on_a_lying_cylinder(round_kind, kind, yaw):
+    """A cube resting on a log's top line (a cylinder's or a capsule's), on the two ends of their line, stays put
+    to round-off (one point of contact, as before, let it tip: 1.1e-5 m and 0.08 rad/s in 1 s, or the step failed
+    to project); on a capsule, a box rests on its span's ends and middle."""
     body = Body("body", Inertia.box(1.0, (2 * A, 2 * A, 2 * A)), shapes=(cube(kind),), pos=(0.0, 0.0, R_LOG + A),
                 quat=(np.cos(yaw / 2), 0.0, 0.0, np.sin(yaw / 2)))
-    layout = Layout(bodies=(body,), joints=(Joint("free", "free", "body"),), fixed=(LOG,),
+    layout = Layout(bodies=(body,), joints=(Joint("free", "free", "body"),),
+                    fixed=(Shape("log", round_kind, (R_LOG, 0.5), quat=LYING_Y),),
                     contacts=(Contact("log", "cube", friction=0.5),))
     run = rbody.simulate(Scene.from_layout(layout, t_end=1.0), dt=2e-3)
     assert np.abs(run["body.com"] - run["body.com"][0]).max() <= 1e-15
     assert np.abs(run["body.omega"]).max() <= 1e-14
-    assert run["contacts"][-1] == 2
+    assert run["contacts"][-1] == (3 if (round_kind, kind) == ("capsule", "box") else 2)
     np.testing.assert_allclose(run["contact_normal_force"][-1].sum(), G, rtol=1e-12)
 
 
