@@ -100,7 +100,7 @@ def test_the_figure_stands_on_its_soles_and_the_pads_touch_the_box_at_qpos0():
     assert (figure.nbody, figure.nv) == (13, 24)                # world + 12 bodies; a free root and 18 hinges
     soles = [i for i in range(figure.ngeom) if figure.geom(i).name.startswith("sole_")]
     lowest = [data.geom_xpos[i][2] - figure.geom_size[i][0] for i in soles]   # capsules lying flat
-    np.testing.assert_allclose(lowest, 0.0, atol=1e-12)
+    np.testing.assert_allclose(lowest, 0.0, rtol=0, atol=1e-12)
     # every other geom clear of the floor by its bounding sphere (the shins' lowest points are 5.5 cm up)
     others = [data.geom_xpos[i][2] - figure.geom_rbound[i] for i in range(1, figure.ngeom) if i not in soles]
     assert min(others) > 0.05

@@ -490,8 +490,8 @@ def test_roll_joint_is_a_slide_along_l_and_a_hinge_tied_by_a_stiff_equality():
     assert (slide, hinge) == (0, 1)  # slide first, then the hinge (the order rbody composes them in)
     assert model.jnt_type[slide] == mujoco.mjtJoint.mjJNT_SLIDE and model.jnt_type[hinge] == mujoco.mjtJoint.mjJNT_HINGE
     # l = y x n = (cos alpha, 0, -sin alpha): down the slope
-    np.testing.assert_allclose(model.jnt_axis[slide], [math.cos(incline), 0.0, -math.sin(incline)], atol=1e-15)
-    np.testing.assert_allclose(model.jnt_axis[hinge], [0.0, 1.0, 0.0], atol=0)
+    np.testing.assert_allclose(model.jnt_axis[slide], [math.cos(incline), 0.0, -math.sin(incline)], rtol=0, atol=1e-15)
+    np.testing.assert_allclose(model.jnt_axis[hinge], [0.0, 1.0, 0.0], rtol=0, atol=0)
     assert model.neq == 1 and model.eq_type[0] == mujoco.mjtEq.mjEQ_JOINT
     assert (model.eq_obj1id[0], model.eq_obj2id[0]) == (slide, hinge)
     np.testing.assert_array_equal(model.eq_data[0, :5], [0.0, radius, 0.0, 0.0, 0.0])  # slide = a hinge
@@ -515,15 +515,15 @@ def test_roll_joint_initial_state_and_ref_place_the_body_as_rbody_does():
     mujoco.mj_forward(model, data)
     body = scene.layout.bodies[0]
     down = np.array([math.cos(incline), 0.0, -math.sin(incline)])
-    np.testing.assert_allclose(data.xipos[1], np.array(body.pos) + radius * (q0 - ref) * down, atol=1e-15)
+    np.testing.assert_allclose(data.xipos[1], np.array(body.pos) + radius * (q0 - ref) * down, rtol=0, atol=1e-15)
     turn = q0 - ref
-    np.testing.assert_allclose(data.xquat[1], [math.cos(turn / 2), 0.0, math.sin(turn / 2), 0.0], atol=1e-15)
+    np.testing.assert_allclose(data.xquat[1], [math.cos(turn / 2), 0.0, math.sin(turn / 2), 0.0], rtol=0, atol=1e-15)
     # the centre's velocity is a q' l, the contact point's velocity zero
     velocity = np.zeros(6)
     mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, 1, velocity, 0)  # (omega, v) at the com
-    np.testing.assert_allclose(velocity[3:], radius * rate * down, atol=1e-15)
+    np.testing.assert_allclose(velocity[3:], radius * rate * down, rtol=0, atol=1e-15)
     normal = np.array([math.sin(incline), 0.0, math.cos(incline)])
-    np.testing.assert_allclose(velocity[3:] + np.cross(velocity[:3], -radius * normal), 0.0, atol=1e-15)
+    np.testing.assert_allclose(velocity[3:] + np.cross(velocity[:3], -radius * normal), 0.0, rtol=0, atol=1e-15)
 
 
 # Measured (mujoco 4.0, RK4, disc a = 0.1 m on 0.5 rad, 1 s): the soft equality leaves the distance short by
@@ -603,9 +603,9 @@ def test_exported_roll_tree_has_the_engines_kinematics():
         b = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, name)
         velocity = np.zeros(6)
         mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, b, velocity, 0)
-        np.testing.assert_allclose(states["com"][i], data.xipos[b], atol=1e-14)
-        np.testing.assert_allclose(states["velocity"][i], velocity[3:], atol=1e-14)
-        np.testing.assert_allclose(states["omega"][i], velocity[:3], atol=1e-14)
+        np.testing.assert_allclose(states["com"][i], data.xipos[b], rtol=0, atol=1e-14)
+        np.testing.assert_allclose(states["velocity"][i], velocity[3:], rtol=0, atol=1e-14)
+        np.testing.assert_allclose(states["omega"][i], velocity[:3], rtol=0, atol=1e-14)
 
 
 def test_exported_roll_joint_reads_back_as_a_slide_and_a_hinge_tied_by_a_joint_equality():

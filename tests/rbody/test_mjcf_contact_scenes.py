@@ -38,7 +38,8 @@ def test_pi_collisions_as_mjcf_count_the_digits_of_pi(digits):
     impacts = int((run.events["what"] == "impact").sum())
     assert impacts == math.floor(math.pi * 10**digits) == exact.expected_collisions
     reference = rbody.simulate(exact, dt=exact.t_end / (200 * 10 ** (digits - 1)))
-    np.testing.assert_allclose(run["qvel"][-1], reference["velocities"][-1], rtol=0, atol=1e-9 * exact.speed * 10**digits)
+    np.testing.assert_allclose(run["qvel"][-1], reference["velocities"][-1],
+                               rtol=0, atol=1e-9 * exact.speed * 10**digits)
     total = run["energy"] + run["dissipated"]
     np.testing.assert_allclose(total, total[0], rtol=1e-12)
 

@@ -118,7 +118,7 @@ def test_keyframe_by_name_and_index_and_explicit_state():
     joints = {j.name: j for j in read.layout.joints}
     assert joints["h"].qpos0 == 0.1 and joints["h"].qvel0 == 1.0 and joints["ball"].qvel0 == (3.0, 4.0, 5.0)
     # a free joint's qvel0 in rbody: (v, omega) both world; MuJoCo's angular part is in the body frame
-    np.testing.assert_allclose(joints["free"].qvel0[1], [9.0, 10.0, 11.0], atol=1e-15)  # body at identity
+    np.testing.assert_allclose(joints["free"].qvel0[1], [9.0, 10.0, 11.0], rtol=0, atol=1e-15)  # body at identity
     state = model.key_qpos[0].copy()
     state[:2] = (0.3, -0.2)
     assert np.array_equal(layout_from_mjcf(FEATURES, qpos0=state).qpos0, state)
@@ -489,7 +489,7 @@ def test_massless_frame_body_is_folded_into_its_parent():
     mujoco_c = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_BODY, "c")
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
-    np.testing.assert_allclose(np.array(bodies["c"].pos) + [0, 0, 1], data.xpos[mujoco_c], atol=1e-15)
+    np.testing.assert_allclose(np.array(bodies["c"].pos) + [0, 0, 1], data.xpos[mujoco_c], rtol=0, atol=1e-15)
     assert any("frame" in note for note in read.notes)
 
 

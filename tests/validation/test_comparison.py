@@ -122,7 +122,8 @@ def test_orientation_divergence_is_the_rotation_angle():
     angle = np.array([0.0, 1e-9, 0.5])
     turned = np.stack([np.cos(angle / 2), 0 * angle, 0 * angle, np.sin(angle / 2)], axis=1)
     np.testing.assert_allclose(divergence("body.quat", q, turned), angle, rtol=1e-9, atol=0)
-    np.testing.assert_allclose(divergence("body.quat", turned, -turned), 0.0, atol=1e-15)  # the sign of q is no rotation
+    np.testing.assert_allclose(divergence("body.quat", turned, -turned), 0.0,
+                               rtol=0, atol=1e-15)  # the sign of q is no rotation
     np.testing.assert_allclose(divergence("body.com", np.zeros((1, 3)), np.array([[3.0, 4.0, 0.0]])), [5.0])
 
 

@@ -55,20 +55,20 @@ def test_capsule_across_an_edge_closed_form():
     h, r, half, b, theta = np.array([0.5, 0.5, 0.5]), 0.05, 0.4, 0.2, 0.3
     R = about_y(theta) @ about_y(np.pi / 2)  # the capsule's axis (its z) turned onto (cos theta, 0, -sin theta)
     axis = R[:, 2]
-    np.testing.assert_allclose(axis, [np.cos(theta), 0.0, -np.sin(theta)], atol=1e-15)
+    np.testing.assert_allclose(axis, [np.cos(theta), 0.0, -np.sin(theta)], rtol=0, atol=1e-15)
     centre = np.array([0.5, 0.0, 0.5 + b])
     dist, normal, point = collide_pair("capsule", centre, R, [r, half], "box", [0, 0, 0], I3, h)
     assert len(dist) == 3
     assert dist[2] == pytest.approx(b * np.cos(theta) - r, abs=1e-15)
     towards = np.array([-np.sin(theta), 0.0, -np.cos(theta)])  # from the axis down onto the edge
-    np.testing.assert_allclose(normal[2], towards, atol=1e-15)
+    np.testing.assert_allclose(normal[2], towards, rtol=0, atol=1e-15)
     on_axis = centre + b * np.sin(theta) * axis
-    np.testing.assert_allclose(point[2], on_axis + (r + 0.5 * dist[2]) * towards, atol=1e-15)
+    np.testing.assert_allclose(point[2], on_axis + (r + 0.5 * dist[2]) * towards, rtol=0, atol=1e-15)
     assert dist[0] > dist[2] and dist[1] > dist[2]  # the ends: farther
     back = centre - (half + 0.1) * axis  # its lower end at centre - 0.1 axis: over the face, b + 0.1 sin(theta) up
     dist, normal, point = collide_pair("capsule", back, R, [r, half], "box", [0, 0, 0], I3, h)
     assert dist[2] == pytest.approx(b + 0.1 * np.sin(theta) - r, abs=1e-15)
-    np.testing.assert_allclose(normal[2], [0, 0, -1.0], atol=1e-15)
+    np.testing.assert_allclose(normal[2], [0, 0, -1.0], rtol=0, atol=1e-15)
     assert point[2, 0] == pytest.approx(0.5 - 0.1 * np.cos(theta), abs=1e-15)
     assert dist[1] == APART and dist[0] > dist[2]  # that end is the closest point: only the other end is its own
 
@@ -79,13 +79,13 @@ def test_capsule_lying_on_a_face_rests_on_its_span():
     Tilted by 1e-3 rad: one closest point, the lower end (slot 2), and the upper end (slot 0) 4e-4 m above it."""
     dist, normal, point = collide_pair("capsule", [0.1, 0.0, 0.8], about_y(np.pi / 2), [0.1, 0.2], "box", [0, 0, 0],
                                        I3, [0.5, 0.5, 0.5])
-    np.testing.assert_allclose(dist, 0.2, atol=1e-15)
-    np.testing.assert_allclose(normal, [[0, 0, -1.0]] * 3, atol=1e-15)
-    np.testing.assert_allclose(np.sort(point[:, 0]), [-0.1, 0.1, 0.3], atol=1e-15)
+    np.testing.assert_allclose(dist, 0.2, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(normal, [[0, 0, -1.0]] * 3, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(np.sort(point[:, 0]), [-0.1, 0.1, 0.3], rtol=0, atol=1e-15)
     dist, normal, point = collide_pair("capsule", [0.4, 0.0, 0.8], about_y(np.pi / 2), [0.1, 0.3], "box", [0, 0, 0],
                                        I3, [0.5, 0.5, 0.5])
-    np.testing.assert_allclose(dist, 0.2, atol=1e-15)
-    np.testing.assert_allclose(np.sort(point[:2, 0]), [0.1, 0.5], atol=1e-15)
+    np.testing.assert_allclose(dist, 0.2, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(np.sort(point[:2, 0]), [0.1, 0.5], rtol=0, atol=1e-15)
     dist, normal, point = collide_pair("capsule", [0.1, 0.0, 0.8], about_y(np.pi / 2 + 1e-3), [0.1, 0.2], "box",
                                        [0, 0, 0], I3, [0.5, 0.5, 0.5])
     assert dist[1] == APART and dist[0] == pytest.approx(0.2 + 0.2 * np.sin(1e-3), abs=1e-15)
@@ -120,7 +120,7 @@ def test_against_mujoco_on_random_separated_poses():
         k = int(np.argmin(dist))
         assert dist[k] == pytest.approx(nearest.dist, abs=1e-12)
         sign = 1.0 if (nearest.geom1, nearest.geom2) == (ga, gb) else -1.0
-        np.testing.assert_allclose(sign * normal[k], nearest.frame[:3], atol=1e-9)
+        np.testing.assert_allclose(sign * normal[k], nearest.frame[:3], rtol=0, atol=1e-9)
         checked += 1
     assert checked > 150
 
@@ -130,7 +130,7 @@ def capsule_over_box(b, theta, r=0.05, half=0.3, shift=0.0, friction=1.0):
     above it (test_capsule_across_an_edge_closed_form's pose), moved by `shift` along x."""
     R = about_y(theta) @ about_y(np.pi / 2)
     w = np.cos((theta + np.pi / 2) / 2), 0.0, np.sin((theta + np.pi / 2) / 2), 0.0
-    np.testing.assert_allclose(quat_to_matrix(np.array(w)), R, atol=1e-15)
+    np.testing.assert_allclose(quat_to_matrix(np.array(w)), R, rtol=0, atol=1e-15)
     capsule = Body("rod", Inertia.solid_cylinder(1.0, r, 2 * half), shapes=(Shape("c", "capsule", (r, half)),),
                    pos=(0.5 + shift, 0.0, 0.5 + b - shift * np.tan(theta)), quat=w)
     return Layout(bodies=(capsule,), joints=(Joint("free", "free", "rod"),),
@@ -275,5 +275,5 @@ def test_a_slot_that_is_not_a_contact_point_has_no_point_or_normal(tmp_path):
     assert np.isnan(point[apart]).all() and np.isnan(normal[apart]).all()
     assert np.isfinite(point[~apart]).all()
     down = np.broadcast_to([0.0, 0.0, -1.0], normal[~apart].shape)  # from geom a (the rod) towards b (the table)
-    np.testing.assert_allclose(normal[~apart], down, atol=1e-9)
+    np.testing.assert_allclose(normal[~apart], down, rtol=0, atol=1e-9)
     np.testing.assert_allclose(np.abs(point[0, 1:, 0]), 0.1 * np.cos(np.radians(5)), rtol=1e-9)

@@ -21,8 +21,8 @@ def test_plane_sphere_closed_form():
     n = R[:, 2]
     dist, normal, point = collide_pair("plane", [0, 0, 0], R, (), "sphere", 1.0 * n + 5 * R[:, 0], I3, [0.3])
     assert dist[0] == pytest.approx(0.7, abs=1e-15)
-    np.testing.assert_allclose(normal[0], n, atol=1e-15)
-    np.testing.assert_allclose(point[0], 5 * R[:, 0], atol=1e-14)  # on the plane: where it will touch
+    np.testing.assert_allclose(normal[0], n, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(point[0], 5 * R[:, 0], rtol=0, atol=1e-14)  # on the plane: where it will touch
 
 
 def test_plane_box_gives_its_corners():
@@ -30,11 +30,11 @@ def test_plane_box_gives_its_corners():
     R = quat_to_matrix(np.array([np.cos(np.pi / 12), 0, 0, np.sin(np.pi / 12)]))
     dist, normal, point = collide_pair("plane", [0, 0, 0], I3, (), "box", [1.0, 2.0, 0.6], R, [0.5, 0.5, 0.5])
     assert len(dist) == 8
-    np.testing.assert_allclose(np.sort(dist), [0.1] * 4 + [1.1] * 4, atol=1e-15)
+    np.testing.assert_allclose(np.sort(dist), [0.1] * 4 + [1.1] * 4, rtol=0, atol=1e-15)
     np.testing.assert_allclose(normal, np.tile([0, 0, 1.0], (8, 1)))
     low = point[dist < 0.5]
-    np.testing.assert_allclose(low[:, 2], 0.0, atol=1e-15)  # on the floor, below the corner
-    np.testing.assert_allclose(np.linalg.norm(low[:, :2] - [1, 2], axis=1), np.sqrt(0.5), atol=1e-15)
+    np.testing.assert_allclose(low[:, 2], 0.0, rtol=0, atol=1e-15)  # on the floor, below the corner
+    np.testing.assert_allclose(np.linalg.norm(low[:, :2] - [1, 2], axis=1), np.sqrt(0.5), rtol=0, atol=1e-15)
 
 
 def test_swapped_order_flips_the_normal():
@@ -58,12 +58,12 @@ def test_capsules_crossed_and_parallel():
                                        [0.2, 1.0])
     # closest points: (0, 0, 1) on the first segment's end and (0, 0.3, 1) on the second: distance 0.3
     assert dist[0] == pytest.approx(0.3 - 0.1 - 0.2, abs=1e-15)
-    np.testing.assert_allclose(normal[0], [0, 1, 0], atol=1e-15)
+    np.testing.assert_allclose(normal[0], [0, 1, 0], rtol=0, atol=1e-15)
     # parallel, overlapping over z in [0.5, 1]: the normal is still the perpendicular, the point in the overlap
     dist, normal, point = collide_pair("capsule", [0, 0, 0], I3, [0.1, 1.0], "capsule", [0.5, 0, 1.5], I3,
                                        [0.1, 1.0])
     assert dist[0] == pytest.approx(0.3, abs=1e-15)
-    np.testing.assert_allclose(normal[0], [1, 0, 0], atol=1e-15)
+    np.testing.assert_allclose(normal[0], [1, 0, 0], rtol=0, atol=1e-15)
     assert 0.5 <= point[0, 2] <= 1.0
 
 
@@ -123,7 +123,7 @@ def test_against_mujoco_on_random_poses(kind_a, size_a, kind_b, size_b):
             k = int(np.argmin(np.abs(dist - c.dist)))
             assert dist[k] == pytest.approx(c.dist, abs=1e-12), (trial, dist, c.dist)
             if kind_b != "box" or kind_a != "sphere" or dist[k] > -0.05:  # deep inside a box MuJoCo's face choice
-                np.testing.assert_allclose(sign * normal[k], c.frame[:3], atol=1e-9)
+                np.testing.assert_allclose(sign * normal[k], c.frame[:3], rtol=0, atol=1e-9)
             checked += 1
     assert checked >= 40
 
@@ -134,7 +134,7 @@ def test_box_on_box_corners():
                                        [0.1, 0.1, 0.05])
     assert len(dist) == 17  # 8 + 8 corners and the edges' crossing
     lower = dist[:8][[0, 1, 2, 3]]                            # corners of b with z = -half
-    np.testing.assert_allclose(lower, 0.01, atol=1e-15)
-    np.testing.assert_allclose(normal[[0, 1, 2, 3]], np.tile([0, 0, 1.0], (4, 1)), atol=1e-15)
+    np.testing.assert_allclose(lower, 0.01, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(normal[[0, 1, 2, 3]], np.tile([0, 0, 1.0], (4, 1)), rtol=0, atol=1e-15)
     assert np.all(dist[4:8] > 0.1) and np.all(dist[8:16] > 0.01)  # the rest are farther away
     assert dist[16] == np.inf  # no edges cross: a face on a face

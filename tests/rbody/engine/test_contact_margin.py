@@ -28,7 +28,7 @@ def test_a_ball_rests_at_its_margin(method):
     margin = 0.01
     run = rbody.simulate(ball_scene(R + margin, margin), dt=1e-3, method=method)
     np.testing.assert_allclose(run["b.com"][:, 2], R + margin, rtol=0, atol=1e-15)
-    np.testing.assert_allclose(run["contact_distance"][-1, 0], 0.0, atol=1e-15)  # the gap: distance less margin
+    np.testing.assert_allclose(run["contact_distance"][-1, 0], 0.0, rtol=0, atol=1e-15)  # the gap: distance less margin
     np.testing.assert_allclose(run["contact_normal_force"][-1, 0], G, rtol=1e-12)
 
 

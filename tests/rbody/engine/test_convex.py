@@ -80,9 +80,9 @@ def test_sphere_sphere(gap):
                                                                 size=[0.25])
     d, n, xa, xb, info = distance(a, b)
     assert d == pytest.approx(gap, abs=1e-15)
-    np.testing.assert_allclose(n, u, atol=1e-15)
-    np.testing.assert_allclose(xa, a[1] + 0.5 * u, atol=1e-15)
-    np.testing.assert_allclose(xb - xa, d * n, atol=1e-15)
+    np.testing.assert_allclose(n, u, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(xa, a[1] + 0.5 * u, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(xb - xa, d * n, rtol=0, atol=1e-15)
     assert info[0] == CONVERGED and info[1] <= 2
 
 
@@ -92,17 +92,17 @@ def test_sphere_box_face_edge_and_inside(gap):
     # above the +y face
     d, n, _, _, _ = distance(geom("sphere", [0.3, 0.5 + 0.2 + gap, 0.1], size=[0.2]), box)
     assert d == pytest.approx(gap, abs=1e-15)
-    np.testing.assert_allclose(n, [0, -1, 0], atol=1e-15)
+    np.testing.assert_allclose(n, [0, -1, 0], rtol=0, atol=1e-15)
     # off the edge x = 1, z = 0.25 along the diagonal of the two faces
     u = np.array([1.0, 0.0, 1.0]) / np.sqrt(2)
     d, n, _, _, _ = distance(box, geom("sphere", np.array([1.0, 0.1, 0.25]) + (0.2 + gap) * u, size=[0.2]))
     assert d == pytest.approx(gap, abs=1e-15)
-    np.testing.assert_allclose(n, u, atol=1e-12)
+    np.testing.assert_allclose(n, u, rtol=0, atol=1e-12)
     # the centre inside, 0.01 from the +x face: out through it, depth 0.01 + r
     d, n, xa, xb, info = distance(geom("sphere", [0.99, 0.1, 0.05], size=[0.2]), box)
     assert d == pytest.approx(-0.21, abs=1e-15)
-    np.testing.assert_allclose(n, [-1, 0, 0], atol=1e-15)  # b (the box) moves towards -x to let the sphere out
-    np.testing.assert_allclose(xb, [1.0, 0.1, 0.05], atol=1e-15)
+    np.testing.assert_allclose(n, [-1, 0, 0], rtol=0, atol=1e-15)  # b (the box) moves towards -x to let the sphere out
+    np.testing.assert_allclose(xb, [1.0, 0.1, 0.05], rtol=0, atol=1e-15)
     assert info[0] == CONVERGED
 
 
@@ -132,13 +132,13 @@ def test_box_box_axis_aligned(gap):
     b = geom("box", [0.2 + 0.5 + 0.25 + gap, 0.1, 0.45], size=[0.25, 0.35, 0.2])
     d, n, xa, xb, info = distance(a, b)
     assert d == pytest.approx(gap, abs=1e-15)
-    np.testing.assert_allclose(n, [1, 0, 0], atol=1e-15)
+    np.testing.assert_allclose(n, [1, 0, 0], rtol=0, atol=1e-15)
     assert xa[0] == pytest.approx(0.7, abs=1e-15) and xb[0] == pytest.approx(0.7 + gap, abs=1e-15)
     assert info[0] == CONVERGED and info[3] <= 1e-15
     # swapped: the normal flips, the distance stays
     d2, n2, _, _, _ = distance(b, a)
     assert d2 == pytest.approx(gap, abs=1e-15)
-    np.testing.assert_allclose(n2, [-1, 0, 0], atol=1e-15)
+    np.testing.assert_allclose(n2, [-1, 0, 0], rtol=0, atol=1e-15)
 
 
 def test_box_box_rotated_overlap_by_the_separating_axis_theorem():
@@ -156,9 +156,9 @@ def test_box_box_rotated_overlap_by_the_separating_axis_theorem():
         worst = max(worst, abs(d + depth))
         assert info[0] == CONVERGED
         if second > depth + 1e-9:  # a unique least axis: the normal
-            np.testing.assert_allclose(n, axis, atol=1e-13)
+            np.testing.assert_allclose(n, axis, rtol=0, atol=1e-13)
         assert certified(a, b, n) == pytest.approx(d, abs=1e-14)  # the normal certifies the depth
-        np.testing.assert_allclose(xb - xa, d * n, atol=1e-14)
+        np.testing.assert_allclose(xb - xa, d * n, rtol=0, atol=1e-14)
     assert worst <= 1e-14
 
 
@@ -169,13 +169,13 @@ def test_capsules_parallel(gap):
     b = geom("capsule", [0, 0.3 + gap, 0.4], size=[0.2, 0.3])
     d, n, xa, xb, info = distance(a, b)
     assert d == pytest.approx(gap, abs=1e-15)
-    np.testing.assert_allclose(n, [0, 1, 0], atol=1e-15)
+    np.testing.assert_allclose(n, [0, 1, 0], rtol=0, atol=1e-15)
     assert xa[1] == pytest.approx(0.1, abs=1e-15) and 0.1 - 1e-15 <= xa[2] <= 0.5 + 1e-15
     # end to end along the axis
     b = geom("capsule", [0, 0, 0.5 + 0.1 + 0.3 + 0.2 + gap], size=[0.2, 0.3])
     d, n, _, _, _ = distance(a, b)
     assert d == pytest.approx(gap, abs=1e-15)
-    np.testing.assert_allclose(n, [0, 0, 1], atol=1e-15)
+    np.testing.assert_allclose(n, [0, 0, 1], rtol=0, atol=1e-15)
 
 
 @pytest.mark.parametrize("gap", GAPS)
@@ -195,11 +195,11 @@ def test_box_face_on_a_mesh_face(gap):
     box = geom("box", p + (0.2 + 0.1 + gap) * top + 0.05 * R[:, 0], Rbox, [0.15, 0.1, 0.1])
     d, n, xa, xb, info = distance(mesh, box)
     assert d == pytest.approx(gap, abs=1e-15)
-    np.testing.assert_allclose(n, top, atol=1e-14)
+    np.testing.assert_allclose(n, top, rtol=0, atol=1e-14)
     assert info[0] == CONVERGED
     d2, n2, _, _, _ = distance(box, mesh)
     assert d2 == pytest.approx(gap, abs=1e-15)
-    np.testing.assert_allclose(n2, -top, atol=1e-14)
+    np.testing.assert_allclose(n2, -top, rtol=0, atol=1e-14)
 
 
 def test_point_and_a_unit_cube_mesh():
@@ -208,21 +208,21 @@ def test_point_and_a_unit_cube_mesh():
     grad = np.empty(3)
     # inside: the nearest face plane
     assert point_signed_distance(*cube, np.array([0.1, 0.2, 0.45]), grad) == pytest.approx(-0.05, abs=1e-15)
-    np.testing.assert_allclose(grad, [0, 0, 1], atol=1e-15)
+    np.testing.assert_allclose(grad, [0, 0, 1], rtol=0, atol=1e-15)
     assert point_signed_distance(*cube, np.zeros(3), grad) == -0.5
     # outside a face, an edge, a corner
     assert point_signed_distance(*cube, np.array([0.7, 0.1, -0.2]), grad) == pytest.approx(0.2, abs=1e-15)
-    np.testing.assert_allclose(grad, [1, 0, 0], atol=1e-15)
+    np.testing.assert_allclose(grad, [1, 0, 0], rtol=0, atol=1e-15)
     assert point_signed_distance(*cube, np.array([0.8, 0.9, 0.1]), grad) == pytest.approx(0.5, abs=1e-15)
-    np.testing.assert_allclose(grad, [0.6, 0.8, 0], atol=1e-15)
+    np.testing.assert_allclose(grad, [0.6, 0.8, 0], rtol=0, atol=1e-15)
     x = np.array([0.5, 0.5, 0.5]) + np.array([1.0, 2.0, 2.0]) / 3.0 * 0.3
     assert point_signed_distance(*cube, x, grad) == pytest.approx(0.3, abs=1e-15)
-    np.testing.assert_allclose(grad, [1 / 3, 2 / 3, 2 / 3], atol=1e-15)
+    np.testing.assert_allclose(grad, [1 / 3, 2 / 3, 2 / 3], rtol=0, atol=1e-15)
     # turned and moved: the same distances in its frame
     R, p = turn_about([0, 0, 1], 0.3), np.array([1.0, 2.0, 3.0])
     turned = geom("mesh", p, R, hull=hull)
     assert point_signed_distance(*turned, p + R @ [0.7, 0.1, -0.2], grad) == pytest.approx(0.2, abs=1e-15)
-    np.testing.assert_allclose(grad, R[:, 0], atol=1e-15)
+    np.testing.assert_allclose(grad, R[:, 0], rtol=0, atol=1e-15)
 
 
 def test_point_and_the_closed_forms():
@@ -243,7 +243,7 @@ def test_point_and_the_closed_forms():
         u = np.asarray(direction, float)
         if kind == "cylinder":
             u = np.array([0.0, 1.0, 1.0]) if expected > 0 else np.array([0.0, 1.0, 0.0])
-        np.testing.assert_allclose(grad, R @ (u / np.linalg.norm(u)), atol=1e-15, err_msg=kind)
+        np.testing.assert_allclose(grad, R @ (u / np.linalg.norm(u)), rtol=0, atol=1e-15, err_msg=kind)
 
 
 def point_ellipsoid_reference(x, s):
@@ -304,8 +304,8 @@ def test_point_and_cylinder_by_gjk_and_epa_against_the_closed_form():
         # the sphere takes the closed form: exact
         d2, n2, xa2, xb2, info2 = distance(geom("sphere", c, size=[0.05]), geom("cylinder", np.zeros(3), R, s))
         assert d2 == ref and info2[1] == 0
-        np.testing.assert_allclose(n2, -grad, atol=1e-15)
-        np.testing.assert_allclose(xb2 - xa2, d2 * n2, atol=1e-15)
+        np.testing.assert_allclose(n2, -grad, rtol=0, atol=1e-15)
+        np.testing.assert_allclose(xb2 - xa2, d2 * n2, rtol=0, atol=1e-15)
     assert worst <= 1e-12
     assert worst_n <= 1e-4
     assert capacity <= 10
@@ -482,7 +482,7 @@ def test_invariants(i, j, qa, qb, offset):
     assume(info[0] == CONVERGED)  # EPA_CAPACITY: deep curved overlaps (coincident ellipsoids), test_status_reports
     tol = tolerance(a, b, info)
     assert np.linalg.norm(n) == pytest.approx(1.0, abs=1e-14)
-    np.testing.assert_allclose(xb - xa, d * n, atol=1e-13)
+    np.testing.assert_allclose(xb - xa, d * n, rtol=0, atol=1e-13)
     # the normal certifies the distance (-n.s_C(n) reaches it: n is a true normal to the tolerance)
     assert d - tol - 1e-13 <= certified(a, b, n) <= d + 1e-13
     # swapped: the same distance, a normal as good (its opposite certifies the first order's)
@@ -514,21 +514,21 @@ def test_supports_in_closed_form():
         d = rng.normal(size=3)
         local = R.T @ d
         assert support(BOX, p, R, np.array([0.1, 0.2, 0.3]), NONE, d, out) >= 0
-        np.testing.assert_allclose(out, p + R @ (np.sign(local) * [0.1, 0.2, 0.3]), atol=1e-15)
+        np.testing.assert_allclose(out, p + R @ (np.sign(local) * [0.1, 0.2, 0.3]), rtol=0, atol=1e-15)
         support(SPHERE, p, R, np.array([0.2, 0, 0]), NONE, d, out)
-        np.testing.assert_allclose(out, p + 0.2 * d / np.linalg.norm(d), atol=1e-15)
+        np.testing.assert_allclose(out, p + 0.2 * d / np.linalg.norm(d), rtol=0, atol=1e-15)
         s = np.array([0.3, 0.2, 0.1])
         assert support(ELLIPSOID, p, R, s, NONE, d, out) == -1
         y = R.T @ (out - p)
         assert np.sum((y / s) ** 2) == pytest.approx(1.0, abs=1e-14)  # on the surface
         normal = y / s ** 2  # the outward normal there is along d
-        np.testing.assert_allclose(normal / np.linalg.norm(normal), local / np.linalg.norm(local), atol=1e-14)
+        np.testing.assert_allclose(normal / np.linalg.norm(normal), local / np.linalg.norm(local), rtol=0, atol=1e-14)
         support(CYLINDER, p, R, np.array([0.2, 0.3, 0]), NONE, d, out)
         y = R.T @ (out - p)
         assert np.hypot(y[0], y[1]) == pytest.approx(0.2, abs=1e-15) and abs(y[2]) == pytest.approx(0.3, abs=1e-15)
         support(CAPSULE, p, R, np.array([0.1, 0.3, 0]), NONE, d, out)
         np.testing.assert_allclose(out, p + np.sign(local[2]) * 0.3 * R[:, 2] + 0.1 * d / np.linalg.norm(d),
-                                   atol=1e-15)
+                                   rtol=0, atol=1e-15)
 
 
 def test_mesh_support_by_hill_climbing_is_the_brute_force_maximum():
@@ -555,8 +555,8 @@ def test_pack_hull_merges_coplanar_triangles_and_keeps_the_edge_graph():
     assert hull[:2].tolist() == [8, 6]
     planes = hull_planes(hull)
     local = np.sort(np.abs(planes[:, :3] @ R), axis=0)  # each axis is the normal of two faces, on both sides
-    np.testing.assert_allclose(local, [[0, 0, 0]] * 4 + [[1, 1, 1]] * 2, atol=1e-15)
-    np.testing.assert_allclose(np.sort(planes[:, 3]), [0.2, 0.2, 0.3, 0.3, 0.5, 0.5], atol=1e-15)
+    np.testing.assert_allclose(local, [[0, 0, 0]] * 4 + [[1, 1, 1]] * 2, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(np.sort(planes[:, 3]), [0.2, 0.2, 0.3, 0.3, 0.5, 0.5], rtol=0, atol=1e-15)
     vertices = hull_vertices(hull)
     assert np.all(vertices @ planes[:, :3].T <= planes[:, 3] + 1e-15)
     for i, neighbours in enumerate(hull_neighbours(hull)):
@@ -674,7 +674,7 @@ def test_curved_pairs_touching_converge(i, j):
         tol = tolerance(a, b, info)
         assert info[3] <= CURVED_TOLERANCE
         assert d - tol - 1e-13 <= certified(a, b, n) <= d + 1e-13
-        np.testing.assert_allclose(xb - xa, d * n, atol=1e-13)
+        np.testing.assert_allclose(xb - xa, d * n, rtol=0, atol=1e-13)
         assert on_surface(a, xa) == pytest.approx(0.0, abs=tol + 1e-13)
         assert on_surface(b, xb) == pytest.approx(0.0, abs=tol + 1e-13)
 

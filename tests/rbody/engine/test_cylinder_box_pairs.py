@@ -35,24 +35,24 @@ def test_closed_form_distances():
     box = ("box", np.zeros(3), I3, (1.0, 1.0, top))
     dist, normal, _ = collide_pair("cylinder", [0.2, 0.1, top + 0.2 + 0.05], I3, (0.1, 0.2), *box)
     assert dist.min() == pytest.approx(0.05, abs=1e-15)
-    np.testing.assert_allclose(np.sort(dist)[:4], 0.05, atol=1e-15)  # the lower cap's four rim points
-    np.testing.assert_allclose(normal[np.argmin(dist)], [0, 0, -1], atol=1e-15)
+    np.testing.assert_allclose(np.sort(dist)[:4], 0.05, rtol=0, atol=1e-15)  # the lower cap's four rim points
+    np.testing.assert_allclose(normal[np.argmin(dist)], [0, 0, -1], rtol=0, atol=1e-15)
     dist, _, _ = collide_pair("cylinder", [0.0, 0.0, top + 0.1 + 0.02], quat_to_matrix(np.array(LYING)),
                               (0.1, 0.2), *box)
-    np.testing.assert_allclose(np.sort(dist)[:2], 0.02, atol=1e-15)  # a rim point at each end
+    np.testing.assert_allclose(np.sort(dist)[:2], 0.02, rtol=0, atol=1e-15)  # a rim point at each end
     # upright beside the box's edge x = 1, its side 0.03 from the edge's line: the edge's closest point
     dist, normal, _ = collide_pair("cylinder", [1.13, 0.0, top + 0.1], I3, (0.1, 0.2), *box)
     assert dist.min() == pytest.approx(0.03, abs=1e-15)
-    np.testing.assert_allclose(normal[np.argmin(dist)], [-1, 0, 0], atol=1e-15)
+    np.testing.assert_allclose(normal[np.argmin(dist)], [-1, 0, 0], rtol=0, atol=1e-15)
     # two drums crossed, sides 0.04 apart; a coin above another's cap
     dist, normal, _ = collide_pair("cylinder", np.zeros(3), quat_to_matrix(np.array(LYING)), (0.1, 0.3),
                                    "cylinder", [0, 0, 0.25 + 0.04], quat_to_matrix(np.array([0.5, 0.5, 0.5, 0.5])),
                                    (0.15, 0.3))
     assert dist.min() == pytest.approx(0.04, abs=1e-15)
-    np.testing.assert_allclose(normal[np.argmin(dist)], [0, 0, 1], atol=1e-15)
+    np.testing.assert_allclose(normal[np.argmin(dist)], [0, 0, 1], rtol=0, atol=1e-15)
     dist, _, _ = collide_pair("cylinder", np.zeros(3), I3, (0.2, 0.05), "cylinder", [0.05, 0, 0.1 + 0.01], I3,
                               (0.1, 0.05))
-    np.testing.assert_allclose(np.sort(dist)[:4], 0.01, atol=1e-15)
+    np.testing.assert_allclose(np.sort(dist)[:4], 0.01, rtol=0, atol=1e-15)
 
 
 @pytest.mark.parametrize("kind_a,size_a,kind_b,size_b", [("cylinder", (0.1, 0.2), "box", (0.15, 0.1, 0.3)),
@@ -86,7 +86,7 @@ def test_least_distance_against_mujoco_on_random_separated_poses(kind_a, size_a,
         worst = max(worst, abs(dist.min() - reference))
         k = int(np.argmin(dist))
         direction = (fromto[3:] - fromto[:3]) / np.linalg.norm(fromto[3:] - fromto[:3])
-        np.testing.assert_allclose(normal[k], direction, atol=1e-4)  # MuJoCo's witness points: to its tolerance
+        np.testing.assert_allclose(normal[k], direction, rtol=0, atol=1e-4)  # MuJoCo's witness points: to its tolerance
         checked += 1
     assert checked > 200
     assert worst <= 1e-9, worst

@@ -37,7 +37,7 @@ def test_point_distance_closed_form():
     for x, distance, normal in cases:
         assert cylinder_distance(np.array(x, float), np.zeros(3), I3, 0.3, 0.5, grad) == pytest.approx(distance,
                                                                                                            abs=1e-15)
-        np.testing.assert_allclose(grad, normal, atol=1e-15)
+        np.testing.assert_allclose(grad, normal, rtol=0, atol=1e-15)
 
 
 def test_segment_closest_is_the_least_distance():
@@ -64,13 +64,13 @@ def test_capsule_along_the_side_and_across_a_cap():
     dist, normal, point = collide_pair("capsule", [0.5, 0.0, 0.2], I3, [0.05, 0.4], "cylinder", [0, 0, 0], I3,
                                        [0.3, 0.4])
     assert dist[2] == pytest.approx(0.15, abs=1e-15)
-    np.testing.assert_allclose(normal[2], [-1, 0, 0], atol=1e-15)
+    np.testing.assert_allclose(normal[2], [-1, 0, 0], rtol=0, atol=1e-15)
     assert point[2, 2] == pytest.approx(0.5 * (-0.2 + 0.4), abs=1e-12)  # the overlap z in [-0.2, 0.4]
     assert dist[0] == pytest.approx(0.15, abs=1e-15) and dist[1] > dist[2] + 0.01
     dist, normal, point = collide_pair("capsule", [0.0, 0.0, 0.6], about_x(np.pi / 2), [0.05, 0.2], "cylinder",
                                        [0, 0, 0], I3, [0.3, 0.4])
-    np.testing.assert_allclose(dist, 0.15, atol=1e-15)  # parallel to the cap, all of it over the cap
-    np.testing.assert_allclose(normal, [[0, 0, -1.0]] * 3, atol=1e-15)
+    np.testing.assert_allclose(dist, 0.15, rtol=0, atol=1e-15)  # parallel to the cap, all of it over the cap
+    np.testing.assert_allclose(normal, [[0, 0, -1.0]] * 3, rtol=0, atol=1e-15)
 
 
 def test_plane_cylinder_rim_points():
@@ -87,9 +87,9 @@ def test_plane_cylinder_rim_points():
         assert dist[k + 1] == pytest.approx(z_cap, abs=1e-15)                     # 90 and 270: level with the centre
         assert dist[k + 3] == pytest.approx(z_cap, abs=1e-15)
     dist, _, point = collide_pair("plane", [0, 0, 0], I3, (), "cylinder", [0, 0, 0.5], I3, [0.3, 0.5])
-    np.testing.assert_allclose(dist[4:], 0.0, atol=1e-15)
-    np.testing.assert_allclose(dist[:4], 1.0, atol=1e-15)
-    np.testing.assert_allclose(np.sort(np.linalg.norm(point[4:, :2], axis=1)), [0.3] * 4, atol=1e-15)
+    np.testing.assert_allclose(dist[4:], 0.0, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(dist[:4], 1.0, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(np.sort(np.linalg.norm(point[4:, :2], axis=1)), [0.3] * 4, rtol=0, atol=1e-15)
 
 
 @pytest.mark.parametrize("kind_a,size_a", [("plane", ()), ("sphere", (0.2,))])
@@ -126,7 +126,7 @@ def test_against_mujoco_on_random_separated_poses(kind_a, size_a):
         k = int(np.argmin(dist))
         assert dist[k] == pytest.approx(nearest.dist, abs=1e-12)
         sign = 1.0 if (nearest.geom1, nearest.geom2) == (ga, gb) else -1.0
-        np.testing.assert_allclose(sign * normal[k], nearest.frame[:3], atol=1e-9)
+        np.testing.assert_allclose(sign * normal[k], nearest.frame[:3], rtol=0, atol=1e-9)
         checked += 1
     assert checked > 50
 

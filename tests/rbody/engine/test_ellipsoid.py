@@ -49,11 +49,11 @@ def test_points_on_the_axes():
             for y, expected in ((s[axis] + 0.7, 0.7), (s[axis], 0.0)):
                 d, grad = distance(pc + sign * y * Rc[:, axis], pc, Rc, s)
                 assert d == pytest.approx(expected, abs=4 * EPS)
-                np.testing.assert_allclose(grad, sign * Rc[:, axis], atol=4 * EPS)
+                np.testing.assert_allclose(grad, sign * Rc[:, axis], rtol=0, atol=4 * EPS)
     for y in (0.05, 0.15):  # on the smallest axis, inside
         d, grad = distance(pc - y * Rc[:, 2], pc, Rc, s)
         assert d == pytest.approx(y - 0.2, abs=4 * EPS)
-        np.testing.assert_allclose(grad, -Rc[:, 2], atol=4 * EPS)
+        np.testing.assert_allclose(grad, -Rc[:, 2], rtol=0, atol=4 * EPS)
     d, grad = distance(pc, pc, Rc, s)  # the centre
     assert d == pytest.approx(-0.2, abs=4 * EPS)
     assert abs(grad @ Rc[:, 2]) == pytest.approx(1.0, abs=4 * EPS)
@@ -64,11 +64,11 @@ def test_points_on_the_axes():
         x0 = e0 * e0 * y / (e0 * e0 - e2 * e2)
         x2 = e2 * np.sqrt(1 - (x0 / e0) ** 2)
         local = np.array([0.0, x0 / e0 ** 2, x2 / e2 ** 2])
-        np.testing.assert_allclose(np.abs(Rc.T @ grad), local / np.linalg.norm(local), atol=4 * EPS)
+        np.testing.assert_allclose(np.abs(Rc.T @ grad), local / np.linalg.norm(local), rtol=0, atol=4 * EPS)
     for y in (0.45, 0.49):  # e0 y >= e0^2 - e2^2 = 0.21: the pole
         d, grad = distance(pc - y * Rc[:, 1], pc, Rc, s)
         assert d == pytest.approx(y - 0.5, abs=4 * EPS)
-        np.testing.assert_allclose(grad, -Rc[:, 1], atol=4 * EPS)
+        np.testing.assert_allclose(grad, -Rc[:, 1], rtol=0, atol=4 * EPS)
 
 
 def test_points_on_a_plane_of_symmetry():
@@ -82,7 +82,7 @@ def test_points_on_a_plane_of_symmetry():
     x[2] = s[2] * np.sqrt(1 - (x[0] / s[0]) ** 2 - (x[1] / s[1]) ** 2)
     assert d == pytest.approx(-np.linalg.norm(x - y), abs=4 * EPS)
     normal = x / s ** 2
-    np.testing.assert_allclose(grad, normal / np.linalg.norm(normal), atol=4 * EPS)
+    np.testing.assert_allclose(grad, normal / np.linalg.norm(normal), rtol=0, atol=4 * EPS)
     for point in ([0.0, 0.3, 0.05], [0.5, 0.0, -0.05], [0.0, 0.7, 0.3], [0.9, 0.0, -0.2], [0.3, 0.2, 0.0],
                   [0.1, 0.5, 0.0]):
         point = np.array(point)
@@ -93,7 +93,8 @@ def test_points_on_a_plane_of_symmetry():
                 nudged[axis] = side * 1e-13
                 d_nudged, grad_nudged = distance(nudged, ORIGIN, I3, s)
                 assert abs(d - d_nudged) <= 1e-13
-                np.testing.assert_allclose(grad_nudged[axis != np.arange(3)], grad[axis != np.arange(3)], atol=1e-10)
+                np.testing.assert_allclose(grad_nudged[axis != np.arange(3)], grad[axis != np.arange(3)],
+                                           rtol=0, atol=1e-10)
 
 
 def test_sphere_and_spheroids():
@@ -106,17 +107,17 @@ def test_sphere_and_spheroids():
         x = pc + rng.normal(size=3) * r
         d, grad = distance(x, pc, Rc, [r, r, r])
         assert d == pytest.approx(np.linalg.norm(x - pc) - r, abs=4 * EPS * max(r, np.linalg.norm(x - pc)))
-        np.testing.assert_allclose(grad, (x - pc) / np.linalg.norm(x - pc), atol=4 * EPS)
+        np.testing.assert_allclose(grad, (x - pc) / np.linalg.norm(x - pc), rtol=0, atol=4 * EPS)
     a, b = 0.5, 0.2
     for y in (0.0, 0.1, 0.2):
         d, _ = distance([0.0, 0.0, y], ORIGIN, I3, [b, b, a])  # prolate along z
         assert d == pytest.approx(-b * np.sqrt(1 - y * y / (a * a - b * b)), abs=4 * EPS)
         d, grad = distance([0.0, y, 0.0], ORIGIN, I3, [a, b, a])  # oblate, its axis y
         assert d == pytest.approx(y - b, abs=4 * EPS)
-        np.testing.assert_allclose(grad, [0, 1, 0], atol=4 * EPS)
+        np.testing.assert_allclose(grad, [0, 1, 0], rtol=0, atol=4 * EPS)
     d, grad = distance([0.6, 0.0, 0.8], ORIGIN, I3, [a, b, a])  # on the equator, rho = 1
     assert d == pytest.approx(1.0 - a, abs=4 * EPS)
-    np.testing.assert_allclose(grad, [0.6, 0, 0.8], atol=4 * EPS)
+    np.testing.assert_allclose(grad, [0.6, 0, 0.8], rtol=0, atol=4 * EPS)
 
 
 def test_support_point():
@@ -132,7 +133,7 @@ def test_support_point():
         np.testing.assert_allclose(scaled, out, rtol=0, atol=4 * EPS * np.abs(out).max())
         gap, grad = distance(out, pc, Rc, s)
         assert abs(gap) <= 8 * EPS * max(1.0, np.abs(pc).max())
-        np.testing.assert_allclose(grad, d / np.linalg.norm(d), atol=1e-12)
+        np.testing.assert_allclose(grad, d / np.linalg.norm(d), rtol=0, atol=1e-12)
         w = rng.normal(size=(20000, 3))
         surface = pc + (Rc @ (s[:, None] * (w / np.linalg.norm(w, axis=1, keepdims=True)).T)).T
         assert (surface @ d).max() <= out @ d + 1e-14
@@ -149,7 +150,7 @@ def test_plane_distance():
     n = np.array([0.0, 0.0, 1.0])
     d = plane_ellipsoid(np.array([5.0, -2.0, 0.25]), n, np.array([0.1, 0.2, 0.5]), I3, s, point)
     assert d == pytest.approx(0.5 - 0.25 - 0.1, abs=2 * EPS)
-    np.testing.assert_allclose(point, [0.1, 0.2, 0.4], atol=EPS)
+    np.testing.assert_allclose(point, [0.1, 0.2, 0.4], rtol=0, atol=EPS)
     rng = np.random.default_rng(6)
     for _ in range(30):
         pc, Rc, s, pp = rng.normal(size=3), random_rotation(rng), rng.uniform(0.001, 0.5, 3), rng.normal(size=3)
@@ -160,7 +161,7 @@ def test_plane_distance():
         assert n @ (point - pp) == pytest.approx(d, abs=8 * EPS)
         gap, grad = distance(point, pc, Rc, s)
         assert abs(gap) <= 8 * EPS
-        np.testing.assert_allclose(grad, -n, atol=1e-12)
+        np.testing.assert_allclose(grad, -n, rtol=0, atol=1e-12)
         w = rng.normal(size=(5000, 3))
         surface = pc + (Rc @ (s[:, None] * (w / np.linalg.norm(w, axis=1, keepdims=True)).T)).T
         assert ((surface - pp) @ n).min() >= d - 1e-15
@@ -289,7 +290,7 @@ def test_against_mujoco_geom_distance(size):
         d, grad = distance(data.geom_xpos[1], data.geom_xpos[0], data.geom_xmat[0].reshape(3, 3), model.geom_size[0])
         below.append(expected - (d - radius))
         direction = (fromto[3:] - fromto[:3]) / np.linalg.norm(fromto[3:] - fromto[:3])
-        np.testing.assert_allclose(grad, direction, atol=1e-4)
+        np.testing.assert_allclose(grad, direction, rtol=0, atol=1e-4)
         checked += 1
     assert checked >= 200
     assert min(below) >= -1e-15, min(below)
@@ -373,7 +374,7 @@ def test_rigid_motion_leaves_the_distance(s, x, q, q_motion, shift):
     d_moved, grad_moved = distance(Q @ x + shift, Q @ pc + shift, Q @ Rc, s)
     scale = max(s.max(), np.linalg.norm(x) + np.linalg.norm(pc) + np.linalg.norm(shift))  # the moved points' rounding
     assert abs(d_moved - d) <= 16 * EPS * scale
-    np.testing.assert_allclose(grad_moved, Q @ grad, atol=1e-12)
+    np.testing.assert_allclose(grad_moved, Q @ grad, rtol=0, atol=1e-12)
 
 
 @settings(max_examples=150, deadline=None)
@@ -389,4 +390,4 @@ def test_moving_along_the_normal_adds_its_length(s, x, q, step):
         return
     d_moved, grad_moved = distance(x + step * grad, ORIGIN, Rc, s)
     assert abs(d_moved - (d + step)) <= 8 * EPS * max(s.max(), np.abs(x).max() + step)
-    np.testing.assert_allclose(grad_moved, grad, atol=1e-12)
+    np.testing.assert_allclose(grad_moved, grad, rtol=0, atol=1e-12)

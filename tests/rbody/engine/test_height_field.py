@@ -99,7 +99,7 @@ def test_a_sphere_over_a_random_field_is_its_exact_distance_from_the_surface():
             continue
         dist, normal, point = field_candidates(shape, "sphere", centre, I3, (r,))
         assert np.all(dist >= truth - r - 1e-14)  # never below the true distance
-        np.testing.assert_allclose(np.linalg.norm(normal, axis=1), 1.0, atol=1e-14)
+        np.testing.assert_allclose(np.linalg.norm(normal, axis=1), 1.0, rtol=0, atol=1e-14)
         if truth <= r:  # touching or overlapping: the nearest surface point is under the sphere, in its window
             assert dist.min() == pytest.approx(truth - r, abs=1e-14)
             checked += 1
@@ -153,7 +153,7 @@ def test_a_sphere_beside_or_under_a_field_is_its_exact_distance_from_the_solid()
             continue
         dist, normal, _ = field_candidates(shape, "sphere", centre, I3, (r,))
         assert np.all(dist >= truth - r - 1e-14)  # never below the true distance
-        np.testing.assert_allclose(np.linalg.norm(normal, axis=1), 1.0, atol=1e-14)
+        np.testing.assert_allclose(np.linalg.norm(normal, axis=1), 1.0, rtol=0, atol=1e-14)
         if truth <= r:  # touching or overlapping: the solid's nearest point is within the sphere's reach
             assert dist.size and dist.min() == pytest.approx(truth - r, abs=1e-14)
             checked["base" if centre[2] < -0.1 else "wall"] += 1
@@ -167,9 +167,9 @@ def test_a_box_beside_a_wall_touches_it_by_its_four_corners():
     dist, normal, point = field_candidates(plateau, "box", [1.0 + 0.1 + 1e-3, 0.3, 0.05], I3, (0.1, 0.1, 0.1))
     close = dist < 0.05
     assert close.sum() == 4
-    np.testing.assert_allclose(dist[close], 1e-3, atol=1e-15)
-    np.testing.assert_allclose(normal[close], np.tile([1.0, 0, 0], (4, 1)), atol=1e-15)
-    np.testing.assert_allclose(np.sort(point[close, 2]), [-0.05, -0.05, 0.15, 0.15], atol=1e-15)
+    np.testing.assert_allclose(dist[close], 1e-3, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(normal[close], np.tile([1.0, 0, 0], (4, 1)), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(np.sort(point[close, 2]), [-0.05, -0.05, 0.15, 0.15], rtol=0, atol=1e-15)
     # lifted above the rim it clears the wall and meets the rim's edge instead: the wall is only below the rim
     dist, normal, _ = field_candidates(plateau, "box", [1.0 + 0.1 + 1e-3, 0.3, 0.3 + 0.1 + 1e-3], I3,
                                        (0.1, 0.1, 0.1))
@@ -192,7 +192,7 @@ def test_a_corner_edge_ends_at_the_rim_vertex_to_the_last_bit():
             _corner(record, pf, Rf, sign_x, sign_y, True, bottom)
             assert np.array_equal(top, vertex)
             drop = Rf.T @ (top - bottom)
-            np.testing.assert_allclose(drop, [0.0, 0.0, 0.2 * heights[r, c] + 0.1], atol=1e-15)
+            np.testing.assert_allclose(drop, [0.0, 0.0, 0.2 * heights[r, c] + 0.1], rtol=0, atol=1e-15)
             if pf @ pf == 0.0:  # the field's own frame: the edge is vertical to the last bit
                 assert bottom[0] == top[0] and bottom[1] == top[1]
 
@@ -202,17 +202,17 @@ def test_a_sphere_in_a_valley_touches_both_faces_and_on_a_ridge_its_edge():
     valley = field(np.tile(np.abs(xs) / 3, (21, 1)), (3.0, 3.0, 3.0, 0.1))  # faces at 45 degrees
     r = 0.1
     dist, normal, _ = field_candidates(valley, "sphere", [0.0, 0.05, r * np.sqrt(2)], I3, (r,))
-    np.testing.assert_allclose(dist, 0.0, atol=1e-15)
-    np.testing.assert_allclose(np.sort(normal[:, 0]), [-np.sqrt(0.5), np.sqrt(0.5)], atol=1e-15)
+    np.testing.assert_allclose(dist, 0.0, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(np.sort(normal[:, 0]), [-np.sqrt(0.5), np.sqrt(0.5)], rtol=0, atol=1e-15)
     ridge = field(np.tile(1 - np.abs(xs) / 3, (21, 1)), (3.0, 3.0, 3.0, 0.1))
     dist, normal, _ = field_candidates(ridge, "sphere", [0.0, 0.05, 3.0 + r + 0.01], I3, (r,))
     assert dist.min() == pytest.approx(0.01, abs=1e-15)
-    np.testing.assert_allclose(normal[np.argmin(dist)], [0, 0, 1], atol=1e-15)
+    np.testing.assert_allclose(normal[np.argmin(dist)], [0, 0, 1], rtol=0, atol=1e-15)
     # a box lying across the ridge rests on the ridge line: the span's ends and middle, normals up
     dist, normal, point = field_candidates(ridge, "box", [0.0, 0.05, 3.11], I3, (0.1, 0.1, 0.1))
     touching = dist <= 0.01 + 1e-15
     assert touching.sum() >= 3 and dist.min() == pytest.approx(0.01, abs=1e-15)
-    np.testing.assert_allclose(normal[touching], np.tile([0, 0, 1], (touching.sum(), 1)), atol=1e-14)
+    np.testing.assert_allclose(normal[touching], np.tile([0, 0, 1], (touching.sum(), 1)), rtol=0, atol=1e-14)
     assert np.ptp(point[touching, 1]) == pytest.approx(0.2, abs=1e-12)  # from one end of the box to the other
 
 
@@ -226,8 +226,8 @@ def test_no_wall_between_cells_a_box_on_a_ramp_sees_only_the_ramp():
         dist, normal, _ = field_candidates(shape, "box", surface + (0.1 + 1e-3) * n, tilt, (0.1, 0.1, 0.1))
         close = dist < 0.05
         assert close.sum() == 4  # the four lower corners, each once
-        np.testing.assert_allclose(dist[close], 1e-3, atol=1e-14)
-        np.testing.assert_allclose(normal[close], np.tile(n, (4, 1)), atol=1e-14)
+        np.testing.assert_allclose(dist[close], 1e-3, rtol=0, atol=1e-14)
+        np.testing.assert_allclose(normal[close], np.tile(n, (4, 1)), rtol=0, atol=1e-14)
 
 
 def simulate_on(shape_field, body_shape, inertia, pos, quat=(1.0, 0.0, 0.0, 0.0), friction=0.5, qvel=None,
@@ -312,7 +312,7 @@ def test_a_sphere_rolls_down_a_ramp_of_many_cells_at_five_sevenths_g_sin_alpha()
     assert moved[-1] > 1.5
     np.testing.assert_allclose(moved, a * run.t * (run.t + dt) / 2, rtol=0, atol=1e-12)
     height = (run["body.com"] - surface) @ n  # its centre r above the ramp throughout
-    np.testing.assert_allclose(height, r, atol=1e-13)
+    np.testing.assert_allclose(height, r, rtol=0, atol=1e-13)
 
 
 FIELD_MJCF = """<mujoco>
@@ -353,7 +353,7 @@ def test_an_mjcf_height_field_loads_runs_and_exports_to_mujoco(tmp_path):
     ground = next(s for s in scene.layout.fixed if s.name == "ground")
     heights = np.asarray(ground.heights)
     # elevation lists its rows from y = +1 down, as MuJoCo's compiler reads them: row 0 (y = -1) is its last
-    np.testing.assert_allclose(heights, (np.array([[1, 2, 1, 1], [3, 5, 3, 1], [2, 3, 2, 1]]) - 1) / 4, atol=0)
+    np.testing.assert_allclose(heights, (np.array([[1, 2, 1, 1], [3, 5, 3, 1], [2, 3, 2, 1]]) - 1) / 4, rtol=0, atol=0)
     assert ground.pos == (0.1, 0.0, -0.05)
     assert_surface_is_mujocos(mujoco, path, ground)
     run = rbody.simulate(scene, dt=2e-3, t_end=0.6, progress=False)
@@ -368,7 +368,7 @@ def test_an_mjcf_height_field_loads_runs_and_exports_to_mujoco(tmp_path):
     data = np.asarray(model.hfield_data).reshape(3, 4)
     low = heights.min()
     np.testing.assert_allclose(low * ground.size[2] + data * model.hfield_size[0, 2], heights * ground.size[2],
-                               atol=1e-7)  # MuJoCo's single precision
+                               rtol=0, atol=1e-7)  # MuJoCo's single precision
 
 
 # FIELD_MJCF's scene on a field read from a file in meshdir
@@ -401,7 +401,8 @@ def test_a_height_field_from_a_file_is_read_as_mujoco_reads_it(tmp_path, kind):
     model = mujoco.MjModel.from_xml_path(str(path))
     np.testing.assert_array_equal(np.asarray(ground.heights), np.asarray(model.hfield_data).reshape(rows.shape))
     # the row at y = -1: the binary's first, the PNG's last (its top row lies at +y)
-    np.testing.assert_allclose(np.asarray(ground.heights)[0], rows[0 if kind == "bin" else -1] / rows.max(), atol=1e-6)
+    np.testing.assert_allclose(np.asarray(ground.heights)[0], rows[0 if kind == "bin" else -1] / rows.max(),
+                               rtol=0, atol=1e-6)
     assert_surface_is_mujocos(mujoco, path, ground)
     run = rbody.simulate(scene, dt=2e-3, t_end=0.5, progress=False)
     gaps = np.array([field_candidates(ground, "sphere", centre, I3, (0.1,))[0].min() for centre in run["ball.com"]])

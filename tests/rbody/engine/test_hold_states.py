@@ -44,7 +44,7 @@ def squeezed_solution(W, b, lo, hi):
     assert cone_solve(W, b, lo, hi, ROLES, MU, lam, 1e-10, 2000) <= 1e-16
     squeeze = np.zeros(24)
     squeeze[[1, 7, 13, 19]] = [-1.0, 1.0, 1.0, -1.0]
-    np.testing.assert_allclose(W @ squeeze, 0.0, atol=1e-15)
+    np.testing.assert_allclose(W @ squeeze, 0.0, rtol=0, atol=1e-15)
     return lam + 0.1 * MU[1] * lam[0] * squeeze
 
 

@@ -90,7 +90,7 @@ def test_the_central_path_is_followed_by_primal_dual_steps(seed):
             assert radius[i] * radius[i] - inside[i] * inside[i] - inside[i + 1] * inside[i + 1] > 0.0
         elif np.isfinite(lo[i]):
             assert inside[i] > lo[i]
-    np.testing.assert_allclose(tresca_natural_map(W, b, lo, hi, role, radius, inside), 0.0, atol=1e-9)
+    np.testing.assert_allclose(tresca_natural_map(W, b, lo, hi, role, radius, inside), 0.0, rtol=0, atol=1e-9)
 
 
 def tresca_natural_map(W, b, lo, hi, role, radius, lam):

@@ -45,11 +45,11 @@ def test_closed_form_distances():
     # a sphere beside the ellipsoid's long axis
     dist, normal, _ = collide_pair("sphere", [0.5, 0, 0], I3, (0.1,), "ellipsoid", np.zeros(3), I3, (0.3, 0.2, 0.1))
     assert dist[0] == pytest.approx(0.1, abs=1e-15)
-    np.testing.assert_allclose(normal[0], [-1, 0, 0], atol=1e-15)
+    np.testing.assert_allclose(normal[0], [-1, 0, 0], rtol=0, atol=1e-15)
     # a mesh cube on a plane: its four lower corners at the cube's height less 0.1
     dist, _, _ = collide_pair("plane", np.zeros(3), I3, (0, 0), "mesh", [0, 0, 0.13], I3, (), vertices_b=CUBE)
     finite = np.sort(dist[np.isfinite(dist)])
-    np.testing.assert_allclose(finite[:4], 0.03, atol=1e-15)
+    np.testing.assert_allclose(finite[:4], 0.03, rtol=0, atol=1e-15)
     assert finite[4:].size == 0 or finite[4] > 0.2 - 1e-12  # the upper corners, if found at all
     # a mesh cube face on a box's face, 0.02 apart, offset sideways: both faces' corners found
     dist, normal, _ = collide_pair("box", np.zeros(3), I3, (0.3, 0.3, 0.1), "mesh", [0.05, 0.02, 0.22], I3, (),
@@ -64,11 +64,11 @@ def test_closed_form_distances():
                                    along_y, (0.1, 0.1, 0.1))
     assert dist.min() == pytest.approx(0.01, abs=1e-15)
     assert np.argmin(dist) == 16
-    np.testing.assert_allclose(normal[16], [0, 0, 1], atol=1e-15)
+    np.testing.assert_allclose(normal[16], [0, 0, 1], rtol=0, atol=1e-15)
     dist, normal, _ = collide_pair("box", np.zeros(3), along_x, (0.1, 0.1, 0.1), "box", [0, 0, 2 * ridge - 1e-9],
                                    along_y, (0.1, 0.1, 0.1))
     assert dist[16] == pytest.approx(-1e-9, abs=1e-15)  # crossed: an overlap of that depth
-    np.testing.assert_allclose(normal[16], [0, 0, 1], atol=1e-12)
+    np.testing.assert_allclose(normal[16], [0, 0, 1], rtol=0, atol=1e-12)
 
 
 MUJOCO_PAIRS = [("ellipsoid", (0.1, 0.2, 0.15), "plane", None), ("ellipsoid", (0.1, 0.2, 0.15), "sphere", (0.1,)),
@@ -255,7 +255,7 @@ def test_mjcf_meshes_and_ellipsoids_collide(tmp_path):
     path.write_text(xml)
     scene = rbody.from_mjcf(path, t_end=0.5)
     shapes = {s.name: s for b in scene.layout.bodies for s in b.shapes}
-    np.testing.assert_allclose(np.sort(np.abs(np.asarray(shapes["ga"].vertices)).ravel()), 0.1, atol=1e-7)
+    np.testing.assert_allclose(np.sort(np.abs(np.asarray(shapes["ga"].vertices)).ravel()), 0.1, rtol=0, atol=1e-7)
     run = rbody.simulate(scene, dt=2e-3)
     for body in "abc":  # the inline cube's corners are float32 (MuJoCo's): 0.1 + 1.5e-9, pushed up that at once
         lowest = -min(v[2] for v in shapes["g" + body].vertices) if body != "c" else 0.1

@@ -224,7 +224,7 @@ def test_inertia_with_offset_centre_rolls_about_its_centre_of_mass():
     layout = scene.layout
     _down, normal = _frame(0.4)
     part = layout.bodies[0]
-    np.testing.assert_allclose(np.array(part.pos) + body.com, 0.2 * normal, atol=1e-15)
+    np.testing.assert_allclose(np.array(part.pos) + body.com, 0.2 * normal, rtol=0, atol=1e-15)
     for joint in layout.joints:
         np.testing.assert_allclose(joint.anchor, body.com)
     np.testing.assert_allclose(part.shapes[0].pos, body.com)
@@ -249,8 +249,8 @@ def test_layout_geometry(body):
     down, normal = _frame(incline)
     (plane,) = layout.fixed
     assert plane.name == "incline" and plane.kind == "plane"
-    np.testing.assert_allclose(_rotate(plane.quat, [0, 0, 1]), normal, atol=1e-15)
-    np.testing.assert_allclose(_rotate(plane.quat, [1, 0, 0]), down, atol=1e-15)
+    np.testing.assert_allclose(_rotate(plane.quat, [0, 0, 1]), normal, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(_rotate(plane.quat, [1, 0, 0]), down, rtol=0, atol=1e-15)
     # the plane holds the top point (the origin) and covers the whole travel with room to spare
     assert abs(np.dot(plane.pos, normal)) < 1e-15
     travel = scene.exact([1.2])["distance"][0]
@@ -259,20 +259,20 @@ def test_layout_geometry(body):
     (part,) = layout.bodies
     assert part.name == "body"
     # centre of the body one radius above the surface at the top point
-    np.testing.assert_allclose(np.array(part.pos) + part.inertia.com, radius * normal, atol=1e-15)
+    np.testing.assert_allclose(np.array(part.pos) + part.inertia.com, radius * normal, rtol=0, atol=1e-15)
     assert part.inertia.moment("y") == pytest.approx(RATIO[body] * radius**2, rel=1e-14)
     (shape,) = part.shapes
     if body.endswith("sphere") or body.endswith("shell"):
         assert shape.kind == "sphere" and shape.size == (radius,)
     else:
         assert shape.kind == "cylinder" and shape.size == (radius, radius / 2)
-        np.testing.assert_allclose(_rotate(shape.quat, [0, 0, 1]), [0, 1, 0], atol=1e-15)
+        np.testing.assert_allclose(_rotate(shape.quat, [0, 0, 1]), [0, 1, 0], rtol=0, atol=1e-15)
     names = [j.name for j in layout.joints]
     assert names == ["x", "z", "phi"]
     x, z, phi = layout.joints
     assert (x.kind, z.kind, phi.kind) == ("slide", "slide", "hinge")
-    np.testing.assert_allclose(x.axis, down, atol=1e-15)
-    np.testing.assert_allclose(z.axis, normal, atol=1e-15)
+    np.testing.assert_allclose(x.axis, down, rtol=0, atol=1e-15)
+    np.testing.assert_allclose(z.axis, normal, rtol=0, atol=1e-15)
     (contact,) = layout.contacts
     assert {contact.shape_a, contact.shape_b} == {shape.name, "incline"}
     assert contact.friction == 0.7 and contact.restitution == 0.0
@@ -287,7 +287,7 @@ def test_hinge_sign_makes_the_contact_point_rest_when_rolling_down():
     speed = 1.7
     spin = speed / radius
     contact_velocity = speed * np.array(x.axis) + spin * np.cross(phi.axis, -radius * normal)
-    np.testing.assert_allclose(contact_velocity, 0.0, atol=1e-15)
+    np.testing.assert_allclose(contact_velocity, 0.0, rtol=0, atol=1e-15)
     # the rolling run has positive spin
     run = rbody.simulate(rolling("disc", radius=radius, incline=incline), dt=1e-2)
     assert np.all(run["spin"][1:] > 0)
@@ -421,12 +421,12 @@ def test_race_layout_side_by_side():
     assert [j.name for j in layout.joints] == [f"{q}_{i}" for i in range(4) for q in ("x", "z", "phi")]
     for joint in layout.joints:
         expected = {"x": down, "z": normal, "phi": np.array([0.0, 1.0, 0.0])}[joint.name.split("_")[0]]
-        np.testing.assert_allclose(joint.axis, expected, atol=1e-15)
+        np.testing.assert_allclose(joint.axis, expected, rtol=0, atol=1e-15)
     # extents across the slope (world y) do not overlap
     extents = []
     for part in layout.bodies:
         centre = np.array(part.pos) + part.inertia.com
-        np.testing.assert_allclose(centre - centre[1] * np.array([0, 1, 0]), radius * normal, atol=1e-15)
+        np.testing.assert_allclose(centre - centre[1] * np.array([0, 1, 0]), radius * normal, rtol=0, atol=1e-15)
         (shape,) = part.shapes
         half = shape.size[0] if shape.kind == "sphere" else shape.size[1]
         extents.append((centre[1] - half, centre[1] + half))
