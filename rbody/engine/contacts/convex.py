@@ -83,7 +83,10 @@ a repeated vertex for polytope pairs, within the curved tolerance otherwise. P l
 vertices and EPA_FACES = 2 EPA_VERTICES faces (a closed triangulated surface of V vertices has 2V - 4 faces);
 running out is status EPA_CAPACITY, with the result of the last nearest face (a depth that is a lower bound, the gap
 reported): deep overlaps about a symmetry (coincident ellipsoids: a ring or a sphere of equally deep directions)
-need more vertices than a curved minimum does.
+need more vertices than a curved minimum does. For a curved pair EPA's face normal is its support points' plane,
+tilted by their round-off over the face's size (5e-13 rad for an ellipsoid touching a box's face): _certify's
+flat-face candidates replace it where they certify more (GJK hands a curved pair within its tolerance of touching
+to EPA, so a resting ellipsoid's every step ends here).
 
 The result: the signed distance [m] (the distance when separated, minus the depth when overlapping), the unit normal
 from geom a towards geom b (the outward normal of C at its boundary point nearest the origin: B moved along it
@@ -95,8 +98,10 @@ the witness freer to move along the surface, _freedom: an edge's or a face's, or
 than a rim's or a curved surface's, rather than a vertex's; split between two as free). A curved surface (an
 ellipsoid, a cylinder's rim) against a face whose normal the result is exactly (a box's face, a mesh's face plane, a
 cylinder's cap or side: _certify's candidates) touches at its own support point along the normal, exact, and the
-face's witness lies dist along the normal from it (_place_witnesses), where the combination of support points spread
-about the contact would put the point, a torque arm, off by up to sqrt(2 gap rho). The optional `info` (INFO,) array
+face's witness lies the distance along the normal from it (_place_witnesses), where the combination of support
+points spread about the contact would put the point, a torque arm, off by up to sqrt(2 gap rho); on a flat face (not
+a cylinder's side, curved about its axis) that distance is the two support points' gap along the normal, exact to
+round-off, where |v| or EPA's offset is within the tolerance of it. The optional `info` (INFO,) array
 receives the status (CONVERGED 0, ITERATION_LIMIT 1, EPA_CAPACITY 2, STALLED 3: the gap still open after the
 restarts, or EPA unable to grow its polytope, BAD_INPUT 4: a mesh without a hull, NaN returned), the iterations of
 GJK and of EPA, the final duality gap [m] (0 for the closed forms), and the hint vertices of the two geoms (read as
@@ -1100,30 +1105,46 @@ def _place_witnesses(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, ids, r0, r1, r2, n,
     or cap), the curved one's witness is its support point along the normal, the point of its surface with that
     normal, and the flat one's lies dist along the normal from it (where that is on the face, not beyond its
     edge: _within): the weights' combination of support points spread about the contact (sqrt(2 gap rho), 1e-6 m
-    for a gap of 1e-12 m) puts a torque arm off by as much. Else the residual across the normal (round-off, or
-    |dist| theta where the normal was turned by theta for a better certificate) moves the freer witness, both as
-    free: half each."""
+    for a gap of 1e-12 m) puts a torque arm off by as much; there the distance is the two support points' gap
+    along the normal, n.(x_b - x_a), exact (the face's plane separates them by it, and they are that far apart),
+    where GJK's |v| and EPA's face offset bound it within the tolerance. Else the residual across the normal
+    (round-off, or |dist| theta where the normal was turned by theta for a better certificate) moves the freer
+    witness, both as free: half each. Returns the distance [m]."""
     fa = _freedom(ka, Ra, normal, ids, r0, r1, r2, n, 0)
     fb = _freedom(kb, Rb, normal, ids, r0, r1, r2, n, 1)
     curved_b = fa == 2 and fb == 1 and _face_normal(ka, Ra, ha, 1.0, normal)
     if curved_b or (fb == 2 and fa == 1 and _face_normal(kb, Rb, hb, -1.0, normal)):
-        if curved_b:  # the support point of b along -n, a's witness dist back along n
+        # the two support points, a's along n and b's along -n: their gap along n is the distance where the face
+        # is flat (a box's, a mesh's, a cylinder's cap); a cylinder's side is curved around its axis, and a normal
+        # turned about it within the tolerance's freedom certifies less than the distance: there dist is kept
+        kind, axes = (ka, Ra) if curved_b else (kb, Rb)
+        along = normal[0] * axes[0, 2] + normal[1] * axes[1, 2] + normal[2] * axes[2, 2]
+        side = kind == CYLINDER and abs(along) < 0.5
+        exact = dist
+        if curved_b:  # b's support point is its contact, a's witness the distance back along n
             x0, x1, x2, _index = _support(kb, pb, Rb, sb, hb, -normal[0], -normal[1], -normal[2], True, -1)
-            f0, f1, f2 = x0 - dist * normal[0], x1 - dist * normal[1], x2 - dist * normal[2]
+            if not side:
+                f0, f1, f2, _index = _support(ka, pa, Ra, sa, ha, normal[0], normal[1], normal[2], True, -1)
+                exact = normal[0] * (x0 - f0) + normal[1] * (x1 - f1) + normal[2] * (x2 - f2)
+            f0, f1, f2 = x0 - exact * normal[0], x1 - exact * normal[1], x2 - exact * normal[2]
             inside = _within(ka, pa, Ra, sa, ha, f0, f1, f2)
         else:
             f0, f1, f2, _index = _support(ka, pa, Ra, sa, ha, normal[0], normal[1], normal[2], True, -1)
-            x0, x1, x2 = f0 + dist * normal[0], f1 + dist * normal[1], f2 + dist * normal[2]
+            if not side:
+                x0, x1, x2, _index = _support(kb, pb, Rb, sb, hb, -normal[0], -normal[1], -normal[2], True, -1)
+                exact = normal[0] * (x0 - f0) + normal[1] * (x1 - f1) + normal[2] * (x2 - f2)
+            x0, x1, x2 = f0 + exact * normal[0], f1 + exact * normal[1], f2 + exact * normal[2]
             inside = _within(kb, pb, Rb, sb, hb, x0, x1, x2)
         if inside:  # else the curved point is beyond the face's edge: the contact is at that edge
             xa[0], xa[1], xa[2] = f0, f1, f2
             xb[0], xb[1], xb[2] = x0, x1, x2
-            return
+            return exact
     share = 0.5 if fa == fb else (1.0 if fa > fb else 0.0)  # the part a's witness takes
     for a in range(3):
         residual = xb[a] - xa[a] - dist * normal[a]
         xa[a] += share * residual
         xb[a] -= (1.0 - share) * residual
+    return dist
 
 
 @njit(cache=True)
@@ -1305,7 +1326,12 @@ def _signed_distance(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, guess, normal, xa, 
                      xb, epa_out)
         if depth == depth:  # not NaN: EPA built its polytope; its last face's witnesses placed once
             dist = -depth
-            _place_witnesses(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, ids, 0, 1, 2, 3, dist, normal, xa, xb)
+            faces = ka == BOX or ka == MESH or ka == CYLINDER or kb == BOX or kb == MESH or kb == CYLINDER
+            if faces and not polytope:  # a flat face's normal that certifies more than EPA's face (whose normal
+                # is its support points' plane, off by their round-off over its size) is the normal
+                _bound, big = _certify(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, simp, ids, 1, normal[0], normal[1],
+                                       normal[2], hints, normal, big, 9)
+            dist = _place_witnesses(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, ids, 0, 1, 2, 3, dist, normal, xa, xb)
             status = int(epa_out[0])
             out[2] = epa_out[1]
             out[3] = epa_out[2]
@@ -1325,7 +1351,7 @@ def _signed_distance(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, guess, normal, xa, 
             out[3] = gap
             if status == STALLED and gap <= max(tol, ROUNDOFF * big):
                 status = CONVERGED
-            _place_witnesses(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, ids, 0, 1, 2, n, dist, normal, xa, xb)
+            dist = _place_witnesses(ka, pa, Ra, sa, ha, kb, pb, Rb, sb, hb, ids, 0, 1, 2, n, dist, normal, xa, xb)
         else:  # EPA failed on a touching pair: the guess
             length = np.sqrt(g0 * g0 + g1 * g1 + g2 * g2)
             normal[0], normal[1], normal[2] = g0 / length, g1 / length, g2 / length

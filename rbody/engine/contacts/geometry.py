@@ -573,9 +573,7 @@ def _side_line(ta, pc, Rc, sc, kind, po, Ro, so, ho, k, dist, normal, point):
     nf = 6 if kind == BOX else int(ho[1])
     radius, half = sc[0], sc[1]
     q, u, m, w, c = np.empty(3), np.empty(3), np.empty(3), np.empty(3), np.empty(3)
-    for e in range(3):  # the cylinder's centre and axis in the polytope's frame
-        q[e] = Ro[0, e] * (pc[0] - po[0]) + Ro[1, e] * (pc[1] - po[1]) + Ro[2, e] * (pc[2] - po[2])
-        u[e] = Ro[0, e] * Rc[0, 2] + Ro[1, e] * Rc[1, 2] + Ro[2, e] * Rc[2, 2]
+    segment_in_box(pc, Rc, po, Ro, q, u)  # the round geom's centre and axis in the polytope's frame
     face, best = -1, -np.inf
     for f in range(nf):  # the separating face: the least m.x less d, m.x = m.q - r |m_perp| - half |m.u| on a
         d = _polytope_plane(kind, so, ho, f, m)  # cylinder, m.q - r - half |m.u| on a capsule
