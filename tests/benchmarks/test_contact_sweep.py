@@ -31,12 +31,32 @@ def sphere_samples(dt, rolls=True):
     return {"t": t, "qpos": qpos, "v": np.stack([v, zeros, zeros], 1), "w": np.stack([zeros, w, zeros], 1)}
 
 
-def test_sphere_measures_read_the_closed_form_as_exact_and_a_skid_as_never_rolling():
-    exact = sweep.sphere_measures(sphere_samples(1e-3))
+@pytest.mark.parametrize("dt", [1e-4, 1e-3, 3e-3, 1e-2, 3e-2])
+def test_sphere_measures_read_the_closed_form_as_exact_and_a_skid_as_never_rolling(dt):
+    # the closed form sampled every dt: the slip is linear in t up to t*, the line through the last two sliding
+    # samples finds the threshold whatever dt (a line across the kink at t*, to the first rolling sample, read it
+    # 7.6e-4 s late at dt = 3e-3 and 5.6e-3 s at 1e-2)
+    exact = sweep.sphere_measures(sphere_samples(dt))
     assert exact["speed"] <= 1e-15 and exact["sink"] == 0.0
-    assert exact["t_star"] <= 1e-12          # the slip is linear in t up to t*: interpolation finds the threshold
-    skid = sweep.sphere_measures(sphere_samples(1e-3, rolls=False))
+    assert exact["t_star"] <= 1e-12
+    skid = sweep.sphere_measures(sphere_samples(dt, rolls=False))
     assert math.isinf(skid["t_star"]) and skid["speed"] == pytest.approx(2 / 7 * sweep.V0)
+
+
+def test_sphere_measures_read_a_slip_that_stalls_before_it_drops_across_the_drop():
+    # a soft contact's slip may hold still between samples, then fall below the threshold: no line through the two
+    # equal samples (it would never reach the threshold), the line across the drop instead
+    run = sphere_samples(1e-2)
+    t = run["t"]
+    stall = (t > 0.1) & (t < 0.25)
+    run["v"][stall, 0] = run["v"][np.flatnonzero(stall)[0], 0]
+    run["w"][stall, 1] = run["w"][np.flatnonzero(stall)[0], 1]
+    k = np.flatnonzero(t >= 0.25)[0]
+    slip0 = run["v"][k - 1, 0] - sweep.RADIUS * run["w"][k - 1, 1]
+    crossing = t[k - 1] + (t[k] - t[k - 1]) * (slip0 - sweep.SLIP_THRESHOLD) / slip0  # rolling at t[k]: slip 0
+    measured = sweep.sphere_measures(run)
+    exact = (sweep.V0 - sweep.SLIP_THRESHOLD) / (3.5 * sweep.MU_SPHERE * sweep.G)
+    assert measured["t_star"] == pytest.approx(abs(crossing - exact), rel=1e-12)
 
 
 def test_stack_and_incline_measures_see_sinking_and_drift():
