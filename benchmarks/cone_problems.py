@@ -86,10 +86,12 @@ def _native_run(path: Path, steps: int, lift: float):
     run = stepping.MoreauRun(prepared.model.constraints, prepared.params[0], path.name, scene.file_method)
     p = run.p
 
+    arena = stepping.step_arena(p) if hasattr(stepping, "step_arena") else ()  # (a checkout before 2026-12-01: none)
+
     def step(step_function, state):
         y, P, end_geometry, problem_rows = state
         return step_function(p, y, dt, P, stepping.EXACT_ROWS, stepping.PGS_SWEEPS, stepping.STEP_TOLERANCE,
-                             problem_rows, run.mode, end_geometry)
+                             problem_rows, run.mode, end_geometry, *arena)
 
     first = (np.array(prepared.y0[0]), np.zeros(row_count(p)),
              np.zeros(_kept_size(p)),

@@ -31,26 +31,27 @@ def stack_floats(typingctx, count):
 
 @intrinsic
 def address(typingctx, array, offset):
-    """float64* to array[offset] of a contiguous 1-D float64 array (no view is formed)."""
-    if not (isinstance(array, types.Array) and array.dtype == types.float64 and array.ndim == 1
-            and isinstance(offset, types.Integer)):
+    """A pointer to array[offset] of a contiguous 1-D array of numbers (float64* for float64; no view is formed)."""
+    if not (isinstance(array, types.Array) and isinstance(array.dtype, types.Number) and array.ndim == 1
+            and array.layout == "C" and isinstance(offset, types.Integer)):
         return None
 
     def codegen(context, builder, signature, args):
         data = context.make_array(signature.args[0])(context, builder, args[0]).data
         return builder.gep(data, [context.cast(builder, args[1], signature.args[1], types.intp)])
-    return F64P(array, offset), codegen
+    return types.CPointer(array.dtype)(array, offset), codegen
 
 
 @intrinsic
 def data(typingctx, array):
-    """float64* to the first element of a C-contiguous float64 array of any rank (its data pointer)."""
-    if not (isinstance(array, types.Array) and array.dtype == types.float64 and array.layout == "C"):
+    """A pointer to the first element of a C-contiguous array of numbers of any rank (its data pointer; float64*
+    for float64)."""
+    if not (isinstance(array, types.Array) and isinstance(array.dtype, types.Number) and array.layout == "C"):
         return None
 
     def codegen(context, builder, signature, args):
         return context.make_array(signature.args[0])(context, builder, args[0]).data
-    return F64P(array), codegen
+    return types.CPointer(array.dtype)(array), codegen
 
 
 @intrinsic
@@ -69,10 +70,18 @@ def keep_alive(typingctx, array):
 
 @njit(cache=True, inline="always")
 def unowned(array):
-    """The C-contiguous float64 array `array` (any rank) as a view numba does not reference-count. numba counts
+    """The C-contiguous array of numbers `array` (any rank, float64 or int64) as a view numba does not reference-count. numba counts
     the references to an array's memory with an atomic add wherever a function receives it, binds a view of it or
     hands it on (about 6 ns each, twice: increment and decrement); a view over raw memory has no count, and each of
     those is a test of a null pointer. For a kernel that hands the same arrays to many small helpers per item (a
     step's near contacts); the array itself must outlive the view (an argument does; an array of the kernel's own
     needs keep_alive after its last use)."""
     return carray(data(array), array.shape)
+
+
+@njit(cache=True, inline="always")
+def cut(arena, at, shape):
+    """arena[at:at + prod(shape)] (a C-contiguous 1-D array of numbers) as an array of that shape (an int or a
+    tuple), a view numba does not reference-count (unowned): one allocation carved into the many arrays of a
+    kernel. The arena must outlive the view, and views cut from it must not overlap."""
+    return carray(address(arena, at), shape)

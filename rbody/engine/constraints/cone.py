@@ -29,9 +29,10 @@ TANGENT2, follows), then SPIN, ROLL and ROLL2 where the contact has them; a cont
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import carray, njit
 
 from rbody.engine.constraints.solver import clamp, lower_solve, upper_solve
+from rbody.engine.memory import stack_floats
 
 ROW, NORMAL, TANGENT, TANGENT2, SPIN, ROLL, ROLL2 = range(7)
 INNER_STEPS = 50
@@ -76,13 +77,26 @@ def _tangent_step_size(W, i):
     return 0.5 * (a + c) + np.sqrt(0.25 * (a - c) * (a - c) + b * b)
 
 
+@njit(cache=True, inline="always")
+def _velocities(W, b, lam, w):
+    """w (m,) = b + W lam: BLAS's product into w, then b added (the same bits as b + W @ lam, without its two
+    arrays)."""
+    np.dot(W, lam, w)
+    for i in range(b.shape[0]):
+        w[i] += b[i]
+
+
+SMALL = 4096  # a problem of at most this many rows keeps its rows' velocities on the stack (32 kB)
+
+
 @njit(cache=True)
 def cone_residual(W, b, lo, hi, role, mu, lam):
     """The natural residual of the problem (module docstring) at lam: max over rows of W_ii |lambda_i -
     clamp(lambda_i - w_i / W_ii)| and over tangent pairs of s |lambda_t - P_disc(lambda_t - w_t / s)|; inf where an
     impulse or a velocity is not finite."""
     m = b.shape[0]
-    w = b + W @ lam
+    w = carray(stack_floats(m), m) if m <= SMALL else np.empty(m)
+    _velocities(W, b, lam, w)
     for i in range(m):  # (max below passes over a NaN: a finish that broke down is no solution)
         if not (np.isfinite(lam[i]) and np.isfinite(w[i])):
             return np.inf
@@ -121,10 +135,11 @@ def cone_pgs(W, b, lo, hi, role, mu, lam, tolerance, max_sweeps, start=-1.0):
     where the caller has it (negative: computed here). Returns (sweeps, residual)."""
     m = b.shape[0]
     residual = start if start >= 0.0 else cone_residual(W, b, lo, hi, role, mu, lam)
+    w = carray(stack_floats(m), m) if m <= SMALL else np.empty(m)
     for sweep in range(max_sweeps):
         if residual <= tolerance:
             return sweep, residual
-        w = b + W @ lam  # afresh each sweep: the updates below keep it in step without drift
+        _velocities(W, b, lam, w)  # afresh each sweep: the updates below keep it in step without drift
         for i in range(m):
             if role[i] == TANGENT2 or role[i] == ROLL2:
                 continue

@@ -29,11 +29,11 @@ from numba import carray, njit
 
 from rbody.engine.multibody import (D_DAMPING, DOF_SIZE, FREE, H_BODIES, H_DOF, H_DOFS, H_JOINT, H_JOINTS, H_NQ,
                                     H_ROT, HINGE, J_DADR, J_KIND, J_QADR, JOINT_SIZE, ROLL, SLIDE, _effective_qpos, _frames,
-                                    coordinate_rates, inverse_one, mass_matrix_one, passive, tree_finish,
-                                    workspace_size)
+                                    STACK_FLOATS, coordinate_rates, inverse_one, mass_matrix_one, passive,
+                                    tree_finish, workspace_size)
 from rbody.engine.spatial import quat_exp, quat_multiply
 from rbody.engine.elements import X_ACTIVE, X_NA, X_NTEN, extension_start
-from rbody.engine.memory import keep_alive, stack_floats, unowned
+from rbody.engine.memory import cut, keep_alive, stack_floats, unowned
 from rbody.engine.system import actuator_rates, add_element_forces, clamp_activations
 from rbody.engine.constraints.jacobians import (all_rows, bias_accelerations, some_rows, mode_at, row_count, unit_at,
                                                 unit_count)
@@ -76,7 +76,9 @@ def snapshot(p, q, v, act, M, f, J, jdot, g, w, acc, rows_wanted=None, with_bias
     None): every unit's rows but the contacts' (the time-stepping forms those of the near ones itself)."""
     nv = int(p[H_DOFS])
     mass_matrix_one(p, q, M, w)
-    zero = np.zeros(nv)
+    owned = carray(stack_floats(2 * nv), 2 * nv) if 2 * nv <= STACK_FLOATS else np.empty(2 * nv)
+    zero, held = cut(owned, 0, nv), cut(owned, nv, nv)  # (one buffer, on the stack where small)
+    zero[:] = 0.0
     inverse_one(p, q, v, zero, True, f, w)  # f = bias, and the workspace's frames at (q, v)
     if with_bias:
         bias_accelerations(p, w, acc)
@@ -84,12 +86,12 @@ def snapshot(p, q, v, act, M, f, J, jdot, g, w, acc, rows_wanted=None, with_bias
         all_rows(p, q, v, w, acc, J, jdot, g, with_bias, contacts)
     else:
         some_rows(p, q, v, w, acc, J, jdot, g, rows_wanted, with_bias)
-    held = np.empty(nv)
     passive(p, q, v, held)
     if p[extension_start(p) + X_ACTIVE] != 0.0:  # actuators, tendons, gravity compensation, fluid
         add_element_forces(p, q, v, act, held)
     for d in range(nv):
         f[d] = held[d] - f[d]
+    keep_alive(owned)  # read through views only
 
 
 @njit(cache=True)
@@ -552,22 +554,23 @@ def state_gaps(p, y, g, beyond=np.inf, kept=None, least=None):
     # p, w, g and the scratch, handed to helpers for each near pair, as views numba does not count (memory.unowned)
     p, y, g = unowned(p), unowned(y), unowned(g)
     nq, nv, _n = sizes(p)
-    q = np.empty(nq)
+    nb, r0, npairs, ws = int(p[H_BODIES]), contact_row0(p), pair_count(p), workspace_size(p)
+    size = nq + ws + r0 * (nv + 1) + 6 * nb + 2 * npairs  # the arrays below, one buffer (on the stack where small)
+    owned = carray(stack_floats(size), size) if size <= STACK_FLOATS else np.empty(size)
+    q, w = cut(owned, 0, nq), cut(owned, nq, ws)
     _effective_qpos(p, y, q, 0)
-    w_owned = np.empty(workspace_size(p))
-    w = unowned(w_owned)
     _frames(p, q, y[nq:nq + nv], w)
-    J = np.empty((contact_row0(p), nv))  # the rows of the units before the contacts (their gaps come without J)
-    jdot = np.empty(contact_row0(p))
-    acc = np.empty((int(p[H_BODIES]), 6))
+    J = cut(owned, nq + ws, (r0, nv))  # the rows of the units before the contacts (their gaps come without J)
+    jdot = cut(owned, nq + ws + r0 * nv, r0)
+    acc = cut(owned, nq + ws + r0 * (nv + 1), (nb, 6))
     normal, point = carray(stack_floats(3), 3), carray(stack_floats(3), 3)
     work = carray(stack_floats(GEOMETRY_WORK), GEOMETRY_WORK)
     if kept is not None:
         kept[0] = 1.0
         kept[1:1 + nq] = q
     all_rows(p, q, y[nq:nq + nv], w, acc, J, jdot, g, False, False)  # the units before the contacts
-    reach, motion = np.empty(pair_count(p)), np.empty(pair_count(p))
-    neighbours = np.empty(0)  # (a caller that keeps nothing: every pair bounded)
+    reach, motion = cut(owned, size - 2 * npairs, npairs), cut(owned, size - npairs, npairs)
+    neighbours = g[:0]  # (a caller that keeps nothing: every pair bounded)
     if kept is not None:
         neighbours = kept_neighbours(p, kept)
     pair_reaches(p, w, 0.0, reach, motion, neighbours)
@@ -598,7 +601,7 @@ def state_gaps(p, y, g, beyond=np.inf, kept=None, least=None):
                 keep_geometry(kept, nq, first + j, exact, g[row], normal, point)
         if least is not None:
             least[i] = lowest
-    keep_alive(w_owned)  # read through a view only
+    keep_alive(owned)  # read through views only
 
 
 @njit(cache=True)

@@ -59,7 +59,7 @@ from rbody.engine.contacts.broadphase import (contact0, contact_row0, first_unit
 from rbody.engine.contacts.kinematics import point_velocity
 from rbody.engine.contacts.rows import GEOMETRY_WORK, candidate, kept_candidate, kept_exact, kept_for, pair_candidates
 from rbody.engine.multibody import _effective_qpos
-from rbody.engine.memory import keep_alive, stack_floats, unowned
+from rbody.engine.memory import cut, keep_alive, stack_floats, unowned
 from rbody.engine.constraints.cone import (NORMAL, ROLL, ROUND_OFF, ROW, SPIN, TANGENT, cone_pgs, cone_polish,
                                            cone_residual, follow_drift, hold_states, inside_cones, magnitude,
                                            slide_polish, stick_polish, sticking_qp)
@@ -270,8 +270,9 @@ def near_contacts(p, w, vfree, h, J, g, formed, kept, reuse):
     work = carray(stack_floats(GEOMETRY_WORK), GEOMETRY_WORK)
     size = contact_work_size(J.shape[1])
     rows_work = carray(stack_floats(size), size) if size <= mb.STACK_FLOATS else np.empty(size)  # (huge trees)
-    reach_owned, motion_owned = np.empty(pair_count(p)), np.empty(pair_count(p))
-    reach, motion = unowned(reach_owned), unowned(motion_owned)
+    pairs = pair_count(p)  # each pair's reach and motion, one buffer (on the stack where small)
+    reach_owned = carray(stack_floats(2 * pairs), 2 * pairs) if 2 * pairs <= mb.STACK_FLOATS else np.empty(2 * pairs)
+    reach, motion = cut(reach_owned, 0, pairs), cut(reach_owned, pairs, pairs)
     pair_reaches(p, w, h, reach, motion, kept_neighbours(p, kept))  # every geom's sphere; then the listed pairs'
     for i in range(pair_count(p)):
         if reach[i] > TOUCH_TOLERANCE:  # the broad phase: the pair can neither touch nor close within the step
@@ -296,7 +297,6 @@ def near_contacts(p, w, vfree, h, J, g, formed, kept, reuse):
                 units += 1
                 count += int(p[u + U_ROWS])
     keep_alive(reach_owned)  # read through views only
-    keep_alive(motion_owned)
     return count, units
 
 
@@ -323,7 +323,21 @@ def next_activations(p, act, rates, h):
 
 
 @njit(cache=True)
-def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, end_geometry):
+def step_arena(p):
+    """(floats, ints): the memory of moreau_step's arrays whose sizes the model bounds, allocated once by the loop
+    and carved by every step (memory.cut): a step's thirty arrays of its own each cost an allocation, its release
+    and two atomic reference counts (a quarter of a sphere's step on a plane)."""
+    nq, nv, _n = dyn.sizes(p)
+    rows = row_count(p)
+    _at, na = dyn.act_range(p)
+    floats = (2 * nv * nv + 3 * nv + rows * nv + 8 * rows + nq + mb.workspace_size(p) + 6 * int(p[mb.H_BODIES])
+              + na + pair_count(p) + 2 * rows)
+    ints = unit_count(p) - contact0(p) + 3 * rows + pair_count(p)
+    return np.empty(floats), np.empty(ints, dtype=np.int64)
+
+
+@njit(cache=True)
+def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, end_geometry, floats, ints):
     """One step of the scheme (module docstring) of the state y (n,) (phi all zero) in place, h [s], its free motion
     Moreau-Jean's own (mode MOREAU) or MuJoCo's integrator `mode` (EULER, IMPLICITFAST, IMPLICIT). P (rows,)
     gets every row's impulse [N s or N m s] (0 for rows not in the problem) and problem_rows (rows + 1,) int64 the
@@ -335,45 +349,51 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
     exact_rows rows, else at most `sweeps` Gauss-Seidel sweeps to `tolerance` (relative to max(|b|, 1)).
     end_geometry (broadphase.kept_size): the contacts' geometry the last step's end found, read where this step
     starts at its configuration, and this step's, kept for the next, then the broad phase's neighbour list (zeros
-    before the first step)."""
+    before the first step). floats, ints: step_arena's memory, which the step's arrays are cut from (its contents
+    on entry are not read)."""
     # The arguments, handed to most helpers of the step, as views numba does not count (memory.unowned)
     p, y, P, end_geometry = unowned(p), unowned(y), unowned(P), unowned(end_geometry)
     nq, nv, n = dyn.sizes(p)
     rows = row_count(p)
-    M = np.empty((nv, nv))
-    f = np.empty(nv)
-    J = np.empty((rows, nv))  # a contact's rows are formed only where it touches or closes within the step
-    # (near_contacts), and only those are read (a quadruped's 23,838 rows of 18 numbers, mostly far candidates)
-    jdot = np.empty(rows)  # (each unit's rows are set where formed, and only those are read)
-    g = np.empty(rows)
-    q = np.empty(nq)
-    _effective_qpos(p, y, q, 0)
-    w = np.empty(mb.workspace_size(p))
-    acc = np.empty((int(p[mb.H_BODIES]), 6))
     at, na = dyn.act_range(p)
+    M, L = cut(floats, 0, (nv, nv)), cut(floats, nv * nv, (nv, nv))
+    f, vfree, delta = cut(floats, 2 * nv * nv, nv), cut(floats, 2 * nv * nv + nv, nv), cut(floats, 2 * nv * nv + 2 * nv, nv)
+    top = 2 * nv * nv + 3 * nv
+    J = cut(floats, top, (rows, nv))  # a contact's rows are formed only where it touches or closes within the step
+    top += rows * nv  # (near_contacts), and only those are read (a quadruped's 23,838 rows of 18 numbers)
+    jdot, g = cut(floats, top, rows), cut(floats, top + rows, rows)  # (each unit's rows set where formed, and only
+    jfree, lo, hi = cut(floats, top + 2 * rows, rows), cut(floats, top + 3 * rows, rows), cut(floats, top + 4 * rows, rows)
+    b, mu = cut(floats, top + 5 * rows, rows), cut(floats, top + 6 * rows, rows)  # those read)
+    position_rows = cut(floats, top + 7 * rows, rows)
+    top += 8 * rows
+    q = cut(floats, top, nq)
+    w = cut(floats, top + nq, mb.workspace_size(p))
+    top += nq + mb.workspace_size(p)
+    acc = cut(floats, top, (int(p[mb.H_BODIES]), 6))
+    top += 6 * int(p[mb.H_BODIES])
+    rates, least = cut(floats, top, na), cut(floats, top + na, pair_count(p))  # least: each contact pair's least
+    c0 = contact0(p)                                                              # gap at the end (state_gaps)
+    formed = cut(ints, 0, unit_count(p) - c0)  # the contacts formed (a list: a model's far candidates unread)
+    index, role = cut(ints, unit_count(p) - c0, rows), cut(ints, unit_count(p) - c0 + rows, rows)
+    flagged = cut(ints, unit_count(p) - c0 + 2 * rows, rows)  # the rows flagged in position_rows, in flag order
+    near = cut(ints, unit_count(p) - c0 + 3 * rows, pair_count(p))  # (not a model's far candidates' rows)
+    _effective_qpos(p, y, q, 0)
     dyn.snapshot(p, q, y[nq:nq + nv], y[at:at + na], M, f, J, jdot, g, w, acc, None, False, False)
     dyn.add_sliding_friction(p, f, J)
-    rates = np.empty(na)
     if na:  # the activations' rates at the step's start (advanced by explicit Euler below, as MuJoCo's Euler does)
         dyn.actuator_rates(p, y[:nq], y[nq:nq + nv], y[at:at + na], rates)
     v = y[nq:nq + nv]
-    vfree = np.empty(nv)
     if mode == MOREAU:  # L: the factor of the impulses' metric, which moves the velocities by metric^-1 J^T P
-        L = np.linalg.cholesky(M)
+        L[:, :] = np.linalg.cholesky(M)
         a0 = dyn.upper_solve(L, dyn.lower_solve(L, f))
         for d in range(nv):
             vfree[d] = v[d] + h * a0[d]
     else:
-        L = np.empty((nv, nv))
         mujoco_free_velocity(p, y, h, mode, M, f, vfree, L)
-    c0 = contact0(p)
-    formed = np.empty(unit_count(p) - c0, dtype=np.int64)  # the contacts formed (a list: a model's far candidates
-    more, touching = near_contacts(p, w, vfree, h, J, g, formed, end_geometry, kept_for(end_geometry, q))  # unread)
-    bound = contact_row0(p) + more
-    jfree = np.empty(bound)  # the problem's rows (sized by the rows formed, not the model's): their rates at the
-    index = np.empty(bound, dtype=np.int64)  # free velocities, rows, bounds, b, roles and friction coefficients
-    lo, hi, b = np.empty(bound), np.empty(bound), np.empty(bound)
-    role, mu = np.zeros(bound, dtype=np.int64), np.zeros(bound)
+    more, touching = near_contacts(p, w, vfree, h, J, g, formed, end_geometry, kept_for(end_geometry, q))
+    bound = contact_row0(p) + more  # the problem's rows (at most the rows formed): their rates at the free
+    role[:bound] = 0  # velocities (jfree), rows (index), bounds, b, roles and friction coefficients
+    mu[:bound] = 0.0
     cones = False
     m = 0
     units = unit_at(p, 0)  # (unit k's record from the first's: unit_at's reads from the header, redone each pass)
@@ -433,7 +453,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
         if kept < m:  # (a copy only where a row went)
             A = np.ascontiguousarray(A[:, :kept])
         m = kept
-    lam = np.empty(m)
+    lam = cut(floats, top + na + pair_count(p), m)
     for c in range(m):  # the last step's impulses: the warm start of Gauss-Seidel
         lam[c] = P[index[c]]
     for c in range(problem_rows[0]):  # then cleared on the last step's rows, the only ones set (not every row:
@@ -443,14 +463,14 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
         problem_rows[1 + c] = index[c]
     if m > 0:
         W = A.T @ A
-        bb, ll, hh = b[:m].copy(), lo[:m].copy(), hi[:m].copy()
+        bb, ll, hh = b[:m], lo[:m], hi[:m]  # (the solvers read them only)
         for c in range(m):
             lam[c] = min(max(lam[c], ll[c]), hh[c])
         scale = 1.0
         for c in range(m):
             scale = max(scale, abs(bb[c]))
         if cones:  # Gauss-Seidel by blocks, each round finished exactly (rbody.engine.constraints.cone)
-            residual = solve_cones(W, bb, ll, hh, role[:m].copy(), mu[:m].copy(), lam, tolerance * scale, sweeps)
+            residual = solve_cones(W, bb, ll, hh, role[:m], mu[:m], lam, tolerance * scale, sweeps)
             status = 0 if residual <= tolerance * scale else 1
         elif m <= exact_rows:
             status, _steps = mlcp_exact_from(W, bb, ll, hh, lam)  # warm: the last step's impulses
@@ -463,7 +483,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
         if status != 0:
             return status, residual, m
         x = dyn.upper_solve(L, A @ lam)
-        jnow = np.empty(m)  # the problem's rows' rates before the step
+        jnow = cut(floats, top + na + pair_count(p) + rows, m)  # the problem's rows' rates before the step
         for c in range(m):
             jnow[c] = _row_dot(J, index[c], v)
         loss = 0.0
@@ -484,7 +504,6 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
         for d in range(nv):
             v[d] = vfree[d]
     y[n - 1] += h * dyn.damping_power(p, v)
-    delta = np.empty(nv)
     for d in range(nv):
         delta[d] = h * v[d]
     if mode == MOREAU:
@@ -499,13 +518,11 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
         next_activations(p, y[at:at + na], rates, h)
     # positions onto the equalities and onto every stop passed or touched (a projection in the metric of M moves
     # every dof: a stop it pushes past joins the set, and the projection is repeated), velocities onto the equalities
-    position_rows = np.empty(rows)  # 1 on a flagged row, 0 on the others the flagging reads: those before the
-    position_rows[:contact_row0(p)] = 0.0  # contacts, and a near pair's normal rows, zeroed where it is first near
-    near = np.zeros(pair_count(p), dtype=np.bool_)  # (not a model's far candidates' rows: 24,822 on a quadruped)
-    flagged = np.empty(rows, dtype=np.int64)  # the rows flagged in position_rows, in the order flagged
+    # position_rows: 1 on a flagged row, 0 on the others the flagging reads: those before the contacts, and a near
+    position_rows[:contact_row0(p)] = 0.0  # pair's normal rows, zeroed where it is first near
+    near[:] = 0
     count = 0
-    velocity_rows = np.zeros(0)  # the equalities' rows (rows,), from the first equality met (most models have none)
-    least = np.empty(pair_count(p))  # each contact pair's least gap at the end (state_gaps)
+    velocity_rows = position_rows[:0]  # the equalities' rows (rows,), from the first equality met (most have none)
     worst = 0.0
     for _round in range(PROJECTION_ROUNDS):
         dyn.state_gaps(p, y, g, FLAGGED_GAP, end_geometry, least)
@@ -533,8 +550,8 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
             if least[i] > FLAGGED_GAP:
                 continue
             _first, slots, row0, width = pair_span(p, pair_at(p, i))
-            if not near[i]:
-                near[i] = True
+            if near[i] == 0:
+                near[i] = 1
                 for j in range(slots):
                     position_rows[row0 + j * width] = 0.0
             for j in range(slots):
@@ -623,9 +640,10 @@ def moreau_loop(p, y0, h, nsteps, save_every, out, exact_rows, sweeps, tolerance
     out[0] = y
     starts = np.zeros(out.shape[0] + 1, dtype=np.int64)
     kept, values, used = np.empty(max(64, 4 * out.shape[0]), dtype=np.int64), np.empty(max(64, 4 * out.shape[0])), 0
+    floats, ints = step_arena(p)
     for k in range(1, nsteps + 1):
         status, residual, m = moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode,
-                                          end_geometry)
+                                          end_geometry, floats, ints)
         if status != 0:
             return k, status, residual, m, starts, kept[:used], values[:used]
         for a in range(y.shape[0]):
@@ -742,10 +760,11 @@ class MoreauRun:
         out[0] = y
         starts = np.zeros(out.shape[0] + 1, dtype=np.int64)
         kept, values, used = np.empty(max(64, 4 * out.shape[0]), dtype=np.int64), np.empty(max(64, 4 * out.shape[0])), 0
+        floats, ints = step_arena(self.p)
         for k in range(1, nsteps + 1):
             before_step(k - 1, (k - 1) * dt, y, self.p)
             status, residual, m = moreau_step(self.p, y, dt, P, EXACT_ROWS, PGS_SWEEPS, STEP_TOLERANCE, problem_rows,
-                                              self.mode, end_geometry)
+                                              self.mode, end_geometry, floats, ints)
             if status != 0:
                 return k, status, residual, m, starts, kept[:used], values[:used]
             if not np.all(np.isfinite(y)):
@@ -760,5 +779,5 @@ def unit_bound(p: np.ndarray, table: ConstraintTable, k: int) -> float:
     return float(p[table.offset + C_HEADER + UNIT_SIZE * k + U_BOUND])
 
 
-__all__ = ["moreau_step", "moreau_loop", "MoreauRun", "StepForces", "EXACT_ROWS", "STEP_TOLERANCE", "PGS_SWEEPS", "MODES", "SCHEMES",
+__all__ = ["moreau_step", "step_arena", "moreau_loop", "MoreauRun", "StepForces", "EXACT_ROWS", "STEP_TOLERANCE", "PGS_SWEEPS", "MODES", "SCHEMES",
            "mujoco_free_velocity", "next_activations"]

@@ -28,14 +28,15 @@ bounded (pair_reaches): a standing quadruped's 4 of 636.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import carray, njit
 
 from rbody.engine.contacts.geometry import PLANE, bounding_radius
 from rbody.engine.contacts.kinematics import TIGHTEN_BELOW, clearance, needs_axes
 from rbody.engine.contacts.rows import GEOMETRY_WORK, kept_geometry_size
 from rbody.engine.contacts.terrain import HFIELD
 from rbody.engine.elements import block_offset
-from rbody.engine.multibody import H_NQ, _views
+from rbody.engine.memory import cut, keep_alive, stack_floats
+from rbody.engine.multibody import H_NQ, STACK_FLOATS, _views
 from rbody.engine.constraints.table import (C_CONTACT0, C_GEOM, C_GEOMS, C_PAIR, C_PAIRS, C_ROWS, C_UNIT, C_UNITS,
                                             G_BODY, G_POSE, G_TYPE, GEOM_SIZE, P_GEOM_A, P_GEOM_B, P_MARGIN, P_ROW,
                                             P_SLOTS, P_UNIT, P_WIDTH, PAIR_SIZE, U_GMAT_A, U_GPOS_A, U_GSIZE_A,
@@ -223,9 +224,11 @@ def pair_reaches(p, w, h, reach, motion, neighbours):
     TIGHTEN_BELOW, and it is given the lower bound NEIGHBOUR_SKIN - TIGHTEN_BELOW less that sum of moves (motion 0).
     Otherwise every pair is bounded and the list built again. A quadruped standing lists 4 to 33 of its 559 to 697
     pairs."""
-    spheres = np.empty((geom_count(p), SPHERE_SIZE))
+    size = geom_count(p) * SPHERE_SIZE  # (on the stack where small)
+    owned = carray(stack_floats(size), size) if size <= STACK_FLOATS else np.empty(size)
+    spheres = cut(owned, 0, (geom_count(p), SPHERE_SIZE))
     geom_spheres(p, w, h, spheres)
-    work = np.empty(GEOMETRY_WORK)
+    work = carray(stack_floats(GEOMETRY_WORK), GEOMETRY_WORK)  # clearance's scratch (not 30 kB from the heap)
     pairs = pair_at(p, 0)
     moves = _list_holds(p, spheres, h, neighbours)
     build = moves < 0.0 and neighbours.shape[0] > 0
@@ -267,6 +270,7 @@ def pair_reaches(p, w, h, reach, motion, neighbours):
         for i in range(geom_count(p)):
             for e in range(3):
                 neighbours[N_CENTRES + 3 * i + e] = spheres[i, e]
+    keep_alive(owned)  # read through a view only
 
 
 @njit(cache=True, inline="always")

@@ -89,11 +89,12 @@ of these run by the time-stepping only: their candidates change identity with th
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import carray, njit
 
 from rbody.engine.contacts.convex import (box_distance, cylinder_distance, point_signed_distance, signed_distance,
                                          support)
 from rbody.engine.contacts.ellipsoid import ellipsoid_distance, plane_ellipsoid, segment_ellipsoid_closest
+from rbody.engine.memory import cut, stack_floats
 
 PLANE, SPHERE, CAPSULE, ELLIPSOID, CYLINDER, BOX, MESH = 0, 2, 3, 4, 5, 6, 7
 TYPE_CODES = {"plane": PLANE, "sphere": SPHERE, "capsule": CAPSULE, "ellipsoid": ELLIPSOID, "cylinder": CYLINDER,
@@ -690,9 +691,10 @@ def box_edges_closest(pa, Ra, sa, pb, Rb, sb, axes, ca, ua, cb, ub):
     directions written; returns (s, t, distance), the closest points ca + s ua and cb + t ub; distance +inf where no
     pair can."""
     best, bs, bt = -np.inf, 0.0, 0.0
-    c1, u1, m1, m2 = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
-    c2, u2, k1, k2 = np.empty((12, 3)), np.empty((12, 3)), np.empty((12, 3)), np.empty((12, 3))
-    hb = np.empty(12)
+    small = carray(stack_floats(168), 168)  # the vectors below, on the stack (no allocation per pair of boxes)
+    c1, u1, m1, m2 = cut(small, 0, 3), cut(small, 3, 3), cut(small, 6, 3), cut(small, 9, 3)
+    c2, u2, k1, k2 = cut(small, 12, (12, 3)), cut(small, 48, (12, 3)), cut(small, 84, (12, 3)), cut(small, 120, (12, 3))
+    hb = cut(small, 156, 12)
     for eb in range(12):  # b's edges once, not once per edge of a
         hb[eb] = _box_edge(pb, Rb, sb, eb, c2[eb], u2[eb], k1[eb], k2[eb])
     for ea in range(12):
@@ -781,12 +783,13 @@ def _box_edge_pair(pa, Ra, sa, pb, Rb, sb, k, dist, normal, point):
     perpendicular, the point midway; APART where no two edges cross, or where a face's axis separates the boxes
     more than the edges' does (the separating-axis test: the contact is a face's)."""
     face = _face_separation(pa, Ra, sa, pb, Rb, sb)
-    axes = np.empty((3, 3, 3))
+    small = carray(stack_floats(39), 39)  # the vectors below, on the stack (no allocation per pair of boxes)
+    axes = cut(small, 0, (3, 3, 3))
     edge_axes(Ra, Rb, axes)
     if _edge_axes_separation(pa, Ra, sa, pb, Rb, sb, axes) + EDGE_BOUND_SLACK < face - 1e-12:
         dist[k] = APART  # every crossing's distance is at most its axis's separation: a face's (the 144 pairs
         return           # spared where boxes rest face on face)
-    ca, ua, cb, ub = np.empty(3), np.empty(3), np.empty(3), np.empty(3)
+    ca, ua, cb, ub = cut(small, 27, 3), cut(small, 30, 3), cut(small, 33, 3), cut(small, 36, 3)
     s, t, d = box_edges_closest(pa, Ra, sa, pb, Rb, sb, axes, ca, ua, cb, ub)
     if d < face - 1e-12:
         d = APART  # a face's axis separates them more: they touch face first (a face's corners hold that)

@@ -9,7 +9,8 @@ import rbody
 from rbody.engine import multibody as mb
 from rbody.engine.constraints import dynamics as dyn
 from rbody.engine.constraints.jacobians import row_count, unit_at, unit_count
-from rbody.engine.constraints.stepping import EXACT_ROWS, MODES, PGS_SWEEPS, STEP_TOLERANCE, MoreauRun, moreau_step
+from rbody.engine.constraints.stepping import (EXACT_ROWS, MODES, PGS_SWEEPS, STEP_TOLERANCE, MoreauRun, moreau_step,
+                                               step_arena)
 from rbody.engine.constraints.table import (C_GEOM, CONTACT_KINDS, G_TYPE, GEOM_SIZE, P_GEOM_A, P_GEOM_B, P_MARGIN,
                                             PAIR_SIZE,
                                             U_BODY1, U_BODY2, U_DOF, U_GPOS_A, U_GPOS_B, U_GSIZE_A, U_GSIZE_B,
@@ -225,13 +226,14 @@ def test_a_step_with_the_neighbour_list_is_the_step_without_it(model):
     _scene, table, p, y_start = model
     nq, rows = int(p[mb.H_NQ]), row_count(p)
     states = []
+    arena = step_arena(p)
     for size in (kept_size(p), kept_geometry_size(nq, unit_count(p))):
         y, P = y_start.copy(), np.zeros(rows)
         problem_rows, kept = np.zeros(rows + 1, dtype=np.int64), np.zeros(size)
         trajectory, lists = [], []
         for _ in range(60):
             status, _residual, _m = moreau_step(p, y, 0.01, P, EXACT_ROWS, PGS_SWEEPS, STEP_TOLERANCE, problem_rows,
-                                                MODES["moreau"], kept)
+                                                MODES["moreau"], kept, *arena)
             assert status == 0
             trajectory.append(y.copy())
             lists.append(kept[kept_geometry_size(nq, unit_count(p)):].copy())

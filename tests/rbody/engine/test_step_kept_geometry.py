@@ -16,7 +16,7 @@ import rbody
 from rbody import Scene, from_mjcf
 from rbody.engine import multibody as mb
 from rbody.engine.constraints.stepping import (EXACT_ROWS, MODES, PGS_SWEEPS, STEP_TOLERANCE, MoreauRun,
-                                               moreau_step)
+                                               moreau_step, step_arena)
 from rbody.engine.contacts.broadphase import kept_size
 from rbody.engine.contacts.rows import kept_for
 
@@ -58,6 +58,7 @@ def step_run(scene: Scene, dt: float, steps: int, keep: bool):
     P, problem_rows = np.zeros(rows), np.zeros(rows + 1, dtype=np.int64)
     size = kept_size(p)
     kept = np.zeros(size)
+    arena = step_arena(p)
     states, read = [y.copy()], []
     nq = int(p[mb.H_NQ])
     for _ in range(steps):
@@ -65,7 +66,7 @@ def step_run(scene: Scene, dt: float, steps: int, keep: bool):
             kept = np.zeros(size)
         read.append(kept_for(kept, y[:nq].copy()))
         status, _residual, m = moreau_step(p, y, dt, P, EXACT_ROWS, PGS_SWEEPS, STEP_TOLERANCE, problem_rows,
-                                           MODES["moreau"], kept)
+                                           MODES["moreau"], kept, *arena)
         assert status == 0
         listed = problem_rows[1:1 + problem_rows[0]]  # the step's problem: its rows, ascending, and P set on them only
         assert problem_rows[0] == m and np.all(np.diff(listed) > 0)
