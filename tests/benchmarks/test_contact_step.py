@@ -1,10 +1,10 @@
 """benchmarks/contact_step.py: the contact step's cost and its heap allocations, measured on the sweep's scenes.
 
-The step cuts its arrays from memory the loop allocates once (stepping.step_arena), and its helpers keep their
-scratch on the stack: a step of the sphere rolling on its plane allocated 64 arrays before (numba's runtime
-counters, the benchmark's run of 2026-12-01 over 2,000 steps), 12.5 since (the cone solver's and the free
-velocity's own; 64 in its first 19 steps, while it slides); a step of the stack of five boxes 123 and 12 (the box
-pairs' edge search allocated nine arrays a pair)."""
+The step cuts its arrays (W, M^-1/2 J^T, the impulses and their bounds among them) from memory the loop allocates
+once (stepping.step_arena), and its helpers keep their scratch on the stack: a step of the sphere rolling on its
+plane allocated 64 arrays before (numba's runtime counters, the benchmark's run of 2026-12-01 over 2,000 steps), 7
+since (the factor of M and the cone solver's copies of its impulses; more in its first 19 steps, while it slides);
+a step of the stack of five boxes 123 and 6 (the box pairs' edge search allocated nine arrays a pair)."""
 
 import importlib.util
 import math
@@ -23,13 +23,13 @@ spec.loader.exec_module(contact_step)
 
 @pytest.mark.parametrize("scene", ["sphere", "stack"])
 def test_a_contact_step_allocates_a_few_arrays_whatever_its_rows(scene):
-    """300 steps (the sphere rolls from its 20th), twice: finite positive times, and fewer than 20 allocations a
-    step (15.5 and 12.6, the runs' own arrays included; 64 and 123 before the arena): the stack's 228 rows cost no
-    more allocations than the sphere's 3."""
+    """300 steps (the sphere rolls from its 20th), twice: finite positive times, and fewer than 12 allocations a
+    step (9.5 and 6.6, the runs' own arrays and the sphere's sliding steps included; 64 and 123 before the arena):
+    the stack's 228 rows cost no more allocations than the sphere's 3."""
     result = contact_step.rbody_costs(300, 2, scenes=(scene,))[scene]
     assert len(result["seconds"]) == 2
     assert all(math.isfinite(s) and s > 0.0 for s in result["seconds"])
-    assert result["allocations"] < 20.0
+    assert result["allocations"] < 12.0
 
 
 def test_bad_counts_are_refused():

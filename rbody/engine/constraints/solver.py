@@ -46,14 +46,19 @@ UNBOUNDED = -1         # status of a problem whose bilateral rows contradict eac
 @njit(cache=True)
 def lower_solve(L, b):
     """x = L^-1 b for a lower-triangular L (n, n) and b (n,)."""
-    n = b.shape[0]
-    x = np.empty(n)
-    for i in range(n):
+    x = np.empty(b.shape[0])
+    lower_solve_into(L, b, x)
+    return x
+
+
+@njit(cache=True)
+def lower_solve_into(L, b, x):
+    """x (n,) <- L^-1 b for a lower-triangular L (n, n) and b (n,); x may be b (solved in place)."""
+    for i in range(b.shape[0]):
         acc = b[i]
         for j in range(i):
             acc -= L[i, j] * x[j]
         x[i] = acc / L[i, i]
-    return x
 
 
 @njit(cache=True)
@@ -80,13 +85,20 @@ def cholesky_factor(A, L, rtol, atol=0.0):
 
 @njit(cache=True)
 def lower_solve_rows(L, J, index, m):
+    """lower_solve_rows_into's A, allocated."""
+    A = np.empty((L.shape[0], m))
+    lower_solve_rows_into(L, J, index, m, A)
+    return A
+
+
+@njit(cache=True)
+def lower_solve_rows_into(L, J, index, m, A):
     """A (n, m) = L^-1 J[index[:m]]^T for a lower-triangular L (n, n) and rows J (rows, n): column c is what
     lower_solve(L, J[index[c]]) gives, to the bit (each entry's sum in the same order), but forward substitution
     runs over A's rows with the m right-hand sides innermost. Column by column, each entry is a chain of dependent
     additions the processor waits on; across the columns they are independent and vectorise (a five-box stack's
     60 rows on 30 dofs: the chain took a quarter of its step)."""
     n = L.shape[0]
-    A = np.empty((n, m))
     for i in range(n):
         for c in range(m):
             A[i, c] = J[index[c], i]
@@ -97,20 +109,25 @@ def lower_solve_rows(L, J, index, m):
         d = L[i, i]
         for c in range(m):
             A[i, c] = A[i, c] / d
-    return A
 
 
 @njit(cache=True)
 def upper_solve(L, b):
     """x = L^-T b for a lower-triangular L (n, n)."""
+    x = np.empty(b.shape[0])
+    upper_solve_into(L, b, x)
+    return x
+
+
+@njit(cache=True)
+def upper_solve_into(L, b, x):
+    """x (n,) <- L^-T b for a lower-triangular L (n, n); x may be b (solved in place)."""
     n = b.shape[0]
-    x = np.empty(n)
     for i in range(n - 1, -1, -1):
         acc = b[i]
         for j in range(i + 1, n):
             acc -= L[j, i] * x[j]
         x[i] = acc / L[i, i]
-    return x
 
 
 @njit(cache=True)

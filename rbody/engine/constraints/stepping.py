@@ -65,8 +65,8 @@ from rbody.engine.constraints.cone import (NORMAL, ROLL, ROUND_OFF, ROW, SPIN, T
                                            slide_polish, stick_polish, sticking_qp)
 from rbody.engine.constraints.interior import interior_finish
 from rbody.engine.constraints.natural_newton import states_newton
-from rbody.engine.constraints.solver import (RANK_RTOL, cholesky_factor, lower_solve_rows, mlcp_exact_from,
-                                             mlcp_pgs, natural_residual)
+from rbody.engine.constraints.solver import (RANK_RTOL, cholesky_factor, lower_solve_into, lower_solve_rows_into,
+                                             mlcp_exact_from, mlcp_pgs, natural_residual, upper_solve_into)
 from rbody.engine.constraints.kinds import is_equality_kind, is_friction_kind, is_stop_kind
 from rbody.engine.constraints.table import (C_HEADER, CONTACT, CONTACT1, CONTACT_KINDS, FRICTION_KINDS, U_BODY1,
                                             U_BODY2, U_BOUND, U_KIND, UNILATERAL, UNIT_SIZE, U_RESTITUTION, U_ROLL,
@@ -80,6 +80,7 @@ CONE_ROUND = 50          # Gauss-Seidel sweeps between two exact finishes of a p
 INTERIOR_AFTER = 1       # rounds of those before each further round also finishes from inside (interior_finish)
 TOUCH_TOLERANCE = 1e-10  # [m or rad]
 FLAGGED_GAP = TOUCH_TOLERANCE * 1e-3  # a stop or contact within this after a step (and pushing) is projected onto
+SMALL_PROBLEM = 4096     # a step's W of at most this many entries is cut from its arena (step_arena), else allocated
 PROJECTION_ROUNDS = 6    # projections after a step, each with the stops the last one pushed past
 MOREAU = -1              # mode of moreau_step: Moreau-Jean's own free motion, v + h M^-1 f
 MODES = {"moreau": MOREAU, "mujoco_euler": EULER, "implicitfast": IMPLICITFAST, "implicit": IMPLICIT}
@@ -324,14 +325,15 @@ def next_activations(p, act, rates, h):
 
 @njit(cache=True)
 def step_arena(p):
-    """(floats, ints): the memory of moreau_step's arrays whose sizes the model bounds, allocated once by the loop
-    and carved by every step (memory.cut): a step's thirty arrays of its own each cost an allocation, its release
-    and two atomic reference counts (a quarter of a sphere's step on a plane)."""
+    """(floats, ints): the memory of moreau_step's arrays whose sizes the model bounds (M^-1/2 J^T, and W where it
+    has at most SMALL_PROBLEM entries, among them), allocated once by the loop and carved by every step
+    (memory.cut): a step's thirty arrays of its own each cost an allocation, its release and two atomic reference
+    counts (a quarter of a sphere's step on a plane)."""
     nq, nv, _n = dyn.sizes(p)
     rows = row_count(p)
     _at, na = dyn.act_range(p)
     floats = (2 * nv * nv + 3 * nv + rows * nv + 8 * rows + nq + mb.workspace_size(p) + 6 * int(p[mb.H_BODIES])
-              + na + pair_count(p) + 2 * rows)
+              + na + pair_count(p) + 2 * rows + nv * rows + SMALL_PROBLEM)
     ints = unit_count(p) - contact0(p) + 3 * rows + pair_count(p)
     return np.empty(floats), np.empty(ints, dtype=np.int64)
 
@@ -385,9 +387,10 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
     v = y[nq:nq + nv]
     if mode == MOREAU:  # L: the factor of the impulses' metric, which moves the velocities by metric^-1 J^T P
         L[:, :] = np.linalg.cholesky(M)
-        a0 = dyn.upper_solve(L, dyn.lower_solve(L, f))
+        lower_solve_into(L, f, vfree)  # M^-1 f, in place
+        upper_solve_into(L, vfree, vfree)
         for d in range(nv):
-            vfree[d] = v[d] + h * a0[d]
+            vfree[d] = v[d] + h * vfree[d]
     else:
         mujoco_free_velocity(p, y, h, mode, M, f, vfree, L)
     more, touching = near_contacts(p, w, vfree, h, J, g, formed, end_geometry, kept_for(end_geometry, q))
@@ -448,7 +451,8 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
     status = 0
     residual = 0.0
     if m > 0:
-        A = lower_solve_rows(L, J, index, m)  # M^-1/2 J^T: W = A^T A
+        A = cut(floats, top + na + pair_count(p) + 2 * rows, (nv, m))
+        lower_solve_rows_into(L, J, index, m, A)  # M^-1/2 J^T: W = A^T A
         kept = _drop_null_equalities(A, index, lo, hi, b, role, mu, m, jfree)
         if kept < m:  # (a copy only where a row went)
             A = np.ascontiguousarray(A[:, :kept])
@@ -462,7 +466,9 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
     for c in range(m):
         problem_rows[1 + c] = index[c]
     if m > 0:
-        W = A.T @ A
+        W = cut(floats, top + na + pair_count(p) + (2 + nv) * rows, (m, m)) if m * m <= SMALL_PROBLEM else \
+            np.empty((m, m))
+        np.dot(A.T, A, W)  # (BLAS's product into W: A.T @ A's bits)
         bb, ll, hh = b[:m], lo[:m], hi[:m]  # (the solvers read them only)
         for c in range(m):
             lam[c] = min(max(lam[c], ll[c]), hh[c])
@@ -482,7 +488,9 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
             status = 0 if residual <= tolerance * scale else 1
         if status != 0:
             return status, residual, m
-        x = dyn.upper_solve(L, A @ lam)
+        x = delta  # the velocities' change M^-1 J^T lam (delta's memory, read below only after it is spent)
+        np.dot(A, lam, x)
+        upper_solve_into(L, x, x)
         jnow = cut(floats, top + na + pair_count(p) + rows, m)  # the problem's rows' rates before the step
         for c in range(m):
             jnow[c] = _row_dot(J, index[c], v)
