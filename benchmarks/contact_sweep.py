@@ -16,9 +16,11 @@ Prints the machine, its load and the package versions, then
      box over t_end [m] (closed form 0 for both), the error being the larger of the two.
    MuJoCo (Euler, its default integrator; solimp 0.9 0.95 0.001 and solref "timeconst 1" on every pair, its
    defaults) over every combination of solver (Newton, CG, PGS), cone (pyramidal, elliptic), impratio (1, 10, 100),
-   noslip_iterations (0, 10), solref's time constant (0.02, 0.002) and the step dt (DTS); a time constant below
-   2 dt is not run (MuJoCo would clamp it to 2 dt: the same run as 2 dt). rbody: method "moreau" over the same dts,
-   and the event-driven "rk4" (dt its sampling interval) on the sphere and the incline.
+   noslip_iterations (0, 10), solref's time constant (0.02, 0.002) and the step dt (DTS, 0.1 to 1e-4 s: the
+   coarsest steps are where an exact scheme's cost is least); MuJoCo runs a time constant below 2 dt as 2 dt, so
+   of those at or below 2 dt only the largest is run (the same run), labelled with the 2 dt it ran at. rbody: method
+   "moreau" over the same dts, and the event-driven "rk4" (dt its sampling interval) on the sphere and the
+   incline at the two coarsest.
    Cost: wall time per simulated second [s/s], the minimum over --repeats timed runs (the stepping loop with the
    keeping of every state for MuJoCo, mujoco.rollout on one thread; the whole simulate() call for
    rbody, after one untimed warm-up per scene and method, which compiles), with the spread (max - min) / min.
@@ -69,7 +71,7 @@ from rbody.motion import quat_to_matrix  # noqa: E402
 from test_contact_closed_forms import G, ball_layout, incline, stack_layout  # noqa: E402
 from validation.machine import describe_machine  # noqa: E402
 
-DTS = {False: (1e-2, 3e-3, 1e-3, 3e-4, 1e-4), True: (1e-2, 1e-3)}
+DTS = {False: (1e-1, 3e-2, 1e-2, 3e-3, 1e-3, 3e-4, 1e-4), True: (1e-2, 1e-3)}
 T_END = {False: {"sphere": 1.0, "incline": 2.0, "stack": 2.0}, True: {"sphere": 0.5, "incline": 0.5, "stack": 0.5}}
 SOLVERS = {False: ("Newton", "CG", "PGS"), True: ("Newton", "PGS")}
 CONES = ("pyramidal", "elliptic")
@@ -104,6 +106,12 @@ class MujocoSetting:
     @property
     def label(self) -> str:
         return f"{self.solver} {self.cone} impratio {self.impratio:g} noslip {self.noslip} tc {self.timeconst:g}"
+
+    def label_at(self, dt: float) -> str:
+        """The label of the run at step dt: a time constant below 2 dt as MuJoCo runs it (2 dt)."""
+        if self.timeconst >= 2 * dt:
+            return self.label
+        return f"{self.label} (run as 2 dt = {2 * dt:g})"
 
     def apply(self, model: mujoco.MjModel, dt: float) -> None:
         model.opt.timestep = dt
@@ -276,10 +284,22 @@ def spread_of(seconds: Sequence[float]) -> float:
     return (max(seconds) - min(seconds)) / min(seconds) if min(seconds) > 0 else math.nan
 
 
-def mujoco_point(case: Case, model, data, setting: MujocoSetting, dt: float, t_end: float, repeats: int) -> Row:
-    row = Row(case.name, "mujoco", setting.family, setting.label, dt)
-    if setting.timeconst < 2 * dt:
-        row.failure = "not run: timeconst < 2 dt (MuJoCo clamps it to 2 dt)"
+def clamped_duplicate(timeconst: float, dt: float, timeconsts: Sequence[float]) -> float | None:
+    """The grid's larger time constant whose run at step dt this one's is (MuJoCo runs any time constant below 2 dt
+    as 2 dt: the same run as one at 2 dt or below it), or None where this one is run: at or above 2 dt, or the
+    largest of those below with none at 2 dt."""
+    if timeconst >= 2 * dt:
+        return None
+    larger = [other for other in timeconsts if timeconst < other <= 2 * dt]
+    return max(larger) if larger else None
+
+
+def mujoco_point(case: Case, model, data, setting: MujocoSetting, dt: float, t_end: float, repeats: int,
+                 timeconsts: Sequence[float] = TIMECONSTS[False]) -> Row:
+    row = Row(case.name, "mujoco", setting.family, setting.label_at(dt), dt)
+    same = clamped_duplicate(setting.timeconst, dt, timeconsts)
+    if same is not None:
+        row.failure = f"not run: the run of tc {same:g} (MuJoCo runs both as 2 dt = {2 * dt:g})"
         return row
     setting.apply(model, dt)
     steps = int(round(t_end / dt))
@@ -348,7 +368,7 @@ def sweep(quick: bool, repeats: int, log=sys.stdout) -> list[Row]:
         data = mujoco.MjData(model)
         for setting in grid:
             for dt in DTS[quick]:
-                rows.append(mujoco_point(case, model, data, setting, dt, t_end, repeats))
+                rows.append(mujoco_point(case, model, data, setting, dt, t_end, repeats, TIMECONSTS[quick]))
         print(f"  {case.name}: MuJoCo, {len(grid)} settings x {len(DTS[quick])} dts, "
               f"{time.perf_counter() - started:.1f} s", file=log, flush=True)
         methods = ("moreau", "rk4") if case.event_driven else ("moreau",)

@@ -70,12 +70,12 @@ def keep_alive(typingctx, array):
 
 @njit(cache=True, inline="always")
 def unowned(array):
-    """The C-contiguous array of numbers `array` (any rank, float64 or int64) as a view numba does not reference-count. numba counts
-    the references to an array's memory with an atomic add wherever a function receives it, binds a view of it or
-    hands it on (about 6 ns each, twice: increment and decrement); a view over raw memory has no count, and each of
-    those is a test of a null pointer. For a kernel that hands the same arrays to many small helpers per item (a
-    step's near contacts); the array itself must outlive the view (an argument does; an array of the kernel's own
-    needs keep_alive after its last use)."""
+    """The C-contiguous array of numbers `array` (any rank and number type) as a view numba does not reference-count.
+    numba counts the references to an array's memory with an atomic add wherever a function receives it, binds a
+    view of it or hands it on (about 6 ns each, twice: increment and decrement); a view over raw memory has no count,
+    and each of those is a test of a null pointer. For a kernel that hands the same arrays to many small helpers per
+    item (a step's near contacts); the array itself must outlive the view (an argument does; an array of the
+    kernel's own needs keep_alive after its last use)."""
     return carray(data(array), array.shape)
 
 

@@ -31,7 +31,7 @@ def sphere_samples(dt, rolls=True):
     return {"t": t, "qpos": qpos, "v": np.stack([v, zeros, zeros], 1), "w": np.stack([zeros, w, zeros], 1)}
 
 
-@pytest.mark.parametrize("dt", [1e-4, 1e-3, 3e-3, 1e-2, 3e-2])
+@pytest.mark.parametrize("dt", [1e-4, 1e-3, 3e-3, 1e-2, 3e-2, 1e-1])  # the sweep's steps (0.1: two sliding samples)
 def test_sphere_measures_read_the_closed_form_as_exact_and_a_skid_as_never_rolling(dt):
     # the closed form sampled every dt: the slip is linear in t up to t*, the line through the last two sliding
     # samples finds the threshold whatever dt (a line across the kink at t*, to the first rolling sample, read it
@@ -86,6 +86,24 @@ def test_cheapest_run_per_level_and_the_rows_below_mujocos_floor():
     assert [line.split("|")[2].strip() for line in lines] == [
         "0.01", "0.001", "0.0001", "1e-05 and below: below MuJoCo's floor (0.0001)"]
     assert lines[1].split("|")[7].strip() == "2"                                 # rbody 2.0 s/s against 1.0
+
+
+def test_a_time_constant_below_two_steps_runs_once_as_mujoco_runs_it():
+    # MuJoCo runs any time constant below 2 dt as 2 dt: at dt = 0.03 both of (0.02, 0.002) are that run, so only
+    # the larger is run, labelled with what it ran at; at 0.01 tc 0.02 is its own run (2 dt) and 0.002 is its run
+    grid = (0.02, 0.002)
+    assert sweep.clamped_duplicate(0.02, 0.03, grid) is None
+    assert sweep.clamped_duplicate(0.002, 0.03, grid) == 0.02
+    assert sweep.clamped_duplicate(0.02, 0.01, grid) is None
+    assert sweep.clamped_duplicate(0.002, 0.01, grid) == 0.02
+    assert sweep.clamped_duplicate(0.002, 1e-3, grid) is None     # 2 dt = 0.002: its own run
+    assert sweep.clamped_duplicate(0.002, 3e-4, grid) is None
+    setting = sweep.MujocoSetting(timeconst=0.02)
+    assert setting.label_at(0.01) == setting.label
+    assert setting.label_at(0.1).endswith("(run as 2 dt = 0.2)")
+    case = sweep.CASES[0]
+    row = sweep.mujoco_point(case, None, None, sweep.MujocoSetting(timeconst=0.002), 0.1, 1.0, 1, grid)
+    assert row.failure.startswith("not run: the run of tc 0.02") and not row.errors   # refused before any run
 
 
 @pytest.mark.slow

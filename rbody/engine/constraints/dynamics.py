@@ -577,7 +577,7 @@ def state_gaps(p, y, g, beyond=np.inf, kept=None, least=None):
     if least is None:
         g[contact_row0(p):] = 0.0  # the contacts' rows (one fill: a far pair's tangent rows are then set)
     pairs = pair_at(p, 0)
-    for i in range(pair_count(p)):
+    for i in range(npairs):
         at = pairs + i * PAIR_SIZE  # (from the first record: pair_at's reads from the header, redone each pass)
         first, slots, row0, width = pair_span(p, at)
         if reach[i] > 0.0:  # apart by the broad phase's bound: a lower bound will do, one per pair

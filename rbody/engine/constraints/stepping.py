@@ -129,8 +129,9 @@ def cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
     only where every friction is inside its bound; the states read from lam; a crawl along dependent rows taken to
     its end; then, where the interior finish below does not lower the residual, some sticking contacts made to
     slide), until the residual is 1e-3 of `tolerance`, or `sweeps` are spent, or a round within `tolerance` moves
-    nothing (each after it would be the same); a start that already solves it (the last step's impulses,
-    themselves finished) is kept, after one sweep. From the INTERIOR_AFTER-th round on, each round not yet at 1e-3
+    nothing (each after it would be the same); a start within `tolerance` (the last step's impulses, themselves
+    finished) is kept where one sweep (from within 1e-3 of `tolerance`) or Newton's step on its states takes it
+    to the round-off of its terms. From the INTERIOR_AFTER-th round on, each round not yet at 1e-3
     of `tolerance` also solves Tresca's problem from inside and finishes from its states (interior_finish: where
     dependent rows leave Gauss-Seidel crawling along W's null space), kept where that lowers the residual, the
     round then not counted as one that moved nothing and the next round going on from there. A start that no
@@ -152,14 +153,24 @@ def cone_solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
         spent, residual = cone_pgs(W, b, lo, hi, role, mu, lam, tolerance, min(CONE_ROUND, sweeps - done), start)
         start = -1.0
         done += max(spent, 1)
-        if spent == 0 and residual <= 1e-3 * tolerance:  # the start (the last step's finished impulses: a body at
-            trial = lam.copy()  # rest, a ball rolling) may solve it: one sweep takes up the round-off its
-            _spent, swept = cone_pgs(W, b, lo, hi, role, mu, trial, 0.0, 1)  # velocities gathered since, or
-            round_off = ROUND_OFF * magnitude(W, b, trial)  # where dependent rows leave a sweep above it (condim 6
-            if swept > round_off:  # feet), Newton's step on the start's states; kept where that is round-off and no
-                trial[:] = lam  # contact is at its cone's edge (there sliding at any speed is Coulomb's too: the
-                swept = hold_states(W, b, lo, hi, role, mu, trial)  # finishes below choose sticking), else
-                round_off = ROUND_OFF * magnitude(W, b, trial)  # finished below
+        # a start within `tolerance` (the last step's finished impulses: a body at rest, a ball rolling) may solve it
+        # to round-off: within 1e-3 of `tolerance`, one sweep takes up the round-off its velocities gathered since;
+        # where that leaves it above round-off (dependent rows: condim 6 feet), or the start is above 1e-3 of
+        # `tolerance` (which can lie below its terms' round-off: a five-box stack at dt = 0.1 gathers 2e-12 a step
+        # where that is 1.8e-12, and was finished every other step, 0.6 to 1 ms each, where this takes 0.1),
+        # Newton's step on the start's states (to 1e-14 there: a sweep's 5e-13 a step drifted the stack 2.4e-13 m
+        # in 5 s); kept where that is round-off and no contact is at its cone's edge (there sliding at any speed is
+        # Coulomb's too: the finishes below choose sticking), else finished below
+        if spent == 0:
+            trial = lam.copy()
+            swept, round_off = np.inf, 0.0
+            if residual <= 1e-3 * tolerance:
+                _spent, swept = cone_pgs(W, b, lo, hi, role, mu, trial, 0.0, 1)
+                round_off = ROUND_OFF * magnitude(W, b, trial)
+            if swept > round_off:
+                trial[:] = lam
+                swept = hold_states(W, b, lo, hi, role, mu, trial)
+                round_off = ROUND_OFF * magnitude(W, b, trial)
             if swept <= round_off and inside_cones(role, mu, trial):
                 lam[:] = trial
                 residual = swept
@@ -275,7 +286,7 @@ def near_contacts(p, w, vfree, h, J, g, formed, kept, reuse):
     reach_owned = carray(stack_floats(2 * pairs), 2 * pairs) if 2 * pairs <= mb.STACK_FLOATS else np.empty(2 * pairs)
     reach, motion = cut(reach_owned, 0, pairs), cut(reach_owned, pairs, pairs)
     pair_reaches(p, w, h, reach, motion, kept_neighbours(p, kept))  # every geom's sphere; then the listed pairs'
-    for i in range(pair_count(p)):
+    for i in range(pairs):
         if reach[i] > TOUCH_TOLERANCE:  # the broad phase: the pair can neither touch nor close within the step
             continue
         at = pair_at(p, i)
@@ -332,9 +343,12 @@ def step_arena(p):
     nq, nv, _n = dyn.sizes(p)
     rows = row_count(p)
     _at, na = dyn.act_range(p)
-    floats = (2 * nv * nv + 3 * nv + rows * nv + 8 * rows + nq + mb.workspace_size(p) + 6 * int(p[mb.H_BODIES])
-              + na + pair_count(p) + 2 * rows + nv * rows + SMALL_PROBLEM)
-    ints = unit_count(p) - contact0(p) + 3 * rows + pair_count(p)
+    floats = (2 * nv * nv + 3 * nv  # moreau_step's cuts in order: M, L; f, vfree, delta
+              + rows * nv + 8 * rows  # J; jdot, g, jfree, lo, hi, b, mu, position_rows
+              + nq + mb.workspace_size(p) + 6 * int(p[mb.H_BODIES])  # q, the tree's workspace, acc
+              + na + pair_count(p)  # rates, least
+              + 2 * rows + nv * rows + SMALL_PROBLEM)  # lam, jnow, A (nv, m <= rows), W where small
+    ints = unit_count(p) - contact0(p) + 3 * rows + pair_count(p)  # formed; index, role, flagged; near
     return np.empty(floats), np.empty(ints, dtype=np.int64)
 
 
@@ -359,12 +373,14 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
     rows = row_count(p)
     at, na = dyn.act_range(p)
     M, L = cut(floats, 0, (nv, nv)), cut(floats, nv * nv, (nv, nv))
-    f, vfree, delta = cut(floats, 2 * nv * nv, nv), cut(floats, 2 * nv * nv + nv, nv), cut(floats, 2 * nv * nv + 2 * nv, nv)
-    top = 2 * nv * nv + 3 * nv
+    top = 2 * nv * nv
+    f, vfree, delta = cut(floats, top, nv), cut(floats, top + nv, nv), cut(floats, top + 2 * nv, nv)
+    top += 3 * nv
     J = cut(floats, top, (rows, nv))  # a contact's rows are formed only where it touches or closes within the step
     top += rows * nv  # (near_contacts), and only those are read (a quadruped's 23,838 rows of 18 numbers)
     jdot, g = cut(floats, top, rows), cut(floats, top + rows, rows)  # (each unit's rows set where formed, and only
-    jfree, lo, hi = cut(floats, top + 2 * rows, rows), cut(floats, top + 3 * rows, rows), cut(floats, top + 4 * rows, rows)
+    jfree, lo = cut(floats, top + 2 * rows, rows), cut(floats, top + 3 * rows, rows)
+    hi = cut(floats, top + 4 * rows, rows)
     b, mu = cut(floats, top + 5 * rows, rows), cut(floats, top + 6 * rows, rows)  # those read)
     position_rows = cut(floats, top + 7 * rows, rows)
     top += 8 * rows
@@ -374,7 +390,10 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
     acc = cut(floats, top, (int(p[mb.H_BODIES]), 6))
     top += 6 * int(p[mb.H_BODIES])
     rates, least = cut(floats, top, na), cut(floats, top + na, pair_count(p))  # least: each contact pair's least
-    c0 = contact0(p)                                                              # gap at the end (state_gaps)
+    top += na + pair_count(p)                                                     # gap at the end (state_gaps)
+    lam_at, jnow_at, a_at = top, top + rows, top + 2 * rows  # the problem's arrays (m <= rows): lam, jnow, A (nv,
+    w_at = a_at + nv * rows                                  # m), then W (m, m) where small (step_arena's layout)
+    c0 = contact0(p)
     formed = cut(ints, 0, unit_count(p) - c0)  # the contacts formed (a list: a model's far candidates unread)
     index, role = cut(ints, unit_count(p) - c0, rows), cut(ints, unit_count(p) - c0 + rows, rows)
     flagged = cut(ints, unit_count(p) - c0 + 2 * rows, rows)  # the rows flagged in position_rows, in flag order
@@ -451,13 +470,13 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
     status = 0
     residual = 0.0
     if m > 0:
-        A = cut(floats, top + na + pair_count(p) + 2 * rows, (nv, m))
+        A = cut(floats, a_at, (nv, m))
         lower_solve_rows_into(L, J, index, m, A)  # M^-1/2 J^T: W = A^T A
         kept = _drop_null_equalities(A, index, lo, hi, b, role, mu, m, jfree)
         if kept < m:  # (a copy only where a row went)
             A = np.ascontiguousarray(A[:, :kept])
         m = kept
-    lam = cut(floats, top + na + pair_count(p), m)
+    lam = cut(floats, lam_at, m)
     for c in range(m):  # the last step's impulses: the warm start of Gauss-Seidel
         lam[c] = P[index[c]]
     for c in range(problem_rows[0]):  # then cleared on the last step's rows, the only ones set (not every row:
@@ -466,8 +485,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
     for c in range(m):
         problem_rows[1 + c] = index[c]
     if m > 0:
-        W = cut(floats, top + na + pair_count(p) + (2 + nv) * rows, (m, m)) if m * m <= SMALL_PROBLEM else \
-            np.empty((m, m))
+        W = cut(floats, w_at, (m, m)) if m * m <= SMALL_PROBLEM else np.empty((m, m))
         np.dot(A.T, A, W)  # (BLAS's product into W: A.T @ A's bits)
         bb, ll, hh = b[:m], lo[:m], hi[:m]  # (the solvers read them only)
         for c in range(m):
@@ -491,7 +509,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
         x = delta  # the velocities' change M^-1 J^T lam (delta's memory, read below only after it is spent)
         np.dot(A, lam, x)
         upper_solve_into(L, x, x)
-        jnow = cut(floats, top + na + pair_count(p) + rows, m)  # the problem's rows' rates before the step
+        jnow = cut(floats, jnow_at, m)  # the problem's rows' rates before the step
         for c in range(m):
             jnow[c] = _row_dot(J, index[c], v)
         loss = 0.0
