@@ -143,7 +143,13 @@ def capture(path: Path, out: Path, steps: int, lift: float, keep: int) -> None:
                              step_ms=1e3 * seconds, rows=int(b.size), replay_dy=np.nan))
         return solve(W, b, lo, hi, role, mu, lam, tolerance, sweeps)
 
-    stepping.solve_cones = recorded  # the kept steps again, in Python from the same state: their problems recorded
+    # the kept steps again, in Python from the same state: their problems recorded (the step's solve, and its solve
+    # island by island, in Python too, so that they call the recording solve_cones)
+    compiled = {name: getattr(stepping, name) for name in ("solve_problem", "_solve_islands")
+                if hasattr(stepping, name)}  # (a checkout before them calls solve_cones in moreau_step itself)
+    stepping.solve_cones = recorded
+    for name, function in compiled.items():
+        setattr(stepping, name, function.py_func)
     try:
         for k in sorted(chosen):
             seconds, (*before, after), slow = chosen[k]
@@ -154,6 +160,8 @@ def capture(path: Path, out: Path, steps: int, lift: float, keep: int) -> None:
                 problem["replay_dy"] = float(np.max(np.abs(replayed[0] - after)))
     finally:
         stepping.solve_cones = solve
+        for name, function in compiled.items():
+            setattr(stepping, name, function)
     if not problems:
         raise ValueError(f"{path.name}: no kept step had a contact problem (raise it with --lift, or run longer)")
     arrays = {f"{name}_{n}": np.asarray(problem[name]) for n, problem in enumerate(problems) for name in FIELDS}

@@ -11,7 +11,8 @@ mujoco.rollout on one thread, every state kept) at the same dt, and the ratio of
 Scenes: the contact sweep's (benchmarks/contact_sweep.py) sphere thrown sliding on a plane, box at rest on an
 incline, stack of five boxes, at dt = 1e-2 s, and the stack again at the sweep's coarsest step, 0.1 s ("stack_0.1",
 where rbody rests to round-off and MuJoCo's defaults, their time constant run as 2 dt, let it sink: a cost only);
-its standing humanoid figure and parallel gripper at dt = 2e-3 s.
+its standing humanoid figure and parallel gripper at dt = 2e-3 s; "layer", 64 spheres at rest on a floor side by side
+(an 8 x 8 grid, 384 dofs, 64 contacts, each apart from the others: the cost of many bodies) at dt = 1e-2 s.
 --other CHECKOUT: rbody's figures also for that checkout of the repository (a subprocess with it first on the path,
 its own numba cache), the two measured in alternation, repeat by repeat, and the ratio of their minima printed.
 Benchmarks are not tests: the machine may be shared (the load average is printed); compare figures of one run.
@@ -31,8 +32,16 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-SCENES = ("sphere", "incline", "stack", "stack_0.1", "figure", "gripper")
-DT = {"sphere": 1e-2, "incline": 1e-2, "stack": 1e-2, "stack_0.1": 0.1, "figure": 2e-3, "gripper": 2e-3}
+SCENES = ("sphere", "incline", "stack", "stack_0.1", "figure", "gripper", "layer")
+DT = {"sphere": 1e-2, "incline": 1e-2, "stack": 1e-2, "stack_0.1": 0.1, "figure": 2e-3, "gripper": 2e-3, "layer": 1e-2}
+LAYER_SIDE = 8  # the layer's spheres per side
+
+
+def layer_xml(side: int = LAYER_SIDE, radius: float = 0.1) -> str:
+    """side x side spheres of 1 kg resting on a floor, 3 radii apart (MJCF; MuJoCo's defaults)."""
+    bodies = "".join(f'<body name="s{i}" pos="{3 * radius * (i % side)} {3 * radius * (i // side)} {radius}">'
+                     f'<freejoint/><geom type="sphere" size="{radius}" mass="1"/></body>' for i in range(side * side))
+    return f'<mujoco><worldbody><geom type="plane" size="10 10 0.1"/>{bodies}</worldbody></mujoco>'
 
 
 def _scene(name: str):
@@ -40,41 +49,48 @@ def _scene(name: str):
     import contact_sweep as sweep
     import rbody
 
-    if name in ("figure", "gripper"):
-        xml = sweep.humanoid_xml() if name == "figure" else sweep.gripper_xml()
+    if name in ("figure", "gripper", "layer"):
+        xml = {"figure": sweep.humanoid_xml, "gripper": sweep.gripper_xml, "layer": layer_xml}[name]()
         return rbody.from_mjcf(xml, t_end=1.0), xml
     scene = getattr(sweep, f"{name.split('_')[0]}_scene")(1.0)  # (stack_0.1: the stack, at its own dt)
     return scene, rbody.to_mjcf(scene, integrator="Euler", solref=(0.02, 1.0), solimp=(0.9, 0.95, 0.001))
 
 
+def timed_loop(scene, dt: float, steps: int, name: str):
+    """(once, out, table): once() runs stepping.moreau_loop over `steps` steps of the scene from its start, every
+    state into out (steps + 1, n), and returns its seconds (SimulationError where a step fails)."""
+    import rbody
+    from rbody.engine.constraints import stepping
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the figure's AccuracyWarning (its stiffest mode): not measured here
+        model = rbody.prepare(scene, dt=dt, method="moreau").model
+    table = model.constraints
+    run = stepping.MoreauRun(table, np.asarray(model.params)[0], name, "moreau")
+    y0 = np.array(np.asarray(model.y0)[0], dtype=np.float64)
+    out = np.empty((steps + 1, y0.size))
+
+    def once() -> float:
+        problem_rows = np.zeros(table.rows + 1, dtype=np.int64)
+        start = time.perf_counter()
+        failed = stepping.moreau_loop(run.p, y0, dt, steps, 1, out, stepping.EXACT_ROWS, stepping.PGS_SWEEPS,
+                                      stepping.STEP_TOLERANCE, problem_rows, run.mode)[0]
+        seconds = time.perf_counter() - start
+        if failed >= 0:
+            raise rbody.SimulationError(f"{name}: step {failed} failed")
+        return seconds
+
+    return once, out, table
+
+
 def rbody_costs(steps: int, repeats: int, scenes=SCENES) -> dict:
     """{scene: {"seconds": [per run], "allocations": per step}}: moreau_loop over `steps` steps, `repeats` runs."""
-    import rbody
     from numba.core.runtime import _nrt_python, rtsys
-    from rbody.engine.constraints import stepping
 
     results = {}
     for name in scenes:
         scene, _xml = _scene(name)
-        dt = DT[name]
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")  # the figure's AccuracyWarning (its stiffest mode): not measured here
-            model = rbody.prepare(scene, dt=dt, method="moreau").model
-        table = model.constraints
-        run = stepping.MoreauRun(table, np.asarray(model.params)[0], name, "moreau")
-        y0 = np.array(np.asarray(model.y0)[0], dtype=np.float64)
-        out = np.empty((steps + 1, y0.size))
-
-        def once() -> float:
-            problem_rows = np.zeros(table.rows + 1, dtype=np.int64)
-            start = time.perf_counter()
-            failed = stepping.moreau_loop(run.p, y0, dt, steps, 1, out, stepping.EXACT_ROWS, stepping.PGS_SWEEPS,
-                                          stepping.STEP_TOLERANCE, problem_rows, run.mode)[0]
-            seconds = time.perf_counter() - start
-            if failed >= 0:
-                raise rbody.SimulationError(f"{name}: step {failed} failed")
-            return seconds
-
+        once, _out, _table = timed_loop(scene, DT[name], steps, name)
         once()  # compiles, or loads the cache
         _nrt_python.memsys_enable_stats()  # numba's counters of its runtime's allocations
         before = rtsys.get_allocation_stats().alloc

@@ -22,9 +22,9 @@ from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
-from numba import carray, njit
+from numba import carray, cfunc, njit
 
-from rbody.engine import multibody as mb
+from rbody.engine import multibody as mb, pointers
 from rbody.engine.actuation import actuator_forces, clip, tendon_kinematics, transmission
 from rbody.engine.elements import (A_ACTADR, A_ACTLIM, A_ACTRANGE, A_DISABLED, ACT_SIZE, T_HIGH, T_LOW, TEN_SIZE,
                                    X_ACT, X_ACTGC, X_CTRL, X_JNTLIM, X_NA, X_NSCHED, X_NTEN, X_NU, X_SCHED, X_STEP,
@@ -176,6 +176,16 @@ def system_rhs(y, p, out):
     for j in range(a0 + na, out.shape[0]):
         out[j] = 0.0
     keep_alive(w)  # on the heap for huge trees, read through views only: it must outlive them
+
+
+def _system_rhs_pointer():
+    @cfunc(pointers.RHS_SIGNATURE, cache=True)
+    def system_rhs_c(y, p, out, n, m):
+        system_rhs(carray(y, n), carray(p, m), carray(out, n))
+    return system_rhs_c
+
+
+pointers.register(system_rhs, "rhs", _system_rhs_pointer)  # (its wrapper compiled once, not every process)
 
 
 @njit(cache=True)

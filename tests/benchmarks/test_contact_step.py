@@ -3,8 +3,9 @@
 The step cuts its arrays (W, M^-1/2 J^T, the impulses and their bounds among them) from memory the loop allocates
 once (stepping.step_arena), and its helpers keep their scratch on the stack: a step of the sphere rolling on its
 plane allocated 64 arrays before (numba's runtime counters, the benchmark's run of 2026-12-01 over 2,000 steps), 7
-since (the factor of M and the cone solver's copies of its impulses; more in its first 19 steps, while it slides);
-a step of the stack of five boxes 123 and 6 (the box pairs' edge search allocated nine arrays a pair)."""
+since (LAPACK's factor of M and the cone solver's copies of its impulses; more in its first 19 steps, while it
+slides), 6 since M is factored along the tree in the step's arena; a step of the stack of five boxes 123, 6 and 5
+(the box pairs' edge search allocated nine arrays a pair)."""
 
 import importlib.util
 import math

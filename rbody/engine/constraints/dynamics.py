@@ -25,12 +25,13 @@ frictionloss s v, and of the dampers, damping v^2).
 from __future__ import annotations
 
 import numpy as np
-from numba import carray, njit
+from numba import carray, cfunc, njit
 
 from rbody.engine.multibody import (D_DAMPING, DOF_SIZE, FREE, H_BODIES, H_DOF, H_DOFS, H_JOINT, H_JOINTS, H_NQ,
                                     H_ROT, HINGE, J_DADR, J_KIND, J_QADR, JOINT_SIZE, ROLL, SLIDE, _effective_qpos, _frames,
                                     STACK_FLOATS, coordinate_rates, inverse_one, mass_matrix_one, passive,
                                     tree_finish, workspace_size)
+from rbody.engine import pointers
 from rbody.engine.spatial import quat_exp, quat_multiply
 from rbody.engine.elements import X_ACTIVE, X_NA, X_NTEN, extension_start
 from rbody.engine.memory import cut, keep_alive, stack_floats, unowned
@@ -383,6 +384,16 @@ def constrained_rhs(y, p, out):
         actuator_rates(p, q, y[nq:nq + nv], y[a0:a0 + na], out[a0:a0 + na])
     coordinate_rates(p, y, out)  # qpos' and phi' as the tree's right-hand side forms them
     out[n - 1] = friction_power(p, y[nq:nq + nv]) + damping_power(p, y[nq:nq + nv]) + slip_power[0]
+
+
+def _constrained_rhs_pointer():
+    @cfunc(pointers.RHS_SIGNATURE, cache=True)
+    def constrained_rhs_c(y, p, out, n, m):
+        constrained_rhs(carray(y, n), carray(p, m), carray(out, n))
+    return constrained_rhs_c
+
+
+pointers.register(constrained_rhs, "rhs", _constrained_rhs_pointer)  # (its wrapper compiled once, not every process)
 
 
 @njit(cache=True)

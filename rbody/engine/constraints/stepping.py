@@ -67,6 +67,9 @@ from rbody.engine.constraints.interior import interior_finish
 from rbody.engine.constraints.natural_newton import states_newton
 from rbody.engine.constraints.solver import (RANK_RTOL, cholesky_factor, lower_solve_into, lower_solve_rows_into,
                                              mlcp_exact_from, mlcp_pgs, natural_residual, upper_solve_into)
+from rbody.engine.constraints.tree_factor import gram_by_dofs, tree_factor, tree_solve, tree_solve_rows_into, \
+    tree_solve_transposed
+from rbody.engine.constraints.islands import label_islands
 from rbody.engine.constraints.kinds import is_equality_kind, is_friction_kind, is_stop_kind
 from rbody.engine.constraints.table import (C_HEADER, CONTACT, CONTACT1, CONTACT_KINDS, FRICTION_KINDS, U_BODY1,
                                             U_BODY2, U_BOUND, U_KIND, UNILATERAL, UNIT_SIZE, U_RESTITUTION, U_ROLL,
@@ -229,6 +232,67 @@ def solve_cones(W, b, lo, hi, role, mu, lam, tolerance, sweeps):
 
 
 @njit(cache=True)
+def solve_problem(W, b, lo, hi, role, mu, lam, cones, exact_rows, sweeps, tolerance):
+    """The step's problem (W, b, lo, hi; role and mu: the contacts' cones, where `cones`) from the warm start lam,
+    solved in place: by cone_solve's rounds where it has cones, else exactly up to exact_rows rows, else by
+    Gauss-Seidel. Returns (status: 0 within `tolerance`, 1 not, UNBOUNDED, residual)."""
+    if cones:  # Gauss-Seidel by blocks, each round finished exactly (rbody.engine.constraints.cone)
+        residual = solve_cones(W, b, lo, hi, role, mu, lam, tolerance, sweeps)
+        return (0 if residual <= tolerance else 1), residual
+    if b.shape[0] <= exact_rows:
+        status, _steps = mlcp_exact_from(W, b, lo, hi, lam)  # warm: the last step's impulses
+        residual = natural_residual(W, b, lo, hi, lam)
+        return (1 if status == 0 and residual > tolerance else status), residual
+    _sweeps, residual = mlcp_pgs(W, b, lo, hi, lam, tolerance, sweeps)
+    return (0 if residual <= tolerance else 1), residual
+
+
+@njit(cache=True)
+def _solve_islands(W, b, lo, hi, role, mu, lam, island, count, exact_rows, sweeps, tolerance):
+    """solve_problem island by island (island (m,): each row's, 0 to count - 1; islands.label_islands): each its
+    own problem, gathered from the whole and its impulses put back. Returns the first status not 0 (its island
+    left as it stands, the others not tried), else 0, and the largest residual."""
+    m = b.shape[0]
+    order = np.empty(m, dtype=np.int64)  # the rows island by island, ascending within each
+    first = np.zeros(count + 1, dtype=np.int64)
+    for c in range(m):
+        first[island[c] + 1] += 1
+    for k in range(count):
+        first[k + 1] += first[k]
+    size = 0
+    for k in range(count):
+        size = max(size, first[k + 1] - first[k])
+    filled = first[:count].copy()
+    for c in range(m):
+        order[filled[island[c]]] = c
+        filled[island[c]] += 1
+    floats = np.empty(size * size + 6 * size)  # one island's W, b, lo, hi, mu and lam
+    roles = np.empty(size, dtype=np.int64)
+    worst = 0.0
+    for k in range(count):
+        rows = order[first[k]:first[k + 1]]
+        n = rows.size
+        Wk = cut(floats, 0, (n, n))
+        bk, lok, hik = cut(floats, n * n, n), cut(floats, n * n + n, n), cut(floats, n * n + 2 * n, n)
+        muk, lamk = cut(floats, n * n + 3 * n, n), cut(floats, n * n + 4 * n, n)
+        rolek = roles[:n]
+        cones = False
+        for x in range(n):
+            c = rows[x]
+            for z in range(n):
+                Wk[x, z] = W[c, rows[z]]
+            bk[x], lok[x], hik[x], muk[x], lamk[x], rolek[x] = b[c], lo[c], hi[c], mu[c], lam[c], role[c]
+            cones = cones or role[c] > NORMAL
+        status, residual = solve_problem(Wk, bk, lok, hik, rolek, muk, lamk, cones, exact_rows, sweeps, tolerance)
+        for x in range(n):
+            lam[rows[x]] = lamk[x]
+        worst = max(worst, residual)
+        if status != 0:
+            return status, worst
+    return 0, worst
+
+
+@njit(cache=True)
 def _drop_null_equalities(A, index, lo, hi, b, role, mu, m, rates):
     """The step's rows without the equality rows no impulse acts through: those whose column of A (M^-1/2 J^T) is
     below RANK_RTOL of the largest in W's scale (|A_c|^2), the round-off of a zero row (a connect's component across
@@ -348,7 +412,8 @@ def step_arena(p):
               + nq + mb.workspace_size(p) + 6 * int(p[mb.H_BODIES])  # q, the tree's workspace, acc
               + na + pair_count(p)  # rates, least
               + 2 * rows + nv * rows + SMALL_PROBLEM)  # lam, jnow, A (nv, m <= rows), W where small
-    ints = unit_count(p) - contact0(p) + 3 * rows + pair_count(p)  # formed; index, role, flagged; near
+    ints = (unit_count(p) - contact0(p) + 3 * rows + pair_count(p)  # formed; index, role, flagged; near
+            + nv + 2 * rows)  # the dofs' parents, W's columns by dof, the rows' islands (M factored along the tree)
     return np.empty(floats), np.empty(ints, dtype=np.int64)
 
 
@@ -398,13 +463,27 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
     index, role = cut(ints, unit_count(p) - c0, rows), cut(ints, unit_count(p) - c0 + rows, rows)
     flagged = cut(ints, unit_count(p) - c0 + 2 * rows, rows)  # the rows flagged in position_rows, in flag order
     near = cut(ints, unit_count(p) - c0 + 3 * rows, pair_count(p))  # (not a model's far candidates' rows)
+    parent = cut(ints, unit_count(p) - c0 + 3 * rows + pair_count(p), nv)  # (the tree's factor only)
+    columns = cut(ints, unit_count(p) - c0 + 3 * rows + pair_count(p) + nv, rows)
+    island = cut(ints, unit_count(p) - c0 + 3 * rows + pair_count(p) + nv + rows, rows)
     _effective_qpos(p, y, q, 0)
     dyn.snapshot(p, q, y[nq:nq + nv], y[at:at + na], M, f, J, jdot, g, w, acc, None, False, False)
     dyn.add_sliding_friction(p, f, J)
     if na:  # the activations' rates at the step's start (advanced by explicit Euler below, as MuJoCo's Euler does)
         dyn.actuator_rates(p, y[:nq], y[nq:nq + nv], y[at:at + na], rates)
     v = y[nq:nq + nv]
-    if mode == MOREAU:  # L: the factor of the impulses' metric, which moves the velocities by metric^-1 J^T P
+    # L: the factor of the impulses' metric, which moves the velocities by metric^-1 J^T P. Moreau's, M, factored
+    # along the tree (tree_factor: M = L^T L, no fill-in); MuJoCo's integrators' densely, as their own steps solve
+    # (a step with no constraint active is then theirs to the bit)
+    tree = mode == MOREAU and _factor_along_tree(p, M, L, parent)
+    if tree:  # vfree = v + h L^-1 L^-T f
+        for d in range(nv):
+            vfree[d] = f[d]
+        tree_solve_transposed(L, parent, vfree)
+        tree_solve(L, parent, vfree)
+        for d in range(nv):
+            vfree[d] = v[d] + h * vfree[d]
+    elif mode == MOREAU:  # (a pivot not positive: LAPACK's factor reports it)
         L[:, :] = np.linalg.cholesky(M)
         lower_solve_into(L, f, vfree)  # M^-1 f, in place
         upper_solve_into(L, vfree, vfree)
@@ -471,7 +550,10 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
     residual = 0.0
     if m > 0:
         A = cut(floats, a_at, (nv, m))
-        lower_solve_rows_into(L, J, index, m, A)  # M^-1/2 J^T: W = A^T A
+        if tree:  # L^-T J^T (M = L^T L), as sparse as J's rows
+            tree_solve_rows_into(L, parent, J, index, m, A)
+        else:  # L^-1 J^T (M = L L^T)
+            lower_solve_rows_into(L, J, index, m, A)  # M^-1/2 J^T: W = A^T A
         kept = _drop_null_equalities(A, index, lo, hi, b, role, mu, m, jfree)
         if kept < m:  # (a copy only where a row went)
             A = np.ascontiguousarray(A[:, :kept])
@@ -486,29 +568,32 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
         problem_rows[1 + c] = index[c]
     if m > 0:
         W = cut(floats, w_at, (m, m)) if m * m <= SMALL_PROBLEM else np.empty((m, m))
-        np.dot(A.T, A, W)  # (BLAS's product into W: A.T @ A's bits)
+        islands = 1
+        if tree:  # W, and the rows' islands: those sharing no dof with the others (islands.py)
+            gram_by_dofs(A, m, W, columns, island)
+            islands = label_islands(island, role, m)
+        else:
+            np.dot(A.T, A, W)  # (BLAS's product into W: A.T @ A's bits)
         bb, ll, hh = b[:m], lo[:m], hi[:m]  # (the solvers read them only)
         for c in range(m):
             lam[c] = min(max(lam[c], ll[c]), hh[c])
         scale = 1.0
         for c in range(m):
             scale = max(scale, abs(bb[c]))
-        if cones:  # Gauss-Seidel by blocks, each round finished exactly (rbody.engine.constraints.cone)
-            residual = solve_cones(W, bb, ll, hh, role[:m], mu[:m], lam, tolerance * scale, sweeps)
-            status = 0 if residual <= tolerance * scale else 1
-        elif m <= exact_rows:
-            status, _steps = mlcp_exact_from(W, bb, ll, hh, lam)  # warm: the last step's impulses
-            residual = natural_residual(W, bb, ll, hh, lam)
-            if status == 0 and residual > tolerance * scale:
-                status = 1
+        if islands == 1:
+            status, residual = solve_problem(W, bb, ll, hh, role[:m], mu[:m], lam, cones, exact_rows, sweeps,
+                                             tolerance * scale)
         else:
-            _sweeps, residual = mlcp_pgs(W, bb, ll, hh, lam, tolerance * scale, sweeps)
-            status = 0 if residual <= tolerance * scale else 1
+            status, residual = _solve_islands(W, bb, ll, hh, role[:m], mu[:m], lam, island, islands, exact_rows,
+                                              sweeps, tolerance * scale)
         if status != 0:
             return status, residual, m
         x = delta  # the velocities' change M^-1 J^T lam (delta's memory, read below only after it is spent)
         np.dot(A, lam, x)
-        upper_solve_into(L, x, x)
+        if tree:
+            tree_solve(L, parent, x)
+        else:
+            upper_solve_into(L, x, x)
         jnow = cut(floats, jnow_at, m)  # the problem's rows' rates before the step
         for c in range(m):
             jnow[c] = _row_dot(J, index[c], v)
@@ -610,6 +695,16 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
     if worst > 1e3 * dyn.PROJECTION_TOLERANCE:
         return 2, worst, m
     return 0, residual, m
+
+
+@njit(cache=True)
+def _factor_along_tree(p, M, L, parent):
+    """L <- the tree's factor of M, parent (nv,) <- each dof's parent dof. Returns False where a pivot is not
+    positive (the dense factor then runs and reports it)."""
+    do = int(p[mb.H_DOF])
+    for d in range(M.shape[0]):
+        parent[d] = int(p[do + d * mb.DOF_SIZE + mb.D_PARENT])
+    return tree_factor(M, parent, L)
 
 
 @njit(cache=True, inline="always")

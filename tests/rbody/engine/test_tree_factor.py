@@ -1,0 +1,217 @@
+"""The mass matrix's factor along the tree (rbody.engine.constraints.tree_factor), against the dense algebra on
+random trees, and the time-stepping that runs on it against closed forms on a pile of bodies."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import rbody
+from rbody import Multibody
+from rbody.engine import multibody as mb
+from rbody.engine.constraints.cone import NORMAL, ROW, TANGENT, TANGENT2, cone_residual
+from rbody.engine.constraints.islands import label_islands
+from rbody.engine.constraints.stepping import _solve_islands, solve_problem
+from rbody.engine.constraints.tree_factor import (gram_by_dofs, tree_factor, tree_solve, tree_solve_rows_into,
+                                                  tree_solve_transposed)
+
+sys.path.insert(0, str(Path(__file__).parent))
+from trees import random_tree  # noqa: E402
+
+KINDS = ("hinge", "slide", "ball", "free", "weld", "multi")
+
+
+def tree_and_mass_matrix(seed: int):
+    """A random tree's dof parents (nv,) and M (nv, nv) at a random configuration."""
+    rng = np.random.default_rng(seed)
+    model = Multibody(random_tree(rng, int(rng.integers(3, 14)), kinds=KINDS))
+    p = model._kernel_params
+    do = int(p[mb.H_DOF])
+    parent = np.array([int(p[do + d * mb.DOF_SIZE + mb.D_PARENT]) for d in range(model.nv)], dtype=np.int64)
+    q = model.qpos0 + 0.0
+    return rng, parent, model.mass_matrix(q)
+
+
+def path_to_root(parent, d):
+    out = []
+    while d >= 0:
+        out.append(d)
+        d = parent[d]
+    return out
+
+
+def rows_on_paths(rng, parent, m):
+    """m rows (m, nv), each nonzero on one dof's path to its root (a point's Jacobian on that body)."""
+    J = np.zeros((m, parent.size))
+    for r in range(m):
+        for d in path_to_root(parent, int(rng.integers(parent.size))):
+            J[r, d] = rng.normal()
+    return J
+
+
+def ancestors_mask(parent):
+    """(nv, nv) True where column j is row i or one of its ancestors: the factor's pattern."""
+    mask = np.zeros((parent.size, parent.size), dtype=bool)
+    for i in range(parent.size):
+        mask[i, path_to_root(parent, i)] = True
+    return mask
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_the_factor_reproduces_M_from_the_ancestors_entries_alone(seed):
+    _rng, parent, M = tree_and_mass_matrix(seed)
+    assert np.all(parent < np.arange(parent.size))  # the tree's dof order the factor relies on
+    L = np.full(M.shape, np.nan)  # entries off the ancestors must be neither written nor read
+    assert tree_factor(M, parent, L)
+    mask = ancestors_mask(parent)
+    assert np.all(np.isnan(L[~mask])) and np.all(np.isfinite(L[mask]))
+    factor = np.where(mask, L, 0.0)
+    assert np.max(np.abs(factor.T @ factor - M)) < 1e-13 * np.max(np.abs(M))
+    assert np.all(np.diag(factor) > 0)
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_the_solves_invert_M_and_its_factor(seed):
+    rng, parent, M = tree_and_mass_matrix(seed)
+    L = np.zeros(M.shape)
+    assert tree_factor(M, parent, L)
+    b = rng.normal(size=parent.size)
+    x = b.copy()
+    tree_solve_transposed(L, parent, x)
+    np.testing.assert_allclose(L.T @ x, b, rtol=0, atol=1e-12 * np.max(np.abs(b)))
+    tree_solve(L, parent, x)  # L^-1 L^-T b = M^-1 b
+    expected = np.linalg.solve(M, b)
+    assert np.max(np.abs(x - expected)) < 1e-10 * np.max(np.abs(expected))
+
+
+@pytest.mark.parametrize("seed", range(8))
+def test_the_metric_of_rows_on_paths_equals_J_Minv_JT_and_keeps_their_sparsity(seed):
+    rng, parent, M = tree_and_mass_matrix(seed)
+    L = np.zeros(M.shape)
+    assert tree_factor(M, parent, L)
+    m = 7
+    J = np.vstack([np.zeros((2, parent.size)), rows_on_paths(rng, parent, m)])  # rows picked by index
+    index = np.arange(2, 2 + m)
+    A = np.empty((parent.size, m))
+    tree_solve_rows_into(L, parent, J, index, m, A)
+    assert np.all(A[J[index].T == 0.0] == 0.0)  # a column as sparse as its row (a path is closed under parents)
+    W = np.empty((m, m))
+    island = np.empty(m, dtype=np.int64)
+    gram_by_dofs(A, m, W, np.empty(m, dtype=np.int64), island)
+    expected = J[index] @ np.linalg.solve(M, J[index].T)
+    assert np.max(np.abs(W - expected)) < 1e-10 * np.max(np.abs(expected))
+    np.testing.assert_allclose(W, A.T @ A, rtol=1e-14, atol=1e-14 * np.max(np.abs(W)))
+    assert np.array_equal(W, W.T)
+    # the islands: rows joined exactly where a chain of shared dofs links them (W's blocks)
+    count = label_islands(island, np.full(m, ROW, dtype=np.int64), m)
+    linked = (A != 0.0).T.astype(int) @ (A != 0.0).astype(int) > 0
+    for _ in range(m):
+        linked = (linked.astype(int) @ linked.astype(int)) > 0
+    assert np.array_equal(island[:, None] == island[None, :], linked)
+    assert count == np.unique(island).size and sorted(set(island.tolist())) == list(range(count))
+    assert np.all(np.diff([np.argmax(island == k) for k in range(count)]) > 0)  # labelled in order of first rows
+
+
+def test_a_pivot_not_positive_is_reported():
+    parent = np.array([-1, 0, 1], dtype=np.int64)
+    M = np.array([[1.0, 2.0, 0.0], [2.0, 1.0, 0.5], [0.0, 0.5, 2.0]])  # indefinite: its Schur complement < 0
+    assert not tree_factor(M, parent, np.zeros((3, 3)))
+
+
+def test_a_contact_s_rows_stay_in_one_island_whatever_their_jacobians():
+    role = np.array([ROW, NORMAL, TANGENT, TANGENT2, NORMAL, ROW], dtype=np.int64)
+    island = np.arange(6, dtype=np.int64)  # nothing shared: every row apart but the cone's
+    assert label_islands(island, role, 6) == 4
+    assert island.tolist() == [0, 1, 1, 1, 2, 3]
+
+
+def block_cone_problem(rng, blocks):
+    """A problem of `blocks` independent contacts (condim 3), each beside a limit row it is coupled with: W
+    block-diagonal, definite."""
+    b, lo, hi, role, mu = [], [], [], [], []
+    size = 4 * blocks
+    W = np.zeros((size, size))
+    for k in range(blocks):
+        B = rng.normal(size=(4, 6))
+        W[4 * k:4 * k + 4, 4 * k:4 * k + 4] = B @ B.T
+        b += [rng.normal(), -abs(rng.normal()), rng.normal(), rng.normal()]
+        lo += [0.0, 0.0, -np.inf, -np.inf]
+        hi += [np.inf] * 4
+        role += [ROW, NORMAL, TANGENT, TANGENT2]
+        mu += [0.0, 0.0, rng.uniform(0.1, 1.0), rng.uniform(0.1, 1.0)]
+    order = rng.permutation(blocks)  # the blocks' rows interleaved by block order only (a cone's rows contiguous)
+    rows = np.concatenate([np.arange(4 * k, 4 * k + 4) for k in order])
+    return (W[np.ix_(rows, rows)], np.array(b)[rows], np.array(lo)[rows], np.array(hi)[rows],
+            np.array(role, dtype=np.int64)[rows], np.array(mu)[rows])
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_islands_solved_apart_give_the_whole_problem_s_solution(seed):
+    rng = np.random.default_rng(seed)
+    W, b, lo, hi, role, mu = block_cone_problem(rng, 5)
+    m = b.size
+    whole = np.zeros(m)
+    status, residual = solve_problem(W, b, lo, hi, role, mu, whole, True, 64, 2000, 1e-10)
+    assert status == 0 and residual <= 1e-10
+    island = np.arange(m, dtype=np.int64)
+    for c in range(m):  # joined by W's blocks, as gram_by_dofs joins them
+        for z in range(c):
+            if W[c, z] != 0.0:
+                island[island == island[c]] = island[z]
+    island = np.unique(island, return_inverse=True)[1].astype(np.int64)  # 0.. in order of first rows
+    assert island.max() + 1 == 5  # a block each
+    apart = np.zeros(m)
+    status, residual = _solve_islands(W, b, lo, hi, role, mu, apart, island, 5, 64, 2000, 1e-10)
+    assert status == 0 and cone_residual(W, b, lo, hi, role, mu, apart) <= 1e-10
+    np.testing.assert_allclose(apart, whole, rtol=0, atol=1e-8)
+
+
+def pile_xml(columns: int, height: int, radius: float = 0.1) -> str:
+    """columns x columns towers of `height` spheres s{i}_{k}, each touching the one below (the lowest the floor)."""
+    bodies = []
+    for i in range(columns * columns):
+        for k in range(height):
+            x, y = 3 * radius * (i % columns), 3 * radius * (i // columns)
+            bodies.append(f'<body name="s{i}_{k}" pos="{x} {y} {radius * (1 + 2 * k)}"><freejoint/>'
+                          f'<geom type="sphere" size="{radius}" mass="1"/></body>')
+    return (f'<mujoco><option timestep="0.01"/><worldbody><geom type="plane" size="5 5 0.1"/>{"".join(bodies)}'
+            f'</worldbody></mujoco>')
+
+
+def test_a_pile_of_sphere_towers_rests_where_it_stands(tmp_path):
+    """Nine towers of three spheres (nv = 162): each sphere stays at (2k + 1) r, to round-off, for 2 s."""
+    path = tmp_path / "pile.xml"
+    path.write_text(pile_xml(3, 3))
+    run = rbody.simulate(rbody.from_mjcf(path, t_end=2.0), dt=0.01)
+    for i in range(9):
+        for k in range(3):
+            com = run[f"s{i}_{k}.com"]
+            assert np.max(np.abs(com - com[0])) < 1e-13
+            assert abs(com[-1, 2] - 0.1 * (2 * k + 1)) < 1e-13
+
+
+def test_a_sphere_thrown_in_a_pile_rolls_at_five_sevenths_from_t_star(tmp_path):
+    """Beside eight resting spheres, one thrown sliding without spin at v0 on mu: v0 - mu g t until
+    t* = 2 v0 / (7 mu g), then 5/7 v0 (the chapter's rolling), with the step's factor along a tree of 54 dofs."""
+    v0, mu, radius, dt = 2.0, 0.4, 0.1, 1e-3
+    bodies = [f'<body name="rest{k}" pos="{x} 3 {radius}"><freejoint/><geom type="sphere" size="{radius}" '
+              f'mass="1"/></body>' for k, x in enumerate(np.arange(8) * 0.5)]
+    xml = (f'<mujoco><option timestep="{dt}" gravity="0 0 -9.81"/><worldbody>'
+           f'<geom type="plane" size="50 50 0.1" friction="{mu} 0 0"/>'
+           f'<body name="thrown" pos="0 0 {radius}"><freejoint/>'
+           f'<geom type="sphere" size="{radius}" mass="1" friction="{mu} 0 0"/></body>{"".join(bodies)}'
+           f'</worldbody></mujoco>')
+    path = tmp_path / "thrown.xml"
+    path.write_text(xml)
+    run = rbody.simulate(rbody.from_mjcf(path, t_end=0.5, qvel0=np.r_[v0, np.zeros(5 + 6 * 8)]), dt=dt)
+    v = run["thrown.velocity"][:, 0]
+    t_star = 2 * v0 / (7 * mu * 9.81)
+    sliding, rolling = run.t < t_star - dt, run.t > t_star + dt
+    np.testing.assert_allclose(v[sliding], v0 - mu * 9.81 * run.t[sliding], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(v[rolling], 5 / 7 * v0, rtol=0, atol=1e-12)
+    assert np.max(np.abs(run["thrown.com"][:, 2] - radius)) < 1e-15
+    for k in range(8):
+        assert np.max(np.abs(run[f"rest{k}.velocity"])) < 1e-13
