@@ -7,11 +7,13 @@ Prints the machine, its load and the versions, then per layer: its bodies, dofs 
 rules make every two spheres a contact pair, each a candidate of 3 rows); rbody's cost per step [us] (min / median
 / max over --repeats runs of --steps steps, stepping.moreau_loop called directly after one untimed run) and its
 spheres' largest depth below the floor over the run [m]; MuJoCo's (its defaults, Euler, mujoco.rollout on one
-thread) and its spheres' largest depth; the ratio of the two minima. Both at dt = 1e-2 s from the spheres' resting
-heights.
+thread) and its spheres' largest depth; the ratio of the two minima; the seconds rbody takes to load the MJCF text
+(from_mjcf) and to prepare its run (prepare(): the stability check and the memory estimate among it), and MuJoCo to
+compile the same text. Both at dt = 1e-2 s from the spheres' resting heights.
 The step's cost grows with the bodies through its dofs (M factored along the tree, rbody.engine.constraints.
-tree_factor), its contacts (each its own island, rbody.engine.constraints.islands) and its contact pairs (the broad
-phase's pass over them, and the row arrays sized by every candidate: quadratic in the bodies).
+tree_factor; each contact's rows on their support beyond 64 dofs, but formed over every dof), its contacts (each its
+own island, rbody.engine.constraints.islands) and its contact pairs (the broad phase's pass over them, and the row
+arrays sized by every candidate: quadratic in the bodies).
 Benchmarks are not tests: the machine may be shared (the load average is printed); compare figures of one run.
 """
 
@@ -34,13 +36,16 @@ def rbody_layer(side: int, steps: int, repeats: int) -> dict:
     import rbody
     from contact_step import layer_xml, timed_loop
 
+    start = time.perf_counter()
     scene = rbody.from_mjcf(layer_xml(side, RADIUS), t_end=steps * DT)
-    once, out, table = timed_loop(scene, DT, steps, f"layer {side}")
+    loaded = time.perf_counter()
+    once, out, table = timed_loop(scene, DT, steps, f"layer {side}")  # prepare(): the stability check among it
+    prepared = time.perf_counter()
     once()
     seconds = [once() for _ in range(repeats)]
     heights = out[:, 2:7 * side * side:7]  # each free joint's z (qpos: 3 positions, 4 quaternion numbers a body)
     return {"seconds": seconds, "depth": float(max(0.0, np.max(RADIUS - heights))), "nv": scene.multibody.nv,
-            "rows": table.rows}
+            "rows": table.rows, "load": loaded - start, "prepare": prepared - loaded}
 
 
 def mujoco_layer(side: int, steps: int, repeats: int) -> dict:
@@ -49,9 +54,11 @@ def mujoco_layer(side: int, steps: int, repeats: int) -> dict:
     from contact_step import layer_xml
     from mujoco import rollout
 
+    start = time.perf_counter()
     model = mujoco.MjModel.from_xml_string(layer_xml(side, RADIUS))
     model.opt.timestep = DT
     data = mujoco.MjData(model)
+    loaded = time.perf_counter() - start
     kind = mujoco.mjtState.mjSTATE_FULLPHYSICS
     initial = np.empty(mujoco.mj_stateSize(model, kind))
     mujoco.mj_getState(model, data, initial, kind)
@@ -65,7 +72,7 @@ def mujoco_layer(side: int, steps: int, repeats: int) -> dict:
         seconds.append(time.perf_counter() - start)
     qpos = states[0, :, 1:1 + model.nq]  # (the full physics state: time first)
     heights = qpos[:, 2::7]
-    return {"seconds": seconds, "depth": float(max(0.0, np.max(RADIUS - heights)))}
+    return {"seconds": seconds, "depth": float(max(0.0, np.max(RADIUS - heights))), "load": loaded}
 
 
 def _us(seconds, steps: int) -> str:
@@ -92,14 +99,15 @@ def main(argv=None) -> int:
           f"{mujoco.__version__}: its defaults (Euler), mujoco.rollout, one thread")
     print()
     print("| spheres | dofs | rbody rows (every candidate) | rbody [us/step] min / median / max | rbody depth [m] | "
-          "MuJoCo [us/step] | MuJoCo depth [m] | rbody / MuJoCo (minima) |")
-    print("|---|---|---|---|---|---|---|---|")
+          "MuJoCo [us/step] | MuJoCo depth [m] | rbody / MuJoCo (minima) | rbody load, prepare [s] | MuJoCo load [s] |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
     for side in args.sides:
         mine = rbody_layer(side, args.steps, args.repeats)
         peer = mujoco_layer(side, args.steps, args.repeats)
         print(f"| {side * side} | {mine['nv']} | {mine['rows']} | {_us(mine['seconds'], args.steps)} | "
               f"{mine['depth']:.1e} | {_us(peer['seconds'], args.steps)} | {peer['depth']:.1e} | "
-              f"{min(mine['seconds']) / min(peer['seconds']):.1f} |", flush=True)
+              f"{min(mine['seconds']) / min(peer['seconds']):.1f} | {mine['load']:.3g}, {mine['prepare']:.3g} | "
+              f"{peer['load']:.3g} |", flush=True)
     return 0
 
 

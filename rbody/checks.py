@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 import numpy as np
@@ -13,6 +14,9 @@ def finite_array(value: Any, name: str, *, shape: tuple | None = None, ndim: int
     Text ("1.5") and complex numbers are refused rather than converted. A copy that would not fit in the memory
     this process can still allocate (a broadcast view of 10^9 elements) is refused before it is made.
     """
+    number = _plain_number(value)
+    if number is not None and shape in (None, ()) and ndim in (None, 0):  # one finite number: no array pass needed
+        return np.array(number)
     try:
         viewed = np.asarray(value)
         kind = viewed.dtype.kind
@@ -27,7 +31,7 @@ def finite_array(value: Any, name: str, *, shape: tuple | None = None, ndim: int
         array = np.array(value, dtype=np.float64)
     except MemoryError as error:
         raise ValueError(f"{name}: {error}; give a smaller batch") from None
-    except (TypeError, ValueError) as error:
+    except (TypeError, ValueError, OverflowError) as error:  # (an int beyond float64's range: OverflowError)
         raise ValueError(f"{name}={_short(value)}: expected real numbers ({error})") from None
     if shape is not None and array.shape != tuple(shape):
         raise ValueError(f"{name} has shape {array.shape}: expected {tuple(shape)}")
@@ -44,6 +48,18 @@ def finite_array(value: Any, name: str, *, shape: tuple | None = None, ndim: int
     return array
 
 
+def _plain_number(value: Any) -> float | None:
+    """`value` as a float when it is one finite Python or numpy float, or a Python int (not a bool), else None: the
+    checks' fast path (a model of many bodies checks hundreds of thousands of such scalars as it loads)."""
+    if type(value) in (float, int, np.float64):
+        try:
+            number = float(value)
+        except OverflowError:  # an int beyond float64: the array path reports it
+            return None
+        return number if math.isfinite(number) else None
+    return None
+
+
 LARGE_ARRAY = 2**23  # elements (64 MB as float64) above which finite_array checks that its copy fits in memory
 
 
@@ -55,6 +71,9 @@ def _short(value: Any, limit: int = 200) -> str:
 
 def positive(value: Any, name: str) -> Any:
     """`value` (scalar or array) checked finite and > 0; a float for a scalar, else a float64 array."""
+    number = _plain_number(value)
+    if number is not None and number > 0:
+        return number
     array = finite_array(value, name)
     if np.any(array <= 0):
         raise ValueError(f"{name}={describe_values(array)}: must be > 0")
@@ -63,6 +82,9 @@ def positive(value: Any, name: str) -> Any:
 
 def nonnegative(value: Any, name: str) -> Any:
     """`value` checked finite and >= 0."""
+    number = _plain_number(value)
+    if number is not None and number >= 0:
+        return number
     array = finite_array(value, name)
     if np.any(array < 0):
         raise ValueError(f"{name}={describe_values(array)}: must be >= 0")
@@ -71,6 +93,9 @@ def nonnegative(value: Any, name: str) -> Any:
 
 def in_interval(value: Any, name: str, low: float, high: float, *, closed: bool = False) -> Any:
     """`value` checked finite and inside (low, high), or [low, high] when closed."""
+    number = _plain_number(value)
+    if number is not None and (low <= number <= high if closed else low < number < high):
+        return number
     array = finite_array(value, name)
     inside = (array >= low) & (array <= high) if closed else (array > low) & (array < high)
     if not np.all(inside):

@@ -515,7 +515,8 @@ def estimate_work(scene: Scene, dt: float, t_end: float, save_every: int) -> dic
     else 0), and the memory at the peak in bytes: state_bytes (the saved states, and the every-step buffer of a
     run cut at a break), observable_bytes (the observables formed from them, OBSERVE_FACTOR x their arrays),
     build_bytes (the batch's native model where it is not built yet, BUILD_FACTOR x its arrays), work_bytes (the
-    stability check's Jacobians) and bytes, their sum. The observables are probed (observed_numbers) only for runs
+    stability check's Jacobians), constraint_bytes (a constrained tree's rows: constraint_numbers) and bytes, their
+    sum. The observables are probed (observed_numbers) only for runs
     whose saved states pass MEMORY_CHECKED_ABOVE, the size the check reads the memory for.
     Raises ValueError when save_every is beyond the run."""
     steps = max(1.0, math.ceil(t_end / dt * (1 - 1e-12))) if t_end / dt < 2.0**62 else t_end / dt
@@ -524,7 +525,7 @@ def estimate_work(scene: Scene, dt: float, t_end: float, save_every: int) -> dic
                          "give save_every <= t_end/dt (a larger one would run the scene past t_end)")
     samples = -(-steps // save_every) + 1
     batch = float(np.prod(scene.batch_shape)) if scene.batch_shape else 1.0
-    impacts = build = observed = work = 0.0
+    impacts = build = observed = work = rows = 0.0
     if scene.event_driven:
         state = 3 * getattr(scene, "n", 1) + 4      # gaps, velocities, counts of each sample
         expected = getattr(scene, "expected_events", None)
@@ -543,10 +544,26 @@ def estimate_work(scene: Scene, dt: float, t_end: float, save_every: int) -> dic
         if built and crosses_break(scene.native_model, steps, dt):
             held += (steps + 1) * n * batch          # _integrate_across_break keeps every step
         work = 3.0 * min(float(JACOBIAN_BLOCK), batch * n * n) if n <= DENSE_STATE_LIMIT else (KRYLOV_VECTORS + 8) * n
+        rows = constraint_numbers(scene)
     parts = {"state_bytes": 8.0 * held, "observable_bytes": 8.0 * observed, "build_bytes": 8.0 * build,
-             "work_bytes": 8.0 * work}
+             "work_bytes": 8.0 * work, "constraint_bytes": 8.0 * rows}
     return {"steps": float(steps), "batch": batch, "samples": float(samples), "impacts": impacts,
             "bytes": sum(parts.values()), **parts}
+
+
+def constraint_numbers(scene: Scene) -> float:
+    """Numbers (float64) a constrained tree's run may hold at once in its constraint layer, per batch element run
+    after run: M and its factor (2 nv^2), and two arrays of one row of nv numbers per constraint row (J, and M^-1/2
+    J^T in the time-stepping or the sliding columns in the event-driven scheme), contact candidates included: their
+    rows are formed only where a contact is near, but a pile whose every pair is near forms them all. 0 for a scene
+    without a constraint layer."""
+    model = scene.native_model if "native_model" in scene.__dict__ else _element(scene).native_model
+    table = getattr(model, "constraints", None)
+    multibody = getattr(scene, "multibody", None)
+    if table is None or multibody is None:
+        return 0.0
+    nv = float(multibody.nv)
+    return 2.0 * nv * nv + 2.0 * float(table.rows) * nv
 
 
 def combined_work(first: dict[str, float], second: dict[str, float]) -> dict[str, float]:
@@ -557,7 +574,8 @@ def combined_work(first: dict[str, float], second: dict[str, float]) -> dict[str
     combined["samples"] = max(first["samples"], second["samples"])
     combined["state_bytes"] = first["state_bytes"] + second["state_bytes"]
     combined["observable_bytes"] = first["observable_bytes"] + second["observable_bytes"]
-    combined["bytes"] = sum(combined[k] for k in ("state_bytes", "observable_bytes", "build_bytes", "work_bytes"))
+    combined["bytes"] = sum(combined.get(k, 0.0) for k in ("state_bytes", "observable_bytes", "build_bytes", "work_bytes",
+                                                          "constraint_bytes"))
     return combined
 
 
@@ -569,7 +587,7 @@ def run_work(steps: float, samples: float, numbers_per_sample: float, *, batch: 
     state = 8.0 * samples * batch * numbers_per_sample
     return {"steps": float(steps), "batch": float(batch), "samples": float(samples), "impacts": 0.0,
             "bytes": state + extra_bytes, "state_bytes": state, "observable_bytes": 0.0, "build_bytes": extra_bytes,
-            "work_bytes": 0.0}
+            "work_bytes": 0.0, "constraint_bytes": 0.0}
 
 
 def work_problems(work: dict[str, float]) -> list[str]:
@@ -588,9 +606,11 @@ def work_problems(work: dict[str, float]) -> list[str]:
     if free is not None and size > MEMORY_FRACTION * free:
         parts = ", ".join(f"{label} {work[key] / 1e9:.3g} GB" for key, label in (
             ("state_bytes", "saved states"), ("observable_bytes", "observables"), ("build_bytes", "building the batch"),
-            ("work_bytes", "workspaces")) if work.get(key))
+            ("work_bytes", "workspaces"), ("constraint_bytes", "constraint rows, contact candidates included"))
+            if work.get(key))
         problems.append(f"{size / 1e9:.3g} GB at the peak ({parts}), more than {MEMORY_FRACTION:g} of the "
-                        f"{free / 1e9:.3g} GB this process can still allocate (raise save_every or split the batch)")
+                        f"{free / 1e9:.3g} GB this process can still allocate (raise save_every or split the batch; "
+                        "for many bodies, fewer contact pairs: contype/conaffinity, <exclude>)")
     return problems
 
 

@@ -23,6 +23,8 @@ def test_a_small_layer_rests_on_its_floor_in_rbody_and_sinks_in_mujoco(capsys):
     assert cells[1] == "24" and cells[2] == "30"
     assert float(cells[4]) == 0.0
     assert float(cells[6]) > 1e-5
+    load, prepare = (float(x) for x in cells[8].split(","))
+    assert load > 0.0 and prepare > 0.0 and float(cells[9]) > 0.0
 
 
 def test_bad_counts_are_refused():

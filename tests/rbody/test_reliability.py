@@ -133,7 +133,9 @@ def test_estimate_counts_steps_samples_and_bytes():
     assert {k: work[k] for k in ("steps", "batch", "samples", "state_bytes", "impacts")} == {
         "steps": 1000.0, "batch": 4.0, "samples": 101.0, "state_bytes": 8.0 * 101 * 4 * 2, "impacts": 0.0}
     # the peak adds the observables formed from the states and the workspaces (tests/rbody/test_memory.py)
-    assert work["bytes"] == work["state_bytes"] + work["observable_bytes"] + work["build_bytes"] + work["work_bytes"]
+    assert work["bytes"] == (work["state_bytes"] + work["observable_bytes"] + work["build_bytes"] + work["work_bytes"]
+                             + work["constraint_bytes"])
+    assert work["constraint_bytes"] == 0.0  # no constraint layer
 
 
 @pytest.mark.parametrize("digits", [10, 11])
@@ -247,3 +249,32 @@ def test_stability_rate_of_a_large_batch_is_each_elements():
     for b in (0, 777, 19999):
         alone = Scene.from_layout(layout, t_end=1.0, qpos0=qpos0[b])
         assert rates[b] == pytest.approx(float(stability.fastest_rate(alone, "rk4")[0]), rel=1e-12)
+
+
+@pytest.mark.parametrize("value", [0.0, -0.0, 1.5, -2.0, 3, -3, np.float64(0.25), 1e308, 10**400, float("nan"),
+                                   float("inf"), True, np.float32(2.0), np.int64(7), "1.5", 1j])
+def test_one_number_is_checked_as_an_array_of_it_is(value):
+    """The checks' fast path for one Python or numpy number (rbody.checks._plain_number: a model of many bodies
+    checks hundreds of thousands as it loads) accepts, returns and refuses exactly what the array path does."""
+    from rbody import checks
+
+    def outcome(check, *args, **kwargs):
+        try:
+            result = check(value, "x", *args, **kwargs)
+        except ValueError as error:
+            return "refused", str(error)
+        return type(result), np.asarray(result).tolist()
+
+    def by_array(check, *args, **kwargs):  # the same check with the fast path off
+        original = checks._plain_number
+        checks._plain_number = lambda _value: None
+        try:
+            return outcome(check, *args, **kwargs)
+        finally:
+            checks._plain_number = original
+
+    for check, args, kwargs in ((checks.finite_array, (), {}), (checks.finite_array, (), {"shape": ()}),
+                                (checks.finite_array, (), {"shape": (1,)}), (checks.positive, (), {}),
+                                (checks.nonnegative, (), {}), (checks.in_interval, (-2.0, 1.5), {}),
+                                (checks.in_interval, (-2.0, 1.5), {"closed": True})):
+        assert outcome(check, *args, **kwargs) == by_array(check, *args, **kwargs), (check.__name__, args, kwargs)

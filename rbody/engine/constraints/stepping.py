@@ -67,8 +67,10 @@ from rbody.engine.constraints.interior import interior_finish
 from rbody.engine.constraints.natural_newton import states_newton
 from rbody.engine.constraints.solver import (RANK_RTOL, cholesky_factor, lower_solve_into, lower_solve_rows_into,
                                              mlcp_exact_from, mlcp_pgs, natural_residual, upper_solve_into)
-from rbody.engine.constraints.tree_factor import gram_by_dofs, tree_factor, tree_solve, tree_solve_rows_into, \
-    tree_solve_transposed
+from rbody.engine.constraints.tree_factor import (dof_columns, gram_by_dofs, gram_by_scan, product_by_dofs, tree_factor,
+                                                  tree_solve,
+                                                  tree_solve_rows_into, tree_solve_supports_into,
+                                                  tree_solve_transposed)
 from rbody.engine.constraints.islands import label_islands
 from rbody.engine.constraints.kinds import is_equality_kind, is_friction_kind, is_stop_kind
 from rbody.engine.constraints.table import (C_HEADER, CONTACT, CONTACT1, CONTACT_KINDS, FRICTION_KINDS, U_BODY1,
@@ -84,6 +86,8 @@ INTERIOR_AFTER = 1       # rounds of those before each further round also finish
 TOUCH_TOLERANCE = 1e-10  # [m or rad]
 FLAGGED_GAP = TOUCH_TOLERANCE * 1e-3  # a stop or contact within this after a step (and pushing) is projected onto
 SMALL_PROBLEM = 4096     # a step's W of at most this many entries is cut from its arena (step_arena), else allocated
+SUPPORT_DOFS = 64        # a tree of more dofs takes each contact row on its support (its bodies' paths): below, a
+                         # row of nv numbers is cheaper whole (contiguous, vectorised) than gathered
 PROJECTION_ROUNDS = 6    # projections after a step, each with the stops the last one pushed past
 MOREAU = -1              # mode of moreau_step: Moreau-Jean's own free motion, v + h M^-1 f
 MODES = {"moreau": MOREAU, "mujoco_euler": EULER, "implicitfast": IMPLICITFAST, "implicit": IMPLICIT}
@@ -293,20 +297,26 @@ def _solve_islands(W, b, lo, hi, role, mu, lam, island, count, exact_rows, sweep
 
 
 @njit(cache=True)
-def _drop_null_equalities(A, index, lo, hi, b, role, mu, m, rates):
+def _drop_null_equalities(A, index, lo, hi, b, role, mu, m, rates, support, start, length, on_support):
     """The step's rows without the equality rows no impulse acts through: those whose column of A (M^-1/2 J^T) is
     below RANK_RTOL of the largest in W's scale (|A_c|^2), the round-off of a zero row (a connect's component across
     a planar loop: 1e-17 where the loop's rows are 0.05). Kept, Gauss-Seidel would divide their round-off residual
     by their round-off diagonal and push the other rows by an impulse of order one through their round-off
-    coupling. The rows after them move up in place (A's columns, index, bounds, b, role, mu and their free rates);
-    returns the count."""
+    coupling. The rows after them move up in place (A's columns, index, bounds, b, role, mu, their free rates and
+    supports); returns the count. on_support: A's columns are 0 off their rows' supports (the tree's factor), which
+    are then the only entries read."""
     nv = A.shape[0]
     top = 0.0
     size = np.empty(m)
     for c in range(m):
         size[c] = 0.0
-        for d in range(nv):
-            size[c] += A[d, c] * A[d, c]
+        if on_support and length[c] >= 0:
+            for x in range(length[c]):
+                d = support[start[c] + x]
+                size[c] += A[d, c] * A[d, c]
+        else:
+            for d in range(nv):
+                size[c] += A[d, c] * A[d, c]
         top = max(top, size[c])
     kept = 0
     for c in range(m):
@@ -316,7 +326,7 @@ def _drop_null_equalities(A, index, lo, hi, b, role, mu, m, rates):
             for d in range(nv):
                 A[d, kept] = A[d, c]
             index[kept], lo[kept], hi[kept], b[kept], role[kept], mu[kept] = index[c], lo[c], hi[c], b[c], role[c], mu[c]
-            rates[kept] = rates[c]
+            rates[kept], start[kept], length[kept] = rates[c], start[c], length[c]
         kept += 1
     return kept
 
@@ -377,6 +387,57 @@ def near_contacts(p, w, vfree, h, J, g, formed, kept, reuse):
 
 
 @njit(cache=True, inline="always")
+def _row_dot_on(J, a, x, support, s0, k):
+    """J[a] . x on the row's support support[s0:s0 + k] (ascending: the dense sum's order, without its zero terms), or
+    over every dof where k < 0."""
+    if k < 0:
+        return _row_dot(J, a, x)
+    total = 0.0
+    for y in range(k):
+        d = support[s0 + y]
+        total += J[a, d] * x[d]
+    return total
+
+
+@njit(cache=True)
+def _unit_support(p, u, support, top):
+    """Writes at support[top:] the dofs a contact unit u's rows can be nonzero on: those of its two bodies and of
+    every body above each (rbody.engine.constraints.jacobians._add_point_rows), ascending, each once. Returns their
+    count, or -1 (nothing written) where support has no room for them."""
+    bo = int(p[mb.H_BODY])
+    count = 0
+    for body in (int(p[u + U_BODY1]), int(p[u + U_BODY2])):
+        i = body
+        while i >= 0:
+            count += int(p[bo + i * mb.BODY_SIZE + mb.B_NDOF])
+            i = int(p[bo + i * mb.BODY_SIZE + mb.B_PARENT])
+    if top + count > support.size:
+        return -1
+    k = 0
+    for body in (int(p[u + U_BODY1]), int(p[u + U_BODY2])):
+        i = body
+        while i >= 0:
+            b = bo + i * mb.BODY_SIZE
+            for d in range(int(p[b + mb.B_DOF0]), int(p[b + mb.B_DOF0]) + int(p[b + mb.B_NDOF])):
+                support[top + k] = d
+                k += 1
+            i = int(p[b + mb.B_PARENT])
+    for x in range(1, k):  # ascending (a handful of dofs: insertion), then each once (shared ancestors)
+        d = support[top + x]
+        y = x - 1
+        while y >= 0 and support[top + y] > d:
+            support[top + y + 1] = support[top + y]
+            y -= 1
+        support[top + y + 1] = d
+    kept = 0
+    for x in range(k):
+        if kept == 0 or support[top + x] != support[top + kept - 1]:
+            support[top + kept] = support[top + x]
+            kept += 1
+    return kept
+
+
+@njit(cache=True, inline="always")
 def _row_dot(J, a, x):
     """J[a] . x: one row's rate (the step reads the rates of the rows it uses, not of every row: a model with many
     far contact candidates has many zero rows)."""
@@ -413,8 +474,18 @@ def step_arena(p):
               + na + pair_count(p)  # rates, least
               + 2 * rows + nv * rows + SMALL_PROBLEM)  # lam, jnow, A (nv, m <= rows), W where small
     ints = (unit_count(p) - contact0(p) + 3 * rows + pair_count(p)  # formed; index, role, flagged; near
-            + nv + 2 * rows)  # the dofs' parents, W's columns by dof, the rows' islands (M factored along the tree)
+            + nv + rows  # the dofs' parents, the rows' islands (M factored along the tree)
+            + 2 * rows + 2 * support_room(p)  # the rows' supports (start, length; the dofs), A's columns by dof
+            + nv + 1)  # (where those lists start)
     return np.empty(floats), np.empty(ints, dtype=np.int64)
+
+
+@njit(cache=True, inline="always")
+def support_room(p):
+    """Room (int64 entries) for the step's rows' supports, and for A's nonzero columns listed by dof: 4 a row and 2 a
+    dof (a contact of two free bodies: 12 dofs for its 3 rows); a step that needs more takes the dense path for the
+    rows beyond (supports) or allocates (the lists)."""
+    return 4 * row_count(p) + 2 * int(p[mb.H_DOFS])
 
 
 @njit(cache=True)
@@ -463,9 +534,14 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
     index, role = cut(ints, unit_count(p) - c0, rows), cut(ints, unit_count(p) - c0 + rows, rows)
     flagged = cut(ints, unit_count(p) - c0 + 2 * rows, rows)  # the rows flagged in position_rows, in flag order
     near = cut(ints, unit_count(p) - c0 + 3 * rows, pair_count(p))  # (not a model's far candidates' rows)
-    parent = cut(ints, unit_count(p) - c0 + 3 * rows + pair_count(p), nv)  # (the tree's factor only)
-    columns = cut(ints, unit_count(p) - c0 + 3 * rows + pair_count(p) + nv, rows)
-    island = cut(ints, unit_count(p) - c0 + 3 * rows + pair_count(p) + nv + rows, rows)
+    top_int = unit_count(p) - c0 + 3 * rows + pair_count(p)
+    parent, island = cut(ints, top_int, nv), cut(ints, top_int + nv, rows)  # (the tree's factor only)
+    top_int += nv + rows
+    room = support_room(p)  # each problem row's support: support[start[c]:start[c] + length[c]] (length -1: dense)
+    start, length = cut(ints, top_int, rows), cut(ints, top_int + rows, rows)
+    support, columns = cut(ints, top_int + 2 * rows, room), cut(ints, top_int + 2 * rows + room, room)
+    first = cut(ints, top_int + 2 * rows + 2 * room, nv + 1)  # (A's columns by dof: columns[first[d]:first[d + 1]])
+    used = 0  # support's entries taken
     _effective_qpos(p, y, q, 0)
     dyn.snapshot(p, q, y[nq:nq + nv], y[at:at + na], M, f, J, jdot, g, w, acc, None, False, False)
     dyn.add_sliding_friction(p, f, J)
@@ -476,6 +552,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
     # along the tree (tree_factor: M = L^T L, no fill-in); MuJoCo's integrators' densely, as their own steps solve
     # (a step with no constraint active is then theirs to the bit)
     tree = mode == MOREAU and _factor_along_tree(p, M, L, parent)
+    sparse = tree and nv > SUPPORT_DOFS  # (the rows on their supports: their products cost those, not nv each)
     if tree:  # vfree = v + h L^-1 L^-T f
         for d in range(nv):
             vfree[d] = f[d]
@@ -493,8 +570,10 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
         mujoco_free_velocity(p, y, h, mode, M, f, vfree, L)
     more, touching = near_contacts(p, w, vfree, h, J, g, formed, end_geometry, kept_for(end_geometry, q))
     bound = contact_row0(p) + more  # the problem's rows (at most the rows formed): their rates at the free
-    role[:bound] = 0  # velocities (jfree), rows (index), bounds, b, roles and friction coefficients
+    role[:bound] = 0  # velocities (jfree), rows (index), bounds, b, roles and friction coefficients, supports
     mu[:bound] = 0.0
+    if sparse:
+        length[:bound] = -1  # (every dof, but a contact's: its bodies' paths)
     cones = False
     m = 0
     units = unit_at(p, 0)  # (unit k's record from the first's: unit_at's reads from the header, redone each pass)
@@ -527,8 +606,13 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
         elif kind == CONTACT or kind == CONTACT1:  # a contact: its normal as a limit's row, its cone with it
             e = p[u + U_RESTITUTION]
             touching = g[r0] <= TOUCH_TOLERANCE
-            rate = _row_dot(J, r0, vfree)
+            dofs = _unit_support(p, u, support, used) if sparse else -1  # its rows' support (-1: every dof)
+            rate = _row_dot_on(J, r0, vfree, support, used, dofs)
             if touching or g[r0] + h * rate < 0.0:
+                if sparse:
+                    for a in range(m, m + r):
+                        start[a], length[a] = used, dofs
+                    used += max(dofs, 0)
                 jfree[m] = rate
                 index[m], lo[m], hi[m] = r0, 0.0, np.inf
                 if touching or e > 0.0:
@@ -539,7 +623,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
                 role[m - 1] = NORMAL
                 if kind == CONTACT:  # tangents, then spin and rolling (condim 4, 6): cone's roles in order
                     for t in range(1, r):
-                        jfree[m] = _row_dot(J, r0 + t, vfree)
+                        jfree[m] = _row_dot_on(J, r0 + t, vfree, support, used - max(dofs, 0), dofs)
                         index[m], lo[m], hi[m], b[m] = r0 + t, -np.inf, np.inf, jfree[m]
                         role[m] = NORMAL + t
                         mu[m] = (p[u + U_BOUND] if role[m] == TANGENT else p[u + U_SPIN] if role[m] == SPIN
@@ -550,11 +634,13 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
     residual = 0.0
     if m > 0:
         A = cut(floats, a_at, (nv, m))
-        if tree:  # L^-T J^T (M = L^T L), as sparse as J's rows
+        if sparse:  # L^-T J^T (M = L^T L), as sparse as J's rows: each column on its row's support
+            tree_solve_supports_into(L, parent, J, index, m, A, support, start, length)
+        elif tree:
             tree_solve_rows_into(L, parent, J, index, m, A)
         else:  # L^-1 J^T (M = L L^T)
             lower_solve_rows_into(L, J, index, m, A)  # M^-1/2 J^T: W = A^T A
-        kept = _drop_null_equalities(A, index, lo, hi, b, role, mu, m, jfree)
+        kept = _drop_null_equalities(A, index, lo, hi, b, role, mu, m, jfree, support, start, length, sparse)
         if kept < m:  # (a copy only where a row went)
             A = np.ascontiguousarray(A[:, :kept])
         m = kept
@@ -569,8 +655,15 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
     if m > 0:
         W = cut(floats, w_at, (m, m)) if m * m <= SMALL_PROBLEM else np.empty((m, m))
         islands = 1
-        if tree:  # W, and the rows' islands: those sharing no dof with the others (islands.py)
-            gram_by_dofs(A, m, W, columns, island)
+        if sparse:  # W, and the rows' islands: those sharing no dof with the others (islands.py), from A's nonzero
+            listed = dof_columns(A, m, support, start, length, first, columns)  # columns listed by dof
+            if listed > columns.size:  # (more than the arena's room: their own memory)
+                columns = np.empty(listed, dtype=np.int64)
+                dof_columns(A, m, support, start, length, first, columns)
+            gram_by_dofs(A, m, W, first, columns, island)
+            islands = label_islands(island, role, m)
+        elif tree:
+            gram_by_scan(A, m, W, columns, island)
             islands = label_islands(island, role, m)
         else:
             np.dot(A.T, A, W)  # (BLAS's product into W: A.T @ A's bits)
@@ -589,21 +682,24 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
         if status != 0:
             return status, residual, m
         x = delta  # the velocities' change M^-1 J^T lam (delta's memory, read below only after it is spent)
-        np.dot(A, lam, x)
+        if sparse:
+            product_by_dofs(A, lam, first, columns, x)
+        else:
+            np.dot(A, lam, x)
         if tree:
             tree_solve(L, parent, x)
         else:
             upper_solve_into(L, x, x)
         jnow = cut(floats, jnow_at, m)  # the problem's rows' rates before the step
         for c in range(m):
-            jnow[c] = _row_dot(J, index[c], v)
+            jnow[c] = _row_dot_on(J, index[c], v, support, start[c], length[c] if sparse else -1)
         loss = 0.0
         for c in range(m):
             P[index[c]] = lam[c]
         for d in range(nv):
             v[d] = vfree[d] + x[d]
         for c in range(m):
-            after = _row_dot(J, index[c], v)
+            after = _row_dot_on(J, index[c], v, support, start[c], length[c] if sparse else -1)
             if role[c] != ROW:  # contacts: the work of the impulse at the mean of the velocities before and after
                 # the step (Kelvin's theorem; before it, not after the free motion, so that a contact that holds a
                 # body at rest does no work against the velocity gravity gave it within the step)

@@ -227,6 +227,23 @@ class ConstraintTable:
         out[self.tree_size + X_BLOCK] = self.offset
         return out
 
+    @cached_property
+    def contact0(self) -> int:
+        """The first contact unit (every unit before it a limit, friction or an equality); the unit count if none."""
+        return next((k for k, unit in enumerate(self.units) if unit.code in CONTACT_KINDS), len(self.units))
+
+    def without_contacts(self, row: np.ndarray) -> np.ndarray:
+        """A copy of a constraint row (row(), or a batch of them (B, p)) whose header holds the units before the
+        contacts only: no contact unit, row or pair. In a mode where every contact is apart (mode0: every run's
+        start) a kernel reads the same motion from it as from `row`, without passing over the contacts'
+        candidates (rows by the tens of thousands in a model of many bodies, each evaluation's J one row of nv
+        numbers apiece: the stability check's cost)."""
+        out = np.array(row, dtype=np.float64)
+        rows = sum(unit.rows for unit in self.units[:self.contact0])
+        header = self.offset + np.array([C_UNITS, C_ROWS, C_PAIRS, C_GEOMS])
+        out[..., header] = self.contact0, rows, 0, 0
+        return out
+
     def mode_slice(self) -> slice:
         start = self.offset + C_HEADER + UNIT_SIZE * len(self.units)
         return slice(start, start + len(self.units))
@@ -334,20 +351,24 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
     rows = 0
     hull_of: list[tuple[int, int, tuple]] = []  # (record, field, (shape name, packed hull)) of mesh geoms
 
+    blank = np.zeros(UNIT_SIZE)  # every record starts as a copy of it: no body, second dof, tendon or hull
+    blank[[U_BODY1, U_BODY2, U_DOF2, U_QADR2, U_TENDON, U_TENDON2, U_HULL_A, U_HULL_B]] = -1
+
     def add(code: int, name: str, count: int | None = None, **fields) -> None:
         nonlocal rows
         count = KIND_ROWS[code] if count is None else count  # a contact's rows: its condim
-        record = np.zeros(UNIT_SIZE)
-        record[[U_KIND, U_ROWS, U_ROW0]] = code, count, rows
-        record[[U_BODY1, U_BODY2, U_DOF2, U_QADR2, U_TENDON, U_TENDON2, U_HULL_A, U_HULL_B]] = -1, -1, -1, -1, -1, -1, \
-            -1, -1
+        record = blank.copy()
+        record[U_KIND], record[U_ROWS], record[U_ROW0] = code, count, rows
         for key, value in fields.items():
             if key in ("HULL_A", "HULL_B"):  # a mesh's hull (rbody.engine.contacts.convex.pack_hull) or a height
                 # field's record (rbody.engine.contacts.terrain.pack_field): placed below
                 hull_of.append((len(records), globals()["U_" + key], value))
                 continue
             start = globals()[key]
-            values = np.atleast_1d(np.asarray(value, dtype=float))
+            if isinstance(value, (int, float)):  # (most fields: one number, set without an array's round trip)
+                record[start] = value
+                continue
+            values = np.asarray(value, dtype=float).reshape(-1)
             record[start:start + values.size] = values
         records.append(record)
         units.append(Unit(code, KIND_NAMES[code], name, count, rows))
@@ -464,9 +485,10 @@ def build_table(layout: Layout, multibody) -> ConstraintTable | None:
     spinning = []  # and those with torsional or rolling friction (condim 4, 6)
     contact0 = len(units)
     pairs: list[tuple[int, int, int, int, str, str, float]] = []  # (unit, slots, row, width, shape a, shape b, margin)
+    shapes = _ContactShapes(layout)
     for contact in layout.contacts:
         with_friction = contact.condim > 1 and contact.friction + contact.torsion + contact.rolling > 0
-        candidates, (name_a, name_b) = _contact_units(layout, contact, body_index)
+        candidates, (name_a, name_b) = _contact_units(contact, body_index, shapes)
         pairs.append((len(units), len(candidates), rows, contact.condim if with_friction else 1, name_a, name_b,
                       contact.margin))
         for record_fields, name in candidates:
@@ -581,21 +603,59 @@ def _broad_phase_records(pairs: list, records: list[np.ndarray], offset: int) ->
     return pair_records, geom_records
 
 
-def _contact_units(layout: Layout, contact,
-                   body_index: dict[str, int]) -> tuple[list[tuple[dict, str]], tuple[str, str]]:
+class _ContactShapes:
+    """The layout's shapes by name, each with its body, and each shape's record fields (type code, pose, size,
+    packed hull or field) formed once: a model of many bodies names every shape in a pair with each other one."""
+
+    def __init__(self, layout: Layout):
+        self.where = {shape.name: (WORLD, shape) for shape in layout.fixed}
+        for body in layout.bodies:
+            for shape in body.shapes:
+                self.where[shape.name] = (body.name, shape)
+        self._fields: dict[str, dict] = {}
+
+    def fields(self, shape, suffix: str) -> dict:
+        """The unit record's fields of `shape` as geom `suffix` ("A" or "B") of a pair."""
+        if shape.name not in self._fields:
+            self._fields[shape.name] = _shape_fields(shape)
+        return {f"{key}_{suffix}": value for key, value in self._fields[shape.name].items()}
+
+
+def _shape_fields(shape) -> dict:
+    """A contact shape's record fields (without the geom's suffix): U_GTYPE, U_GPOS, U_GMAT, U_GSIZE, and HULL for a
+    mesh's packed hull or a height field's record."""
+    from rbody.engine.contacts.geometry import TYPE_CODES
+    from rbody.engine.contacts.terrain import HFIELD, pack_field
+    from rbody.motion import quat_to_matrix
+
+    size = np.zeros(3)
+    size[:len(shape.size)] = shape.size[:3]
+    axes = quat_to_matrix(np.asarray(shape.quat))
+    pos = np.asarray(shape.pos, dtype=float)
+    fields = {}
+    if shape.kind == "mesh":  # its frame moved to the centre of its bounding box, its size that box's half sizes
+        centre, half, packed = _packed_hull(shape)
+        pos = pos + axes @ centre
+        size[:] = half
+        fields["HULL"] = (shape.name, packed)
+    if shape.kind == "hfield":  # its record (elevations and sizes) placed once, like a mesh's hull
+        fields["HULL"] = (shape.name, pack_field(np.asarray(shape.heights), shape.size))
+    fields.update(U_GTYPE=HFIELD if shape.kind == "hfield" else TYPE_CODES[shape.kind], U_GPOS=pos,
+                  U_GMAT=axes.reshape(-1), U_GSIZE=size)
+    return fields
+
+
+def _contact_units(contact, body_index: dict[str, int],
+                   shapes: _ContactShapes) -> tuple[list[tuple[dict, str]], tuple[str, str]]:
     """(the unit records (fields for build_table's add) and names of a Contact's candidates, (geom a's shape name,
     geom b's)): one unit per slot of its pair of geoms (rbody.engine.contacts.geometry.SLOTS), the geoms in MuJoCo's
     order (type codes ascending).
     Raises ValueError naming the contact for a shape that is not in the layout, two shapes of one body, or a pair
     of kinds rbody does not compute."""
     from rbody.engine.contacts.geometry import MAX_SLOTS, SLOTS, TYPE_CODES, pairs_text
-    from rbody.engine.contacts.terrain import FIELD_KINDS, HFIELD, bounding_radius_of, field_slots, pack_field
-    from rbody.motion import quat_to_matrix
+    from rbody.engine.contacts.terrain import FIELD_KINDS, HFIELD, bounding_radius_of, field_slots
 
-    where = {shape.name: (WORLD, shape) for shape in layout.fixed}
-    for body in layout.bodies:
-        for shape in body.shapes:
-            where[shape.name] = (body.name, shape)
+    where = shapes.where
     what = f"contact {contact.shape_a!r}/{contact.shape_b!r}"
     geoms = []
     for field_name in ("shape_a", "shape_b"):
@@ -623,20 +683,8 @@ def _contact_units(layout: Layout, contact,
         raise ValueError(f"{what}: rbody computes contacts of {pairs_text()}, not {shape_a.kind}-{shape_b.kind}")
     fields = dict(U_BOUND=contact.friction, U_RESTITUTION=contact.restitution, U_BODY1=body_index[body_a],
                   U_BODY2=body_index[body_b], U_SPIN=contact.torsion, U_ROLL=contact.rolling, U_MARGIN=contact.margin)
-    for suffix, code, shape in (("A", ta, shape_a), ("B", tb, shape_b)):
-        size = np.zeros(3)
-        size[:len(shape.size)] = shape.size[:3]
-        axes = quat_to_matrix(np.asarray(shape.quat))
-        pos = np.asarray(shape.pos, dtype=float)
-        if shape.kind == "mesh":  # its frame moved to the centre of its bounding box, its size that box's half sizes
-            centre, half, packed = _packed_hull(shape)
-            pos = pos + axes @ centre
-            size[:] = half
-            fields[f"HULL_{suffix}"] = (shape.name, packed)
-        if shape.kind == "hfield":  # its record (elevations and sizes) placed once, like a mesh's hull
-            fields[f"HULL_{suffix}"] = (shape.name, pack_field(np.asarray(shape.heights), shape.size))
-        fields.update({f"U_GTYPE_{suffix}": code, f"U_GPOS_{suffix}": pos, f"U_GMAT_{suffix}": axes.reshape(-1),
-                       f"U_GSIZE_{suffix}": size})
+    fields.update(shapes.fields(shape_a, "A"))
+    fields.update(shapes.fields(shape_b, "B"))
     if ta == HFIELD:  # the window of cells under geom b (rbody.engine.contacts.terrain)
         if body_a != WORLD:
             raise ValueError(f"{what}: height field {shape_a.name!r} is on {body_a!r}: a height field is world-fixed "

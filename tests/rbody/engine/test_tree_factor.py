@@ -14,8 +14,10 @@ from rbody import Multibody
 from rbody.engine import multibody as mb
 from rbody.engine.constraints.cone import NORMAL, ROW, TANGENT, TANGENT2, cone_residual
 from rbody.engine.constraints.islands import label_islands
-from rbody.engine.constraints.stepping import _solve_islands, solve_problem
-from rbody.engine.constraints.tree_factor import (gram_by_dofs, tree_factor, tree_solve, tree_solve_rows_into,
+from rbody.engine.constraints.stepping import SUPPORT_DOFS, _solve_islands, solve_problem
+from rbody.engine.constraints.tree_factor import (dof_columns, gram_by_dofs, gram_by_scan, product_by_dofs, tree_factor,
+                                                  tree_solve,
+                                                  tree_solve_rows_into, tree_solve_supports_into,
                                                   tree_solve_transposed)
 
 sys.path.insert(0, str(Path(__file__).parent))
@@ -87,6 +89,26 @@ def test_the_solves_invert_M_and_its_factor(seed):
     assert np.max(np.abs(x - expected)) < 1e-10 * np.max(np.abs(expected))
 
 
+def supports_of(J):
+    """(support, start, length) of rows J (m, nv): each row's nonzero dofs, ascending (a path: closed under parents)."""
+    lists = [np.flatnonzero(row) for row in J]
+    start = np.cumsum([0] + [len(x) for x in lists[:-1]]).astype(np.int64)
+    return (np.concatenate(lists).astype(np.int64), start, np.array([len(x) for x in lists], dtype=np.int64))
+
+
+def metric_by_dofs(A, m, support, start, length):
+    """(W, island, first, columns) of A through dof_columns and gram_by_dofs."""
+    first = np.empty(A.shape[0] + 1, dtype=np.int64)
+    short = np.empty(1, dtype=np.int64)
+    listed = dof_columns(A, m, support, start, length, first, short)
+    columns = np.empty(listed, dtype=np.int64)
+    assert dof_columns(A, m, support, start, length, first, columns) == listed
+    W = np.empty((m, m))
+    island = np.empty(m, dtype=np.int64)
+    gram_by_dofs(A, m, W, first, columns, island)
+    return W, island, first, columns
+
+
 @pytest.mark.parametrize("seed", range(8))
 def test_the_metric_of_rows_on_paths_equals_J_Minv_JT_and_keeps_their_sparsity(seed):
     rng, parent, M = tree_and_mass_matrix(seed)
@@ -98,13 +120,29 @@ def test_the_metric_of_rows_on_paths_equals_J_Minv_JT_and_keeps_their_sparsity(s
     A = np.empty((parent.size, m))
     tree_solve_rows_into(L, parent, J, index, m, A)
     assert np.all(A[J[index].T == 0.0] == 0.0)  # a column as sparse as its row (a path is closed under parents)
-    W = np.empty((m, m))
-    island = np.empty(m, dtype=np.int64)
-    gram_by_dofs(A, m, W, np.empty(m, dtype=np.int64), island)
+    dense = np.full(m, -1, dtype=np.int64)  # every dof
+    by_column = np.empty(A.shape)
+    tree_solve_supports_into(L, parent, J, index, m, by_column, dense, np.zeros(m, dtype=np.int64), dense)
+    assert np.array_equal(by_column, A)
+    support, start, length = supports_of(J[index])
+    on_support = np.full(A.shape, np.nan)  # each column on its row's support alone: the same bits there, nothing off it
+    tree_solve_supports_into(L, parent, J, index, m, on_support, support, start, length)
+    mask = J[index].T != 0.0
+    assert np.array_equal(on_support[mask], A[mask]) and np.all(np.isnan(on_support[~mask]))
+    W, island, first, columns = metric_by_dofs(on_support, m, support, start, length)
     expected = J[index] @ np.linalg.solve(M, J[index].T)
     assert np.max(np.abs(W - expected)) < 1e-10 * np.max(np.abs(expected))
     np.testing.assert_allclose(W, A.T @ A, rtol=1e-14, atol=1e-14 * np.max(np.abs(W)))
     assert np.array_equal(W, W.T)
+    W_dense, island_dense, _first, _columns = metric_by_dofs(A, m, support, start, np.full(m, -1, dtype=np.int64))
+    assert np.array_equal(W, W_dense) and np.array_equal(island, island_dense)  # the lists: A's nonzeros either way
+    W_scan, island_scan = np.empty((m, m)), np.empty(m, dtype=np.int64)
+    gram_by_scan(A, m, W_scan, np.empty(m, dtype=np.int64), island_scan)  # a few dofs' rows read whole: the same
+    assert np.array_equal(W, W_scan) and np.array_equal(island, island_scan)
+    lam = rng.normal(size=m)
+    x = np.empty(parent.size)
+    product_by_dofs(on_support, lam, first, columns, x)
+    np.testing.assert_allclose(x, A @ lam, rtol=1e-14, atol=1e-14 * np.max(np.abs(A @ lam)))
     # the islands: rows joined exactly where a chain of shared dofs links them (W's blocks)
     count = label_islands(island, np.full(m, ROW, dtype=np.int64), m)
     linked = (A != 0.0).T.astype(int) @ (A != 0.0).astype(int) > 0
@@ -194,24 +232,32 @@ def test_a_pile_of_sphere_towers_rests_where_it_stands(tmp_path):
 
 
 def test_a_sphere_thrown_in_a_pile_rolls_at_five_sevenths_from_t_star(tmp_path):
-    """Beside eight resting spheres, one thrown sliding without spin at v0 on mu: v0 - mu g t until
-    t* = 2 v0 / (7 mu g), then 5/7 v0 (the chapter's rolling), with the step's factor along a tree of 54 dofs."""
+    """Beside eleven resting spheres, one thrown sliding without spin at v0 on mu: v0 - mu g t until
+    t* = 2 v0 / (7 mu g), then 5/7 v0 (the chapter's rolling), with the step's factor along a tree of 73 dofs, more
+    than SUPPORT_DOFS: each contact's rows on their support, beside an arm held on its stop by a limit's row (a row
+    of every dof)."""
     v0, mu, radius, dt = 2.0, 0.4, 0.1, 1e-3
     bodies = [f'<body name="rest{k}" pos="{x} 3 {radius}"><freejoint/><geom type="sphere" size="{radius}" '
-              f'mass="1"/></body>' for k, x in enumerate(np.arange(8) * 0.5)]
+              f'mass="1"/></body>' for k, x in enumerate(np.arange(11) * 0.5)]
+    arm = ('<body name="arm" pos="0 -3 2"><joint name="stop" type="hinge" axis="0 1 0" limited="true" range="-30 0"/>'
+           '<geom type="capsule" fromto="0 0 0 0.5 0 0" size="0.02" mass="1" contype="0" conaffinity="0"/></body>')
     xml = (f'<mujoco><option timestep="{dt}" gravity="0 0 -9.81"/><worldbody>'
            f'<geom type="plane" size="50 50 0.1" friction="{mu} 0 0"/>'
            f'<body name="thrown" pos="0 0 {radius}"><freejoint/>'
-           f'<geom type="sphere" size="{radius}" mass="1" friction="{mu} 0 0"/></body>{"".join(bodies)}'
+           f'<geom type="sphere" size="{radius}" mass="1" friction="{mu} 0 0"/></body>{"".join(bodies)}{arm}'
            f'</worldbody></mujoco>')
     path = tmp_path / "thrown.xml"
     path.write_text(xml)
-    run = rbody.simulate(rbody.from_mjcf(path, t_end=0.5, qvel0=np.r_[v0, np.zeros(5 + 6 * 8)]), dt=dt)
+    scene = rbody.from_mjcf(path, t_end=0.5, qvel0=np.r_[v0, np.zeros(5 + 6 * 11 + 1)])
+    assert scene.multibody.nv > SUPPORT_DOFS
+    run = rbody.simulate(scene, dt=dt)
     v = run["thrown.velocity"][:, 0]
     t_star = 2 * v0 / (7 * mu * 9.81)
     sliding, rolling = run.t < t_star - dt, run.t > t_star + dt
     np.testing.assert_allclose(v[sliding], v0 - mu * 9.81 * run.t[sliding], rtol=0, atol=1e-12)
     np.testing.assert_allclose(v[rolling], 5 / 7 * v0, rtol=0, atol=1e-12)
     assert np.max(np.abs(run["thrown.com"][:, 2] - radius)) < 1e-15
-    for k in range(8):
+    for k in range(11):
         assert np.max(np.abs(run[f"rest{k}.velocity"])) < 1e-13
+    arm_com = run["arm.com"]  # gravity pushes the arm onto its stop at 0, where the limit holds it
+    assert np.max(np.abs(arm_com - arm_com[0])) < 1e-13 and abs(arm_com[0, 2] - 2.0) < 1e-15
