@@ -49,21 +49,69 @@ def step_rate(method: str, jq: np.ndarray, jv: np.ndarray, y: np.ndarray, params
     """(B,) 2 / h* [1/s] (module docstring), 0 where no step is unstable within 2^DOUBLINGS times 2 / w.
 
     jq, jv: (B, nv, nv) d qacc / d q (tangent coordinates) and d qacc / d qvel at y [1/s^2, 1/s];
-    y: (B, n) the 3-D engine's states, params: (B, m) its rows (the model mujoco_steps steps)."""
+    y: (B, n) the 3-D engine's states, params: (B, m) its rows (the model mujoco_steps steps).
+    A tree whose dofs fall into groups that nothing couples (free bodies side by side: M, H and the Jacobians
+    block-diagonal) has the union of its groups' eigenvalues: each group is linearised on its own, the groups of one
+    size together, under the whole tree's growth and starting step (coupled_groups); the rate is the largest."""
     mode = MODES[method]
     batch, nv = jq.shape[0], jq.shape[1]
     matrices = np.empty((batch, 2, nv, nv))
     for b in range(batch):
         step_matrices(np.ascontiguousarray(y[b]), np.ascontiguousarray(params[b]), mode, elements, matrices[b])
     mass, derivative = matrices[:, 0], matrices[:, 1]
-    eye = np.eye(nv)
+    if not np.all(np.isfinite(jq)):
+        return np.full(batch, np.inf)
     damping = -mass @ jv  # d qfrc / d qvel: its symmetric part damps, the rest (gyroscopic) only turns
     jv = -np.linalg.solve(mass, 0.5 * (damping + np.swapaxes(damping, 1, 2)))
-    motion = np.zeros((batch, 2 * nv, 2 * nv))
-    motion[:, :nv, nv:] = eye
+    if not np.all(np.isfinite(jv)):
+        return np.full(batch, np.inf)
+    groups = [coupled_groups(jq[b], jv[b], mass[b], derivative[b]) for b in range(batch)]
+    whole = np.array([len(found) == 1 for found in groups])
+    rates = np.zeros(batch)
+    if np.any(whole):  # (a batch of trees that couple every dof: linearised together)
+        pick = np.flatnonzero(whole)
+        rates[pick] = _rate(jq[pick], jv[pick], mass[pick], derivative[pick],
+                            np.max(np.abs(np.linalg.eigvals(jq[pick])), axis=-1), _growth(jq[pick], jv[pick]))
+    for b in np.flatnonzero(~whole):
+        blocks = [[m[np.ix_(g, g)] for m in (jq[b], jv[b], mass[b], derivative[b])] for g in groups[b]]
+        w2 = max(float(np.max(np.abs(np.linalg.eigvals(block[0])))) for block in blocks)  # the whole tree's
+        growth = max(float(_growth(block[0][None], block[1][None])[0]) for block in blocks)
+        by_size: dict[int, list] = {}
+        for block in blocks:
+            by_size.setdefault(block[0].shape[0], []).append(block)
+        for same in by_size.values():  # the groups of one size as one batch
+            parts = [np.stack([block[k] for block in same]) for k in range(4)]
+            count = len(same)
+            rates[b] = max(rates[b], float(np.max(_rate(*parts, np.full(count, w2), np.full(count, growth)))))
+    return rates
+
+
+def coupled_groups(jq: np.ndarray, jv: np.ndarray, mass: np.ndarray, derivative: np.ndarray) -> list[np.ndarray]:
+    """The dofs (nv,) in groups that no entry of jq, jv, M or H's derivative couples (each ascending, in order of
+    their first dof): the connected components of those matrices' joint pattern."""
+    from scipy.sparse.csgraph import connected_components
+
+    pattern = (jq != 0.0) | (jv != 0.0) | (mass != 0.0) | (derivative != 0.0)
+    count, labels = connected_components(pattern | pattern.T, directed=False)
+    return [np.flatnonzero(labels == k) for k in np.unique(labels)] if count > 1 else [np.arange(jq.shape[0])]
+
+
+def _growth(jq: np.ndarray, jv: np.ndarray) -> np.ndarray:
+    """(B,) sigma >= 0: the largest real part of the linearised motion's eigenvalues, [[0, I], [jq, jv]]."""
+    nv = jq.shape[1]
+    motion = np.zeros((jq.shape[0], 2 * nv, 2 * nv))
+    motion[:, :nv, nv:] = np.eye(nv)
     motion[:, nv:, :nv] = jq
     motion[:, nv:, nv:] = jv
-    growth = np.maximum(np.max(np.linalg.eigvals(motion).real, axis=-1), 0.0)
+    return np.maximum(np.max(np.linalg.eigvals(motion).real, axis=-1), 0.0)
+
+
+def _rate(jq: np.ndarray, jv: np.ndarray, mass: np.ndarray, derivative: np.ndarray, w2: np.ndarray,
+          growth: np.ndarray) -> np.ndarray:
+    """(B,) 2 / h* of each element (jq, jv damping only, M, H's derivative (B, k, k)), its step bracketed from
+    2 / sqrt(w2) and held against the motion's growth (step_rate)."""
+    batch, nv = jq.shape[0], jq.shape[1]
+    eye = np.eye(nv)
 
     def stable(h: np.ndarray) -> np.ndarray:
         w = np.linalg.solve(mass - h[:, None, None] * derivative, mass)
@@ -77,8 +125,7 @@ def step_rate(method: str, jq: np.ndarray, jv: np.ndarray, y: np.ndarray, params
             radius = np.max(np.abs(np.linalg.eigvals(step)), axis=-1)
         return np.isfinite(radius) & (np.log(radius) <= GROWTH_FACTOR * growth * h + RADIUS_MARGIN)
 
-    w2 = np.max(np.abs(np.linalg.eigvals(jq)), axis=-1)
-    if not (np.all(np.isfinite(w2)) and np.all(np.isfinite(jv))):
+    if not np.all(np.isfinite(w2)):
         return np.full(batch, np.inf)
     moving = w2 > 0.0
     h0 = np.where(moving, 2.0 / np.sqrt(np.where(moving, w2, 1.0)), 1.0)
