@@ -66,9 +66,11 @@ def test_definite_solve_refuses_a_round_off_row():
     np.testing.assert_allclose(W[np.ix_([0, 2], [0, 2])] @ x[:2], [1.0, 2.0], rtol=1e-12)
 
 
-def test_drop_null_equalities_keeps_every_row_an_impulse_acts_through():
+@pytest.mark.parametrize("on_support", [False, True], ids=["dense", "supports"])
+def test_drop_null_equalities_keeps_every_row_an_impulse_acts_through(on_support):
     """The step's columns: a connect's round-off row goes, the rest move up in order with their bounds, right-hand
-    sides, roles, coefficients and free rates; a limit's row is kept however small."""
+    sides, roles, coefficients, free rates and supports; a limit's row is kept however small. On supports (a tree of
+    many dofs) each column is read on its own support, which here holds its every nonzero."""
     rng = np.random.default_rng(5)
     A = rng.normal(size=(4, 6))
     A[:, 1] *= 1e-17                         # an equality's round-off row
@@ -80,9 +82,13 @@ def test_drop_null_equalities_keeps_every_row_an_impulse_acts_through():
     role = np.array([ROW, ROW, NORMAL, TANGENT, ROW, ROW])
     mu = np.array([0.0, 0.0, 0.0, 0.5, 0.0, 0.0])
     rates = np.arange(6.0) + 0.5
+    support = np.array([0, 1, 2, 3, 0, 1, 2, 3], dtype=np.int64)  # every dof, twice: the columns' supports
+    start = np.array([0, 4, 0, 4, 0, 4], dtype=np.int64)
+    length = np.array([4, -1, 4, 4, -1, 4], dtype=np.int64)  # (-1: every dof, an equality's or a limit's row)
     before = A.copy()
-    m = _drop_null_equalities(A, index, lo, hi, b, role, mu, 6, rates)
+    m = _drop_null_equalities(A, index, lo, hi, b, role, mu, 6, rates, support, start, length, on_support)
     assert m == 5
+    assert list(start[:5]) == [0, 0, 4, 0, 4] and list(length[:5]) == [4, 4, 4, -1, 4]
     np.testing.assert_array_equal(A[:, :5], before[:, [0, 2, 3, 4, 5]])
     assert list(index[:5]) == [10, 12, 13, 14, 15] and list(b[:5]) == [0, 2, 3, 4, 5]
     assert list(role[:5]) == [ROW, NORMAL, TANGENT, ROW, ROW] and mu[2] == 0.5 and lo[1] == 0.0
