@@ -227,10 +227,11 @@ class ConstraintTable:
         out[self.tree_size + X_BLOCK] = self.offset
         return out
 
-    @cached_property
+    @property
     def contact0(self) -> int:
-        """The first contact unit (every unit before it a limit, friction or an equality); the unit count if none."""
-        return next((k for k, unit in enumerate(self.units) if unit.code in CONTACT_KINDS), len(self.units))
+        """The first contact unit (every unit before it a limit, friction or an equality); the unit count if none: the
+        block header's, which build_table wrote."""
+        return int(self.block[C_CONTACT0])
 
     def without_contacts(self, row: np.ndarray) -> np.ndarray:
         """A copy of a constraint row (row(), or a batch of them (B, p)) whose header holds the units before the
@@ -239,7 +240,7 @@ class ConstraintTable:
         candidates (rows by the tens of thousands in a model of many bodies, each evaluation's J one row of nv
         numbers apiece: the stability check's cost)."""
         out = np.array(row, dtype=np.float64)
-        rows = sum(unit.rows for unit in self.units[:self.contact0])
+        rows = int(self.first_rows[self.contact0]) if self.contact0 < len(self.units) else self.rows
         header = self.offset + np.array([C_UNITS, C_ROWS, C_PAIRS, C_GEOMS])
         out[..., header] = self.contact0, rows, 0, 0
         return out
