@@ -21,7 +21,8 @@ Prints the machine, its load and the package versions, then
    of those at or below 2 dt only the largest is run (the same run), labelled with the 2 dt it ran at. rbody: method
    "moreau" over the same dts, and the event-driven "rk4" (dt its sampling interval) on the sphere and the
    incline at the two coarsest.
-   Cost: wall time per simulated second [s/s], the minimum over --repeats timed runs (the stepping loop with the
+   Cost: wall time per simulated second [s/s], the minimum over --repeats timed runs (runs shorter than
+   SHORT_SECONDS repeated until they add up to it, at most SHORT_REPEATS times) (the stepping loop with the
    keeping of every state for MuJoCo, mujoco.rollout on one thread; the whole simulate() call for
    rbody, after one untimed warm-up per scene and method, which compiles), with the spread (max - min) / min.
    A point predicted (from the previous, coarser one) to take more than MAX_RUN_SECONDS is not run, and says so.
@@ -268,11 +269,19 @@ def mujoco_rollout(model: mujoco.MjModel, data: mujoco.MjData, steps: int, keyfr
     return seconds, qpos, qvel
 
 
+SHORT_SECONDS = 0.05  # runs shorter than this are repeated until they add up to it (at most SHORT_REPEATS times)
+SHORT_REPEATS = 30   # (a run of 0.2 to 3 ms: its minimum over three calls moved by half between two sweeps)
+
+
 def repeat(run: Callable[[], tuple], repeats: int, budget: float = 2.0) -> tuple[list[float], tuple]:
     """Call run() (which returns (seconds, *result)) up to `repeats` times, stopping once `budget` seconds of them
-    have been spent (at least once); the seconds of each call and the first result."""
+    have been spent (at least once); where more than one run is asked for, short runs more often, until they add up
+    to SHORT_SECONDS or SHORT_REPEATS are taken (both engines' points alike); the seconds of each call and the first
+    result."""
     seconds, first = [], None
-    while len(seconds) < repeats and (not seconds or sum(seconds) < budget):
+    while (not seconds or sum(seconds) < budget) and (
+            len(seconds) < repeats
+            or (repeats > 1 and len(seconds) < SHORT_REPEATS and sum(seconds) < SHORT_SECONDS)):
         out = run()
         seconds.append(out[0])
         if first is None:

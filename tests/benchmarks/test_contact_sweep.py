@@ -106,6 +106,26 @@ def test_a_time_constant_below_two_steps_runs_once_as_mujoco_runs_it():
     assert row.failure.startswith("not run: the run of tc 0.02") and not row.errors   # refused before any run
 
 
+@pytest.mark.parametrize("seconds, repeats, calls", [
+    (1e-3, 3, 30),      # a short run: repeated until SHORT_REPEATS (30 ms in all, under SHORT_SECONDS)
+    (4e-3, 3, 13),      # until its calls add up to SHORT_SECONDS (0.05 s: 13 of 4 ms)
+    (0.1, 3, 3),        # a long one: the repeats asked for
+    (1e-3, 1, 1),       # one timed run asked for (--quick): one
+    (1.5, 3, 2),        # the budget (2 s) spent after two
+])
+def test_short_runs_are_repeated_until_they_add_up(seconds, repeats, calls):
+    """Both engines' points are timed by repeat(): a run of a millisecond, whose minimum over three calls moves with
+    the machine's load, is repeated until its calls add up to SHORT_SECONDS (at most SHORT_REPEATS)."""
+    made = []
+
+    def run():
+        made.append(len(made))
+        return seconds, "result"
+    timed, first = sweep.repeat(run, repeats)
+    assert len(timed) == len(made) == calls
+    assert first == ("result",)
+
+
 @pytest.mark.slow
 def test_quick_run_prints_the_tables_and_writes_points_and_figure(tmp_path, capsys):
     """About 10 s once numba's cache is warm (minutes on the first run: compilation)."""

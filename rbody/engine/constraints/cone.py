@@ -87,6 +87,7 @@ def _velocities(W, b, lam, w):
 
 
 SMALL = 4096  # a problem of at most this many rows keeps its rows' velocities on the stack (32 kB)
+COLUMNS_ON_STACK = 16384  # a problem's W of at most this many entries is transposed on the stack (128 kB) by cone_pgs
 
 
 @njit(cache=True)
@@ -135,7 +136,15 @@ def cone_pgs(W, b, lo, hi, role, mu, lam, tolerance, max_sweeps, start=-1.0):
     where the caller has it (negative: computed here). Returns (sweeps, residual)."""
     m = b.shape[0]
     residual = start if start >= 0.0 else cone_residual(W, b, lo, hi, role, mu, lam)
+    if residual <= tolerance:
+        return 0, residual
     w = carray(stack_floats(m), m) if m <= SMALL else np.empty(m)
+    # columns[i] = W[:, i]: a row's update of every velocity, w += W[:, i] delta, read along memory (W need not be
+    # symmetric: an event's J M^-1 F^T is not)
+    columns = carray(stack_floats(m * m), (m, m)) if m * m <= COLUMNS_ON_STACK else np.empty((m, m))
+    for i in range(m):
+        for j in range(m):
+            columns[i, j] = W[j, i]
     for sweep in range(max_sweeps):
         if residual <= tolerance:
             return sweep, residual
@@ -157,7 +166,7 @@ def cone_pgs(W, b, lo, hi, role, mu, lam, tolerance, max_sweeps, start=-1.0):
                         dx, dy = x - lam[i], y - lam[i + 1]
                         lam[i], lam[i + 1] = x, y
                         for j in range(m):
-                            w[j] += W[j, i] * dx + W[j, i + 1] * dy
+                            w[j] += columns[i, j] * dx + columns[i + 1, j] * dy
                         continue
                 for _inner in range(INNER_STEPS):  # else projected gradient steps within the block (sliding)
                     x, y = _disc(lam[i] - w[i] / s, lam[i + 1] - w[i + 1] / s, radius)
@@ -166,7 +175,7 @@ def cone_pgs(W, b, lo, hi, role, mu, lam, tolerance, max_sweeps, start=-1.0):
                         break
                     lam[i], lam[i + 1] = x, y
                     for j in range(m):
-                        w[j] += W[j, i] * dx + W[j, i + 1] * dy
+                        w[j] += columns[i, j] * dx + columns[i + 1, j] * dy
                     if s * np.sqrt(dx * dx + dy * dy) <= 0.01 * tolerance:
                         break
                 continue
@@ -179,7 +188,7 @@ def cone_pgs(W, b, lo, hi, role, mu, lam, tolerance, max_sweeps, start=-1.0):
             if delta != 0.0:
                 lam[i] = new
                 for j in range(m):
-                    w[j] += W[j, i] * delta
+                    w[j] += columns[i, j] * delta
         residual = cone_residual(W, b, lo, hi, role, mu, lam)
     return max_sweeps, residual
 
@@ -532,10 +541,12 @@ def _pivoted_cholesky(S, rtol, perm):
         S[j, j] = d
         for i in range(j + 1, k):
             S[i, j] /= d
-        for c in range(j + 1, k):  # the Schur complement, kept whole (both triangles: a later swap reads them)
-            f = S[c, j]
-            for i in range(j + 1, k):
-                S[i, c] -= S[i, j] * f
+            S[j, i] = S[i, j]  # (the column as row j too: the update below reads it along memory)
+        rest = k - j - 1
+        for c in range(j + 1, k):  # the Schur complement, kept whole (both triangles: a later swap reads them), row
+            f = S[j, c]            # by row along memory, each loop from 0 (which numba's loops vectorise)
+            for t in range(rest):
+                S[c, j + 1 + t] -= S[j, j + 1 + t] * f
     return k
 
 
@@ -589,13 +600,15 @@ def _gram_factor(S, n):
     its eigenvalues S's nonzero ones; T overwritten by its own pivoted factor T[q][:, q] = N N^T. Returns (T, its
     order q, whether T is definite to round-off)."""
     k = S.shape[0]
-    T = np.empty((n, n))
+    T = np.zeros((n, n))
+    for i in range(k):  # T[a, c] = sum over i >= a of S[i, a] S[i, c], summed in i's order, by S's rows
+        for a in range(min(i + 1, n)):
+            f = S[i, a]
+            for c in range(a + 1):
+                T[a, c] += f * S[i, c]
     for a in range(n):
-        for c in range(a + 1):
-            acc = 0.0
-            for i in range(a, k):
-                acc += S[i, a] * S[i, c]
-            T[a, c] = T[c, a] = acc
+        for c in range(a):
+            T[c, a] = T[a, c]
     order = np.empty(n, dtype=np.int64)
     return T, order, _pivoted_cholesky(T, 0.0, order) == n
 

@@ -6,8 +6,8 @@ impulses until they settle."""
 import numpy as np
 import pytest
 
-from rbody.engine.constraints.cone import (NORMAL, TANGENT, TANGENT2, _least_norm, cone_residual, cone_pgs,
-                                           stick_polish)
+from rbody.engine.constraints.cone import (LEAST_NORM_RTOL, NORMAL, TANGENT, TANGENT2, _gram_factor, _least_norm,
+                                           _pivoted_cholesky, cone_residual, cone_pgs, stick_polish)
 
 
 def semidefinite(rng, k, rank):
@@ -90,3 +90,85 @@ def test_stick_polish_ends_at_the_fixed_point_of_its_weights():
     assert np.abs(again - lam).max() <= 1e-13 * np.abs(lam).max()
     # the corners' loads differ (the box turns and slides as it is stopped): not a trivial fixed point
     assert normals.max() - normals.min() > 0.1 * normals.max()
+
+
+def column_cholesky(S, rtol):
+    """The rank-revealing Cholesky factorisation by outer products, column by column as Higham writes it (10.3): the
+    reference for cone._pivoted_cholesky, which takes the same operations row by row along memory. Returns (S with
+    L in its lower trapezoid, perm, rank)."""
+    S = S.copy()
+    k = S.shape[0]
+    perm = np.arange(k)
+    top = max(S[a, a] for a in range(k))
+    for j in range(k):
+        at = j + int(np.argmax(np.diag(S)[j:]))  # the first of the largest remaining diagonal entries
+        pivot = S[at, at]
+        if not pivot > rtol * top:
+            return S, perm, j
+        S[[j, at], :] = S[[at, j], :]
+        S[:, [j, at]] = S[:, [at, j]]
+        perm[[j, at]] = perm[[at, j]]
+        d = np.sqrt(pivot)
+        S[j, j] = d
+        for i in range(j + 1, k):
+            S[i, j] /= d
+        for c in range(j + 1, k):
+            f = S[c, j]
+            for i in range(j + 1, k):
+                S[i, c] -= S[i, j] * f
+    return S, perm, k
+
+
+@pytest.mark.parametrize("k, rank, repeated", [(1, 1, 0), (5, 5, 0), (9, 4, 2), (16, 7, 3), (24, 24, 0)])
+def test_pivoted_cholesky_is_the_column_factorisation_to_the_bit(k, rank, repeated):
+    """The factor taken row by row along memory (each Schur update one contiguous loop) does the column-wise
+    algorithm's operations: the same pivots, rank and factor to the last bit, and L L^T is S permuted; a redundant
+    contact set repeats rows (a corner counted twice), which the rank sees."""
+    rng = np.random.default_rng(k + 10 * rank + 100 * repeated)
+    for _ in range(10):
+        S = semidefinite(rng, k, rank) * 10.0 ** rng.uniform(-3, 3)
+        if repeated:
+            S = np.vstack([S, S[:repeated]])
+            S = np.hstack([S, S[:, :repeated]])
+        size = S.shape[0]
+        expected, expected_perm, expected_rank = column_cholesky(S, LEAST_NORM_RTOL)
+        factor, perm = S.copy(), np.empty(size, dtype=np.int64)
+        rank_found = _pivoted_cholesky(factor, LEAST_NORM_RTOL, perm)
+        assert rank_found == expected_rank == rank
+        np.testing.assert_array_equal(perm, expected_perm)
+        lower = np.tril(np.ones((size, rank_found), dtype=bool))
+        np.testing.assert_array_equal(factor[:, :rank_found][lower], expected[:, :rank_found][lower])
+        L = np.where(lower, factor[:, :rank_found], 0.0)
+        assert np.abs(L @ L.T - S[perm][:, perm]).max() <= 1e-13 * np.abs(S).max()
+        T, order, definite = _gram_factor(factor, rank_found)  # L^T L, summed in the rows' order, then factored
+        assert definite
+        gram = L.T @ L
+        N = np.tril(T)
+        assert np.abs(N @ N.T - gram[order][:, order]).max() <= 1e-13 * np.abs(gram).max()
+
+
+def test_gauss_seidel_updates_by_columns_of_an_unsymmetric_W():
+    """cone_pgs's sweep moves every row's velocity by W's column i times row i's change (an event's W = J M^-1 F^T
+    is not symmetric: a sliding contact's force columns F differ from its rows J); the sweep reads that column from a
+    transposed copy: it equals the textbook sweep, which a row of W in its place would not."""
+    rng = np.random.default_rng(11)
+    m = 9
+    W = semidefinite(rng, m, m) + 0.3 * rng.normal(size=(m, m))
+    W[np.diag_indices(m)] = np.abs(np.diag(W)) + 1.0
+    b = rng.normal(size=m)
+    lo, hi = np.full(m, -0.2), np.full(m, 0.3)
+    role, mu = np.zeros(m, dtype=np.int64), np.zeros(m)
+    lam = cone_lam = np.zeros(m)
+    for _sweep in range(3):
+        w = W @ lam + b
+        lam = lam.copy()
+        for i in range(m):
+            new = min(max(lam[i] - w[i] / W[i, i], lo[i]), hi[i])
+            w += W[:, i] * (new - lam[i])
+            lam[i] = new
+        cone_lam = np.zeros(m)
+        cone_pgs(W, b, lo, hi, role, mu, cone_lam, 0.0, _sweep + 1)
+        np.testing.assert_allclose(cone_lam, lam, rtol=0, atol=1e-14)
+    by_rows = np.zeros(m)  # the transposed problem, whose columns are W's rows: another answer
+    cone_pgs(W.T.copy(), b, lo, hi, role, mu, by_rows, 0.0, 3)
+    assert np.abs(by_rows - lam).max() > 1e-3
