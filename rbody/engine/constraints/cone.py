@@ -146,8 +146,6 @@ def cone_pgs(W, b, lo, hi, role, mu, lam, tolerance, max_sweeps, start=-1.0):
         for j in range(m):
             columns[i, j] = W[j, i]
     for sweep in range(max_sweeps):
-        if residual <= tolerance:
-            return sweep, residual
         _velocities(W, b, lam, w)  # afresh each sweep: the updates below keep it in step without drift
         for i in range(m):
             if role[i] == TANGENT2 or role[i] == ROLL2:
@@ -190,6 +188,8 @@ def cone_pgs(W, b, lo, hi, role, mu, lam, tolerance, max_sweeps, start=-1.0):
                 for j in range(m):
                     w[j] += columns[i, j] * delta
         residual = cone_residual(W, b, lo, hi, role, mu, lam)
+        if residual <= tolerance:
+            return sweep + 1, residual
     return max_sweeps, residual
 
 

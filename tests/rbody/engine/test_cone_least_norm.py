@@ -158,7 +158,7 @@ def test_gauss_seidel_updates_by_columns_of_an_unsymmetric_W():
     b = rng.normal(size=m)
     lo, hi = np.full(m, -0.2), np.full(m, 0.3)
     role, mu = np.zeros(m, dtype=np.int64), np.zeros(m)
-    lam = cone_lam = np.zeros(m)
+    lam = np.zeros(m)
     for _sweep in range(3):
         w = W @ lam + b
         lam = lam.copy()
