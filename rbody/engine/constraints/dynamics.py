@@ -41,6 +41,7 @@ from rbody.engine.constraints.jacobians import (all_rows, bias_accelerations, so
 from rbody.engine.contacts.broadphase import (contact0, contact_row0, first_unit_at, kept_neighbours, pair_at,
                                               pair_count, pair_reaches, pair_span)
 from rbody.engine.contacts.rows import (GEOMETRY_WORK, candidate, exact_within, forget_geometry, keep_geometry,
+                                       keep_poses, kept_candidate, kept_exact, moved_within_round_off,
                                        pair_candidates)
 from rbody.engine.constraints.solver import (RANK_RTOL, cholesky_factor, lower_solve, lower_solve_rows,
                                             symmetric_solve, upper_solve)
@@ -558,7 +559,9 @@ def state_gaps(p, y, g, beyond=np.inf, kept=None, least=None):
     that reads no contact gap above it (the projection's flags, the errors' min(g, 0)) lets a pair whose least gap
     is above it give that (rows.pair_candidates). kept (broadphase.kept_size(p),) or None: the contacts' geometry
     found here, kept for the next step's start at the same configuration, and the broad phase's neighbour list (read
-    and kept: a far pair's bound is then a lower bound above TIGHTEN_BELOW, not its spheres' own). least (pairs,) or
+    and kept: a far pair's bound is then a lower bound above TIGHTEN_BELOW, not its spheres' own); a flat-faced pair
+    found exactly before and moved since by less than its poses' round-off (rows.moved_within_round_off) is read
+    from it, not found again (the stack at rest moves 2e-18 m a step). least (pairs,) or
     None: each contact pair's least gap [m] (a bound where its spheres are apart), that a caller reads in place of
     its rows: only its candidates' normal rows are then written, and not even those where the broad phase's bound
     is above `beyond` (the rest are left as they were: a quadruped's far candidates, 24,822 rows each step)."""
@@ -566,6 +569,7 @@ def state_gaps(p, y, g, beyond=np.inf, kept=None, least=None):
     p, y, g = unowned(p), unowned(y), unowned(g)
     nq, nv, _n = sizes(p)
     nb, r0, npairs, ws = int(p[H_BODIES]), contact_row0(p), pair_count(p), workspace_size(p)
+    units = unit_count(p)
     size = nq + ws + r0 * (nv + 1) + 6 * nb + 2 * npairs  # the arrays below, one buffer (on the stack where small)
     owned = carray(stack_floats(size), size) if size <= STACK_FLOATS else np.empty(size)
     q, w = cut(owned, 0, nq), cut(owned, nq, ws)
@@ -601,15 +605,24 @@ def state_gaps(p, y, g, beyond=np.inf, kept=None, least=None):
                 least[i] = reach[i]
             continue
         u = first_unit_at(p, at)
-        count = pair_candidates(p, w, u, work, beyond)  # its geoms posed once
-        exact = exact_within(p, u, count, work, beyond)
         lowest = np.inf
-        for j in range(slots):
-            row = row0 + j * width
-            g[row] = candidate(work, j, normal, point)
-            lowest = min(lowest, g[row])
+        if kept is not None and kept_exact(kept, nq, first) and moved_within_round_off(p, w, u, kept, nq, units,
+                                                                                       i, work):
+            for j in range(slots):  # found exactly where the pair was to the round-off of its poses: read
+                row = row0 + j * width
+                g[row] = kept_candidate(kept, nq, first + j, normal, point)
+                lowest = min(lowest, g[row])
+        else:
+            count = pair_candidates(p, w, u, work, beyond)  # its geoms posed once
+            exact = exact_within(p, u, count, work, beyond)
+            for j in range(slots):
+                row = row0 + j * width
+                g[row] = candidate(work, j, normal, point)
+                lowest = min(lowest, g[row])
+                if kept is not None:
+                    keep_geometry(kept, nq, first + j, exact, g[row], normal, point)
             if kept is not None:
-                keep_geometry(kept, nq, first + j, exact, g[row], normal, point)
+                keep_poses(kept, nq, units, i, work)
         if least is not None:
             least[i] = lowest
     keep_alive(owned)  # read through views only

@@ -276,7 +276,7 @@ def pair_reaches(p, w, h, reach, motion, neighbours):
 @njit(cache=True, inline="always")
 def _neighbours_from(p):
     """Where the neighbour list starts in a step's kept memory: after the kept geometry (rows.kept_geometry_size)."""
-    return kept_geometry_size(int(p[H_NQ]), int(p[block_offset(p) + C_UNITS]))
+    return kept_geometry_size(int(p[H_NQ]), int(p[block_offset(p) + C_UNITS]), pair_count(p))
 
 
 @njit(cache=True, inline="always")

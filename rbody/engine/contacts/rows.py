@@ -13,7 +13,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from rbody.engine.contacts.geometry import COLLIDE_WORK, MAX_SLOTS, answers_beyond, collide
+from rbody.engine.contacts.geometry import (BOX, COLLIDE_WORK, MAX_SLOTS, MESH, PLANE, answers_beyond, bounding_radius,
+                                           collide)
 from rbody.engine.contacts.terrain import FIELD_HEADER, HFIELD, collide_field
 from rbody.engine.multibody import _views
 from rbody.engine.constraints.table import (U_BODY1, U_BODY2, U_DOF, U_GMAT_A, U_GMAT_B, U_GPOS_A, U_GPOS_B,
@@ -131,15 +132,22 @@ def candidate(work, k, normal, point):
 
 
 KEPT = 8  # the floats kept for a contact unit: whether exact (1) or not (0), its gap, normal (3) and point (3)
+POSED = 24  # the floats kept for a contact pair: its geoms' poses where its candidates were found (_candidates' order:
+            # position a, position b, axes a, axes b)
+KEPT_MOTION = np.finfo(np.float64).eps  # a flat-faced pair moved by less than this times its geoms' reach from the
+                                        # origin (|centre| + bounding radius, summed) reads its kept candidates
 
 
 @njit(cache=True)
-def kept_geometry_size(nq, units):
+def kept_geometry_size(nq, units, pairs):
     """The length of a kept geometry: whether it holds one (1) or not (0), the configuration q (nq,) it was found at,
-    then KEPT floats for each of the table's units (the contact units' candidates; the others unused). A step's end
-    finds every touching pair's candidates (its projection's gaps); the next step starts at that configuration and
-    would find them again: it reads them here instead, where q has the same bits."""
-    return 1 + nq + KEPT * units
+    KEPT floats for each of the table's units (the contact units' candidates; the others unused), then POSED floats
+    for each contact pair (its geoms' poses where they were found). A step's end finds every touching pair's
+    candidates (its projection's gaps); the next step starts at that configuration and would find them again: it
+    reads them here instead, where q has the same bits. The next step's end reads them too where a flat-faced pair
+    has moved by less than the round-off of its geoms' poses since (moved_within_round_off): a pair at rest moves by
+    round-off every step."""
+    return 1 + nq + KEPT * units + POSED * pairs
 
 
 @njit(cache=True, inline="always")
@@ -187,6 +195,61 @@ def kept_candidate(kept, nq, k, normal, point):
     return kept[at + 1]
 
 
+@njit(cache=True, inline="always")
+def keep_poses(kept, nq, units, i, work):
+    """Keep contact pair i's geoms' poses, work[:POSED] as pair_candidates left them (the poses it found the pair's
+    candidates at); units: the table's unit count (kept_geometry_size's layout)."""
+    at = 1 + nq + KEPT * units + POSED * i
+    for a in range(POSED):
+        kept[at + a] = work[a]
+
+
+@njit(cache=True, inline="always")
+def _flat_faced(kind):
+    """Whether a geom's surface is flat faces only (a plane, a box, a mesh's convex hull)."""
+    return kind == PLANE or kind == BOX or kind == MESH
+
+
+@njit(cache=True)
+def moved_within_round_off(p, w, u, kept, nq, units, i, now):
+    """Whether contact pair i, its first unit's record at u, has moved since its kept poses (keep_poses) by less than
+    the round-off of the poses themselves, after the tree's kinematics in the workspace w; now: POSED floats of
+    scratch (the poses now). Every point of a geom at most r from its centre c (r: geometry.bounding_radius) moves
+    by at most |c' - c| + r ||R' - R||_F (R its axes: ||(R' - R) x|| <= ||R' - R||_2 |x|); the pair's two such
+    moves, summed, must be within KEPT_MOTION (eps) times the reach of its geoms from the origin, |c| + r each,
+    the scale of the round-off the poses carry. A plane's radius is infinite: its axes must not have turned at all,
+    and it adds nothing to the scale (a floor on the world does not move).
+
+    Flat-faced pairs only (planes, boxes, meshes: _flat_faced): their candidates are corners and clipped edges, and a
+    body rocking on them pivots on its corners. Where a geom is round, its point of contact rolls over it as the body
+    rocks, and that roll, at the first order of the rocking, is what holds a body balanced on a round surface: read
+    from a kept geometry, a cube resting on a lying cylinder's top line lost it, its angular velocity growing from
+    2e-16 to 1.5e-14 rad/s in 1 s (found again every step it stays at 2e-16: tests/rbody/engine/
+    test_cylinder_box_pairs.py)."""
+    if not (_flat_faced(int(p[u + U_GTYPE_A])) and _flat_faced(int(p[u + U_GTYPE_B]))):
+        return False
+    at = 1 + nq + KEPT * units + POSED * i
+    geom_pose(p, w, int(p[u + U_BODY1]), u + U_GPOS_A, u + U_GMAT_A, now[0:3], now[6:15].reshape((3, 3)))
+    geom_pose(p, w, int(p[u + U_BODY2]), u + U_GPOS_B, u + U_GMAT_B, now[3:6], now[15:24].reshape((3, 3)))
+    moved, scale = 0.0, 0.0
+    for side in range(2):
+        centre, axes = 3 * side, 6 + 9 * side
+        size_at = u + U_GSIZE_A if side == 0 else u + U_GSIZE_B
+        radius = bounding_radius(int(p[u + U_GTYPE_A if side == 0 else u + U_GTYPE_B]), p, size_at)
+        shift, turn, reach = 0.0, 0.0, 0.0
+        for a in range(3):
+            shift += (now[centre + a] - kept[at + centre + a]) ** 2
+            reach += now[centre + a] ** 2
+        for a in range(9):
+            turn += (now[axes + a] - kept[at + axes + a]) ** 2
+        moved += np.sqrt(shift)
+        if turn > 0.0:
+            moved += radius * np.sqrt(turn)  # (+inf for a plane that turned)
+        if radius < np.inf:
+            scale += np.sqrt(reach) + radius
+    return moved <= KEPT_MOTION * scale
+
+
 @njit(cache=True)
 def contact_geometry(p, w, u, normal, point, work=None):
     """The gap g [m] of the contact unit whose record starts at u (returned), its normal (3,) from geom a to geom b
@@ -200,5 +263,6 @@ def contact_geometry(p, w, u, normal, point, work=None):
 
 
 __all__ = ["geom_pose", "contact_geometry", "pair_candidates", "candidate", "exact_within", "hull_at", "field_at",
-           "GEOMETRY_WORK", "KEPT", "kept_geometry_size", "keep_geometry", "forget_geometry", "kept_for", "kept_exact",
+           "GEOMETRY_WORK", "KEPT", "POSED", "KEPT_MOTION", "kept_geometry_size", "keep_poses",
+           "moved_within_round_off", "keep_geometry", "forget_geometry", "kept_for", "kept_exact",
            "kept_candidate"]

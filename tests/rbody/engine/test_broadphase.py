@@ -227,7 +227,7 @@ def test_a_step_with_the_neighbour_list_is_the_step_without_it(model):
     nq, rows = int(p[mb.H_NQ]), row_count(p)
     states = []
     arena = step_arena(p)
-    for size in (kept_size(p), kept_geometry_size(nq, unit_count(p))):
+    for size in (kept_size(p), kept_geometry_size(nq, unit_count(p), pair_count(p))):
         y, P = y_start.copy(), np.zeros(rows)
         problem_rows, kept = np.zeros(rows + 1, dtype=np.int64), np.zeros(size)
         trajectory, lists = [], []
@@ -236,7 +236,7 @@ def test_a_step_with_the_neighbour_list_is_the_step_without_it(model):
                                                 MODES["moreau"], kept, *arena)
             assert status == 0
             trajectory.append(y.copy())
-            lists.append(kept[kept_geometry_size(nq, unit_count(p)):].copy())
+            lists.append(kept[kept_geometry_size(nq, unit_count(p), pair_count(p)):].copy())
         states.append(np.array(trajectory))
         if size == kept_size(p):
             kept_again = sum(np.array_equal(a, b) for a, b in zip(lists, lists[1:]))
