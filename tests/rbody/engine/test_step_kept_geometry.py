@@ -52,9 +52,10 @@ ROLLING_SHAPES = """
 
 
 def step_run(scene: Scene, dt: float, steps: int, keep: bool):
-    """(states (steps + 1, n), whether each step started at the kept configuration, whether each step's end read
-    every near pair's kept candidates): moreau_step by hand, the kept geometry carried from step to step (keep) or a
-    fresh empty one given to every step."""
+    """(states (steps + 1, n), whether each step started at the kept configuration, whether each step's end left
+    every pair's kept poses as they were: it read every near pair's kept candidates, or found one again at poses
+    with the same bits, as a round geom held exactly still is): moreau_step by hand, the kept geometry carried from
+    step to step (keep) or a fresh empty one given to every step."""
     prepared = rbody.prepare(scene, dt=dt, method="moreau")
     model = prepared.model
     run = MoreauRun(model.constraints, np.asarray(model.params)[0], "test")
