@@ -147,7 +147,7 @@ def kept_geometry_size(nq, units, pairs):
     reads them here instead, where q has the same bits. The next step's end reads them too where a flat-faced pair
     has moved by less than the round-off of its geoms' poses since (moved_within_round_off): a pair at rest moves by
     round-off every step."""
-    return 1 + nq + KEPT * units + POSED * pairs
+    return _poses_at(nq, units, pairs)
 
 
 @njit(cache=True, inline="always")
@@ -196,10 +196,16 @@ def kept_candidate(kept, nq, k, normal, point):
 
 
 @njit(cache=True, inline="always")
+def _poses_at(nq, units, i):
+    """Where contact pair i's kept poses start (kept_geometry_size's layout; units: the table's unit count)."""
+    return 1 + nq + KEPT * units + POSED * i
+
+
+@njit(cache=True, inline="always")
 def keep_poses(kept, nq, units, i, work):
     """Keep contact pair i's geoms' poses, work[:POSED] as pair_candidates left them (the poses it found the pair's
-    candidates at); units: the table's unit count (kept_geometry_size's layout)."""
-    at = 1 + nq + KEPT * units + POSED * i
+    candidates at); units: the table's unit count."""
+    at = _poses_at(nq, units, i)
     for a in range(POSED):
         kept[at + a] = work[a]
 
@@ -228,7 +234,7 @@ def moved_within_round_off(p, w, u, kept, nq, units, i, now):
     test_cylinder_box_pairs.py)."""
     if not (_flat_faced(int(p[u + U_GTYPE_A])) and _flat_faced(int(p[u + U_GTYPE_B]))):
         return False
-    at = 1 + nq + KEPT * units + POSED * i
+    at = _poses_at(nq, units, i)
     geom_pose(p, w, int(p[u + U_BODY1]), u + U_GPOS_A, u + U_GMAT_A, now[0:3], now[6:15].reshape((3, 3)))
     geom_pose(p, w, int(p[u + U_BODY2]), u + U_GPOS_B, u + U_GMAT_B, now[3:6], now[15:24].reshape((3, 3)))
     moved, scale = 0.0, 0.0

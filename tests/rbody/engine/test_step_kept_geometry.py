@@ -2,8 +2,9 @@
 projection (dynamics.state_gaps) and keeps them with the geoms' poses (contacts.broadphase.kept_size); the next
 step starts at that configuration and reads them instead of finding them again, and its end reads them too where
 a flat-faced pair has moved by less than its poses' round-off (rows.moved_within_round_off: a body at rest moves
-by round-off each step; a round geom's pair is found again, since its point of contact rolls as a body rocks). Reading them must change nothing beyond round-off: the runs below, each step given the kept
-geometry or an empty one, agree to round-off, over pairs whose candidates are always exact (boxes) and pairs that
+by round-off each step; a round geom's pair is found again, since its point of contact rolls as a body rocks).
+Reading them must change nothing beyond round-off: the runs below, each step given the kept geometry or an empty
+one, agree to round-off, over pairs whose candidates are always exact (boxes) and pairs that
 may answer with a bound (an ellipsoid's, a mesh's). Each step also lists its problem's rows, ascending, and
 sets its impulses on those rows only (the next step clears P there and nowhere else)."""
 
@@ -123,14 +124,20 @@ def test_the_kept_geometry_changes_nothing_beyond_round_off(name):
 
 def stack_at_rest():
     """(params p, state y, kept memory) of the five-box stack after 50 steps of 2 ms, stepped by hand."""
+    return stepped(Scene.from_layout(stack_layout(), t_end=1.0), 50)
+
+
+def stepped(scene: Scene, steps: int):
+    """(params p, state y, kept memory) of scene after `steps` steps of 2 ms, moreau_step by hand."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        prepared = rbody.prepare(Scene.from_layout(stack_layout(), t_end=1.0), dt=2e-3, method="moreau")
+        prepared = rbody.prepare(scene, dt=2e-3, method="moreau")
     run = MoreauRun(prepared.model.constraints, np.asarray(prepared.model.params)[0], "test")
     p, y = run.p, np.array(np.asarray(prepared.model.y0)[0], dtype=np.float64)
     rows = row_count(p)
-    P, problem_rows, kept, arena = np.zeros(rows), np.zeros(rows + 1, dtype=np.int64), np.zeros(kept_size(p)), step_arena(p)
-    for _ in range(50):
+    P, problem_rows = np.zeros(rows), np.zeros(rows + 1, dtype=np.int64)
+    kept, arena = np.zeros(kept_size(p)), step_arena(p)
+    for _ in range(steps):
         moreau_step(p, y, 2e-3, P, EXACT_ROWS, PGS_SWEEPS, STEP_TOLERANCE, problem_rows, MODES["moreau"], kept, *arena)
     return p, y, kept
 
@@ -199,15 +206,8 @@ def test_only_flat_faced_pairs_are_read_at_a_steps_end():
       <body pos="0 0 0.1"><freejoint/><geom type="sphere" size="0.1" mass="1"/></body>
       <body pos="0.5 0 0.05"><freejoint/><geom type="box" size="0.1 0.1 0.05" mass="1"/></body>
     </worldbody></mujoco>"""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        prepared = rbody.prepare(from_mjcf(shapes, t_end=1.0), dt=2e-3, method="moreau")
-    run = MoreauRun(prepared.model.constraints, np.asarray(prepared.model.params)[0], "test")
-    p, y = run.p, np.array(np.asarray(prepared.model.y0)[0], dtype=np.float64)
+    p, y, kept = stepped(from_mjcf(shapes, t_end=1.0), 20)
     rows, nq, units = row_count(p), int(p[mb.H_NQ]), unit_count(p)
-    P, problem_rows, kept, arena = np.zeros(rows), np.zeros(rows + 1, dtype=np.int64), np.zeros(kept_size(p)), step_arena(p)
-    for _ in range(20):
-        moreau_step(p, y, 2e-3, P, EXACT_ROWS, PGS_SWEEPS, STEP_TOLERANCE, problem_rows, MODES["moreau"], kept, *arena)
     found = np.zeros(rows)
     dyn.state_gaps(p, y, found, FLAGGED_GAP, kept)
     kept[1 + nq + 1:1 + nq + KEPT * units:KEPT] = 0.5  # every unit's kept gap
