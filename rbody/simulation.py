@@ -299,9 +299,8 @@ class PreparedRun:
         def observe(t, y):  # the controls held, known once the run is over
             return control.observing(plan, self.save_every, t.size, self.dt).observe(t, y)
 
-        model = dataclasses.replace(plan.model, observe=observe)
-        t, data, events, meta = run_constrained(self.scene.describe(), model, self.method, self.dt, self.nsteps,
-                                                self.save_every, controls=control.step_controls(plan))
+        t, data, events, meta = run_constrained(self.scene.describe(), plan.model, self.method, self.dt, self.nsteps,
+                                                self.save_every, controls=control.step_controls(plan), observe=observe)
         data = {name: _shaped(value, (t.size,) + self.scene.batch_shape) for name, value in data.items()}
         return Trajectory(t, data, events=events, meta={**self.meta, **meta})
 

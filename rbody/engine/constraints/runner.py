@@ -13,6 +13,8 @@ frictions) 1 where a dof or a tendon with dry friction sticks (columns meta["fri
 per candidate contact (columns meta["contacts"]) its distance, point, normal, normal and friction force; dissipated (T, *batch) [J] the energy dry friction, impacts and the joints' dampers have taken so far (the
 energy observable plus dissipated is constant: the integrator's error aside, nothing else loses energy). The events of element b are in
 trajectory.events (time, element, what, constraints, energy_lost) and meta["events"] counts them.
+The time-stepping's constraint and contact observables, dissipated aside, are computed on first access from the
+impulses its run kept (a short run that is asked for qpos alone pays for nothing else).
 """
 
 from __future__ import annotations
@@ -70,23 +72,24 @@ def sample_rows(table: ConstraintTable, params: np.ndarray, samples: np.ndarray,
 
 
 def run_constrained(description: str, model, method: str, dt: float, nsteps: int, save_every: int,
-                    controls=None):
+                    controls=None, observe=None):
     """Run every batch element of `model` (a NativeModel with constraints) by `method`; returns (t (S,), data
     (name -> (S, B, ...)), events (name -> (E,): time [s], element, what, constraints (the units' names, joined),
     energy_lost [J] and impulse [N s or N m s], the normal impulses of an impact summed over its units, 0 for mode
     changes), meta). controls: None (the controls are in the params rows, if
     any), or (at, control) with control(k, b, t, y) -> (nu,) the controls of element b written at params[at:] before
-    step k (held through the step, its events included; rbody.control.step_controls)."""
+    step k (held through the step, its events included; rbody.control.step_controls). observe(t, out) the tree's
+    observables of the saved states, default model.observe."""
     table: ConstraintTable = model.constraints
     y0, params = np.asarray(model.y0), np.asarray(model.params)
     batch = y0.shape[0]
     count = nsteps // save_every + 1
     out = np.empty((count, batch, y0.shape[1]))
-    modes = np.empty((count, batch, len(table.units)), dtype=np.int8)  # small integers: free, held, sliding...
-    stepped = method in MODES  # time-stepping: its forces kept as nonzeros, (S, rows) built on first access
+    stepped = method in MODES  # time-stepping: its forces kept as nonzeros, modes and (S, rows) on first access
+    modes = None if stepped else np.empty((count, batch, len(table.units)), dtype=np.int8)  # free, held, sliding...
     forces = None if stepped else np.empty((count, batch, table.rows))
     errors = None if stepped else np.empty((count, batch, table.rows))
-    recorded = []  # the time-stepping's StepForces, per element
+    recorded = []  # the time-stepping's runs (their StepForces and modes), per element
     events = {"time": [], "element": [], "what": [], "constraints": [], "energy_lost": [], "impulse": []}
     impacts = changes = 0
     for b in range(batch):
@@ -101,10 +104,11 @@ def run_constrained(description: str, model, method: str, dt: float, nsteps: int
             def hook(k, t, y, p, b=b, at=at, control=control):
                 value = control(k, b, t, y)
                 p[at:at + value.shape[0]] = value
-        out[:, b], modes[:, b] = run.run(y0[b], dt, nsteps, save_every, hook)
-        if stepped:  # the mean force of each step (impulse / dt); the errors on first access
-            recorded.append(run.forces)
+        if stepped:  # the mean force of each step (impulse / dt); the modes and errors on first access
+            out[:, b] = run.run(y0[b], dt, nsteps, save_every, hook)
+            recorded.append(run)
         else:
+            out[:, b], modes[:, b] = run.run(y0[b], dt, nsteps, save_every, hook)
             forces[:, b], errors[:, b] = sample_rows(table, params[b], out[:, b], modes[:, b], run.slips)
         impacts += run.log.impacts
         changes += run.log.mode_changes
@@ -116,25 +120,30 @@ def run_constrained(description: str, model, method: str, dt: float, nsteps: int
             events["energy_lost"].append(event.energy_lost)
             events["impulse"].append(float(sum(event.impulse)))
     t = np.arange(count) * (dt * save_every)
-    data = dict(model.observe(t, out))
-    limits = np.flatnonzero(table.of_kinds(UNILATERAL))
-    frictions = np.flatnonzero(table.of_kinds(FRICTION_KINDS))
+    data = dict((model.observe if observe is None else observe)(t, out))
+    limits = table.units_of_kinds(UNILATERAL)
+    frictions = table.units_of_kinds(FRICTION_KINDS)
     if stepped:
         def all_forces():
-            return np.stack([record.dense() for record in recorded], axis=1)
+            return np.stack([run.forces.dense() for run in recorded], axis=1)
 
         def all_errors():
-            return np.stack([sample_rows(table, params[b], out[:, b], modes[:, b], forces_known=True)[1]
-                             for b in range(batch)], axis=1)
+            return np.stack([sample_rows(table, params[b], out[:, b], run.modes(), forces_known=True)[1]
+                             for b, run in enumerate(recorded)], axis=1)
 
         def rows_force(which):
-            return np.stack([record.columns(which) for record in recorded], axis=1)
+            return np.stack([run.forces.columns(which) for run in recorded], axis=1)
 
         def pushing(which):
-            return np.stack([record.pushing(which) for record in recorded], axis=1)
+            return np.stack([run.forces.pushing(which) for run in recorded], axis=1)
+
+        def modes_of(units, mode):
+            return lambda: np.stack([run.modes()[:, units] == mode for run in recorded], axis=1)
 
         data["constraint_force"] = all_forces
         data["constraint_error"] = all_errors
+        data["active_limits"] = modes_of(limits, 1)
+        data["sticking"] = modes_of(frictions, 0)
     else:
         data["constraint_force"] = forces
         data["constraint_error"] = errors
@@ -143,10 +152,10 @@ def run_constrained(description: str, model, method: str, dt: float, nsteps: int
             return forces[:, :, which]
 
         pushing = None
-    data["active_limits"] = modes[:, :, limits] == 1.0
-    data["sticking"] = modes[:, :, frictions] == 0.0
+        data["active_limits"] = modes[:, :, limits] == 1
+        data["sticking"] = modes[:, :, frictions] == 0
     data["dissipated"] = out[:, :, -1]
-    contact_units = np.flatnonzero(table.of_kinds(CONTACT_KINDS))
+    contact_units = table.units_of_kinds(CONTACT_KINDS)
     if contact_units.size:
         from rbody.engine.contacts.observe import contact_observables
 

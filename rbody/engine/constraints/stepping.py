@@ -44,6 +44,8 @@ time, the constraints and the residual). Stable, like symplectic Euler, on oscil
 
 from __future__ import annotations
 
+from functools import cached_property
+
 import numpy as np
 from numba import carray, njit
 
@@ -881,7 +883,11 @@ class StepForces:
         self.starts, self.rows, self.impulses, self.dt = starts, rows, impulses, dt
         self.row_count = row_count
         self.samples = starts.size - 1
-        self.sample_of = np.repeat(np.arange(self.samples), np.diff(starts))
+
+    @cached_property
+    def sample_of(self) -> np.ndarray:
+        """(nonzeros,) the sample each kept impulse belongs to."""
+        return np.repeat(np.arange(self.samples), np.diff(self.starts))
 
     def pushing(self, which) -> np.ndarray:
         """(S,) how many of rows `which` have a positive impulse at each sample (distinct rows)."""
@@ -908,9 +914,10 @@ class StepForces:
 
 
 class MoreauRun:
-    """The time-stepping run of one batch element, with the EventRun's interface (rbody.engine.constraints.runner):
-    run(y0, dt, nsteps, save_every) -> (samples (S, n), modes (S, units)); forces (StepForces) the impulses of the
-    step ending at each sample divided by dt (its mean force); log: impacts and mode changes are not events here."""
+    """The time-stepping run of one batch element (rbody.engine.constraints.runner): run(y0, dt, nsteps, save_every)
+    -> samples (S, n); forces (StepForces) the impulses of the step ending at each sample divided by dt (its mean
+    force); modes() (S, units) each unit's mode at each sample, read from those impulses on first call (a short
+    run's observables cost nothing until asked for); log: impacts and mode changes are not events here."""
 
     def __init__(self, table: ConstraintTable, params: np.ndarray, description: str, method: str = "moreau") -> None:
         from rbody.engine.constraints.events import EventLog
@@ -919,12 +926,13 @@ class MoreauRun:
         self.mode = MODES[method]  # the free motion: Moreau-Jean's own, or MuJoCo's integrator's
         self.table = table
         self.p = np.array(params, dtype=np.float64)
-        self.p[table.mode_slice()] = np.where(table.of_kinds(FRICTION_KINDS), 0.0, self.p[table.mode_slice()])
+        self.p[table.mode_slice()][table.of_kinds(FRICTION_KINDS)] = 0.0  # a view: the frictions' modes, sticking
         self.description = description
         self.log = EventLog()
         self.forces = None
+        self._modes = None
 
-    def run(self, y0, dt: float, nsteps: int, save_every: int, before_step=None):
+    def run(self, y0, dt: float, nsteps: int, save_every: int, before_step=None) -> np.ndarray:
         """before_step(k, t, y, p): called before step k (0-based) to write its controls into the params row p, or
         None (one compiled loop); with it the steps are taken one by one, each as moreau_loop takes it."""
         count = nsteps // save_every + 1
@@ -951,8 +959,18 @@ class MoreauRun:
             raise SimulationError(f"scene {self.description}: method {self.method!r} with dt={dt}: at t={failed * dt:.9g} s, "
                                   f"constraints {names}: {what}; residual {residual:.3g}")
         self.forces = StepForces(starts, rows, values, self.table.rows, dt)
-        table = self.table
-        modes = np.zeros((count, len(table.units)), dtype=np.int8)  # small integers (a hand's 3,954 units over 10 s)
+        self._modes = None
+        return out
+
+    def modes(self) -> np.ndarray:
+        """(S, units) int8, each unit's mode at each sample of the last run: a stop or contact held (1) where its
+        first row pushes, else free (0); a dry friction sticking (0) inside its bound, else sliding against its
+        impulse (-+1); an equality always held (1). Computed on first call and kept."""
+        if self._modes is not None:
+            return self._modes
+        table, dt = self.table, self.forces.dt
+        rows, values = self.forces.rows, self.forces.impulses
+        modes = np.zeros((self.forces.samples, len(table.units)), dtype=np.int8)  # a hand's 3,954 units over 10 s
         # stops and contacts: held (1) where their first row pushes, read from the nonzeros alone
         unit_of = table.unit_of_first_row[rows]
         stops = table.of_kinds(UNILATERAL + CONTACT_KINDS)
@@ -960,13 +978,14 @@ class MoreauRun:
         pushes = (unit_of >= 0) & (values > 0)
         pushes[pushes] = stops[unit_of[pushes]]
         modes[self.forces.sample_of[pushes], unit_of[pushes]] = 1
-        sliding = np.flatnonzero(frictions)  # sticking (0) inside the bound, else sliding against the impulse
+        sliding = table.units_of_kinds(FRICTION_KINDS)  # sticking (0) inside the bound, else sliding against it
         if sliding.size:
             value = self.forces.columns(table.first_rows[sliding], impulses=True)  # (S, frictions)
             bound = np.array([unit_bound(self.p, table, k) for k in sliding]) * dt
             modes[:, sliding] = np.where(np.abs(value) < bound * (1 - 1e-9), 0.0, -np.sign(value))
         modes[:, ~(stops | frictions)] = 1  # equalities: always held
-        return out, modes
+        self._modes = modes
+        return modes
 
 
     def _stepwise(self, y, dt, nsteps, save_every, out, problem_rows, before_step):

@@ -279,6 +279,15 @@ class ConstraintTable:
     def _names(self) -> tuple[str, ...]:
         return tuple(unit.name for unit in self.units)
 
+    def units_of_kinds(self, kinds: tuple[int, ...]) -> np.ndarray:
+        """(k,) int64, read-only: the indices of the units whose code is one of `kinds`, ascending, kept per kinds
+        (a run's observables and meta read them on every call)."""
+        kept = self.__dict__.setdefault("_units_of_kinds", {})
+        found = kept.get(kinds)
+        if found is None:
+            found = kept[kinds] = _read_only(np.flatnonzero(self.of_kinds(kinds)))
+        return found
+
     def of_kinds(self, kinds: tuple[int, ...]) -> np.ndarray:
         """(units,) bool, read-only: True for the units whose code is one of `kinds` (e.g. FRICTION_KINDS), kept per
         kinds."""

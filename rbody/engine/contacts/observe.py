@@ -75,7 +75,7 @@ def contact_observables(table, params: np.ndarray, out: np.ndarray, rows_force, 
     many of rows `which` push (> 0) at each sample, or None (from rows_force). Every per-candidate one (S, B,
     candidates, ...) is computed on first access (a hand's 3,954 candidates over 10 s at 2 ms: gigabytes, where a
     user may read none): the geometric ones (contact_distance, contact_point, contact_normal) all three at once, the
-    forces all four at once; `contacts` now."""
+    forces all four at once, `contacts` alone."""
     S, B = out.shape[:2]
     k = len(units)
     index = np.array(units, dtype=np.int64)
@@ -109,7 +109,9 @@ def contact_observables(table, params: np.ndarray, out: np.ndarray, rows_force, 
             return loads[name]
         return value
 
-    touching = pushing(first) if pushing is not None else (rows_force(first) > 0).sum(axis=-1)
+    def touching():
+        return pushing(first) if pushing is not None else (rows_force(first) > 0).sum(axis=-1)
+
     return {"contacts": touching, "contact_distance": geometry("contact_distance"),
             "contact_point": geometry("contact_point"), "contact_normal": geometry("contact_normal"),
             **{name: load(name) for name in ("contact_normal_force", "contact_friction_force", "contact_spin_torque",
