@@ -23,7 +23,7 @@ import numpy as np
 
 from rbody.engine.constraints import dynamics as dyn
 from rbody.engine.constraints.events import EventRun
-from rbody.engine.constraints.stepping import MODES, SCHEMES, MoreauRun
+from rbody.engine.constraints.stepping import MODES, SCHEMES, MoreauRun, step_modes
 from rbody.engine.constraints.table import CONTACT_KINDS, FRICTION_KINDS, UNILATERAL, ConstraintTable
 
 
@@ -89,7 +89,8 @@ def run_constrained(description: str, model, method: str, dt: float, nsteps: int
     modes = None if stepped else np.empty((count, batch, len(table.units)), dtype=np.int8)  # free, held, sliding...
     forces = None if stepped else np.empty((count, batch, table.rows))
     errors = None if stepped else np.empty((count, batch, table.rows))
-    recorded = []  # the time-stepping's runs (their StepForces and modes), per element
+    recorded = []  # the time-stepping's StepForces and its dry frictions' bounds, per element (not the run: its
+    # parameter row, megabytes for a robot's file, is not kept past its element)
     events = {"time": [], "element": [], "what": [], "constraints": [], "energy_lost": [], "impulse": []}
     impacts = changes = 0
     for b in range(batch):
@@ -106,7 +107,7 @@ def run_constrained(description: str, model, method: str, dt: float, nsteps: int
                 p[at:at + value.shape[0]] = value
         if stepped:  # the mean force of each step (impulse / dt); the modes and errors on first access
             out[:, b] = run.run(y0[b], dt, nsteps, save_every, hook)
-            recorded.append(run)
+            recorded.append((run.forces, run.friction_bounds))
         else:
             out[:, b], modes[:, b] = run.run(y0[b], dt, nsteps, save_every, hook)
             forces[:, b], errors[:, b] = sample_rows(table, params[b], out[:, b], modes[:, b], run.slips)
@@ -124,21 +125,28 @@ def run_constrained(description: str, model, method: str, dt: float, nsteps: int
     limits = table.units_of_kinds(UNILATERAL)
     frictions = table.units_of_kinds(FRICTION_KINDS)
     if stepped:
+        kept_modes: dict = {}
+
+        def modes_at(b):  # element b's modes (S, units), read from its impulses once
+            if b not in kept_modes:
+                kept_modes[b] = step_modes(table, *recorded[b])
+            return kept_modes[b]
+
         def all_forces():
-            return np.stack([run.forces.dense() for run in recorded], axis=1)
+            return np.stack([forces.dense() for forces, _bounds in recorded], axis=1)
 
         def all_errors():
-            return np.stack([sample_rows(table, params[b], out[:, b], run.modes(), forces_known=True)[1]
-                             for b, run in enumerate(recorded)], axis=1)
+            return np.stack([sample_rows(table, params[b], out[:, b], modes_at(b), forces_known=True)[1]
+                             for b in range(batch)], axis=1)
 
         def rows_force(which):
-            return np.stack([run.forces.columns(which) for run in recorded], axis=1)
+            return np.stack([forces.columns(which) for forces, _bounds in recorded], axis=1)
 
         def pushing(which):
-            return np.stack([run.forces.pushing(which) for run in recorded], axis=1)
+            return np.stack([forces.pushing(which) for forces, _bounds in recorded], axis=1)
 
         def modes_of(units, mode):
-            return lambda: np.stack([run.modes()[:, units] == mode for run in recorded], axis=1)
+            return lambda: np.stack([modes_at(b)[:, units] == mode for b in range(batch)], axis=1)
 
         data["constraint_force"] = all_forces
         data["constraint_error"] = all_errors

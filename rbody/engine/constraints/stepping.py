@@ -916,8 +916,9 @@ class StepForces:
 class MoreauRun:
     """The time-stepping run of one batch element (rbody.engine.constraints.runner): run(y0, dt, nsteps, save_every)
     -> samples (S, n); forces (StepForces) the impulses of the step ending at each sample divided by dt (its mean
-    force); modes() (S, units) each unit's mode at each sample, read from those impulses on first call (a short
-    run's observables cost nothing until asked for); log: impacts and mode changes are not events here."""
+    force); friction_bounds (frictions,) the dry frictions' bounds on a step's impulse; modes() (S, units) each
+    unit's mode at each sample, read from those on first call (step_modes: a short run's observables cost nothing
+    until asked for); log: impacts and mode changes are not events here."""
 
     def __init__(self, table: ConstraintTable, params: np.ndarray, description: str, method: str = "moreau") -> None:
         from rbody.engine.constraints.events import EventLog
@@ -930,6 +931,7 @@ class MoreauRun:
         self.description = description
         self.log = EventLog()
         self.forces = None
+        self.friction_bounds = None
         self._modes = None
 
     def run(self, y0, dt: float, nsteps: int, save_every: int, before_step=None) -> np.ndarray:
@@ -959,34 +961,17 @@ class MoreauRun:
             raise SimulationError(f"scene {self.description}: method {self.method!r} with dt={dt}: at t={failed * dt:.9g} s, "
                                   f"constraints {names}: {what}; residual {residual:.3g}")
         self.forces = StepForces(starts, rows, values, self.table.rows, dt)
+        frictions = self.table.units_of_kinds(FRICTION_KINDS)  # their bounds on a step's impulse [N s or N m s]
+        self.friction_bounds = self.p[self.table.offset + C_HEADER + UNIT_SIZE * frictions + U_BOUND] * dt
         self._modes = None
         return out
 
     def modes(self) -> np.ndarray:
-        """(S, units) int8, each unit's mode at each sample of the last run: a stop or contact held (1) where its
-        first row pushes, else free (0); a dry friction sticking (0) inside its bound, else sliding against its
-        impulse (-+1); an equality always held (1). Computed on first call and kept."""
-        if self._modes is not None:
-            return self._modes
-        table, dt = self.table, self.forces.dt
-        rows, values = self.forces.rows, self.forces.impulses
-        modes = np.zeros((self.forces.samples, len(table.units)), dtype=np.int8)  # a hand's 3,954 units over 10 s
-        # stops and contacts: held (1) where their first row pushes, read from the nonzeros alone
-        unit_of = table.unit_of_first_row[rows]
-        stops = table.of_kinds(UNILATERAL + CONTACT_KINDS)
-        frictions = table.of_kinds(FRICTION_KINDS)
-        pushes = (unit_of >= 0) & (values > 0)
-        pushes[pushes] = stops[unit_of[pushes]]
-        modes[self.forces.sample_of[pushes], unit_of[pushes]] = 1
-        sliding = table.units_of_kinds(FRICTION_KINDS)  # sticking (0) inside the bound, else sliding against it
-        if sliding.size:
-            value = self.forces.columns(table.first_rows[sliding], impulses=True)  # (S, frictions)
-            bound = np.array([unit_bound(self.p, table, k) for k in sliding]) * dt
-            modes[:, sliding] = np.where(np.abs(value) < bound * (1 - 1e-9), 0.0, -np.sign(value))
-        modes[:, ~(stops | frictions)] = 1  # equalities: always held
-        self._modes = modes
-        return modes
-
+        """(S, units) int8, each unit's mode at each sample of the last run (step_modes), computed on first call and
+        kept."""
+        if self._modes is None:
+            self._modes = step_modes(self.table, self.forces, self.friction_bounds)
+        return self._modes
 
     def _stepwise(self, y, dt, nsteps, save_every, out, problem_rows, before_step):
         """moreau_loop's steps one by one, before_step called before each (the same steps, the impulses carried and
@@ -1011,9 +996,27 @@ class MoreauRun:
         return -1, 0, 0.0, 0, starts, kept[:used], values[:used]
 
 
-def unit_bound(p: np.ndarray, table: ConstraintTable, k: int) -> float:
-    return float(p[table.offset + C_HEADER + UNIT_SIZE * k + U_BOUND])
+def step_modes(table: ConstraintTable, forces: StepForces, friction_bounds: np.ndarray) -> np.ndarray:
+    """(S, units) int8, each unit's mode at each sample of a time-stepping run, read from the impulses it kept
+    (forces) and its dry frictions' bounds on a step's impulse (frictions,) [N s or N m s]: a stop or contact held (1)
+    where its first row pushes, else free (0); a dry friction sticking (0) inside its bound, else sliding against its
+    impulse (-+1); an equality always held (1)."""
+    rows, values = forces.rows, forces.impulses
+    modes = np.zeros((forces.samples, len(table.units)), dtype=np.int8)  # a hand's 3,954 units over 10 s
+    # stops and contacts: held (1) where their first row pushes, read from the nonzeros alone
+    unit_of = table.unit_of_first_row[rows]
+    stops = table.of_kinds(UNILATERAL + CONTACT_KINDS)
+    frictions = table.of_kinds(FRICTION_KINDS)
+    pushes = (unit_of >= 0) & (values > 0)
+    pushes[pushes] = stops[unit_of[pushes]]
+    modes[forces.sample_of[pushes], unit_of[pushes]] = 1
+    sliding = table.units_of_kinds(FRICTION_KINDS)  # sticking (0) inside the bound, else sliding against it
+    if sliding.size:
+        value = forces.columns(table.first_rows[sliding], impulses=True)  # (S, frictions)
+        modes[:, sliding] = np.where(np.abs(value) < friction_bounds * (1 - 1e-9), 0.0, -np.sign(value))
+    modes[:, ~(stops | frictions)] = 1  # equalities: always held
+    return modes
 
 
-__all__ = ["moreau_step", "step_arena", "moreau_loop", "MoreauRun", "StepForces", "EXACT_ROWS", "STEP_TOLERANCE", "PGS_SWEEPS", "MODES", "SCHEMES",
+__all__ = ["moreau_step", "step_arena", "moreau_loop", "MoreauRun", "StepForces", "step_modes", "EXACT_ROWS", "STEP_TOLERANCE", "PGS_SWEEPS", "MODES", "SCHEMES",
            "mujoco_free_velocity", "next_activations"]

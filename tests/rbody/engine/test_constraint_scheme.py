@@ -92,6 +92,32 @@ def test_the_time_steppings_constraint_observables_are_read_when_asked_for():
     assert together["qpos"][-1, 0, 0] > 0.2 and np.all(np.diff(together["qpos"][-20:, 0, 0]) == 0.0)
 
 
+def test_a_time_stepped_trajectory_keeps_its_impulses_not_its_runs(monkeypatch):
+    """The lazy observables read each element's kept impulses; the element's run, with its copy of the parameter
+    row (megabytes for a robot's file), is let go once its element is done, even while the trajectory lives."""
+    import gc
+    import weakref
+
+    from rbody.engine.constraints import runner, stepping
+
+    made = []
+
+    class Watched(stepping.MoreauRun):
+        def __init__(self, *arguments, **keywords):
+            super().__init__(*arguments, **keywords)
+            made.append(weakref.ref(self))
+
+    monkeypatch.setattr(runner, "MoreauRun", Watched)
+    import dataclasses
+
+    scene = limited_pendulum(low=0.2, friction=3.0, t_end=0.5)
+    batch = dataclasses.replace(scene, qpos0=np.array([[1.0], [0.5]]), qvel0=np.zeros((2, 1)))
+    run = simulate(batch, dt=1e-2, method="moreau")
+    gc.collect()
+    assert len(made) == 2 and all(ref() is None for ref in made)
+    assert run["sticking"].shape == (run.t.size, 2, 1) and run["constraint_error"].shape == (run.t.size, 2, 3)
+
+
 def test_a_loop_closed_by_a_connect_runs_with_a_redundant_row():
     """A planar four-bar in 3-D: its connect's third row (along the hinges' axes) is redundant (J's row is zero);
     the run goes on and that row's force is zero."""
