@@ -916,9 +916,9 @@ class StepForces:
 class MoreauRun:
     """The time-stepping run of one batch element (rbody.engine.constraints.runner): run(y0, dt, nsteps, save_every)
     -> samples (S, n); forces (StepForces) the impulses of the step ending at each sample divided by dt (its mean
-    force); friction_bounds (frictions,) the dry frictions' bounds on a step's impulse; modes() (S, units) each
-    unit's mode at each sample, read from those on first call (step_modes: a short run's observables cost nothing
-    until asked for); log: impacts and mode changes are not events here."""
+    force); friction_bounds (frictions,) the dry frictions' bounds on a step's impulse, from which with the forces
+    step_modes reads each unit's mode at each sample when asked for; log: impacts and mode changes are not events
+    here."""
 
     def __init__(self, table: ConstraintTable, params: np.ndarray, description: str, method: str = "moreau") -> None:
         from rbody.engine.constraints.events import EventLog
@@ -932,7 +932,6 @@ class MoreauRun:
         self.log = EventLog()
         self.forces = None
         self.friction_bounds = None
-        self._modes = None
 
     def run(self, y0, dt: float, nsteps: int, save_every: int, before_step=None) -> np.ndarray:
         """before_step(k, t, y, p): called before step k (0-based) to write its controls into the params row p, or
@@ -963,15 +962,7 @@ class MoreauRun:
         self.forces = StepForces(starts, rows, values, self.table.rows, dt)
         frictions = self.table.units_of_kinds(FRICTION_KINDS)  # their bounds on a step's impulse [N s or N m s]
         self.friction_bounds = self.p[self.table.offset + C_HEADER + UNIT_SIZE * frictions + U_BOUND] * dt
-        self._modes = None
         return out
-
-    def modes(self) -> np.ndarray:
-        """(S, units) int8, each unit's mode at each sample of the last run (step_modes), computed on first call and
-        kept."""
-        if self._modes is None:
-            self._modes = step_modes(self.table, self.forces, self.friction_bounds)
-        return self._modes
 
     def _stepwise(self, y, dt, nsteps, save_every, out, problem_rows, before_step):
         """moreau_loop's steps one by one, before_step called before each (the same steps, the impulses carried and
