@@ -23,6 +23,16 @@ A caller that keeps memory from call to call (the time-stepping: kept_size) also
 list of molecular dynamics: the pairs whose spheres, less the margin, were within NEIGHBOUR_SKIN when it was built,
 and each geom's centre then. While no two geoms have moved together by more than the skin, only those pairs are
 bounded (pair_reaches): a standing quadruped's 4 of 636.
+
+The list also keeps, for each pair whose spheres did not part it, the gap clearance found between its geoms and
+where: geom b's pose in geom a's frame (the gap depends on that alone). Any point of b has moved in a's frame by at
+most |t - t0| + r_b |Q - Q0|_F since (t, Q: that pose, r_b: b's bounding radius), so
+
+    gap >= gap0 - |t - t0| - r_b |Q - Q0|_F,
+
+which, less the step's motion and the margin, answers for the pair where it is above TIGHTEN_BELOW: a pose and a
+product of two rotations, not the separating axes of two meshes (a humanoid standing: 41 pairs of limbs whose
+spheres overlap, 0.5 us each by their axes).
 """
 
 from __future__ import annotations
@@ -40,15 +50,20 @@ from rbody.engine.multibody import H_NQ, STACK_FLOATS, _views
 from rbody.engine.constraints.table import (C_CONTACT0, C_GEOM, C_GEOMS, C_PAIR, C_PAIRS, C_ROWS, C_UNIT, C_UNITS,
                                             G_BODY, G_POSE, G_TYPE, GEOM_SIZE, P_GEOM_A, P_GEOM_B, P_MARGIN, P_ROW,
                                             P_SLOTS, P_UNIT, P_WIDTH, PAIR_SIZE, U_GMAT_A, U_GPOS_A, U_GSIZE_A,
-                                            UNIT_SIZE)
+                                            U_MARGIN, UNIT_SIZE)
 
 # a geom's sphere (geom_spheres): centre (3) [m], the centre's velocity (3) [m/s], |omega| r [m/s] (0 for a plane or
-# the world's), bounding radius r [m], a plane's outward normal (3), its type (geometry's codes)
-S_CENTRE, S_VELOCITY, S_SWEEP, S_RADIUS, S_NORMAL, S_KIND = 0, 3, 6, 7, 8, 11
-SPHERE_SIZE = 12
+# the world's), bounding radius r [m], a plane's outward normal (3), its type (geometry's codes), its axes in the
+# world (3, 3, row-major: the columns its axes)
+S_CENTRE, S_VELOCITY, S_SWEEP, S_RADIUS, S_NORMAL, S_KIND, S_AXES = 0, 3, 6, 7, 8, 11, 12
+SPHERE_SIZE = 21
 # the neighbour list (pair_reaches): 1 where built, the listed pairs' count, each geom's centre (3) where it was
 # built, the listed pairs' indices
 N_BUILT, N_COUNT, N_CENTRES = 0, 1, 2
+# after them, each pair's tightened gap (_tightened): 1 where found, the gap's lower bound [m] clearance found (no
+# motion, no margin), and where: geom b's centre (3) and axes (3, 3, row-major) in geom a's frame
+T_FOUND, T_GAP, T_SHIFT, T_TURN = 0, 1, 2, 5
+TIGHT_SIZE = 14
 NEIGHBOUR_SKIN = 0.02  # [m] a pair is listed where its spheres, less its margin, are this close
 # a geom record's pose points at its position in a unit record; its axes (row-major) and size follow there
 AXES_AT, SIZE_AT = U_GMAT_A - U_GPOS_A, U_GSIZE_A - U_GPOS_A
@@ -107,8 +122,8 @@ def first_unit_at(p, at):
 def geom_spheres(p, w, h, spheres):
     """spheres (geoms, SPHERE_SIZE): every contact geom's bounding sphere after the tree's kinematics in the
     workspace w: its centre in the world, its radius (geometry.bounding_radius; +inf for a plane or a height field),
-    a plane's normal (its third axis) and, for h > 0, the centre's velocity and |omega| of its body (the workspace's
-    velocities; the world's: 0)."""
+    a plane's normal (its third axis), its axes and, for h > 0, the centre's velocity and |omega| of its body (the
+    workspace's velocities; the world's: 0)."""
     ws = _views(p, w)
     geoms = geom_at(p, 0)
     for i in range(geom_count(p)):  # (geom i's record from the first's: geom_at's chain of reads from the header,
@@ -124,6 +139,15 @@ def geom_spheres(p, w, h, spheres):
                 spheres[i, S_CENTRE + a] = (ws.xorigin[body, a] + ws.xpos[body, a] + ws.xmat[body, a, 0] * p[pose]
                                             + ws.xmat[body, a, 1] * p[pose + 1] + ws.xmat[body, a, 2] * p[pose + 2])
         spheres[i, S_RADIUS] = bounding_radius(kind, p, pose + SIZE_AT)
+        for a in range(3):  # its axes: the body's times the geom's own (rows.geom_pose's product)
+            for c in range(3):
+                if body < 0:
+                    spheres[i, S_AXES + 3 * a + c] = p[pose + AXES_AT + 3 * a + c]
+                else:
+                    value = 0.0
+                    for e in range(3):
+                        value += ws.xmat[body, a, e] * p[pose + AXES_AT + 3 * e + c]
+                    spheres[i, S_AXES + 3 * a + c] = value
         if kind == PLANE:  # its normal: the geom's third axis in the world (geom_pose's, in its order)
             for a in range(3):
                 if body < 0:
@@ -155,8 +179,8 @@ def geom_spheres(p, w, h, spheres):
 @njit(cache=True)
 def neighbours_size(p):
     """The length of the neighbour list (pair_reaches): whether it holds one, its count, each geom's centre (3) [m]
-    where it was built, then the listed pairs' indices."""
-    return _listed_at(p) + pair_count(p)
+    where it was built, the listed pairs' indices, then each pair's tightened gap (TIGHT_SIZE)."""
+    return _tight_at(p) + TIGHT_SIZE * pair_count(p)
 
 
 @njit(cache=True)
@@ -223,7 +247,9 @@ def pair_reaches(p, w, h, reach, motion, neighbours):
     (_list_holds), only the listed pairs are bounded, to the same bits; every other pair's bound is above
     TIGHTEN_BELOW, and it is given the lower bound NEIGHBOUR_SKIN - TIGHTEN_BELOW less that sum of moves (motion 0).
     Otherwise every pair is bounded and the list built again. A quadruped standing lists 4 to 33 of its 559 to 697
-    pairs."""
+    pairs. With the list, a pair clearance would tighten is bounded from the gap it found before where that holds
+    above TIGHTEN_BELOW (_tightened): a lower bound then, not clearance's bits; every caller reads a bound above
+    TIGHTEN_BELOW as apart (its candidates neither touch nor close within the step), as it reads clearance's."""
     size = geom_count(p) * SPHERE_SIZE  # (on the stack where small)
     owned = carray(stack_floats(size), size) if size <= STACK_FLOATS else np.empty(size)
     spheres = cut(owned, 0, (geom_count(p), SPHERE_SIZE))
@@ -259,7 +285,8 @@ def pair_reaches(p, w, h, reach, motion, neighbours):
                 moved = h * (np.sqrt((spheres[b, 3] - spheres[a, 3]) ** 2 + (spheres[b, 4] - spheres[a, 4]) ** 2
                                      + (spheres[b, 5] - spheres[a, 5]) ** 2) + spheres[a, S_SWEEP] + spheres[b, S_SWEEP])
             if apart - moved - p[at + P_MARGIN] <= TIGHTEN_BELOW and needs_axes(ta, tb):  # the axes may part them
-                reach[i], motion[i] = clearance(p, w, first_unit_at(p, at), h, work)
+                reach[i], motion[i] = _tightened(p, w, first_unit_at(p, at), h, spheres, a, b, moved, neighbours, i,
+                                                 work)
             else:
                 reach[i], motion[i] = apart - moved - p[at + P_MARGIN], moved
         if build and (apart - p[at + P_MARGIN] <= NEIGHBOUR_SKIN or _moving_plane(p, ta, a)):
@@ -283,6 +310,51 @@ def _neighbours_from(p):
 def _listed_at(p):
     """Where the neighbour list's pair indices start (after each geom's centre)."""
     return N_CENTRES + 3 * geom_count(p)
+
+
+@njit(cache=True, inline="always")
+def _tight_at(p):
+    """Where the pairs' tightened gaps start in the neighbour list (after the listed pairs' indices)."""
+    return _listed_at(p) + pair_count(p)
+
+
+@njit(cache=True)
+def _tightened(p, w, u, h, spheres, a, b, moved, neighbours, i, work):
+    """clearance's (bound, motion) for pair i (its first unit at u, its geoms a and b: rows of geom_spheres's
+    spheres) whose spheres do not part it, moved [m]: h times its spheres' bound on the approach speed. From the gap
+    it found before and geom b's pose in geom a's frame then (module docstring), kept in the neighbour list, where
+    that leaves the bound above TIGHTEN_BELOW; else from clearance, whose gap and pose are then kept. An empty list
+    keeps nothing: clearance alone."""
+    if neighbours.shape[0] == 0:
+        return clearance(p, w, u, h, work)
+    shift, turn = work[30:33], work[33:42]  # b's centre and axes in a's frame: Ra^T (pb - pa), Ra^T Rb (row-major)
+    for x in range(3):
+        shift[x] = 0.0
+        for y in range(3):
+            shift[x] += spheres[a, S_AXES + 3 * y + x] * (spheres[b, S_CENTRE + y] - spheres[a, S_CENTRE + y])
+        for z in range(3):
+            value = 0.0
+            for y in range(3):
+                value += spheres[a, S_AXES + 3 * y + x] * spheres[b, S_AXES + 3 * y + z]
+            turn[3 * x + z] = value
+    t = _tight_at(p) + TIGHT_SIZE * i
+    margin = p[u + U_MARGIN]
+    if neighbours[t + T_FOUND] == 1.0:
+        shifted, turned = 0.0, 0.0
+        for x in range(3):
+            shifted += (shift[x] - neighbours[t + T_SHIFT + x]) ** 2
+        for x in range(9):
+            turned += (turn[x] - neighbours[t + T_TURN + x]) ** 2
+        bound = neighbours[t + T_GAP] - (np.sqrt(shifted) + spheres[b, S_RADIUS] * np.sqrt(turned)) - moved - margin
+        if bound > TIGHTEN_BELOW:
+            return bound, moved
+    reach, motion = clearance(p, w, u, h, work)
+    neighbours[t + T_FOUND], neighbours[t + T_GAP] = 1.0, reach + motion + margin  # (its gap, to an ulp)
+    for x in range(3):
+        neighbours[t + T_SHIFT + x] = shift[x]
+    for x in range(9):
+        neighbours[t + T_TURN + x] = turn[x]
+    return reach, motion
 
 
 @njit(cache=True, inline="always")

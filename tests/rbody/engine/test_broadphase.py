@@ -16,7 +16,7 @@ from rbody.engine.constraints.table import (C_GEOM, CONTACT_KINDS, G_TYPE, GEOM_
                                             U_BODY1, U_BODY2, U_DOF, U_GPOS_A, U_GPOS_B, U_GSIZE_A, U_GSIZE_B,
                                             U_GTYPE_A, U_GTYPE_B, U_KIND, U_MARGIN, U_ROW0, U_ROWS, UNIT_SIZE)
 from rbody.engine.contacts.broadphase import (N_BUILT, N_CENTRES, N_COUNT, NEIGHBOUR_SKIN, S_NORMAL, S_RADIUS,
-                                              SPHERE_SIZE, contact0, contact_row0, first_unit_at, geom_at,
+                                              SPHERE_SIZE, _tight_at, contact0, contact_row0, first_unit_at, geom_at,
                                               geom_count, geom_spheres, kept_size, neighbours_size, pair_at,
                                               pair_count, pair_reaches, pair_span)
 from rbody.engine.contacts.geometry import TYPE_CODES
@@ -168,8 +168,9 @@ def _nudged(p, y, rng, shift, speed):
 def test_the_neighbour_list_gives_every_near_pair_to_the_bit(model, seed, h):
     """The list built at a gathered configuration, then the bodies nudged by at most 2 mm an axis with speeds of
     about 0.3 m/s: within the skin, so the list is read, not built again (its centres stay the first
-    configuration's). Every pair the full pass bounds at most TIGHTEN_BELOW is listed and bounded to the same bits;
-    every other pair gets a lower bound of its own, above TIGHTEN_BELOW; and some pairs are not listed at all."""
+    configuration's). Every pair the full pass bounds at most TIGHTEN_BELOW is listed and bounded to the same bits
+    (its tightened gap forgotten: clearance itself answers); every other pair gets a lower bound of its own, above
+    TIGHTEN_BELOW; and some pairs are not listed at all."""
     _scene, table, p, y0 = model
     rng = np.random.default_rng(20 + seed)
     y = _gathered(p, y0, rng, 0.35)
@@ -177,13 +178,14 @@ def test_the_neighbour_list_gives_every_near_pair_to_the_bit(model, seed, h):
     reach, motion = np.empty(pair_count(p)), np.empty(pair_count(p))
     pair_reaches(p, _workspace(p, y), h, reach, motion, neighbours)
     assert neighbours[N_BUILT] == 1.0
+    neighbours[_tight_at(p):] = 0.0
     built = neighbours.copy()
     z = _nudged(p, y, rng, 0.002, 0.3)
     w = _workspace(p, z)
     full_reach, full_motion = np.empty(pair_count(p)), np.empty(pair_count(p))
     pair_reaches(p, w, h, full_reach, full_motion, np.empty(0))
     pair_reaches(p, w, h, reach, motion, neighbours)
-    assert np.array_equal(neighbours, built)  # read, not built again
+    assert np.array_equal(neighbours[:_tight_at(p)], built[:_tight_at(p)])  # read, not built again
     listed = neighbours[N_CENTRES + 3 * geom_count(p):][:int(neighbours[N_COUNT])].astype(int)
     same = (reach == full_reach) & (motion == full_motion)
     assert same[listed].all()
@@ -192,16 +194,106 @@ def test_the_neighbour_list_gives_every_near_pair_to_the_bit(model, seed, h):
     assert 0 < len(listed) < pair_count(p) and (full_reach <= TIGHTEN_BELOW).any()
 
 
+def _turned(p, y, rng, shift, angle):
+    """y with each free body moved by up to `shift` [m] along each axis and turned by up to `angle` [rad] about a
+    random axis."""
+    z = y.copy()
+    for body in range(7):
+        at = 1 + 7 * body
+        z[at:at + 3] += rng.uniform(-shift, shift, 3)
+        axis = rng.normal(size=3)
+        half = 0.5 * rng.uniform(0.0, angle)
+        turn = np.concatenate(([np.cos(half)], np.sin(half) * axis / np.linalg.norm(axis)))
+        w0, v0 = turn[0], turn[1:]
+        w1, v1 = z[at + 3], z[at + 4:at + 7]
+        z[at + 3], z[at + 4:at + 7] = w0 * w1 - v0 @ v1, w0 * v1 + w1 * v0 + np.cross(v0, v1)
+    return z
+
+
+def _least_gaps(p, w):
+    """(pairs,) each pair's least candidate gap as the narrow phase finds it (less the margin)."""
+    work = np.empty(GEOMETRY_WORK)
+    normal, point = np.empty(3), np.empty(3)
+    least = np.empty(pair_count(p))
+    for i in range(pair_count(p)):
+        count = pair_candidates(p, w, first_unit_at(p, pair_at(p, i)), work)
+        least[i] = min(candidate(work, j, normal, point) for j in range(count))
+    return least
+
+
+def test_a_pairs_tightened_gap_bounds_it_as_its_geoms_move_and_turn(model):
+    """Eight gathered configurations, the list built at each, then the bodies moved by up to 1 mm an axis and
+    turned by up to 0.03 rad, five times over (within the skin: the list is read): every pair's bound stays at most
+    the least gap of its candidates as the narrow phase finds them. A listed pair whose tightened gap, less how far
+    geom b has moved and turned in geom a's frame since it was found, is still above TIGHTEN_BELOW is bounded from
+    that (not clearance's bits, above TIGHTEN_BELOW); every other listed pair as the full pass bounds it, to the
+    bit."""
+    _scene, table, p, y0 = model
+    remembered = 0
+    for seed in range(8):
+        rng = np.random.default_rng(40 + seed)
+        y = _gathered(p, y0, rng, 0.3)
+        neighbours = np.zeros(neighbours_size(p))
+        reach, motion = np.empty(pair_count(p)), np.empty(pair_count(p))
+        pair_reaches(p, _workspace(p, y), 0.0, reach, motion, neighbours)
+        for _move in range(5):
+            y = _turned(p, y, rng, 0.001, 0.03)
+            w = _workspace(p, y)
+            full_reach, full_motion = np.empty(pair_count(p)), np.empty(pair_count(p))
+            pair_reaches(p, w, 0.0, full_reach, full_motion, np.empty(0))
+            pair_reaches(p, w, 0.0, reach, motion, neighbours)
+            assert (reach <= _least_gaps(p, w) + 1e-12).all()
+            listed = np.zeros(pair_count(p), dtype=bool)
+            listed[neighbours[N_CENTRES + 3 * geom_count(p):][:int(neighbours[N_COUNT])].astype(int)] = True
+            from_memory = listed & (reach != full_reach)
+            assert (reach[from_memory] > TIGHTEN_BELOW).all()
+            remembered += int(from_memory.sum())
+    assert remembered > 0
+
+
+def test_a_tightened_gap_is_forgotten_where_the_geoms_have_turned_too_far():
+    """Two boxes 0.1 m long side by side, 10 mm apart, their bounding spheres overlapping: the first call finds their
+    gap by the separating axes and keeps it. Box b turned by 0.05 rad about its centre: the bound from the kept gap,
+    10 mm less r_b |Q - Q0|_F = 3.7 mm, answers (below the boxes' new gap, 7.5 mm). Turned by 0.2 rad (14.7 mm): the
+    kept gap says nothing and clearance answers again, the boxes' new gap (0.3 mm)."""
+    scene = rbody.from_mjcf(BOXES, t_end=0.1)
+    prepared = rbody.prepare(scene, dt=0.01, method="moreau")
+    run = MoreauRun(prepared.model.constraints, prepared.params[0], "boxes")
+    p, y = run.p, np.array(prepared.y0[0])
+    assert pair_count(p) == 1
+    neighbours = np.zeros(neighbours_size(p))
+    reach, motion = np.empty(1), np.empty(1)
+    scratch = np.empty(GEOMETRY_WORK)
+    w = _workspace(p, y)
+    pair_reaches(p, w, 0.0, reach, motion, neighbours)
+    assert reach[0] == clearance(p, w, first_unit_at(p, pair_at(p, 0)), 0.0, scratch)[0]
+    assert abs(reach[0] - 0.01) < 1e-12
+    for angle, remembered in ((0.05, True), (0.2, False)):
+        z = y.copy()
+        z[10:14] = np.cos(angle / 2), 0.0, 0.0, np.sin(angle / 2)  # box b (the second free body) about z
+        w = _workspace(p, z)
+        pair_reaches(p, w, 0.0, reach, motion, neighbours)
+        fresh = clearance(p, w, first_unit_at(p, pair_at(p, 0)), 0.0, scratch)[0]
+        drift = np.sqrt(0.05 ** 2 + 2 * 0.01 ** 2) * np.sqrt(8.0) * np.sin(angle / 2)  # r_b |Q - Q0|_F
+        if remembered:
+            assert reach[0] < fresh and abs(reach[0] - (0.01 - drift)) < 1e-12
+        else:
+            assert reach[0] == fresh
+        assert 0.0 < reach[0] <= _least_gaps(p, w)[0] + 1e-12
+
+
 def test_the_neighbour_list_is_built_again_when_a_geom_moves_beyond_the_skin(model):
     """Two bodies moved by 0.6 of the skin each (together more than it: they may have closed by that, though each
     alone is within it): the list is built again at the new configuration (its centres the new ones) and every pair
-    is bounded as the full pass bounds it; a list of NaN centres is never read."""
+    is bounded as the full pass bounds it; a list of NaN centres is never read. (The pairs' tightened gaps are
+    forgotten before each call: from them a pair's bound is not clearance's bits.)"""
     _scene, table, p, y0 = model
     rng = np.random.default_rng(3)
     y = _gathered(p, y0, rng, 0.35)
     neighbours = np.zeros(neighbours_size(p))
     reach, motion = np.empty(pair_count(p)), np.empty(pair_count(p))
     pair_reaches(p, _workspace(p, y), 0.0, reach, motion, neighbours)
+    neighbours[_tight_at(p):] = 0.0
     z = y.copy()
     z[1:4] += (0.6 * NEIGHBOUR_SKIN, 0.0, 0.0)  # the ball (the first free body)
     z[8:11] -= (0.6 * NEIGHBOUR_SKIN, 0.0, 0.0)  # the rod
@@ -215,6 +307,7 @@ def test_the_neighbour_list_is_built_again_when_a_geom_moves_beyond_the_skin(mod
     ball = [int(p[geom_at(p, i) + G_TYPE]) for i in range(geom_count(p))].index(TYPE_CODES["sphere"])
     centre = slice(N_CENTRES + 3 * ball, N_CENTRES + 3 * ball + 3)
     neighbours[centre] = np.nan
+    neighbours[_tight_at(p):] = 0.0
     pair_reaches(p, w, 0.0, reach, motion, neighbours)
     assert np.array_equal(reach, full_reach) and not np.isnan(neighbours[centre]).any()
 
@@ -326,6 +419,15 @@ SHINS = """<mujoco>
   <worldbody>
     <body name="left" pos="0 0 1"><freejoint/><geom type="capsule" size="0.02 0.1" margin="0.01"/></body>
     <body name="right" pos="0.245 0 1"><freejoint/><geom type="capsule" size="0.02 0.1" margin="0.01"/></body>
+  </worldbody>
+</mujoco>"""
+
+
+# two boxes 0.1 by 0.02 by 0.02 m side by side along y, 10 mm apart: their bounding spheres (0.0524 m) overlap
+BOXES = """<mujoco>
+  <worldbody>
+    <body name="a" pos="0 0 1"><freejoint/><geom type="box" size="0.05 0.01 0.01"/></body>
+    <body name="b" pos="0 0.03 1"><freejoint/><geom type="box" size="0.05 0.01 0.01"/></body>
   </worldbody>
 </mujoco>"""
 
