@@ -53,10 +53,9 @@ from rbody.engine.constraints.table import (C_CONTACT0, C_GEOM, C_GEOMS, C_PAIR,
                                             U_MARGIN, UNIT_SIZE)
 
 # a geom's sphere (geom_spheres): centre (3) [m], the centre's velocity (3) [m/s], |omega| r [m/s] (0 for a plane or
-# the world's), bounding radius r [m], a plane's outward normal (3), its type (geometry's codes), its axes in the
-# world (3, 3, row-major: the columns its axes)
-S_CENTRE, S_VELOCITY, S_SWEEP, S_RADIUS, S_NORMAL, S_KIND, S_AXES = 0, 3, 6, 7, 8, 11, 12
-SPHERE_SIZE = 21
+# the world's), bounding radius r [m], a plane's outward normal (3), its type (geometry's codes)
+S_CENTRE, S_VELOCITY, S_SWEEP, S_RADIUS, S_NORMAL, S_KIND = 0, 3, 6, 7, 8, 11
+SPHERE_SIZE = 12
 # the neighbour list (pair_reaches): 1 where built, the listed pairs' count, each geom's centre (3) where it was
 # built, the listed pairs' indices
 N_BUILT, N_COUNT, N_CENTRES = 0, 1, 2
@@ -122,8 +121,8 @@ def first_unit_at(p, at):
 def geom_spheres(p, w, h, spheres):
     """spheres (geoms, SPHERE_SIZE): every contact geom's bounding sphere after the tree's kinematics in the
     workspace w: its centre in the world, its radius (geometry.bounding_radius; +inf for a plane or a height field),
-    a plane's normal (its third axis), its axes and, for h > 0, the centre's velocity and |omega| of its body (the
-    workspace's velocities; the world's: 0)."""
+    a plane's normal (its third axis) and, for h > 0, the centre's velocity and |omega| of its body (the workspace's
+    velocities; the world's: 0)."""
     ws = _views(p, w)
     geoms = geom_at(p, 0)
     for i in range(geom_count(p)):  # (geom i's record from the first's: geom_at's chain of reads from the header,
@@ -139,15 +138,6 @@ def geom_spheres(p, w, h, spheres):
                 spheres[i, S_CENTRE + a] = (ws.xorigin[body, a] + ws.xpos[body, a] + ws.xmat[body, a, 0] * p[pose]
                                             + ws.xmat[body, a, 1] * p[pose + 1] + ws.xmat[body, a, 2] * p[pose + 2])
         spheres[i, S_RADIUS] = bounding_radius(kind, p, pose + SIZE_AT)
-        for a in range(3):  # its axes: the body's times the geom's own (rows.geom_pose's product)
-            for c in range(3):
-                if body < 0:
-                    spheres[i, S_AXES + 3 * a + c] = p[pose + AXES_AT + 3 * a + c]
-                else:
-                    value = 0.0
-                    for e in range(3):
-                        value += ws.xmat[body, a, e] * p[pose + AXES_AT + 3 * e + c]
-                    spheres[i, S_AXES + 3 * a + c] = value
         if kind == PLANE:  # its normal: the geom's third axis in the world (geom_pose's, in its order)
             for a in range(3):
                 if body < 0:
@@ -254,6 +244,7 @@ def pair_reaches(p, w, h, reach, motion, neighbours):
     owned = carray(stack_floats(size), size) if size <= STACK_FLOATS else np.empty(size)
     spheres = cut(owned, 0, (geom_count(p), SPHERE_SIZE))
     geom_spheres(p, w, h, spheres)
+    xmat = _views(p, w).xmat  # (the tightened gaps' poses)
     work = carray(stack_floats(GEOMETRY_WORK), GEOMETRY_WORK)  # clearance's scratch (not 30 kB from the heap)
     pairs = pair_at(p, 0)
     moves = _list_holds(p, spheres, h, neighbours)
@@ -285,8 +276,8 @@ def pair_reaches(p, w, h, reach, motion, neighbours):
                 moved = h * (np.sqrt((spheres[b, 3] - spheres[a, 3]) ** 2 + (spheres[b, 4] - spheres[a, 4]) ** 2
                                      + (spheres[b, 5] - spheres[a, 5]) ** 2) + spheres[a, S_SWEEP] + spheres[b, S_SWEEP])
             if apart - moved - p[at + P_MARGIN] <= TIGHTEN_BELOW and needs_axes(ta, tb):  # the axes may part them
-                reach[i], motion[i] = _tightened(p, w, first_unit_at(p, at), h, spheres, a, b, moved, neighbours, i,
-                                                 work)
+                reach[i], motion[i] = _tightened(p, w, first_unit_at(p, at), h, spheres, xmat, a, b, moved,
+                                                 neighbours, i, work)
             else:
                 reach[i], motion[i] = apart - moved - p[at + P_MARGIN], moved
         if build and (apart - p[at + P_MARGIN] <= NEIGHBOUR_SKIN or _moving_plane(p, ta, a)):
@@ -319,24 +310,24 @@ def _tight_at(p):
 
 
 @njit(cache=True)
-def _tightened(p, w, u, h, spheres, a, b, moved, neighbours, i, work):
+def _tightened(p, w, u, h, spheres, xmat, a, b, moved, neighbours, i, work):
     """clearance's (bound, motion) for pair i (its first unit at u, its geoms a and b: rows of geom_spheres's
-    spheres) whose spheres do not part it, moved [m]: h times its spheres' bound on the approach speed. From the gap
-    it found before and geom b's pose in geom a's frame then (module docstring), kept in the neighbour list, where
-    that leaves the bound above TIGHTEN_BELOW; else from clearance, whose gap and pose are then kept. An empty list
-    keeps nothing: clearance alone."""
+    spheres) whose spheres do not part it, moved [m]: h times its spheres' bound on the approach speed; xmat (bodies,
+    3, 3): the bodies' axes (the workspace's). From the gap it found before and geom b's pose in geom a's frame then
+    (module docstring), kept in the neighbour list, where that leaves the bound above TIGHTEN_BELOW; else from
+    clearance, whose gap and pose are then kept. An empty list keeps nothing: clearance alone."""
     if neighbours.shape[0] == 0:
         return clearance(p, w, u, h, work)
-    shift, turn = work[30:33], work[33:42]  # b's centre and axes in a's frame: Ra^T (pb - pa), Ra^T Rb (row-major)
+    Ra, Rb = work[30:39], work[39:48]  # the geoms' axes (row-major)
+    _geom_axes(p, xmat, a, Ra)
+    _geom_axes(p, xmat, b, Rb)
+    shift, turn = work[48:51], work[51:60]  # b's centre and axes in a's frame: Ra^T (pb - pa), Ra^T Rb (row-major)
     for x in range(3):
         shift[x] = 0.0
         for y in range(3):
-            shift[x] += spheres[a, S_AXES + 3 * y + x] * (spheres[b, S_CENTRE + y] - spheres[a, S_CENTRE + y])
+            shift[x] += Ra[3 * y + x] * (spheres[b, S_CENTRE + y] - spheres[a, S_CENTRE + y])
         for z in range(3):
-            value = 0.0
-            for y in range(3):
-                value += spheres[a, S_AXES + 3 * y + x] * spheres[b, S_AXES + 3 * y + z]
-            turn[3 * x + z] = value
+            turn[3 * x + z] = Ra[x] * Rb[z] + Ra[3 + x] * Rb[3 + z] + Ra[6 + x] * Rb[6 + z]
     t = _tight_at(p) + TIGHT_SIZE * i
     margin = p[u + U_MARGIN]
     if neighbours[t + T_FOUND] == 1.0:
@@ -355,6 +346,21 @@ def _tightened(p, w, u, h, spheres, a, b, moved, neighbours, i, work):
     for x in range(9):
         neighbours[t + T_TURN + x] = turn[x]
     return reach, motion
+
+
+@njit(cache=True, inline="always")
+def _geom_axes(p, xmat, geom, R):
+    """R (9,) geom's axes in the world, row-major: its body's axes (xmat) times its own (rows.geom_pose's
+    product)."""
+    at = geom_at(p, geom)
+    body, pose = int(p[at + G_BODY]), int(p[at + G_POSE])
+    for x in range(3):
+        for z in range(3):
+            if body < 0:
+                R[3 * x + z] = p[pose + AXES_AT + 3 * x + z]
+            else:
+                R[3 * x + z] = (xmat[body, x, 0] * p[pose + AXES_AT + z] + xmat[body, x, 1] * p[pose + AXES_AT + 3 + z]
+                                + xmat[body, x, 2] * p[pose + AXES_AT + 6 + z])
 
 
 @njit(cache=True, inline="always")
