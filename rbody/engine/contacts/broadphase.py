@@ -63,6 +63,9 @@ N_BUILT, N_COUNT, N_CENTRES = 0, 1, 2
 # motion, no margin), and where: geom b's centre (3) and axes (3, 3, row-major) in geom a's frame
 T_FOUND, T_GAP, T_SHIFT, T_TURN = 0, 1, 2, 5
 TIGHT_SIZE = 14
+# a geom's axes within one call of pair_reaches (3, 3, row-major), then 1 where found
+AXES_FOUND = 9
+AXES_SIZE = 10
 NEIGHBOUR_SKIN = 0.02  # [m] a pair is listed where its spheres, less its margin, are this close
 # a geom record's pose points at its position in a unit record; its axes (row-major) and size follow there
 AXES_AT, SIZE_AT = U_GMAT_A - U_GPOS_A, U_GSIZE_A - U_GPOS_A
@@ -244,7 +247,10 @@ def pair_reaches(p, w, h, reach, motion, neighbours):
     owned = carray(stack_floats(size), size) if size <= STACK_FLOATS else np.empty(size)
     spheres = cut(owned, 0, (geom_count(p), SPHERE_SIZE))
     geom_spheres(p, w, h, spheres)
-    xmat = _views(p, w).xmat  # (the tightened gaps' poses)
+    xmat = _views(p, w).xmat  # the tightened gaps' poses: each geom's axes, found where first needed (AXES_FOUND)
+    axes = carray(stack_floats(geom_count(p) * AXES_SIZE), (geom_count(p), AXES_SIZE)) if \
+        geom_count(p) * AXES_SIZE <= STACK_FLOATS else np.empty((geom_count(p), AXES_SIZE))
+    axes[:, AXES_FOUND] = 0.0
     work = carray(stack_floats(GEOMETRY_WORK), GEOMETRY_WORK)  # clearance's scratch (not 30 kB from the heap)
     pairs = pair_at(p, 0)
     moves = _list_holds(p, spheres, h, neighbours)
@@ -276,7 +282,7 @@ def pair_reaches(p, w, h, reach, motion, neighbours):
                 moved = h * (np.sqrt((spheres[b, 3] - spheres[a, 3]) ** 2 + (spheres[b, 4] - spheres[a, 4]) ** 2
                                      + (spheres[b, 5] - spheres[a, 5]) ** 2) + spheres[a, S_SWEEP] + spheres[b, S_SWEEP])
             if apart - moved - p[at + P_MARGIN] <= TIGHTEN_BELOW and needs_axes(ta, tb):  # the axes may part them
-                reach[i], motion[i] = _tightened(p, w, first_unit_at(p, at), h, spheres, xmat, a, b, moved,
+                reach[i], motion[i] = _tightened(p, w, first_unit_at(p, at), h, spheres, xmat, axes, a, b, moved,
                                                  neighbours, i, work)
             else:
                 reach[i], motion[i] = apart - moved - p[at + P_MARGIN], moved
@@ -310,18 +316,21 @@ def _tight_at(p):
 
 
 @njit(cache=True)
-def _tightened(p, w, u, h, spheres, xmat, a, b, moved, neighbours, i, work):
+def _tightened(p, w, u, h, spheres, xmat, axes, a, b, moved, neighbours, i, work):
     """clearance's (bound, motion) for pair i (its first unit at u, its geoms a and b: rows of geom_spheres's
     spheres) whose spheres do not part it, moved [m]: h times its spheres' bound on the approach speed; xmat (bodies,
-    3, 3): the bodies' axes (the workspace's). From the gap it found before and geom b's pose in geom a's frame then
-    (module docstring), kept in the neighbour list, where that leaves the bound above TIGHTEN_BELOW; else from
-    clearance, whose gap and pose are then kept. An empty list keeps nothing: clearance alone."""
+    3, 3): the bodies' axes (the workspace's); axes (geoms, AXES_SIZE): the geoms' axes where found this call. From
+    the gap it found before and geom b's pose in geom a's frame then (module docstring), kept in the neighbour list,
+    where that leaves the bound above TIGHTEN_BELOW; else from clearance, whose gap and pose are then kept. An empty
+    list keeps nothing: clearance alone."""
     if neighbours.shape[0] == 0:
         return clearance(p, w, u, h, work)
-    Ra, Rb = work[30:39], work[39:48]  # the geoms' axes (row-major)
-    _geom_axes(p, xmat, a, Ra)
-    _geom_axes(p, xmat, b, Rb)
-    shift, turn = work[48:51], work[51:60]  # b's centre and axes in a's frame: Ra^T (pb - pa), Ra^T Rb (row-major)
+    for geom in (a, b):
+        if axes[geom, AXES_FOUND] == 0.0:
+            _geom_axes(p, xmat, geom, axes[geom])
+            axes[geom, AXES_FOUND] = 1.0
+    Ra, Rb = axes[a], axes[b]  # the geoms' axes (row-major)
+    shift, turn = work[30:33], work[33:42]  # b's centre and axes in a's frame: Ra^T (pb - pa), Ra^T Rb (row-major)
     for x in range(3):
         shift[x] = 0.0
         for y in range(3):
@@ -350,7 +359,7 @@ def _tightened(p, w, u, h, spheres, xmat, a, b, moved, neighbours, i, work):
 
 @njit(cache=True, inline="always")
 def _geom_axes(p, xmat, geom, R):
-    """R (9,) geom's axes in the world, row-major: its body's axes (xmat) times its own (rows.geom_pose's
+    """R[:9] geom's axes in the world, row-major: its body's axes (xmat) times its own (rows.geom_pose's
     product)."""
     at = geom_at(p, geom)
     body, pose = int(p[at + G_BODY]), int(p[at + G_POSE])
