@@ -224,10 +224,9 @@ def _least_gaps(p, w):
 def test_a_pairs_tightened_gap_bounds_it_as_its_geoms_move_and_turn(model):
     """Eight gathered configurations, the list built at each, then the bodies moved by up to 1 mm an axis and
     turned by up to 0.03 rad, five times over (within the skin: the list is read): every pair's bound stays at most
-    the least gap of its candidates as the narrow phase finds them. A listed pair whose tightened gap, less how far
-    geom b has moved and turned in geom a's frame since it was found, is still above TIGHTEN_BELOW is bounded from
-    that (not clearance's bits, above TIGHTEN_BELOW); every other listed pair as the full pass bounds it, to the
-    bit."""
+    the least gap of its candidates as the narrow phase finds them. Some listed pairs are bounded from their tightened
+    gap (the gap less how far geom b has moved and turned in geom a's frame since it was found: not the full pass's
+    bits), each above TIGHTEN_BELOW."""
     _scene, table, p, y0 = model
     remembered = 0
     for seed in range(8):
