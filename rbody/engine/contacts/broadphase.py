@@ -267,7 +267,7 @@ def pair_reaches(p, w, h, reach, motion, neighbours):
         a, b = int(p[at + P_GEOM_A]), int(p[at + P_GEOM_B])  # redone each pass since a store to reach may alias p)
         ta, tb = int(spheres[a, S_KIND]), int(spheres[b, S_KIND])
         if ta == HFIELD:
-            reach[i], motion[i] = clearance(p, w, first_unit_at(p, at), h, work)
+            reach[i], motion[i], _gap = clearance(p, w, first_unit_at(p, at), h, work)
             apart = -np.inf
         else:
             if ta == PLANE:
@@ -324,7 +324,8 @@ def _tightened(p, w, u, h, spheres, xmat, axes, a, b, moved, neighbours, i, work
     where that leaves the bound above TIGHTEN_BELOW; else from clearance, whose gap and pose are then kept. An empty
     list keeps nothing: clearance alone."""
     if neighbours.shape[0] == 0:
-        return clearance(p, w, u, h, work)
+        reach, motion, _gap = clearance(p, w, u, h, work)
+        return reach, motion
     for geom in (a, b):
         if axes[geom, AXES_FOUND] == 0.0:
             _geom_axes(p, xmat, geom, axes[geom])
@@ -348,8 +349,8 @@ def _tightened(p, w, u, h, spheres, xmat, axes, a, b, moved, neighbours, i, work
         bound = neighbours[t + T_GAP] - (np.sqrt(shifted) + spheres[b, S_RADIUS] * np.sqrt(turned)) - moved - margin
         if bound > TIGHTEN_BELOW:
             return bound, moved
-    reach, motion = clearance(p, w, u, h, work)
-    neighbours[t + T_FOUND], neighbours[t + T_GAP] = 1.0, reach + motion + margin  # (its gap, to an ulp)
+    reach, motion, gap = clearance(p, w, u, h, work)
+    neighbours[t + T_FOUND], neighbours[t + T_GAP] = 1.0, gap
     for x in range(3):
         neighbours[t + T_SHIFT + x] = shift[x]
     for x in range(9):

@@ -363,8 +363,9 @@ def clearance(p, w, u, h, work):
     distance), and with a cylinder, if that leaves them within reach, the separating axes' gap; any other pair the
     separating axes' gap. Less the pair's margin, as its gaps are.
     > TOUCH_TOLERANCE: no candidate of the pair touches or closes within h, and its distance need not be computed.
-    Returns (that bound, motion): motion [m] h times the bound on the approach speed. work: scratch of
-    GEOMETRY_WORK floats (contact_geometry's)."""
+    Returns (that bound, motion, gap): motion [m] h times the bound on the approach speed, gap [m] that bound before the
+    motion and the margin are taken off (the bound on the gap itself). work: scratch of GEOMETRY_WORK floats
+    (contact_geometry's)."""
     pa, pb = work[0:3], work[3:6]
     body_a, body_b = int(p[u + U_BODY1]), int(p[u + U_BODY2])
     ta, tb = int(p[u + U_GTYPE_A]), int(p[u + U_GTYPE_B])
@@ -382,7 +383,7 @@ def clearance(p, w, u, h, work):
             motion = h * (np.sqrt(vb[0] ** 2 + vb[1] ** 2 + vb[2] ** 2)
                           + np.sqrt(omega[0] ** 2 + omega[1] ** 2 + omega[2] ** 2) * radius_b)
         reach = field_reach(field_at(p, int(p[u + U_HULL_A])), pa, Ra, pb, radius_b + motion)
-        return reach - p[u + U_MARGIN], motion
+        return reach - p[u + U_MARGIN], motion, reach + motion
     if ta == PLANE:
         Ra = work[6:15].reshape((3, 3))
         geom_pose(p, w, body_a, u + U_GPOS_A, u + U_GMAT_A, pa, Ra)
@@ -423,7 +424,7 @@ def clearance(p, w, u, h, work):
                 apart = max(apart, core_gap(ta, pa, Ra, sa, tb, pb, Rb, sb))
             if not cores or ((ta == CYLINDER or tb == CYLINDER) and apart - motion - margin <= TIGHTEN_BELOW):
                 apart = max(apart, separating_gap(ta, pa, Ra, sa, tb, pb, Rb, sb))
-    return apart - motion - margin, motion
+    return apart - motion - margin, motion, apart
 
 
 @njit(cache=True)

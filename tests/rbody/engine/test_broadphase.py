@@ -131,7 +131,7 @@ def test_a_pairs_bound_is_clearances_to_the_bit(model, seed, h):
     near = 0
     for i in range(pair_count(p)):
         got = (reach[i], motion[i])
-        expected = clearance(p, w, first_unit_at(p, pair_at(p, i)), h, scratch)
+        expected = clearance(p, w, first_unit_at(p, pair_at(p, i)), h, scratch)[:2]
         assert got == expected, (i, got, expected)
         near += got[0] <= 0.0
     assert 0 < near < pair_count(p)  # the draw has pairs on both sides of the bound
@@ -371,7 +371,8 @@ def test_the_end_gaps_give_each_pairs_least_gap(model, beyond):
 @pytest.mark.parametrize("seed", range(4))
 def test_a_pairs_bound_never_exceeds_its_candidates_gaps(model, seed):
     """Random configurations of the bodies gathered near the origin: clearance's bound (h = 0) is at most every
-    candidate's gap, as the narrow phase computes them; and the geoms' axes (the separating axes, a geom's lowest
+    candidate's gap, as the narrow phase computes them, and the gap it returns is that bound with the margin added
+    back; and the geoms' axes (the separating axes, a geom's lowest
     point above the floor) part pairs without a box whose bounding spheres overlap, which the narrow phase would
     otherwise pose."""
     _scene, table, p, y0 = model
@@ -392,7 +393,8 @@ def test_a_pairs_bound_never_exceeds_its_candidates_gaps(model, seed):
         normal, point = np.empty(3), np.empty(3)
         for i in range(pair_count(p)):
             u = first_unit_at(p, pair_at(p, i))
-            bound, _motion = clearance(p, w, u, 0.0, scratch)
+            bound, motion, gap = clearance(p, w, u, 0.0, scratch)
+            assert motion == 0.0 and bound == gap - p[u + U_MARGIN], (i, bound, gap)  # (h = 0: the gap less the margin)
             count = pair_candidates(p, w, u, work)
             nearest = min(candidate(work, j, normal, point) for j in range(count))
             assert bound <= nearest + 1e-12, (i, bound, nearest)
