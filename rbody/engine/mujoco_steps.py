@@ -20,8 +20,10 @@ D and the bias derivative keep only the pairs of degrees of freedom of which one
 sparsity: a tendon or actuator coupling two branches or two trees contributes nothing off the diagonal blocks).
 The bias derivative is formed by polarisation: the bias is a quadratic form in qvel plus gravity, so
 d bias/d qvel e_j = (bias(v + s e_j) - bias(v - s e_j)) / 2s exactly (RNEA without gravity), s = max|v|.
-The matrices are dense and solved by Gaussian elimination with partial pivoting (MuJoCo: a sparse LDL^T or LU):
-the two differ by round-off. Order 1 each; stable on an undamped oscillation while h w < 2 (semi-implicit Euler).
+Euler's H has M's pattern (each dof coupled only with its ancestors and descendants) and is factored along the tree
+(rbody.engine.mass_factor: H = L^T L, no fill-in, as MuJoCo's mj_factorI factors it L^T D L); implicitfast's and
+implicit's are dense and solved by Gaussian elimination with partial pivoting (MuJoCo: a sparse LDL^T or LU): the
+two differ by round-off. Order 1 each; stable on an undamped oscillation while h w < 2 (semi-implicit Euler).
 """
 
 from __future__ import annotations
@@ -32,6 +34,7 @@ from numba import carray, njit
 from rbody.engine import multibody as mb
 from rbody.engine.actuation import actuator_velocity_derivative, next_activation
 from rbody.engine.elements import A_ACTADR, A_DISABLED, ACT_SIZE, X_ACT, X_CTRL, X_NA, X_NU, extension_start
+from rbody.engine.mass_factor import factor_in_place, tree_solve, tree_solve_transposed
 from rbody.engine.memory import address, keep_alive
 from rbody.engine.fluid import box_velocity_derivative
 from rbody.engine.passive import tendon_damping_derivative
@@ -165,6 +168,22 @@ def solve_general(H, b, x, nv):
 
 
 @njit(cache=True)
+def euler_factor(p, M, h, parent, L):
+    """parent (nv,) int64 <- each dof's parent dof; L (nv, nv) <- the tree's factor of Euler's H = M + h
+    diag(damping) (H = L^T L, L's entries on each dof's ancestors only: mass_factor), M (nv, nv) the mass matrix, h
+    [s]. Returns False (L partly written) where a pivot is not positive."""
+    do = int(p[mb.H_DOF])
+    for d in range(M.shape[0]):
+        parent[d] = int(p[do + d * mb.DOF_SIZE + mb.D_PARENT])
+        j = d
+        while j >= 0:  # M's entries on the ancestors
+            L[d, j] = M[d, j]
+            j = parent[j]
+        L[d, d] = M[d, d] - h * -p[do + d * mb.DOF_SIZE + mb.D_DAMPING]  # (D = -diag(damping): H = M - h D)
+    return factor_in_place(L, parent)
+
+
+@njit(cache=True)
 def mujoco_step(y, p, h, mode, elements):
     """One step of MuJoCo's integrator `mode` (EULER, IMPLICITFAST, IMPLICIT) on y = (qpos, qvel, phi = 0, act[,
     steps]) in place (module docstring); elements: whether the row holds force elements (rbody.engine.elements)."""
@@ -265,10 +284,17 @@ def _mujoco_step(y, p, h, mode, elements, matrices):
                 matrices[1, a, c] = D[a, c]
         keep_alive(w)
         return
-    for a in range(nv):
-        for c in range(nv):
-            H[a, c] = M[a, c] - h * D[a, c]
-    solve_general(H, qfrc, qacc, nv)
+    parent = np.empty(nv, np.int64)
+    if mode == EULER and euler_factor(p, M, h, parent, H):  # qacc = L^-1 L^-T qfrc (H = L^T L)
+        for d in range(nv):
+            qacc[d] = qfrc[d]
+        tree_solve_transposed(H, parent, qacc)
+        tree_solve(H, parent, qacc)
+    else:
+        for a in range(nv):
+            for c in range(nv):
+                H[a, c] = M[a, c] - h * D[a, c]
+        solve_general(H, qfrc, qacc, nv)
 
     if elements:  # activations first (mj_advance), from the act' of the step's start
         E = extension_start(p)
@@ -329,4 +355,4 @@ def mujoco_steps(elements: bool) -> dict:
     return {name: (step, ONE) for name, step in zip(MUJOCO_METHODS, steps)}
 
 
-__all__ = ["mujoco_step", "step_matrices", "mujoco_steps", "integrate_positions", "solve_general", "MUJOCO_METHODS"]
+__all__ = ["mujoco_step", "euler_factor", "step_matrices", "mujoco_steps", "integrate_positions", "solve_general", "MUJOCO_METHODS"]

@@ -53,8 +53,8 @@ from rbody.engine import multibody as mb
 from rbody.engine.actuation import next_activation
 from rbody.engine.constraints import dynamics as dyn
 from rbody.engine.elements import A_ACTADR, ACT_SIZE, X_ACT, X_ACTIVE, X_NU, extension_start
-from rbody.engine.mujoco_steps import EULER, IMPLICIT, IMPLICITFAST, MUJOCO_METHODS, integrate_positions, \
-    solve_general, step_matrices
+from rbody.engine.mujoco_steps import EULER, IMPLICIT, IMPLICITFAST, MUJOCO_METHODS, euler_factor, \
+    integrate_positions, solve_general, step_matrices
 from rbody.engine.constraints.jacobians import contact_unit_rows, contact_work_size, row_count, unit_at, unit_count
 from rbody.engine.contacts.broadphase import (contact0, contact_row0, first_unit_at, kept_neighbours, kept_size,
                                               pair_at, pair_count, pair_reaches, pair_span)
@@ -69,10 +69,9 @@ from rbody.engine.constraints.interior import interior_finish
 from rbody.engine.constraints.natural_newton import states_newton
 from rbody.engine.constraints.solver import (RANK_RTOL, cholesky_factor, lower_solve_into, lower_solve_rows_into,
                                              mlcp_exact_from, mlcp_pgs, natural_residual, upper_solve_into)
-from rbody.engine.constraints.tree_factor import (dof_columns, gram_by_dofs, gram_by_scan, product_by_dofs, tree_factor,
-                                                  tree_solve,
-                                                  tree_solve_rows_into, tree_solve_supports_into,
-                                                  tree_solve_transposed)
+from rbody.engine.constraints.tree_factor import (dof_columns, gram_by_dofs, gram_of_few_dofs, product_by_dofs,
+                                                  tree_solve_rows_into, tree_solve_supports_into)
+from rbody.engine.mass_factor import tree_factor, tree_solve, tree_solve_transposed
 from rbody.engine.constraints.islands import label_islands
 from rbody.engine.constraints.kinds import is_equality_kind, is_friction_kind, is_stop_kind
 from rbody.engine.constraints.table import (C_HEADER, CONTACT, CONTACT1, CONTACT_KINDS, FRICTION_KINDS, U_BODY1,
@@ -550,10 +549,11 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
     if na:  # the activations' rates at the step's start (advanced by explicit Euler below, as MuJoCo's Euler does)
         dyn.actuator_rates(p, y[:nq], y[nq:nq + nv], y[at:at + na], rates)
     v = y[nq:nq + nv]
-    # L: the factor of the impulses' metric, which moves the velocities by metric^-1 J^T P. Moreau's, M, factored
-    # along the tree (tree_factor: M = L^T L, no fill-in); MuJoCo's integrators' densely, as their own steps solve
-    # (a step with no constraint active is then theirs to the bit)
-    tree = mode == MOREAU and _factor_along_tree(p, M, L, parent)
+    # L: the factor of the impulses' metric, which moves the velocities by metric^-1 J^T P. Moreau's, M, and MuJoCo's
+    # Euler's, M + h diag(damping), factored along the tree (mass_factor: L^T L, no fill-in); implicitfast's and
+    # implicit's densely. Each as its integrator's own step solves: a step with no constraint active is its to the bit
+    tree = (mode == MOREAU and _factor_along_tree(p, M, L, parent)) or (mode == EULER
+                                                                       and euler_factor(p, M, h, parent, L))
     sparse = tree and nv > SUPPORT_DOFS  # (the rows on their supports: their products cost those, not nv each)
     if tree:  # vfree = v + h L^-1 L^-T f
         for d in range(nv):
@@ -665,7 +665,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
             gram_by_dofs(A, m, W, first, columns, island)
             islands = label_islands(island, role, m)
         elif tree:
-            gram_by_scan(A, m, W, columns, island)
+            gram_of_few_dofs(A, m, W, columns, island)
             islands = label_islands(island, role, m)
         else:
             np.dot(A.T, A, W)  # (BLAS's product into W: A.T @ A's bits)

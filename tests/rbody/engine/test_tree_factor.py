@@ -15,10 +15,10 @@ from rbody.engine import multibody as mb
 from rbody.engine.constraints.cone import NORMAL, ROW, TANGENT, TANGENT2, cone_residual
 from rbody.engine.constraints.islands import label_islands
 from rbody.engine.constraints.stepping import SUPPORT_DOFS, _solve_islands, solve_problem
-from rbody.engine.constraints.tree_factor import (dof_columns, gram_by_dofs, gram_by_scan, product_by_dofs, tree_factor,
-                                                  tree_solve,
-                                                  tree_solve_rows_into, tree_solve_supports_into,
-                                                  tree_solve_transposed)
+from rbody.engine.constraints.tree_factor import (dof_columns, gram_by_dofs, gram_by_scan, gram_of_few_dofs,
+                                                  product_by_dofs,
+                                                  tree_solve_rows_into, tree_solve_supports_into)
+from rbody.engine.mass_factor import tree_factor, tree_solve, tree_solve_transposed
 
 sys.path.insert(0, str(Path(__file__).parent))
 from trees import random_tree  # noqa: E402
@@ -151,6 +151,31 @@ def test_the_metric_of_rows_on_paths_equals_J_Minv_JT_and_keeps_their_sparsity(s
     assert np.array_equal(island[:, None] == island[None, :], linked)
     assert count == np.unique(island).size and sorted(set(island.tolist())) == list(range(count))
     assert np.all(np.diff([np.argmax(island == k) for k in range(count)]) > 0)  # labelled in order of first rows
+
+
+def test_the_metric_of_few_dofs_is_blas_where_every_row_shares_the_dofs_and_the_sums_by_dof_where_few_do():
+    """gram_of_few_dofs: W = A^T A and the rows' islands. Rows that share every dof (a robot's feet on its base)
+    take BLAS's product, W within round-off of A^T A, one island; ten free bodies' contacts, three rows each on
+    their own body's six dofs, take gram_by_scan's sums, its bits and its ten islands."""
+    rng = np.random.default_rng(3)
+    for shared, (nv, m) in ((True, (26, 68)), (False, (60, 30))):
+        if shared:
+            A = rng.normal(size=(nv, m))
+        else:
+            A = np.zeros((nv, m))
+            for body in range(10):
+                A[6 * body:6 * body + 6, 3 * body:3 * body + 3] = rng.normal(size=(6, 3))
+        W, island = np.full((m, m), np.nan), np.empty(m, dtype=np.int64)
+        assert gram_of_few_dofs(A, m, W, np.empty(m, dtype=np.int64), island) == shared
+        W_scan, island_scan = np.empty((m, m)), np.empty(m, dtype=np.int64)
+        gram_by_scan(A, m, W_scan, np.empty(m, dtype=np.int64), island_scan)
+        assert np.array_equal(island, island_scan)
+        count = label_islands(island, np.full(m, ROW, dtype=np.int64), m)
+        assert count == (1 if shared else 10)
+        if shared:
+            np.testing.assert_allclose(W, A.T @ A, rtol=1e-13, atol=1e-13 * np.max(np.abs(W)))
+        else:
+            assert np.array_equal(W, W_scan)
 
 
 def test_a_pivot_not_positive_is_reported():
