@@ -19,12 +19,18 @@ from numba import njit
 def tree_factor(M, parent, L):
     """L (nv, nv) <- the tree's factor of the symmetric positive definite M (nv, nv): M = L^T L, L[i, j] set only
     where j is i or an ancestor of i. Returns False (L partly written) where a pivot is not positive."""
-    for k in range(M.shape[0]):  # M's entries on the ancestors (the only ones the factor has)
+    ancestors_into(M, parent, L)
+    return factor_in_place(L, parent)
+
+
+@njit(cache=True)
+def ancestors_into(M, parent, L):
+    """L[i, j] <- M[i, j] where j is i or an ancestor of i (the only entries the tree's factor has)."""
+    for k in range(M.shape[0]):
         j = k
         while j >= 0:
             L[k, j] = M[k, j]
             j = parent[j]
-    return factor_in_place(L, parent)
 
 
 @njit(cache=True)
@@ -74,4 +80,4 @@ def tree_solve(L, parent, x):
         x[i] /= L[i, i]
 
 
-__all__ = ["tree_factor", "factor_in_place", "tree_solve_transposed", "tree_solve"]
+__all__ = ["tree_factor", "ancestors_into", "factor_in_place", "tree_solve_transposed", "tree_solve"]

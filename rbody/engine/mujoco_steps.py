@@ -34,7 +34,7 @@ from numba import carray, njit
 from rbody.engine import multibody as mb
 from rbody.engine.actuation import actuator_velocity_derivative, next_activation
 from rbody.engine.elements import A_ACTADR, A_DISABLED, ACT_SIZE, X_ACT, X_CTRL, X_NA, X_NU, extension_start
-from rbody.engine.mass_factor import factor_in_place, tree_solve, tree_solve_transposed
+from rbody.engine.mass_factor import ancestors_into, factor_in_place, tree_solve, tree_solve_transposed
 from rbody.engine.memory import address, keep_alive
 from rbody.engine.fluid import box_velocity_derivative
 from rbody.engine.passive import tendon_damping_derivative
@@ -168,18 +168,22 @@ def solve_general(H, b, x, nv):
 
 
 @njit(cache=True)
-def euler_factor(p, M, h, parent, L):
-    """parent (nv,) int64 <- each dof's parent dof; L (nv, nv) <- the tree's factor of Euler's H = M + h
-    diag(damping) (H = L^T L, L's entries on each dof's ancestors only: mass_factor), M (nv, nv) the mass matrix, h
-    [s]. Returns False (L partly written) where a pivot is not positive."""
+def dof_parents(p, parent):
+    """parent (nv,) int64 <- each dof's parent dof (-1 at a root), as the params row p holds them."""
     do = int(p[mb.H_DOF])
-    for d in range(M.shape[0]):
+    for d in range(parent.shape[0]):
         parent[d] = int(p[do + d * mb.DOF_SIZE + mb.D_PARENT])
-        j = d
-        while j >= 0:  # M's entries on the ancestors
-            L[d, j] = M[d, j]
-            j = parent[j]
-        L[d, d] = M[d, d] - h * -p[do + d * mb.DOF_SIZE + mb.D_DAMPING]  # (D = -diag(damping): H = M - h D)
+
+
+@njit(cache=True)
+def euler_factor(p, M, h, parent, L):
+    """L (nv, nv) <- the tree's factor of Euler's H = M + h diag(damping) (H = L^T L, L's entries on each dof's
+    ancestors only: mass_factor), M (nv, nv) the mass matrix, h [s], parent (nv,) the dofs' parents (dof_parents).
+    Returns False (L partly written) where a pivot is not positive."""
+    do = int(p[mb.H_DOF])
+    ancestors_into(M, parent, L)
+    for d in range(M.shape[0]):  # (D = -diag(damping): H = M - h D)
+        L[d, d] = M[d, d] - h * -p[do + d * mb.DOF_SIZE + mb.D_DAMPING]
     return factor_in_place(L, parent)
 
 
@@ -284,13 +288,17 @@ def _mujoco_step(y, p, h, mode, elements, matrices):
                 matrices[1, a, c] = D[a, c]
         keep_alive(w)
         return
-    parent = np.empty(nv, np.int64)
-    if mode == EULER and euler_factor(p, M, h, parent, H):  # qacc = L^-1 L^-T qfrc (H = L^T L)
-        for d in range(nv):
-            qacc[d] = qfrc[d]
-        tree_solve_transposed(H, parent, qacc)
-        tree_solve(H, parent, qacc)
-    else:
+    along_tree = False
+    if mode == EULER:  # qacc = L^-1 L^-T qfrc (H = L^T L)
+        parent = np.empty(nv, np.int64)
+        dof_parents(p, parent)
+        along_tree = euler_factor(p, M, h, parent, H)
+        if along_tree:
+            for d in range(nv):
+                qacc[d] = qfrc[d]
+            tree_solve_transposed(H, parent, qacc)
+            tree_solve(H, parent, qacc)
+    if not along_tree:
         for a in range(nv):
             for c in range(nv):
                 H[a, c] = M[a, c] - h * D[a, c]
@@ -355,4 +363,5 @@ def mujoco_steps(elements: bool) -> dict:
     return {name: (step, ONE) for name, step in zip(MUJOCO_METHODS, steps)}
 
 
-__all__ = ["mujoco_step", "euler_factor", "step_matrices", "mujoco_steps", "integrate_positions", "solve_general", "MUJOCO_METHODS"]
+__all__ = ["mujoco_step", "dof_parents", "euler_factor", "step_matrices", "mujoco_steps", "integrate_positions",
+           "solve_general", "MUJOCO_METHODS"]

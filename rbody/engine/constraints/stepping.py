@@ -53,8 +53,8 @@ from rbody.engine import multibody as mb
 from rbody.engine.actuation import next_activation
 from rbody.engine.constraints import dynamics as dyn
 from rbody.engine.elements import A_ACTADR, ACT_SIZE, X_ACT, X_ACTIVE, X_NU, extension_start
-from rbody.engine.mujoco_steps import EULER, IMPLICIT, IMPLICITFAST, MUJOCO_METHODS, euler_factor, \
-    integrate_positions, solve_general, step_matrices
+from rbody.engine.mujoco_steps import EULER, IMPLICIT, IMPLICITFAST, MUJOCO_METHODS, dof_parents, \
+    euler_factor, integrate_positions, solve_general, step_matrices
 from rbody.engine.constraints.jacobians import contact_unit_rows, contact_work_size, row_count, unit_at, unit_count
 from rbody.engine.contacts.broadphase import (contact0, contact_row0, first_unit_at, kept_neighbours, kept_size,
                                               pair_at, pair_count, pair_reaches, pair_span)
@@ -552,8 +552,10 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
     # L: the factor of the impulses' metric, which moves the velocities by metric^-1 J^T P. Moreau's, M, and MuJoCo's
     # Euler's, M + h diag(damping), factored along the tree (mass_factor: L^T L, no fill-in); implicitfast's and
     # implicit's densely. Each as its integrator's own step solves: a step with no constraint active is its to the bit
-    tree = (mode == MOREAU and _factor_along_tree(p, M, L, parent)) or (mode == EULER
-                                                                       and euler_factor(p, M, h, parent, L))
+    tree = False  # (a pivot not positive: the dense factor below runs and reports it)
+    if mode == MOREAU or mode == EULER:
+        dof_parents(p, parent)
+        tree = tree_factor(M, parent, L) if mode == MOREAU else euler_factor(p, M, h, parent, L)
     sparse = tree and nv > SUPPORT_DOFS  # (the rows on their supports: their products cost those, not nv each)
     if tree:  # vfree = v + h L^-1 L^-T f
         for d in range(nv):
@@ -793,16 +795,6 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
     if worst > 1e3 * dyn.PROJECTION_TOLERANCE:
         return 2, worst, m
     return 0, residual, m
-
-
-@njit(cache=True)
-def _factor_along_tree(p, M, L, parent):
-    """L <- the tree's factor of M, parent (nv,) <- each dof's parent dof. Returns False where a pivot is not
-    positive (the dense factor then runs and reports it)."""
-    do = int(p[mb.H_DOF])
-    for d in range(M.shape[0]):
-        parent[d] = int(p[do + d * mb.DOF_SIZE + mb.D_PARENT])
-    return tree_factor(M, parent, L)
 
 
 @njit(cache=True, inline="always")
