@@ -227,15 +227,15 @@ def _mujoco_step(y, p, h, mode, elements, matrices):
     a0 = act_offset(p)
     act = y[a0:a0 + na]
 
-    mb.mass_matrix_one(p, q, M, w)
     ws = mb._views(p, w)
-    mb._frames(p, q, v, w)
+    mb._frames(p, q, v, w)  # one outward pass: M, the forces and the bias all read its frames
+    mb.mass_matrix_at_frames(p, w, M)
     mb.passive(p, q, v, ws.tau)
     if elements:
         element_forces(p, q, v, act, w, tree)
     for d in range(nv):
         qfrc[d] = ws.tau[d]
-    mb.inverse_one(p, q, v, zero, True, bias, w)
+    mb.inverse_at_frames(p, zero, True, bias, w)
     for d in range(nv):
         qfrc[d] -= bias[d]
 

@@ -1079,8 +1079,16 @@ def forward_one(p, q, v, tau, qacc, pivots, w):
 
 @njit(cache=True)
 def inverse_one(p, q, v, qacc, gravity_on, out, w):
-    """RNEA: out (nv,) = M qacc + bias (gravity included when gravity_on), passive forces not included."""
+    """RNEA: out (nv,) = M qacc + bias (gravity included when gravity_on), passive forces not included; the frames
+    at (q, v) left in the workspace w."""
     _frames(p, q, v, w)
+    inverse_at_frames(p, qacc, gravity_on, out, w)
+
+
+@njit(cache=True)
+def inverse_at_frames(p, qacc, gravity_on, out, w):
+    """inverse_one from the frames _frames left in the workspace w (at the state's q and v): out (nv,) = M qacc +
+    bias; w's acc and force are written, its frames read only."""
     ws = _views(p, w)
     S, bias, vel, h, Ibar, acc, force, scratch = ws.S, ws.bias, ws.vel, ws.h, ws.Ibar, ws.acc, ws.force, ws.scratch
     nb = int(p[H_BODIES])
@@ -1114,16 +1122,34 @@ def inverse_one(p, q, v, qacc, gravity_on, out, w):
 
 @njit(cache=True)
 def mass_matrix_one(p, q, out, w):
-    """CRBA: out (nv, nv) = M(q), armature on the diagonal."""
+    """CRBA: out (nv, nv) = M(q), armature on the diagonal; the frames at (q, qvel 0) left in the workspace w."""
+    zero = _views(p, w).zero
+    for d in range(zero.shape[0]):
+        zero[d] = 0.0
+    _frames(p, q, zero, w)
+    mass_matrix_at_frames(p, w, out)
+
+
+@njit(cache=True)
+def mass_matrix_at_frames(p, w, out):
+    """CRBA from the frames _frames left in the workspace w (at any qvel: M reads the positions only): out (nv, nv)
+    = M, armature on the diagonal. w is read only: the composite inertias (each body's with its subtree's) are
+    summed in their own buffer, so that the bodies' own inertias stay for the force elements and the RNEA."""
     nb, nv = int(p[H_BODIES]), int(p[H_DOFS])
     bo, do = int(p[H_BODY]), int(p[H_DOF])
     ws = _views(p, w)
-    S, h, Ibar, mass, v, scratch = ws.S, ws.h, ws.Ibar, ws.mass, ws.zero, ws.scratch
-    for d in range(nv):
-        v[d] = 0.0
-    _frames(p, q, v, w)
+    S, scratch = ws.S, ws.scratch
+    size = 13 * nb  # mass, h (3), Ibar (3, 3) per body (one buffer, on the stack where small)
+    owned = carray(stack_floats(size), size) if size <= STACK_FLOATS else np.empty(size)
+    mass = carray(address(owned, 0), nb)
+    h = carray(address(owned, nb), (nb, 3))
+    Ibar = carray(address(owned, 4 * nb), (nb, 3, 3))
     for i in range(nb):
         mass[i] = p[bo + i * BODY_SIZE + B_MASS]
+        for a in range(3):
+            h[i, a] = ws.h[i, a]
+            for c in range(3):
+                Ibar[i, a, c] = ws.Ibar[i, a, c]
     for i in range(nb - 1, -1, -1):  # composite inertias: add each body's to its parent's
         parent = int(p[bo + i * BODY_SIZE + B_PARENT])
         if parent >= 0:
@@ -1135,6 +1161,9 @@ def mass_matrix_one(p, q, out, w):
     for a in range(nv):
         for c in range(nv):
             out[a, c] = 0.0
+    parents = np.empty(nv, dtype=np.int64)  # the dofs' parents as integers: a walk up the tree reads each once
+    for d in range(nv):                      # (read from p, each step of the walk waits on a float's conversion)
+        parents[d] = int(p[do + d * DOF_SIZE + D_PARENT])
     F = scratch[0:6]
     for i in range(nb):
         b = bo + i * BODY_SIZE
@@ -1142,12 +1171,13 @@ def mass_matrix_one(p, q, out, w):
         for d in range(d0, d0 + nd):
             inertia_apply(mass[i], h[i], Ibar[i], S[d], F)
             out[d, d] = dot6(S[d], F) + p[do + d * DOF_SIZE + D_ARMATURE]
-            k = int(p[do + d * DOF_SIZE + D_PARENT])
+            k = parents[d]
             while k >= 0:
                 value = dot6(S[k], F)
                 out[d, k] = value
                 out[k, d] = value
-                k = int(p[do + k * DOF_SIZE + D_PARENT])
+                k = parents[k]
+    keep_alive(owned)  # read through views only
 
 
 @njit(cache=True)

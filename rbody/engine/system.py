@@ -114,15 +114,18 @@ def _element_workspace(p, q, v, act):
 
 
 @njit(cache=True)
-def add_element_forces(p, q, v, act, tau):
+def add_element_forces(p, q, v, act, tau, rates=None):
     """tau (nv,) += the force elements' generalised forces at the effective qpos q, qvel v and activations act (na,),
     with the controls written in p: tendon springs and dampers, fluid forces, gravity compensation and the
     actuators' qfrc (element_forces): the smooth forces the constraint layer adds to a constrained tree's
-    (rbody.engine.constraints.dynamics.snapshot)."""
+    (rbody.engine.constraints.dynamics.snapshot). rates (na,) or None: also act' as actuator_rates gives it, from
+    the same evaluation (one outward pass and one of the elements, not two)."""
     w = _element_workspace(p, q, v, act)
     ws = mb._views(p, w)
     for d in range(tau.shape[0]):
         tau[d] += ws.tau[d]
+    if rates is not None:
+        _rates_from(p, w, rates)
     keep_alive(w)  # read through views only: the workspace must outlive them
 
 
@@ -131,6 +134,13 @@ def actuator_rates(p, q, v, act, out):
     """out (na,) = act' at (q, v, act) with the controls written in p, 0 for a disabled actuator's activation (as
     system_rhs forms it): a constrained tree's activations (rbody.engine.constraints.dynamics)."""
     w = _element_workspace(p, q, v, act)
+    _rates_from(p, w, out)
+    keep_alive(w)
+
+
+@njit(cache=True)
+def _rates_from(p, w, out):
+    """out (na,) = act' from an element workspace (_element_workspace), 0 for a disabled actuator's activation."""
     fw = _force_views(p, w, mb.workspace_size(p))
     E = extension_start(p)
     for i in range(int(p[E + X_NU])):
@@ -138,7 +148,6 @@ def actuator_rates(p, q, v, act, out):
         adr = int(p[r + A_ACTADR])
         if adr >= 0:
             out[adr] = 0.0 if p[r + A_DISABLED] != 0.0 else fw.act_dot[adr]
-    keep_alive(w)
 
 
 @njit(cache=True, inline="always")

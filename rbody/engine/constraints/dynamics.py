@@ -29,15 +29,15 @@ from numba import carray, cfunc, njit
 
 from rbody.engine.multibody import (D_DAMPING, DOF_SIZE, FREE, H_BODIES, H_DOF, H_DOFS, H_JOINT, H_JOINTS, H_NQ,
                                     H_ROT, HINGE, J_DADR, J_KIND, J_QADR, JOINT_SIZE, ROLL, SLIDE, _effective_qpos, _frames,
-                                    STACK_FLOATS, coordinate_rates, inverse_one, mass_matrix_one, passive,
+                                    STACK_FLOATS, coordinate_rates, inverse_one, mass_matrix_at_frames, passive,
                                     tree_finish, workspace_size)
 from rbody.engine import pointers
 from rbody.engine.spatial import quat_exp, quat_multiply
 from rbody.engine.elements import X_ACTIVE, X_NA, X_NTEN, extension_start
 from rbody.engine.memory import cut, keep_alive, stack_floats, unowned
 from rbody.engine.system import actuator_rates, add_element_forces, clamp_activations
-from rbody.engine.constraints.jacobians import (all_rows, bias_accelerations, some_rows, mode_at, row_count, unit_at,
-                                                unit_count)
+from rbody.engine.constraints.jacobians import (all_rows, bias_accelerations, dof_row, some_rows, mode_at, row_count,
+                                                unit_at, unit_count)
 from rbody.engine.contacts.broadphase import (contact0, contact_row0, first_unit_at, kept_neighbours, pair_at,
                                               pair_count, pair_reaches, pair_span)
 from rbody.engine.contacts.rows import (GEOMETRY_WORK, candidate, exact_within, forget_geometry, keep_geometry,
@@ -46,9 +46,10 @@ from rbody.engine.contacts.rows import (GEOMETRY_WORK, candidate, exact_within, 
 from rbody.engine.constraints.solver import (RANK_RTOL, cholesky_factor, lower_solve, lower_solve_rows,
                                             symmetric_solve, upper_solve)
 from rbody.engine.constraints.sliding import general_held_solve, sliding_columns
-from rbody.engine.constraints.kinds import is_equality_kind, is_friction_kind, is_limit_kind, is_tendon_kind
+from rbody.engine.constraints.kinds import (is_dof_kind, is_equality_kind, is_friction_kind, is_limit_kind,
+                                           is_tendon_kind)
 from rbody.engine.constraints.table import (CONE, CONTACT, CONTACT1, FRICTION, PAIR_SIZE, TENDON_FRICTION, U_BOUND,
-                                            U_DOF, U_KIND, U_ROW0, U_ROWS, U_TENDON)
+                                            U_DOF, U_KIND, U_QADR, U_ROW0, U_ROWS, U_TENDON, UNIT_SIZE)
 
 PROJECTION_TOLERANCE = 1e-13   # |g| [m or rad] a projection aims for on the held rows (round-off of metre-scale trees)
 PROJECTION_ITERATIONS = 8      # Newton iterations of a projection at most
@@ -68,20 +69,22 @@ def act_range(p):
 
 
 @njit(cache=True)
-def snapshot(p, q, v, act, M, f, J, jdot, g, w, acc, rows_wanted=None, with_bias=True, contacts=True):
+def snapshot(p, q, v, act, M, f, J, jdot, g, w, acc, rows_wanted=None, with_bias=True, contacts=True, rates=None):
     """At qpos q (nq,) and qvel v (nv,): M (nv, nv); f (nv,) = passive - bias (gravity included; with force elements
     also the actuators' forces at the controls written in p, the tendons', fluid and gravity compensation:
     rbody.engine.system.add_element_forces); every unit's rows
     J (rows, nv), jdot (rows,) and g (rows,) (rbody.engine.constraints.jacobians), or only the units with a row
     flagged in rows_wanted (rows,). w: the tree's workspace; acc (nb, 6) scratch. with_bias False: the contacts'
     J' v are left 0 (what the time-stepping and the projection read is J and g only). contacts False (rows_wanted
-    None): every unit's rows but the contacts' (the time-stepping forms those of the near ones itself)."""
+    None): every unit's rows but the contacts' (the time-stepping forms those of the near ones itself). rates
+    (na,) or None: also the activations' rates act' at (q, v, act) (rbody.engine.system.actuator_rates), from
+    the force elements' one evaluation. One outward pass gives M, the bias and the rows (M reads its positions)."""
     nv = int(p[H_DOFS])
-    mass_matrix_one(p, q, M, w)
     owned = carray(stack_floats(2 * nv), 2 * nv) if 2 * nv <= STACK_FLOATS else np.empty(2 * nv)
     zero, held = cut(owned, 0, nv), cut(owned, nv, nv)  # (one buffer, on the stack where small)
     zero[:] = 0.0
     inverse_one(p, q, v, zero, True, f, w)  # f = bias, and the workspace's frames at (q, v)
+    mass_matrix_at_frames(p, w, M)
     if with_bias:
         bias_accelerations(p, w, acc)
     if rows_wanted is None:
@@ -90,7 +93,9 @@ def snapshot(p, q, v, act, M, f, J, jdot, g, w, acc, rows_wanted=None, with_bias
         some_rows(p, q, v, w, acc, J, jdot, g, rows_wanted, with_bias)
     passive(p, q, v, held)
     if p[extension_start(p) + X_ACTIVE] != 0.0:  # actuators, tendons, gravity compensation, fluid
-        add_element_forces(p, q, v, act, held)
+        add_element_forces(p, q, v, act, held, rates)
+    elif rates is not None:
+        actuator_rates(p, q, v, act, rates)
     for d in range(nv):
         f[d] = held[d] - f[d]
     keep_alive(owned)  # read through views only
@@ -570,6 +575,9 @@ def state_gaps(p, y, g, beyond=np.inf, kept=None, least=None):
     nq, nv, _n = sizes(p)
     nb, r0, npairs, ws = int(p[H_BODIES]), contact_row0(p), pair_count(p), workspace_size(p)
     units = unit_count(p)
+    if npairs == 0 and _dof_units_only(p):  # joints' stops and dry friction alone: their gaps from qpos, no frames
+        _dof_gaps(p, y, g, kept)
+        return
     size = nq + ws + r0 * (nv + 1) + 6 * nb + 2 * npairs  # the arrays below, one buffer (on the stack where small)
     owned = carray(stack_floats(size), size) if size <= STACK_FLOATS else np.empty(size)
     q, w = cut(owned, 0, nq), cut(owned, nq, ws)
@@ -626,6 +634,33 @@ def state_gaps(p, y, g, beyond=np.inf, kept=None, least=None):
         if least is not None:
             least[i] = lowest
     keep_alive(owned)  # read through views only
+
+
+@njit(cache=True)
+def _dof_units_only(p):
+    """Whether every unit is a joint's stop or dry friction (is_dof_kind): rows whose gaps are qpos's alone."""
+    units = unit_at(p, 0)
+    for k in range(unit_count(p)):
+        if not is_dof_kind(int(p[units + k * UNIT_SIZE + U_KIND])):
+            return False
+    return True
+
+
+@njit(cache=True)
+def _dof_gaps(p, y, g, kept):
+    """state_gaps of a model whose units are all joints' stops and dry friction (_dof_units_only): each row's g as
+    dof_row gives it from the effective qpos (kept, where given, records that qpos as state_gaps does)."""
+    nq = int(p[H_NQ])
+    owned = carray(stack_floats(nq), nq) if nq <= STACK_FLOATS else np.empty(nq)
+    _effective_qpos(p, y, owned, 0)
+    if kept is not None:
+        kept[0] = 1.0
+        kept[1:1 + nq] = owned
+    units = unit_at(p, 0)
+    for k in range(unit_count(p)):
+        u = units + k * UNIT_SIZE
+        _entry, g[int(p[u + U_ROW0])] = dof_row(int(p[u + U_KIND]), p[u + U_BOUND], owned[int(p[u + U_QADR])])
+    keep_alive(owned)
 
 
 @njit(cache=True)

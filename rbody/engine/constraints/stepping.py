@@ -73,9 +73,9 @@ from rbody.engine.constraints.tree_factor import (dof_columns, gram_by_dofs, gra
                                                   tree_solve_rows_into, tree_solve_supports_into)
 from rbody.engine.mass_factor import tree_factor, tree_solve, tree_solve_transposed
 from rbody.engine.constraints.islands import label_islands
-from rbody.engine.constraints.kinds import is_equality_kind, is_friction_kind, is_stop_kind
+from rbody.engine.constraints.kinds import is_dof_kind, is_equality_kind, is_friction_kind, is_stop_kind
 from rbody.engine.constraints.table import (C_HEADER, CONTACT, CONTACT1, CONTACT_KINDS, FRICTION_KINDS, U_BODY1,
-                                            U_BODY2, U_BOUND, U_KIND, UNILATERAL, UNIT_SIZE, U_RESTITUTION, U_ROLL,
+                                            U_BODY2, U_BOUND, U_DOF, U_KIND, UNILATERAL, UNIT_SIZE, U_RESTITUTION, U_ROLL,
                                             U_ROW0, U_ROWS, U_SPIN, ConstraintTable)
 from rbody.errors import SimulationError
 
@@ -439,6 +439,35 @@ def _unit_support(p, u, support, top):
 
 
 @njit(cache=True, inline="always")
+def _unit_rate(p, u, kind, J, r0, x):
+    """J[r0] . x for the first row r0 of unit u: a dof's stop or dry friction reads its row's one entry (the row is
+    0 off its dof: a dog's 146 stops cost 146 products a step, not 146 x 85)."""
+    if is_dof_kind(kind):
+        d = int(p[u + U_DOF])
+        return J[r0, d] * x[d]
+    return _row_dot(J, r0, x)
+
+
+@njit(cache=True)
+def _dof_path(parent, dof, support, top):
+    """Writes at support[top:] the dof and its ancestors, ascending: the support of a stop's or a dry friction's
+    row on that dof, and of its column of L^-T J^T. Returns their count, or -1 (nothing written) where support has
+    no room for them."""
+    count = 0
+    d = dof
+    while d >= 0:
+        count += 1
+        d = parent[d]
+    if top + count > support.size:
+        return -1
+    d = dof
+    for x in range(count - 1, -1, -1):
+        support[top + x] = d
+        d = parent[d]
+    return count
+
+
+@njit(cache=True, inline="always")
 def _row_dot(J, a, x):
     """J[a] . x: one row's rate (the step reads the rates of the rows it uses, not of every row: a model with many
     far contact candidates has many zero rows)."""
@@ -544,10 +573,9 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
     first = cut(ints, top_int + 2 * rows + 2 * room, nv + 1)  # (A's columns by dof: columns[first[d]:first[d + 1]])
     used = 0  # support's entries taken
     _effective_qpos(p, y, q, 0)
-    dyn.snapshot(p, q, y[nq:nq + nv], y[at:at + na], M, f, J, jdot, g, w, acc, None, False, False)
+    # (with the activations' rates at the step's start, advanced by explicit Euler below as MuJoCo's Euler does)
+    dyn.snapshot(p, q, y[nq:nq + nv], y[at:at + na], M, f, J, jdot, g, w, acc, None, False, False, rates)
     dyn.add_sliding_friction(p, f, J)
-    if na:  # the activations' rates at the step's start (advanced by explicit Euler below, as MuJoCo's Euler does)
-        dyn.actuator_rates(p, y[:nq], y[nq:nq + nv], y[at:at + na], rates)
     v = y[nq:nq + nv]
     # L: the factor of the impulses' metric, which moves the velocities by metric^-1 J^T P. Moreau's, M, and MuJoCo's
     # Euler's, M + h diag(damping), factored along the tree (mass_factor: L^T L, no fill-in); implicitfast's and
@@ -577,7 +605,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
     role[:bound] = 0  # velocities (jfree), rows (index), bounds, b, roles and friction coefficients, supports
     mu[:bound] = 0.0
     if sparse:
-        length[:bound] = -1  # (every dof, but a contact's: its bodies' paths)
+        length[:bound] = -1  # (every dof, but a contact's, its bodies' paths, and a dof's row's, that dof's)
     cones = False
     m = 0
     units = unit_at(p, 0)  # (unit k's record from the first's: unit_at's reads from the header, redone each pass)
@@ -586,6 +614,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
         u = units + k * UNIT_SIZE
         kind = int(p[u + U_KIND])
         r0, r = int(p[u + U_ROW0]), int(p[u + U_ROWS])
+        m_before = m
         if is_equality_kind(kind):
             for a in range(r0, r0 + r):
                 jfree[m] = _row_dot(J, a, vfree)
@@ -593,7 +622,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
                 m += 1
         elif is_stop_kind(kind):
             e = p[u + U_RESTITUTION]
-            rate = _row_dot(J, r0, vfree)
+            rate = _unit_rate(p, u, kind, J, r0, vfree)
             jfree[m] = rate
             if g[r0] <= TOUCH_TOLERANCE or (e > 0.0 and g[r0] + h * rate < 0.0):
                 index[m], lo[m], hi[m] = r0, 0.0, np.inf
@@ -604,7 +633,7 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
                 m += 1
         elif is_friction_kind(kind):
             box = p[u + U_BOUND] * h
-            jfree[m] = _row_dot(J, r0, vfree)
+            jfree[m] = _unit_rate(p, u, kind, J, r0, vfree)
             index[m], lo[m], hi[m], b[m] = r0, -box, box, jfree[m]
             m += 1
         elif kind == CONTACT or kind == CONTACT1:  # a contact: its normal as a limit's row, its cone with it
@@ -634,6 +663,11 @@ def moreau_step(p, y, h, P, exact_rows, sweeps, tolerance, problem_rows, mode, e
                                  else p[u + U_ROLL] if role[m] == ROLL else 0.0)
                         m += 1
                     cones = True
+        if sparse and m > m_before and is_dof_kind(kind):  # a stop's or dry friction's row on its dof's path
+            dofs = _dof_path(parent, int(p[u + U_DOF]), support, used)
+            if dofs >= 0:
+                start[m_before], length[m_before] = used, dofs
+                used += dofs
     status = 0
     residual = 0.0
     if m > 0:

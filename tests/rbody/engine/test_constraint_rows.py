@@ -125,6 +125,50 @@ def test_every_units_rows_at_once_are_each_units_own(seed):
     assert np.array_equal(gaps, g)
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_stops_and_dry_friction_alone_take_their_gaps_from_qpos_and_m_from_the_steps_frames(seed):
+    """A tree whose units are all joints' stops and dry friction (hinges and slides): state_gaps reads their gaps
+    from qpos without the tree's frames, and gives snapshot's g bit for bit; snapshot's M (the composite-rigid-body
+    algorithm on the frames of its one outward pass, at v) is mass_matrix_one's (its own pass at v = 0) bit for
+    bit, and its workspace keeps each body's own inertia (force elements read it after)."""
+    from rbody.engine import multibody
+
+    rng = np.random.default_rng(seed)
+    bodies, joints = [], []
+    for name, parent, kinds in (("a", "world", ["hinge"]), ("b", "a", ["slide", "hinge"]), ("c", "b", ["hinge"]),
+                                ("d", "a", ["hinge", "hinge"])):
+        bodies.append(Body(name, random_inertia(rng), parent=parent, pos=tuple(rng.uniform(-0.5, 0.5, 3)),
+                           quat=tuple(quat_normalize(rng.normal(size=4)))))
+        for k, kind in enumerate(kinds):
+            joints.append(Joint(f"{name}{k}", kind, name, axis=tuple(rng.normal(size=3)),
+                                anchor=tuple(rng.uniform(-0.2, 0.2, 3)), range=(-0.5, 0.5), frictionloss=0.2))
+    layout = Layout(bodies=tuple(bodies), joints=tuple(joints))
+    model = Multibody(layout)
+    table = build_table(layout, model)
+    p = np.array(table.row(model.params))
+    nq, nv, n = dyn.sizes(p)
+    q, v = rng.uniform(-1, 1, nq), rng.normal(size=nv)  # stops passed and apart
+    M, f = np.empty((nv, nv)), np.empty(nv)
+    J, jdot, g = np.empty((table.rows, nv)), np.empty(table.rows), np.empty(table.rows)
+    w = np.empty(multibody.workspace_size(p))
+    acc = np.empty((int(p[multibody.H_BODIES]), 6))
+    dyn.snapshot(p, q, v, np.zeros(0), M, f, J, jdot, g, w, acc)
+    y = np.zeros(n)
+    y[:nq], y[nq:nq + nv] = q, v
+    gaps = np.full(table.rows, np.nan)
+    dyn.state_gaps(p, y, gaps)
+    assert np.array_equal(gaps, g) and np.any(g < 0) and np.any(g > 0)
+    assert [u.kind for u in table.units].count("limit") == 12
+    own = np.empty_like(M)
+    w_own = np.empty_like(w)
+    multibody.mass_matrix_one(p, q, own, w_own)
+    assert np.array_equal(M, own) and np.array_equal(M, M.T)
+    views, views_own = multibody._views(p, w), multibody._views(p, w_own)
+    assert np.array_equal(views.h, views_own.h) and np.array_equal(views.Ibar, views_own.Ibar)
+    np.testing.assert_allclose(views.h[0], bodies[0].inertia.mass * (views.xpos[0] + views.xmat[0] @ np.asarray(
+        bodies[0].inertia.com)), rtol=1e-12, atol=1e-12)  # body a's own m c, not its subtree's
+
+
 def test_weld_rotation_rows_are_the_rate_of_its_error_where_it_holds():
     """At a state where the weld holds (E = identity), d/dt of E's rotation vector is omega1 - omega2 = J v."""
     rng = np.random.default_rng(7)

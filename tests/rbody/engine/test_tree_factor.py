@@ -286,3 +286,37 @@ def test_a_sphere_thrown_in_a_pile_rolls_at_five_sevenths_from_t_star(tmp_path):
         assert np.max(np.abs(run[f"rest{k}.velocity"])) < 1e-13
     arm_com = run["arm.com"]  # gravity pushes the arm onto its stop at 0, where the limit holds it
     assert np.max(np.abs(arm_com - arm_com[0])) < 1e-13 and abs(arm_com[0, 2] - 2.0) < 1e-15
+
+
+def cantilever_xml(links: int, length: float = 0.05) -> str:
+    """A horizontal chain of `links` hinged links along x, each hinge's upper stop at 0 (gravity turns a link down,
+    +y): every stop holds, the chain a cantilever of stops."""
+    body = ""
+    for k in reversed(range(links)):
+        body = (f'<body name="l{k}" pos="{0 if k == 0 else length} 0 {1 if k == 0 else 0}">'
+                f'<joint name="j{k}" type="hinge" axis="0 1 0" limited="true" range="-30 0"/>'
+                f'<geom type="capsule" fromto="0 0 0 {length} 0 0" size="0.01" mass="0.1"/>{body}</body>')
+    return (f'<mujoco><option timestep="0.001"><flag contact="disable"/></option><worldbody>{body}</worldbody>'
+            f'</mujoco>')
+
+
+def test_a_cantilever_of_seventy_stops_holds_on_them(tmp_path):
+    """Seventy hinges in one chain (nv = 70, more than SUPPORT_DOFS), each held by its stop against gravity: every
+    stop's row is taken on its dof's path to the root (the one dof it acts on and its ancestors, up to all seventy),
+    the rows past the supports' room on every dof. Each joint stays on its stop within the projection's tolerance
+    for 0.5 s, so the tip's centre within that tolerance times the sum of its lever arms (1.2e-11 m); a support that
+    missed an ancestor would leave that stop's impulse acting on the wrong dofs, and the chain would sag (gravity
+    alone moves it 5e-6 m in a step)."""
+    from rbody.engine.constraints.dynamics import PROJECTION_TOLERANCE
+
+    links, length = 70, 0.05
+    path = tmp_path / "cantilever.xml"
+    path.write_text(cantilever_xml(links, length))
+    scene = rbody.from_mjcf(path, t_end=0.5)
+    assert scene.multibody.nv == links > SUPPORT_DOFS
+    run = rbody.simulate(scene, dt=1e-3)
+    assert np.max(np.abs(run["qpos"])) <= PROJECTION_TOLERANCE
+    tip = run[f"l{links - 1}.com"]
+    arms = length * (links - 0.5 - np.arange(links))  # each hinge to the tip's centre [m]
+    assert np.max(np.abs(tip - tip[0])) <= PROJECTION_TOLERANCE * arms.sum()
+    assert abs(tip[0, 0] - arms[0]) < 1e-12
